@@ -1,0 +1,169 @@
+//! Axis-aligned bounding boxes, shared by every crate (the spatial crate builds on this type).
+//!
+//! The empty box has `min = +inf`, `max = -inf`, so that growing it by any point gives that
+//! point's box and a union with it is the identity. Transforming a box uses Arvo's method
+//! (J. Arvo, "Transforming Axis-Aligned Bounding Boxes", Graphics Gems, 1990): each output
+//! extent sums the per-axis min/max of the matrix column products, which is exact for the
+//! transformed corners and costs a fraction of transforming all eight.
+
+use glam::{Affine3A, Vec3, Vec3A};
+
+/// An axis-aligned box `[min, max]`; empty when any `min > max`.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Aabb {
+    /// Smallest corner.
+    pub min: Vec3,
+    /// Largest corner.
+    pub max: Vec3,
+}
+
+impl Default for Aabb {
+    fn default() -> Self {
+        Self::EMPTY
+    }
+}
+
+impl Aabb {
+    /// The empty box: contains nothing, and is the identity of [`Aabb::union`].
+    pub const EMPTY: Aabb = Aabb {
+        min: Vec3::INFINITY,
+        max: Vec3::NEG_INFINITY,
+    };
+
+    /// A box from its corners (not reordered).
+    pub const fn new(min: Vec3, max: Vec3) -> Self {
+        Self { min, max }
+    }
+
+    /// The smallest box containing all `points` (empty for no points).
+    pub fn from_points<'a>(points: impl IntoIterator<Item = &'a Vec3>) -> Self {
+        let mut b = Self::EMPTY;
+        for p in points {
+            b.grow(*p);
+        }
+        b
+    }
+
+    /// True when the box contains no point (also when a coordinate is NaN).
+    pub fn is_empty(&self) -> bool {
+        !(self.min.x <= self.max.x && self.min.y <= self.max.y && self.min.z <= self.max.z)
+    }
+
+    /// True when both corners are finite and the box is not empty.
+    pub fn is_finite(&self) -> bool {
+        !self.is_empty() && self.min.is_finite() && self.max.is_finite()
+    }
+
+    /// Grows the box to contain `p`.
+    #[inline]
+    pub fn grow(&mut self, p: Vec3) {
+        self.min = self.min.min(p);
+        self.max = self.max.max(p);
+    }
+
+    /// The smallest box containing both.
+    #[inline]
+    pub fn union(&self, o: &Aabb) -> Aabb {
+        Aabb {
+            min: self.min.min(o.min),
+            max: self.max.max(o.max),
+        }
+    }
+
+    /// Center point (meaningless for the empty box).
+    pub fn center(&self) -> Vec3 {
+        (self.min + self.max) * 0.5
+    }
+
+    /// Size along each axis (zero for the empty box).
+    pub fn extent(&self) -> Vec3 {
+        if self.is_empty() {
+            Vec3::ZERO
+        } else {
+            self.max - self.min
+        }
+    }
+
+    /// Half the surface area (the SAH cost measure); zero for the empty box.
+    pub fn half_area(&self) -> f32 {
+        let e = self.extent();
+        e.x * e.y + e.y * e.z + e.z * e.x
+    }
+
+    /// True when `p` lies inside or on the boundary.
+    pub fn contains_point(&self, p: Vec3) -> bool {
+        p.cmpge(self.min).all() && p.cmple(self.max).all()
+    }
+
+    /// True when `o` lies entirely inside `self`.
+    pub fn contains(&self, o: &Aabb) -> bool {
+        o.min.cmpge(self.min).all() && o.max.cmple(self.max).all()
+    }
+
+    /// True when the two boxes share at least one point.
+    pub fn intersects(&self, o: &Aabb) -> bool {
+        self.min.cmple(o.max).all() && o.min.cmple(self.max).all()
+    }
+
+    /// The eight corners (bit 0 = x, bit 1 = y, bit 2 = z pick `max`).
+    pub fn corners(&self) -> [Vec3; 8] {
+        std::array::from_fn(|i| {
+            Vec3::new(
+                if i & 1 != 0 { self.max.x } else { self.min.x },
+                if i & 2 != 0 { self.max.y } else { self.min.y },
+                if i & 4 != 0 { self.max.z } else { self.min.z },
+            )
+        })
+    }
+
+    /// The box of this box transformed by `m` (Arvo's method); empty stays empty.
+    pub fn transformed(&self, m: &Affine3A) -> Aabb {
+        if self.is_empty() {
+            return Aabb::EMPTY;
+        }
+        let t = m.translation;
+        let (mut lo, mut hi) = (t, t);
+        let cols = [m.matrix3.x_axis, m.matrix3.y_axis, m.matrix3.z_axis];
+        let (mn, mx) = (Vec3A::from(self.min), Vec3A::from(self.max));
+        for (i, c) in cols.iter().enumerate() {
+            let a = *c * mn[i];
+            let b = *c * mx[i];
+            lo += a.min(b);
+            hi += a.max(b);
+        }
+        Aabb {
+            min: lo.into(),
+            max: hi.into(),
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use glam::Quat;
+
+    #[test]
+    fn empty_box_is_union_identity() {
+        let b = Aabb::new(Vec3::ONE, Vec3::splat(2.0));
+        assert!(Aabb::EMPTY.is_empty());
+        assert_eq!(Aabb::EMPTY.union(&b), b);
+        assert!(Aabb::EMPTY.transformed(&Affine3A::IDENTITY).is_empty());
+        let nan = Aabb::new(Vec3::NAN, Vec3::ONE);
+        assert!(nan.is_empty());
+    }
+
+    #[test]
+    fn arvo_equals_eight_corners() {
+        let b = Aabb::new(Vec3::new(-1.0, 0.5, 2.0), Vec3::new(3.0, 1.5, 4.0));
+        let m = Affine3A::from_scale_rotation_translation(
+            Vec3::new(2.0, -0.5, 1.0),
+            Quat::from_euler(glam::EulerRot::XYZ, 0.3, 1.1, -0.7),
+            Vec3::new(5.0, -2.0, 0.25),
+        );
+        let by_corners = Aabb::from_points(b.corners().map(|c| m.transform_point3(c)).iter());
+        let arvo = b.transformed(&m);
+        assert!((arvo.min - by_corners.min).abs().max_element() < 1e-5);
+        assert!((arvo.max - by_corners.max).abs().max_element() < 1e-5);
+    }
+}

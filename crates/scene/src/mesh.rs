@@ -1,0 +1,194 @@
+//! Triangle meshes: vertex arrays and `u32` indices, validated once at construction.
+//!
+//! A mesh lives in the scene's mesh store and is referenced by [`MeshId`](crate::MeshId)
+//! from any number of nodes (instancing): its vertices exist once however often it is drawn.
+
+use glam::{Vec2, Vec3};
+
+use crate::{Aabb, Error, Result};
+
+/// An indexed triangle mesh in its own (local) coordinates.
+///
+/// Fields are read-only after construction so that the cached bounds and counts stay true;
+/// build a new mesh to change geometry.
+#[derive(Debug, Clone)]
+pub struct Mesh {
+    name: String,
+    positions: Vec<Vec3>,
+    normals: Option<Vec<Vec3>>,
+    uvs: Option<Vec<Vec2>>,
+    indices: Vec<u32>,
+    aabb: Aabb,
+    degenerate: usize,
+}
+
+impl Mesh {
+    /// Builds and validates a mesh.
+    ///
+    /// Errors when an index is out of range, a position is NaN or infinite, the index count is
+    /// not a multiple of 3, or normals/UVs do not have one entry per position. Degenerate
+    /// (zero-area) triangles are allowed and counted in [`Mesh::degenerate_triangles`].
+    pub fn new(
+        name: impl Into<String>,
+        positions: Vec<Vec3>,
+        normals: Option<Vec<Vec3>>,
+        uvs: Option<Vec<Vec2>>,
+        indices: Vec<u32>,
+    ) -> Result<Self> {
+        let name = name.into();
+        let bad = |why: String| Error::InvalidMesh {
+            name: name.clone(),
+            why,
+        };
+        if indices.len() % 3 != 0 {
+            return Err(bad(format!(
+                "{} indices is not a multiple of 3",
+                indices.len()
+            )));
+        }
+        if let Some(i) = positions.iter().position(|p| !p.is_finite()) {
+            return Err(bad(format!(
+                "position {i} is not finite: {:?}",
+                positions[i]
+            )));
+        }
+        let n = positions.len();
+        if let Some(k) = indices.iter().position(|&i| i as usize >= n) {
+            return Err(bad(format!(
+                "index {} at slot {k} is out of range for {n} vertices",
+                indices[k]
+            )));
+        }
+        if let Some(nr) = &normals {
+            if nr.len() != n {
+                return Err(bad(format!("{} normals for {n} positions", nr.len())));
+            }
+            if let Some(i) = nr.iter().position(|v| !v.is_finite()) {
+                return Err(bad(format!("normal {i} is not finite")));
+            }
+        }
+        if let Some(uv) = &uvs {
+            if uv.len() != n {
+                return Err(bad(format!("{} UVs for {n} positions", uv.len())));
+            }
+            if let Some(i) = uv.iter().position(|v| !v.is_finite()) {
+                return Err(bad(format!("UV {i} is not finite")));
+            }
+        }
+        // Bounds over referenced vertices only: unreferenced ones must not inflate culling boxes.
+        let mut aabb = Aabb::EMPTY;
+        let mut degenerate = 0;
+        for t in indices.chunks_exact(3) {
+            let [a, b, c] = [
+                positions[t[0] as usize],
+                positions[t[1] as usize],
+                positions[t[2] as usize],
+            ];
+            aabb.grow(a);
+            aabb.grow(b);
+            aabb.grow(c);
+            if (b - a).cross(c - a).length_squared() == 0.0 {
+                degenerate += 1;
+            }
+        }
+        Ok(Self {
+            name,
+            positions,
+            normals,
+            uvs,
+            indices,
+            aabb,
+            degenerate,
+        })
+    }
+
+    /// The mesh's name (from the file, or given by a builder).
+    pub fn name(&self) -> &str {
+        &self.name
+    }
+    /// Vertex positions in local space.
+    pub fn positions(&self) -> &[Vec3] {
+        &self.positions
+    }
+    /// Per-vertex normals, if the mesh has them.
+    pub fn normals(&self) -> Option<&[Vec3]> {
+        self.normals.as_deref()
+    }
+    /// Per-vertex texture coordinates (set 0), if the mesh has them.
+    pub fn uvs(&self) -> Option<&[Vec2]> {
+        self.uvs.as_deref()
+    }
+    /// Triangle indices, three per triangle, counter-clockwise front faces.
+    pub fn indices(&self) -> &[u32] {
+        &self.indices
+    }
+    /// Number of triangles.
+    pub fn triangle_count(&self) -> usize {
+        self.indices.len() / 3
+    }
+    /// The three vertex indices of triangle `t`.
+    #[inline]
+    pub fn triangle(&self, t: usize) -> [u32; 3] {
+        [
+            self.indices[3 * t],
+            self.indices[3 * t + 1],
+            self.indices[3 * t + 2],
+        ]
+    }
+    /// The three local-space corners of triangle `t`.
+    #[inline]
+    pub fn triangle_positions(&self, t: usize) -> [Vec3; 3] {
+        self.triangle(t).map(|i| self.positions[i as usize])
+    }
+    /// Local-space bounds of the referenced vertices.
+    pub fn aabb(&self) -> Aabb {
+        self.aabb
+    }
+    /// How many triangles have zero area.
+    pub fn degenerate_triangles(&self) -> usize {
+        self.degenerate
+    }
+    /// Bytes of vertex data (positions, normals, UVs) held by this mesh.
+    pub fn vertex_bytes(&self) -> usize {
+        let n = self.positions.len();
+        n * 12
+            + self.normals.as_ref().map_or(0, |_| n * 12)
+            + self.uvs.as_ref().map_or(0, |_| n * 8)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn tri() -> Vec<Vec3> {
+        vec![Vec3::ZERO, Vec3::X, Vec3::Y]
+    }
+
+    #[test]
+    fn validates_indices_and_positions() {
+        assert!(Mesh::new("ok", tri(), None, None, vec![0, 1, 2]).is_ok());
+        let e = Mesh::new("m", tri(), None, None, vec![0, 1, 3])
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("'m'") && e.contains("out of range"), "{e}");
+        let e = Mesh::new("m", tri(), None, None, vec![0, 1])
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("multiple of 3"), "{e}");
+        let mut p = tri();
+        p[1].y = f32::NAN;
+        assert!(Mesh::new("m", p, None, None, vec![0, 1, 2]).is_err());
+        assert!(Mesh::new("m", tri(), Some(vec![Vec3::Z]), None, vec![0, 1, 2]).is_err());
+    }
+
+    #[test]
+    fn counts_degenerate_triangles_and_ignores_unreferenced_vertices() {
+        let mut p = tri();
+        p.push(Vec3::splat(100.0)); // unreferenced
+        let m = Mesh::new("m", p, None, None, vec![0, 1, 2, 0, 0, 1]).unwrap();
+        assert_eq!(m.degenerate_triangles(), 1);
+        assert_eq!(m.triangle_count(), 2);
+        assert_eq!(m.aabb().max, Vec3::new(1.0, 1.0, 0.0));
+    }
+}

@@ -1,0 +1,130 @@
+//! Local transforms: translation, unit-quaternion rotation and non-uniform scale.
+//!
+//! A node stores its local transform as an `Affine3A` (`parent_from_local`), so a matrix with
+//! shear set from a file is kept exactly; [`Transform`] is the TRS way to make one.
+
+use glam::{Affine3A, Mat4, Quat, Vec3};
+
+use crate::{Error, Result};
+
+/// Translation, rotation and scale, applied in the order scale, rotate, translate.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Transform {
+    /// Translation.
+    pub translation: Vec3,
+    /// Rotation; normalized when converted to a matrix.
+    pub rotation: Quat,
+    /// Per-axis scale.
+    pub scale: Vec3,
+}
+
+impl Default for Transform {
+    fn default() -> Self {
+        Self::IDENTITY
+    }
+}
+
+impl Transform {
+    /// No translation, rotation or scale.
+    pub const IDENTITY: Transform = Transform {
+        translation: Vec3::ZERO,
+        rotation: Quat::IDENTITY,
+        scale: Vec3::ONE,
+    };
+
+    /// A pure translation.
+    pub fn from_translation(t: Vec3) -> Self {
+        Self {
+            translation: t,
+            ..Self::IDENTITY
+        }
+    }
+    /// A pure rotation.
+    pub fn from_rotation(r: Quat) -> Self {
+        Self {
+            rotation: r,
+            ..Self::IDENTITY
+        }
+    }
+    /// A pure scale.
+    pub fn from_scale(s: Vec3) -> Self {
+        Self {
+            scale: s,
+            ..Self::IDENTITY
+        }
+    }
+    /// Builder-style translation.
+    pub fn with_translation(mut self, t: Vec3) -> Self {
+        self.translation = t;
+        self
+    }
+    /// Builder-style rotation.
+    pub fn with_rotation(mut self, r: Quat) -> Self {
+        self.rotation = r;
+        self
+    }
+    /// Builder-style scale.
+    pub fn with_scale(mut self, s: Vec3) -> Self {
+        self.scale = s;
+        self
+    }
+
+    /// The matrix `T * R * S`; errors on NaN/inf components or a zero quaternion.
+    pub fn to_affine(&self, what: &str) -> Result<Affine3A> {
+        let bad = |why: &str| Error::InvalidTransform {
+            what: what.to_string(),
+            why: why.to_string(),
+        };
+        if !self.translation.is_finite() || !self.scale.is_finite() || !self.rotation.is_finite() {
+            return Err(bad("a component is NaN or infinite"));
+        }
+        let len = self.rotation.length();
+        if len < 1e-6 {
+            return Err(bad("rotation quaternion has zero length"));
+        }
+        Ok(Affine3A::from_scale_rotation_translation(
+            self.scale,
+            self.rotation / len,
+            self.translation,
+        ))
+    }
+
+    /// Decomposes an affine matrix (exact when it has no shear).
+    pub fn from_affine(m: &Affine3A) -> Self {
+        let (scale, rotation, translation) = m.to_scale_rotation_translation();
+        Self {
+            translation,
+            rotation,
+            scale,
+        }
+    }
+}
+
+/// Checks a matrix given by a caller or a file: finite entries and an affine last row.
+pub fn validate_affine(m: &Affine3A, what: &str) -> Result<()> {
+    if !m.is_finite() {
+        return Err(Error::InvalidTransform {
+            what: what.into(),
+            why: "matrix has NaN or infinite entries".into(),
+        });
+    }
+    Ok(())
+}
+
+/// Converts a 4x4 matrix from a file into an affine one; errors when its last row is not (0,0,0,1).
+pub fn affine_from_mat4(m: &Mat4, what: &str) -> Result<Affine3A> {
+    let r = m.row(3);
+    if !m.is_finite() {
+        return Err(Error::InvalidTransform {
+            what: what.into(),
+            why: "matrix has NaN or infinite entries".into(),
+        });
+    }
+    if (r - glam::Vec4::W).abs().max_element() > 1e-6 {
+        return Err(Error::InvalidTransform {
+            what: what.into(),
+            why: format!("last row {r} is not (0, 0, 0, 1)"),
+        });
+    }
+    Ok(Affine3A::from_mat4(*m))
+}

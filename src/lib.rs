@@ -1,0 +1,1 @@
+pub use sightline_scene as scene;
