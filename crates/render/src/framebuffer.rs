@@ -1,0 +1,99 @@
+//! The framebuffer: color, depth and triangle-ID planes of one size, row 0 at the top.
+//!
+//! Depth holds window z in [0, 1] (cleared to 1.0, smaller is nearer, test LESS); the ID
+//! plane holds 0 for background and otherwise `1 + global triangle index` in the flattened
+//! scene order (see [`triangle_id`]). Color, depth and ID are written together on a passed
+//! depth test.
+
+use crate::{Error, Result};
+
+/// Largest accepted side length.
+pub const MAX_SIZE: u32 = 8192;
+
+/// Color, depth and triangle ID per pixel, plus an optional depth-test counter.
+#[derive(Debug, Clone)]
+pub struct Framebuffer {
+    width: u32,
+    height: u32,
+    /// RGBA8 per pixel, row-major, row 0 at the top.
+    pub color: Vec<[u8; 4]>,
+    /// Window depth per pixel.
+    pub depth: Vec<f32>,
+    /// Triangle ID per pixel (0 = background).
+    pub ids: Vec<u32>,
+    /// Depth tests per pixel (depth complexity), when counting is on.
+    pub depth_tests: Option<Vec<u32>>,
+}
+
+impl Framebuffer {
+    /// A cleared framebuffer; errors on a zero or too large size.
+    pub fn new(width: u32, height: u32) -> Result<Self> {
+        if width == 0 || height == 0 || width > MAX_SIZE || height > MAX_SIZE {
+            return Err(Error::InvalidSize { width, height });
+        }
+        let n = width as usize * height as usize;
+        Ok(Self {
+            width,
+            height,
+            color: vec![[0, 0, 0, 255]; n],
+            depth: vec![1.0; n],
+            ids: vec![0; n],
+            depth_tests: None,
+        })
+    }
+
+    /// Width in pixels.
+    pub fn width(&self) -> u32 {
+        self.width
+    }
+    /// Height in pixels.
+    pub fn height(&self) -> u32 {
+        self.height
+    }
+    /// Number of pixels.
+    pub fn len(&self) -> usize {
+        self.ids.len()
+    }
+    /// Always false: a framebuffer has at least one pixel.
+    pub fn is_empty(&self) -> bool {
+        false
+    }
+    /// Index of pixel (x, y) in the planes.
+    #[inline]
+    pub fn index(&self, x: u32, y: u32) -> usize {
+        y as usize * self.width as usize + x as usize
+    }
+    /// Turns per-pixel depth-test counting on or off (off by default: it costs a write per test).
+    pub fn count_depth_tests(&mut self, on: bool) {
+        self.depth_tests = on.then(|| vec![0; self.len()]);
+    }
+    /// Clears color to `background`, depth to 1.0, IDs to 0 and the counters to 0.
+    pub fn clear(&mut self, background: [u8; 4]) {
+        self.color.fill(background);
+        self.depth.fill(1.0);
+        self.ids.fill(0);
+        if let Some(c) = &mut self.depth_tests {
+            c.fill(0);
+        }
+    }
+}
+
+/// The ID a triangle writes: 1 + its index in the flattened scene order (0 is background).
+#[inline]
+pub fn triangle_id(instance_first_triangle: u32, triangle: u32) -> u32 {
+    instance_first_triangle + triangle + 1
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn sizes_are_checked() {
+        assert!(Framebuffer::new(0, 10).is_err());
+        assert!(Framebuffer::new(10, 0).is_err());
+        assert!(Framebuffer::new(8193, 1).is_err());
+        let f = Framebuffer::new(1, 1).unwrap();
+        assert_eq!((f.len(), f.depth[0], f.ids[0]), (1, 1.0, 0));
+    }
+}
