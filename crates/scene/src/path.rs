@@ -1,1 +1,289 @@
-//! TODO
+//! Camera paths: a list of look-at keys, serialized as the JSON the references in the anchors
+//! read (`[{"eye":[x,y,z],"target":[x,y,z],"up":[x,y,z],"fovy_deg":f,"near":f,"far":f}, …]`),
+//! and the two paths through the city: a street walk at eye height and a flight above roofs.
+
+use std::path::Path;
+
+use glam::Vec3;
+use serde::{Deserialize, Serialize};
+
+use crate::builders::CityLayout;
+use crate::rng::Rng;
+use crate::{Aabb, Camera, Error, Result};
+
+/// Eye height of the street walk.
+pub const EYE_HEIGHT: f32 = 1.7;
+
+/// One camera of a path.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct CameraKey {
+    /// Eye position.
+    pub eye: [f32; 3],
+    /// Point looked at.
+    pub target: [f32; 3],
+    /// Approximate up direction.
+    pub up: [f32; 3],
+    /// Vertical field of view in degrees.
+    pub fovy_deg: f32,
+    /// Near plane distance.
+    pub near: f32,
+    /// Far plane distance.
+    pub far: f32,
+}
+
+impl CameraKey {
+    /// The perspective camera of this key for a viewport of the given aspect (width / height).
+    pub fn camera(&self, aspect: f32) -> Result<Camera> {
+        Camera::perspective_look_at(
+            Vec3::from(self.eye),
+            Vec3::from(self.target),
+            Vec3::from(self.up),
+            self.fovy_deg,
+            aspect,
+            self.near,
+            self.far,
+        )
+    }
+}
+
+/// Reads a camera path JSON file.
+pub fn read_path(path: &Path) -> Result<Vec<CameraKey>> {
+    let text = std::fs::read_to_string(path).map_err(|e| Error::load(path, e.to_string()))?;
+    let keys: Vec<CameraKey> = serde_json::from_str(&text)
+        .map_err(|e| Error::load(path, format!("not a camera path: {e}")))?;
+    if keys.is_empty() {
+        return Err(Error::load(path, "camera path has no frames"));
+    }
+    Ok(keys)
+}
+
+/// Writes a camera path JSON file.
+pub fn write_path(path: &Path, keys: &[CameraKey]) -> Result<()> {
+    let text = serde_json::to_string_pretty(keys).map_err(|e| Error::load(path, e.to_string()))?;
+    std::fs::write(path, text).map_err(|source| Error::Io {
+        path: path.into(),
+        source,
+    })
+}
+
+/// A polyline sampled by arc length.
+struct Polyline(Vec<Vec3>);
+
+impl Polyline {
+    fn length(&self) -> f32 {
+        self.0.windows(2).map(|w| w[0].distance(w[1])).sum()
+    }
+    /// The point at arc length `s` (clamped to the ends; beyond the end it continues along
+    /// the last segment).
+    fn at(&self, mut s: f32) -> Vec3 {
+        for w in self.0.windows(2) {
+            let l = w[0].distance(w[1]);
+            if s <= l || l == 0.0 {
+                return w[0].lerp(w[1], if l > 0.0 { s / l } else { 0.0 });
+            }
+            s -= l;
+        }
+        let n = self.0.len();
+        let dir = (self.0[n - 1] - self.0[n - 2]).normalize_or_zero();
+        self.0[n - 1] + dir * s
+    }
+}
+
+fn sample(
+    line: &Polyline,
+    frames: usize,
+    lookahead: f32,
+    key: impl Fn(Vec3, Vec3) -> CameraKey,
+) -> Vec<CameraKey> {
+    let len = line.length();
+    let frames = frames.max(1);
+    (0..frames)
+        .map(|i| {
+            let s = if frames == 1 {
+                0.0
+            } else {
+                len * i as f32 / (frames - 1) as f32
+            };
+            key(line.at(s), line.at(s + lookahead))
+        })
+        .collect()
+}
+
+impl CityLayout {
+    /// A walk along the street center lines at eye height, looking horizontally ahead;
+    /// it turns at intersections and stays off the outermost streets where it can.
+    pub fn street_path(&self, frames: usize, seed: u64) -> Vec<CameraKey> {
+        let b = self.blocks as i32;
+        let (lo, hi) = if b >= 4 { (1, b - 1) } else { (0, b) };
+        let mut rng = Rng::new(seed);
+        let mut at = [(b / 2).clamp(lo, hi), lo];
+        let mut dir = [0i32, 1];
+        let mut pts = vec![at];
+        let mut walked = 0;
+        while walked < 10.max(b) {
+            // Go 1–3 blocks straight if possible, then turn left or right.
+            let want = 1 + rng.below(3) as i32;
+            let mut steps = 0;
+            while steps < want {
+                let next = [at[0] + dir[0], at[1] + dir[1]];
+                if next[0] < lo || next[0] > hi || next[1] < lo || next[1] > hi {
+                    break;
+                }
+                at = next;
+                steps += 1;
+            }
+            walked += steps.max(1);
+            pts.push(at);
+            let left = [-dir[1], dir[0]];
+            let right = [dir[1], -dir[0]];
+            let ok = |d: [i32; 2]| {
+                let n = [at[0] + d[0], at[1] + d[1]];
+                n[0] >= lo && n[0] <= hi && n[1] >= lo && n[1] <= hi
+            };
+            dir = match (ok(left), ok(right)) {
+                (true, true) => {
+                    if rng.below(2) == 0 {
+                        left
+                    } else {
+                        right
+                    }
+                }
+                (true, false) => left,
+                (false, true) => right,
+                _ => [-dir[0], -dir[1]],
+            };
+        }
+        pts.dedup();
+        let to_world = |p: [i32; 2]| {
+            Vec3::new(
+                self.street(p[0] as u32),
+                EYE_HEIGHT,
+                self.street(p[1] as u32),
+            )
+        };
+        let mut line = Polyline(pts.into_iter().map(to_world).collect());
+        if line.0.len() < 2 {
+            let p = line.0[0];
+            line.0.push(p + Vec3::Z * 52.0);
+        }
+        let far = (self.bounds().extent().length() * 1.5).max(100.0);
+        // Lerp can turn 1.7 into 1.6999999: pin the height so the gaze is exactly horizontal.
+        sample(&line, frames, 20.0, |eye, target| CameraKey {
+            eye: [eye.x, EYE_HEIGHT, eye.z],
+            target: [target.x, EYE_HEIGHT, target.z],
+            up: [0.0, 1.0, 0.0],
+            fovy_deg: 60.0,
+            near: 0.1,
+            far,
+        })
+    }
+
+    /// A flight above the roofs: a circle around the city center at 1.5× the tallest
+    /// building, looking ahead and down.
+    pub fn aerial_path(&self, frames: usize) -> Vec<CameraKey> {
+        aerial(&self.bounds(), self.max_height * 1.5 + 20.0, frames)
+    }
+}
+
+fn aerial(bounds: &Aabb, height: f32, frames: usize) -> Vec<CameraKey> {
+    let c = bounds.center();
+    let r = bounds.extent().x.max(bounds.extent().z) * 0.3;
+    let n = 96;
+    let line = Polyline(
+        (0..=n)
+            .map(|i| {
+                let a = std::f32::consts::TAU * i as f32 / n as f32;
+                Vec3::new(c.x + r * a.cos(), bounds.min.y + height, c.z + r * a.sin())
+            })
+            .collect(),
+    );
+    let far = (bounds.extent().length() * 2.0).max(100.0);
+    sample(&line, frames, r * 0.8, |eye, ahead| CameraKey {
+        eye: eye.into(),
+        target: [ahead.x, bounds.min.y, ahead.z],
+        up: [0.0, 1.0, 0.0],
+        fovy_deg: 60.0,
+        near: 1.0,
+        far,
+    })
+}
+
+/// Paths for a scene that is not a built-in city, from its bounds: `street` crosses the box
+/// at 5% of its height looking horizontally; `aerial` circles above it.
+pub fn generic_path(bounds: &Aabb, street: bool, frames: usize) -> Result<Vec<CameraKey>> {
+    if !bounds.is_finite() {
+        return Err(Error::InvalidParams(
+            "cannot make a camera path for an empty scene".into(),
+        ));
+    }
+    let e = bounds.extent().max(Vec3::splat(1e-3));
+    if !street {
+        return Ok(aerial(bounds, e.y * 1.5 + e.length() * 0.2, frames));
+    }
+    let y = bounds.min.y + e.y * 0.05;
+    let c = bounds.center();
+    let line = Polyline(vec![
+        Vec3::new(c.x, y, bounds.min.z - e.z * 0.1),
+        Vec3::new(c.x, y, bounds.max.z),
+    ]);
+    let far = e.length() * 2.0;
+    Ok(sample(&line, frames, e.z * 0.1, |eye, target| CameraKey {
+        eye: eye.into(),
+        target: target.into(),
+        up: [0.0, 1.0, 0.0],
+        fovy_deg: 60.0,
+        near: (far * 1e-5).max(1e-3),
+        far,
+    }))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::builders::{city, CityParams};
+
+    #[test]
+    fn street_walk_stays_on_streets_and_looks_horizontally() {
+        let c = city(&CityParams::for_triangles(100_000)).unwrap();
+        let keys = c.layout.street_path(200, 7);
+        assert_eq!(keys.len(), 200);
+        let buildings: Vec<Aabb> = c
+            .scene
+            .instances()
+            .iter()
+            .map(|i| i.world_aabb)
+            .filter(|b| b.max.y > 0.0)
+            .collect();
+        for k in &keys {
+            let eye = Vec3::from(k.eye);
+            assert_eq!(k.eye[1], EYE_HEIGHT);
+            assert_eq!(
+                k.target[1], EYE_HEIGHT,
+                "street cameras look exactly horizontally"
+            );
+            assert!(
+                buildings.iter().all(|b| !b.contains_point(eye)),
+                "eye {eye} inside a building"
+            );
+            k.camera(16.0 / 9.0).unwrap();
+        }
+    }
+
+    #[test]
+    fn json_round_trip() {
+        let c = city(&CityParams::for_triangles(10_000)).unwrap();
+        let keys = c.layout.aerial_path(5);
+        let dir = std::env::temp_dir().join(format!("sightline-path-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let f = dir.join("aerial.json");
+        write_path(&f, &keys).unwrap();
+        assert_eq!(read_path(&f).unwrap(), keys);
+        std::fs::write(&f, "[{\"eye\": 1}]").unwrap();
+        let e = read_path(&f).unwrap_err().to_string();
+        assert!(
+            e.contains("aerial.json") && e.contains("camera path"),
+            "{e}"
+        );
+        std::fs::remove_dir_all(&dir).ok();
+    }
+}

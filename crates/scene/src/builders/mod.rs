@@ -1,1 +1,14 @@
-//! builders
+//! Builders that make large scenes in code, deterministically from a seed.
+//!
+//! * [`city`]: a grid of blocks and streets, buildings with window-subdivided facades,
+//!   instanced where shapes repeat, a tiled ground; reaches 10^6–10^7 triangles.
+//! * [`boxfield`]: 83,334 random boxes on a plane, the occlusion benchmark of record.
+//! * [`scatter`]: one mesh instanced N times with random transforms.
+
+mod boxfield;
+mod city;
+mod scatter;
+
+pub use boxfield::{boxfield, boxfield_queries, BoxfieldParams};
+pub use city::{city, City, CityLayout, CityParams};
+pub use scatter::{scatter, ScatterParams};
