@@ -1,5 +1,85 @@
-//! Placeholder: replaced by the real benchmark.
-use criterion::{criterion_group, criterion_main, Criterion};
-fn placeholder(_c: &mut Criterion) {}
-criterion_group!(benches, placeholder);
+//! Scene benchmarks: world-transform propagation over 10^6 nodes (flat and deep), full and
+//! after changing 1% of the nodes, and building the 10^6-triangle city.
+
+use criterion::{criterion_group, criterion_main, BatchSize, Criterion};
+use glam::Vec3;
+use sightline_scene::builders::{city, CityParams};
+use sightline_scene::rng::Rng;
+use sightline_scene::{NodeDesc, NodeId, Scene, Transform};
+
+const NODES: usize = 1_000_000;
+
+/// One root with 10^6 children.
+fn flat() -> (Scene, Vec<NodeId>) {
+    let mut s = Scene::new();
+    let root = s.add_node(None, NodeDesc::new("root")).unwrap();
+    let ids = (0..NODES)
+        .map(|i| s.add_node(Some(root), NodeDesc::new("n").transform(Transform::from_translation(Vec3::X * i as f32))).unwrap())
+        .collect();
+    s.update_transforms();
+    (s, ids)
+}
+
+/// 1000 chains of 1000 nodes.
+fn deep() -> (Scene, Vec<NodeId>) {
+    let mut s = Scene::new();
+    let mut ids = Vec::with_capacity(NODES);
+    for _ in 0..1000 {
+        let mut parent = None;
+        for _ in 0..1000 {
+            let id = s.add_node(parent, NodeDesc::new("n").transform(Transform::from_translation(Vec3::Y * 0.01))).unwrap();
+            ids.push(id);
+            parent = Some(id);
+        }
+    }
+    s.update_transforms();
+    (s, ids)
+}
+
+fn propagate(c: &mut Criterion) {
+    let mut g = c.benchmark_group("propagate_1e6");
+    g.sample_size(10);
+    for (name, (scene, ids)) in [("flat", flat()), ("deep", deep())] {
+        let roots: Vec<NodeId> = scene.roots().to_vec();
+        let mut rng = Rng::new(5);
+        let some: Vec<NodeId> = (0..NODES / 100).map(|_| ids[rng.below(ids.len() as u32) as usize]).collect();
+        g.bench_function(format!("{name}/full"), |b| {
+            b.iter_batched_ref(
+                || {
+                    let mut s = scene.clone();
+                    for &r in &roots {
+                        s.set_local_transform(r, Transform::from_translation(Vec3::Z)).unwrap();
+                    }
+                    s
+                },
+                |s| s.update_transforms(),
+                BatchSize::LargeInput,
+            )
+        });
+        g.bench_function(format!("{name}/one_percent_changed"), |b| {
+            b.iter_batched_ref(
+                || {
+                    let mut s = scene.clone();
+                    for &n in &some {
+                        s.set_local_transform(n, Transform::from_translation(Vec3::ONE)).unwrap();
+                    }
+                    s
+                },
+                |s| s.update_transforms(),
+                BatchSize::LargeInput,
+            )
+        });
+    }
+    g.finish();
+}
+
+fn build_city(c: &mut Criterion) {
+    let mut g = c.benchmark_group("city");
+    g.sample_size(10);
+    let p = CityParams::for_triangles(1_000_000);
+    g.bench_function("build_1e6", |b| b.iter(|| city(&p).unwrap()));
+    g.finish();
+}
+
+criterion_group!(benches, propagate, build_city);
 criterion_main!(benches);

@@ -1,0 +1,87 @@
+//! Command-line parsing (clap) and dispatch. The commands and flags scripts rely on are
+//! listed in CLI.md of the shared design; keep their names.
+
+mod info;
+mod path;
+
+use std::path::PathBuf;
+
+use anyhow::Result;
+use clap::{Parser, Subcommand};
+use sightline::SceneSpec;
+
+/// Decide what is visible in large 3D scenes and draw it on the CPU.
+#[derive(Debug, Parser)]
+#[command(name = "sightline", version, about, long_about = None)]
+pub struct Cli {
+    #[command(subcommand)]
+    command: Command,
+}
+
+/// The scene option shared by every command.
+#[derive(Debug, Clone, clap::Args)]
+pub struct SceneArg {
+    /// Scene: a .gltf/.glb/.obj file, `city` (default, ≥ 10^6 triangles), `city:TRIS`, or `boxfield`
+    #[arg(long, default_value = "city", value_name = "SCENE")]
+    pub scene: SceneSpec,
+}
+
+#[derive(Debug, Subcommand)]
+enum Command {
+    /// Print scene statistics
+    Info {
+        #[command(flatten)]
+        scene: SceneArg,
+        /// Print one JSON object instead of a table
+        #[arg(long)]
+        json: bool,
+    },
+    /// Write the flattened world-space scene as one OBJ (triangle order = triangle IDs)
+    ExportObj {
+        #[command(flatten)]
+        scene: SceneArg,
+        /// Output file
+        #[arg(long, value_name = "FILE")]
+        out: PathBuf,
+    },
+    /// Write a camera path as JSON
+    Path {
+        #[command(flatten)]
+        scene: SceneArg,
+        /// Street walk at eye height, or a flight above the roofs
+        #[arg(long, value_enum, default_value = "street")]
+        kind: path::PathKind,
+        /// Number of frames
+        #[arg(long, default_value_t = 120)]
+        frames: usize,
+        /// Output file
+        #[arg(long, value_name = "FILE")]
+        out: PathBuf,
+    },
+}
+
+/// Runs one command.
+pub fn run(cli: Cli) -> Result<()> {
+    match cli.command {
+        Command::Info { scene, json } => info::run(&scene.scene, json),
+        Command::ExportObj { scene, out } => path::export_obj(&scene.scene, &out),
+        Command::Path { scene, kind, frames, out } => path::run(&scene.scene, kind, frames, &out),
+    }
+}
+
+/// Loads a scene with a spinner on the terminal.
+pub fn load_scene(spec: &SceneSpec) -> Result<sightline::LoadedScene> {
+    let bar = indicatif::ProgressBar::new_spinner().with_message(format!("loading {}", describe(spec)));
+    bar.enable_steady_tick(std::time::Duration::from_millis(100));
+    let s = spec.load();
+    bar.finish_and_clear();
+    Ok(s?)
+}
+
+fn describe(spec: &SceneSpec) -> String {
+    match spec {
+        SceneSpec::City(n) => format!("city ({n} triangles)"),
+        SceneSpec::Boxfield => "boxfield".into(),
+        SceneSpec::File(p) => p.display().to_string(),
+    }
+}

@@ -1,0 +1,32 @@
+//! `sightline path` and `sightline export-obj`.
+
+use std::path::Path;
+
+use anyhow::{Context, Result};
+use sightline::SceneSpec;
+
+/// Which camera path.
+#[derive(Debug, Clone, Copy, clap::ValueEnum)]
+pub enum PathKind {
+    /// A walk at eye height (1.7) along the streets
+    Street,
+    /// A flight above the roofs
+    Aerial,
+}
+
+pub fn run(spec: &SceneSpec, kind: PathKind, frames: usize, out: &Path) -> Result<()> {
+    anyhow::ensure!(frames > 0, "--frames must be at least 1");
+    let loaded = super::load_scene(spec)?;
+    let keys = loaded.path(matches!(kind, PathKind::Street), frames)?;
+    sightline::scene::path::write_path(out, &keys)?;
+    println!("wrote {} frames to {}", keys.len(), out.display());
+    Ok(())
+}
+
+pub fn export_obj(spec: &SceneSpec, out: &Path) -> Result<()> {
+    let loaded = super::load_scene(spec)?;
+    sightline::scene::export::export_obj(&loaded.scene, out).with_context(|| format!("exporting to {}", out.display()))?;
+    let s = loaded.scene.stats();
+    println!("wrote {} triangles to {}", s.triangles, out.display());
+    Ok(())
+}
