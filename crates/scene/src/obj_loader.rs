@@ -1,6 +1,227 @@
-//! TODO
-use crate::{Error, Result, Scene};
-/// Loads OBJ.
-pub fn load_obj(path: &std::path::Path) -> Result<Scene> {
-    Err(Error::load(path, "OBJ loading not implemented yet"))
+//! Wavefront OBJ loader (via `tobj`), with `.mtl` materials.
+//!
+//! * Faces are triangulated as fans (a quad `a b c d` gives `a b c`, `a c d`), in file order.
+//!   Points and lines (`f` with one or two vertices, `l`) are ignored.
+//! * The scene has one root node named after the file; each object or group (`o`/`g`, and a
+//!   `usemtl` change inside one, which `tobj` splits off) becomes a child node with its own mesh.
+//!   A file without `o`/`g` lines and without material changes loads as ONE mesh whose
+//!   triangles are in the file's face order — so a file written by
+//!   [`export_obj`](crate::export::export_obj) keeps its triangle IDs.
+//! * Each mesh holds the vertices its faces use (in first-use order); unreferenced vertices
+//!   are fine. Normals and texture coordinates are kept when every vertex of the mesh has one;
+//!   `vt` v is flipped (`1 − v`) to this crate's top-row-is-v-0 convention.
+//! * `.mtl`: `Kd` becomes the base color, `d` its alpha, `map_Kd` the base color texture
+//!   (PNG/JPEG). A missing or unreadable `.mtl` or a missing texture
+//!   is a warning in [`Scene::warnings`]; the geometry loads with the default material.
+//!
+//! Errors ([`Error::Load`], naming the file): file not found, malformed lines (the `tobj`
+//! error, e.g. "face parse error"), face indices out of range, NaN or infinite coordinates.
+
+use std::cell::RefCell;
+use std::collections::HashMap;
+use std::io::BufRead;
+use std::path::Path;
+use std::sync::Arc;
+
+use glam::{Vec2, Vec3};
+
+use crate::{Error, Material, Mesh, NodeDesc, Result, Scene};
+
+/// Loads an OBJ file (and the `.mtl` files it names, relative to its folder).
+///
+/// The returned scene's world transforms are not yet propagated (call
+/// [`Scene::update_transforms`], or use [`crate::load`], which does).
+pub fn load_obj(path: &Path) -> Result<Scene> {
+    let file = std::fs::File::open(path).map_err(|e| {
+        Error::load(
+            path,
+            if e.kind() == std::io::ErrorKind::NotFound {
+                "cannot open: file not found".to_string()
+            } else {
+                format!("cannot open: {e}")
+            },
+        )
+    })?;
+    load_obj_reader(std::io::BufReader::with_capacity(1 << 16, file), path)
+}
+
+/// Loads OBJ text from a reader. `path` names the file in messages and the root node, and its
+/// folder resolves `mtllib` references.
+pub fn load_obj_reader(mut reader: impl BufRead, path: &Path) -> Result<Scene> {
+    // `..Default::default()` keeps this compiling if another crate turns on tobj's
+    // `merging`/`reordering` features (which add fields).
+    #[allow(clippy::needless_update)]
+    let options = tobj::LoadOptions {
+        triangulate: true,
+        single_index: true,
+        ignore_points: true,
+        ignore_lines: true,
+        ..Default::default()
+    };
+    let dir = path.parent().unwrap_or(Path::new(""));
+    let warnings = RefCell::new(Vec::new());
+    let mtl_loader = |mtl: &Path| {
+        let file = dir.join(mtl);
+        match std::fs::read_to_string(&file) {
+            Ok(text) => {
+                let mats = parse_mtl(&text, &mtl.display().to_string(), &mut warnings.borrow_mut());
+                // tobj's map type is its own hasher's; let `collect` name it.
+                let map = mats.iter().enumerate().map(|(i, m)| (m.name.clone(), i)).collect();
+                Ok((mats, map))
+            }
+            Err(e) => {
+                warnings.borrow_mut().push(format!(
+                    "material library '{}': {}; using the default material",
+                    mtl.display(),
+                    if e.kind() == std::io::ErrorKind::NotFound { "file not found".to_string() } else { e.to_string() }
+                ));
+                Err(tobj::LoadError::OpenFileFailed)
+            }
+        }
+    };
+    // tobj does unchecked index arithmetic on some malformed faces (an overflow panic in debug
+    // builds); turn any panic inside it into an error instead of unwinding through the caller.
+    let result = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
+        tobj::load_obj_buf(&mut reader, &options, mtl_loader)
+    }));
+    let (models, materials) = match result {
+        Ok(Ok(loaded)) => loaded,
+        Ok(Err(e)) => return Err(Error::load(path, format!("malformed OBJ: {e}"))),
+        Err(_) => return Err(Error::load(path, "malformed OBJ: the parser failed on an invalid face index")),
+    };
+    let materials = materials.unwrap_or_default();
+    let mut scene = Scene::new();
+    scene.warnings = warnings.into_inner();
+    build_scene(&mut scene, models, &materials, dir, path)?;
+    for w in &mut scene.warnings {
+        *w = format!("{}: {w}", path.display());
+    }
+    Ok(scene)
+}
+
+fn build_scene(
+    scene: &mut Scene,
+    models: Vec<tobj::Model>,
+    materials: &[tobj::Material],
+    dir: &Path,
+    path: &Path,
+) -> Result<()> {
+    let root_name = path.file_name().map_or_else(|| "obj".to_string(), |n| n.to_string_lossy().into_owned());
+    let root = scene.add_node(None, NodeDesc::new(root_name))?;
+    let mut material_ids = HashMap::new();
+    for model in models {
+        let m = model.mesh;
+        if m.indices.is_empty() {
+            continue;
+        }
+        let positions: Vec<Vec3> = m.positions.chunks_exact(3).map(|c| Vec3::new(c[0], c[1], c[2])).collect();
+        let n = positions.len();
+        let normals = (m.normals.len() == 3 * n)
+            .then(|| m.normals.chunks_exact(3).map(|c| Vec3::new(c[0], c[1], c[2])).collect());
+        let uvs = (m.texcoords.len() == 2 * n)
+            .then(|| m.texcoords.chunks_exact(2).map(|c| Vec2::new(c[0], 1.0 - c[1])).collect());
+        let mesh = Mesh::new(model.name.clone(), positions, normals, uvs, m.indices)
+            .map_err(|e| Error::load(path, format!("object '{}': {e}", model.name)))?;
+        let mesh = scene.add_mesh(mesh);
+        let mut desc = NodeDesc::new(model.name).mesh(mesh);
+        if let Some(mi) = m.material_id {
+            if let Some(mat) = materials.get(mi) {
+                let id = *material_ids.entry(mi).or_insert_with(|| {
+                    let converted = convert_material(mat, dir, &mut scene.warnings);
+                    scene.add_material(converted)
+                });
+                desc.material = Some(id);
+            }
+        }
+        scene.add_node(Some(root), desc)?;
+    }
+    Ok(())
+}
+
+fn convert_material(m: &tobj::Material, dir: &Path, warnings: &mut Vec<String>) -> Material {
+    let mut out = Material { name: m.name.clone(), ..Material::default() };
+    if let Some(kd) = m.diffuse {
+        out.base_color = [kd[0], kd[1], kd[2], m.dissolve.unwrap_or(1.0)];
+    }
+    if let Some(tex) = &m.diffuse_texture {
+        let decoded = std::fs::read(dir.join(tex))
+            .map_err(|e| {
+                if e.kind() == std::io::ErrorKind::NotFound {
+                    "file not found".to_string()
+                } else {
+                    e.to_string()
+                }
+            })
+            .and_then(|bytes| crate::gltf_loader::decode_texture(&bytes));
+        match decoded {
+            Ok(t) => out.base_color_texture = Some(Arc::new(t)),
+            Err(e) => {
+                warnings.push(format!("material '{}': texture '{tex}': {e}; using the diffuse color alone", m.name))
+            }
+        }
+    }
+    out
+}
+
+/// A forgiving `.mtl` reader: `newmtl`, `Kd`, `d`/`Tr`, `map_Kd`. A malformed value is a
+/// warning, never an error (tobj's own reader panics on a short `Kd` line).
+fn parse_mtl(text: &str, file: &str, warnings: &mut Vec<String>) -> Vec<tobj::Material> {
+    let mut mats: Vec<tobj::Material> = Vec::new();
+    for (ln, line) in text.lines().enumerate() {
+        let line = line.trim();
+        let (key, rest) = line.split_once(char::is_whitespace).unwrap_or((line, ""));
+        let rest = rest.trim();
+        if key == "newmtl" {
+            mats.push(tobj::Material { name: rest.to_string(), ..Default::default() });
+            continue;
+        }
+        let Some(cur) = mats.last_mut() else {
+            continue;
+        };
+        let floats: Vec<f32> = rest.split_whitespace().map_while(|w| w.parse().ok()).collect();
+        let mut bad =
+            || warnings.push(format!("material library '{file}' line {}: cannot read '{line}'; ignored", ln + 1));
+        match key {
+            "Kd" => match floats[..] {
+                [r, g, b, ..] if [r, g, b].iter().all(|c| c.is_finite()) => cur.diffuse = Some([r, g, b]),
+                [v] if v.is_finite() => cur.diffuse = Some([v, v, v]),
+                _ => bad(),
+            },
+            "d" | "Tr" => match floats[..] {
+                [v, ..] if v.is_finite() => {
+                    cur.dissolve = Some(if key == "d" { v } else { 1.0 - v });
+                }
+                _ => bad(),
+            },
+            "map_Kd" => match rest.rsplit(char::is_whitespace).next() {
+                Some(name) if !name.is_empty() => cur.diffuse_texture = Some(name.to_string()),
+                _ => bad(),
+            },
+            _ => {}
+        }
+    }
+    mats
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn mtl_reader_is_forgiving() {
+        let mut w = Vec::new();
+        let mats = parse_mtl(
+            "newmtl a\nKd 0.1 0.2 0.3\nd 0.5\nnewmtl b\nKd 0.5\nKd x\nmap_Kd -s 1 1 1 tex.png\n",
+            "t.mtl",
+            &mut w,
+        );
+        assert_eq!(mats.len(), 2);
+        assert_eq!(mats[1].name, "b");
+        assert_eq!(mats[0].diffuse, Some([0.1, 0.2, 0.3]));
+        assert_eq!(mats[0].dissolve, Some(0.5));
+        assert_eq!(mats[1].diffuse, Some([0.5, 0.5, 0.5]));
+        assert_eq!(mats[1].diffuse_texture.as_deref(), Some("tex.png"));
+        assert_eq!(w.len(), 1, "{w:?}");
+        assert!(w[0].contains("line 6"), "{w:?}");
+    }
 }

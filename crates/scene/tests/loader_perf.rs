@@ -1,0 +1,83 @@
+//! Size check for the OBJ exporter and loader on a 10^6-triangle scene: a round trip that is
+//! also timed and printed (no timing assertions; the machine is noisy). Ignored by default:
+//!
+//! ```text
+//! cargo test --release -p sightline-scene --test loader_perf -- --ignored --nocapture
+//! ```
+
+use std::time::Instant;
+
+use glam::{Quat, Vec3};
+use sightline_scene::export::export_obj;
+use sightline_scene::obj_loader::load_obj;
+use sightline_scene::*;
+
+/// 1000-triangle meshes instanced under rotated, scaled nodes until 10^6 triangles, so
+/// coordinates use all their digits.
+fn tiled_scene(mesh: Mesh) -> Scene {
+    let mut scene = Scene::new();
+    let mesh = scene.add_mesh(mesh);
+    let root = scene.add_node(None, NodeDesc::new("root")).unwrap();
+    let mut n = 0;
+    while scene.stats().triangles < 1_000_000 {
+        let t =
+            Transform::from_translation(Vec3::new((n % 37) as f32 * 1.37, (n / 37) as f32 * 0.71, n as f32 * 0.013))
+                .with_rotation(Quat::from_rotation_y(n as f32 * 0.31) * Quat::from_rotation_x(0.2))
+                .with_scale(Vec3::new(1.1, 0.9, 1.3));
+        let desc = NodeDesc::new(format!("tile {n}")).transform(t).mesh(mesh);
+        scene.add_node(Some(root), desc).unwrap();
+        n += 1;
+    }
+    scene.update_transforms();
+    scene
+}
+
+/// A mesh of `n` separate triangles (no shared vertices: 3 vertices per triangle).
+fn soup(n: usize) -> Mesh {
+    let mut positions = Vec::new();
+    for i in 0..n {
+        let o = Vec3::new((i % 31) as f32 * 0.37, (i / 31) as f32 * 0.21, (i % 7) as f32 * 0.11);
+        positions.extend([o, o + Vec3::new(0.3, 0.01, 0.0), o + Vec3::new(0.02, 0.3, 0.05)]);
+    }
+    Mesh::new("soup", positions, None, None, (0..3 * n as u32).collect()).unwrap()
+}
+
+fn round_trip(scene: &Scene, what: &str) {
+    let triangles = scene.stats().triangles;
+    let path = std::env::temp_dir().join(format!("sightline-perf-{}.obj", std::process::id()));
+    let t0 = Instant::now();
+    export_obj(scene, &path).unwrap();
+    let export = t0.elapsed();
+    let bytes = std::fs::metadata(&path).unwrap().len();
+
+    let t0 = Instant::now();
+    let mut back = load_obj(&path).unwrap();
+    let load = t0.elapsed();
+    let _ = std::fs::remove_file(&path);
+    back.update_transforms();
+
+    println!(
+        "{what}: {triangles} triangles, {:.1} MB: export {:.3} s, load {:.3} s",
+        bytes as f64 / 1e6,
+        export.as_secs_f64(),
+        load.as_secs_f64()
+    );
+    assert_eq!(back.meshes().count(), 1);
+    assert_eq!(back.stats().triangles, triangles);
+    // Spot-check triangles across the whole range: same corners, same flattened position.
+    let flat = back.mesh(back.instances()[0].mesh).unwrap();
+    for inst in scene.instances() {
+        let m = scene.mesh(inst.mesh).unwrap();
+        for t in (0..m.triangle_count()).step_by(97) {
+            let want = m.triangle_positions(t).map(|p| inst.world_from_local.transform_point3(p));
+            assert_eq!(flat.triangle_positions(inst.first_triangle as usize + t), want);
+        }
+    }
+}
+
+#[test]
+#[ignore = "large: 10^6 triangles, 40-110 MB on disk; run explicitly"]
+fn million_triangle_obj_round_trip() {
+    round_trip(&tiled_scene(shapes::ground_quad("tile", 22).unwrap()), "shared vertices");
+    round_trip(&tiled_scene(soup(1000)), "triangle soup");
+}
