@@ -14,6 +14,9 @@ pub enum Error {
     /// An error from the scene (stale handle, bad camera, ...).
     #[error(transparent)]
     Scene(#[from] sightline_scene::Error),
+    /// A draw list entry that does not fit the instances or meshes given.
+    #[error("invalid draw item: {0}")]
+    InvalidDraw(String),
     /// Writing an output file failed.
     #[error("{path}: {why}")]
     Output {

@@ -7,8 +7,30 @@
 
 #![warn(missing_docs)]
 
+pub mod aa;
+mod bin;
+pub mod clip;
+mod deferred;
+pub mod depth;
 mod error;
 mod framebuffer;
+mod geometry;
+mod options;
+pub mod output;
+mod pipeline;
+pub mod raster;
+pub mod setup;
+pub mod shading;
+mod stats;
+pub mod texture;
+pub mod wire;
 
 pub use error::{Error, Result};
 pub use framebuffer::{triangle_id, Framebuffer, MAX_SIZE};
+
+pub use deferred::shade_pass;
+pub use depth::DepthFormat;
+pub use options::{draw_all, Antialias, DrawItem, RenderOptions, Wireframe};
+pub use pipeline::{render_scene, Renderer};
+pub use shading::{shade, ShadeOptions, ShadingMode};
+pub use stats::FrameStats;

@@ -1,0 +1,67 @@
+//! Binning: which screen tiles each set-up triangle touches.
+//!
+//! Sort-middle parallel rendering (Molnar et al., "A Sorting Classification of Parallel
+//! Rendering", 1994): triangles are set up once, then appended to compact per-tile index
+//! lists; tiles are rasterized independently, each owning its pixels. A triangle whose
+//! bounding box spans several tiles is tested against each tile rectangle with its edge
+//! functions, so long thin triangles are not sent to tiles they only pass by. Lists keep
+//! submission order, which makes the image independent of the thread count.
+
+use std::sync::atomic::AtomicBool;
+
+use crate::geometry::Chunk;
+use crate::raster::{misses_rect, TILE, TILE_SHIFT};
+
+/// The tile grid of a framebuffer.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(crate) struct Grid {
+    pub tiles_x: u32,
+    pub tiles_y: u32,
+    pub width: u32,
+    pub height: u32,
+}
+
+impl Grid {
+    pub fn new(width: u32, height: u32) -> Self {
+        Self { tiles_x: width.div_ceil(TILE), tiles_y: height.div_ceil(TILE), width, height }
+    }
+    pub fn len(&self) -> usize {
+        (self.tiles_x * self.tiles_y) as usize
+    }
+}
+
+/// Bins all triangles of a chunk (also assigns their multi-tile flags).
+pub(crate) fn bin_chunk(chunk: &mut Chunk, grid: &Grid) {
+    let n = grid.len();
+    chunk.bins.resize_with(n, Vec::new);
+    chunk.bins.truncate(n);
+    for b in &mut chunk.bins {
+        b.clear();
+    }
+    chunk.multi.clear();
+    let tx = grid.tiles_x as usize;
+    for (i, t) in chunk.tris.iter_mut().enumerate() {
+        let [x0, y0, x1, y1] = t.bbox.map(|v| v as u32);
+        let (tx0, ty0) = (x0 >> TILE_SHIFT, y0 >> TILE_SHIFT);
+        let (tx1, ty1) = (x1 >> TILE_SHIFT, y1 >> TILE_SHIFT);
+        if tx0 == tx1 && ty0 == ty1 {
+            chunk.bins[ty0 as usize * tx + tx0 as usize].push(i as u32);
+            continue;
+        }
+        t.multi = chunk.multi.len() as u32;
+        chunk.multi.push(AtomicBool::new(false));
+        for ty in ty0..=ty1 {
+            for txi in tx0..=tx1 {
+                let r = [
+                    (txi * TILE).max(x0) as i32,
+                    (ty * TILE).max(y0) as i32,
+                    (txi * TILE + TILE - 1).min(x1) as i32,
+                    (ty * TILE + TILE - 1).min(y1) as i32,
+                ];
+                if !misses_rect(t, r) {
+                    chunk.bins[ty as usize * tx + txi as usize].push(i as u32);
+                }
+            }
+        }
+    }
+}

@@ -1,0 +1,229 @@
+//! The hierarchical z-buffer: Greene's z-pyramid (N. Greene, M. Kass, G. Miller,
+//! "Hierarchical Z-Buffer Visibility", SIGGRAPH 1993).
+//!
+//! Level 0 is the depth buffer itself (read in place, never copied); level k + 1 stores for
+//! each texel the FARTHEST (max) window depth of the up to 2 × 2 texels below it. Odd sizes
+//! round up (`ceil(w / 2)`), and an edge texel takes the max of the children that exist:
+//! those are the only pixels it stands for, so the bound stays exact.
+//!
+//! A screen rectangle whose nearest possible depth is farther than the max stored over
+//! every texel it touches cannot pass a LESS depth test anywhere: it is occluded. Queries
+//! pick the level where the rectangle touches at most 4 × 4 texels (a finer level than
+//! Greene's 2 × 2, which rejects more for a few more reads). After drawing, only the
+//! rectangle that changed is propagated up ([`DepthPyramid::update`]).
+
+/// A pixel rectangle, inclusive bounds, inside the screen.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Rect {
+    /// First column.
+    pub x0: u32,
+    /// First row.
+    pub y0: u32,
+    /// Last column (inclusive).
+    pub x1: u32,
+    /// Last row (inclusive).
+    pub y1: u32,
+}
+
+impl Rect {
+    /// The smallest rectangle containing both.
+    pub fn union(&self, o: &Rect) -> Rect {
+        Rect { x0: self.x0.min(o.x0), y0: self.y0.min(o.y0), x1: self.x1.max(o.x1), y1: self.y1.max(o.y1) }
+    }
+}
+
+/// The max-depth pyramid above a depth buffer.
+#[derive(Debug, Clone, Default)]
+pub struct DepthPyramid {
+    width: u32,
+    height: u32,
+    /// Levels 1.. (level 0 is the depth buffer): (width, height, texels).
+    levels: Vec<(u32, u32, Vec<f32>)>,
+}
+
+impl DepthPyramid {
+    /// An empty pyramid for a `width × height` depth buffer (all levels cleared to 1.0, the
+    /// cleared depth, so nothing is occluded).
+    pub fn new(width: u32, height: u32) -> Self {
+        let mut levels = Vec::new();
+        let (mut w, mut h) = (width, height);
+        while w > 1 || h > 1 {
+            w = w.div_ceil(2);
+            h = h.div_ceil(2);
+            levels.push((w, h, vec![1.0; w as usize * h as usize]));
+        }
+        Self { width, height, levels }
+    }
+
+    /// Screen width.
+    pub fn width(&self) -> u32 {
+        self.width
+    }
+    /// Screen height.
+    pub fn height(&self) -> u32 {
+        self.height
+    }
+    /// Number of levels including level 0.
+    pub fn level_count(&self) -> usize {
+        self.levels.len() + 1
+    }
+    /// Bytes held (levels ≥ 1).
+    pub fn memory_bytes(&self) -> usize {
+        self.levels.iter().map(|l| l.2.len() * 4).sum()
+    }
+
+    /// Resets every level to 1.0 (a cleared depth buffer).
+    pub fn clear(&mut self) {
+        for l in &mut self.levels {
+            l.2.fill(1.0);
+        }
+    }
+
+    /// Rebuilds every level from `depth` (row-major, `width × height`), one pass per level.
+    pub fn build(&mut self, depth: &[f32]) {
+        let full = Rect { x0: 0, y0: 0, x1: self.width - 1, y1: self.height - 1 };
+        self.update(depth, full);
+    }
+
+    /// Re-propagates the texels above the pixel rectangle `r` after it was drawn into.
+    pub fn update(&mut self, depth: &[f32], r: Rect) {
+        assert_eq!(depth.len(), self.width as usize * self.height as usize, "depth buffer size");
+        let (mut sw, mut sh) = (self.width, self.height);
+        let mut r = r;
+        for k in 0..self.levels.len() {
+            let (below, rest) = self.levels.split_at_mut(k);
+            let src: &[f32] = if k == 0 { depth } else { &below[k - 1].2 };
+            let (dw, dh, dst) = &mut rest[0];
+            let (x0, y0, x1, y1) = (r.x0 / 2, r.y0 / 2, (r.x1 / 2).min(*dw - 1), (r.y1 / 2).min(*dh - 1));
+            reduce(src, sw, sh, dst, *dw, Rect { x0, y0, x1, y1 });
+            r = Rect { x0, y0, x1, y1 };
+            sw = *dw;
+            sh = *dh;
+        }
+    }
+
+    /// The max depth of texel (x, y) of `level` (level 0 reads `depth`).
+    #[inline]
+    fn texel(&self, depth: &[f32], level: usize, x: u32, y: u32) -> f32 {
+        if level == 0 {
+            depth[(y * self.width + x) as usize]
+        } else {
+            let (w, _, d) = &self.levels[level - 1];
+            d[(y * w + x) as usize]
+        }
+    }
+
+    /// True when nothing inside the pixel rectangle `r` at window depth ≥ `nearest` can pass
+    /// a LESS test against `depth`, judged from the pyramid.
+    pub fn is_occluded(&self, depth: &[f32], r: Rect, nearest: f32) -> bool {
+        // NaN nearest: not occluded (be conservative).
+        if !(nearest <= 1.0) {
+            return nearest > 1.0;
+        }
+        let span = (r.x1 - r.x0).max(r.y1 - r.y0) + 1;
+        // Finest level at which the rectangle touches at most 4 × 4 texels.
+        let mut level = 0usize;
+        while (span >> level) > 3 && level + 1 < self.level_count() {
+            level += 1;
+        }
+        let (x0, y0, x1, y1) = (r.x0 >> level, r.y0 >> level, r.x1 >> level, r.y1 >> level);
+        for y in y0..=y1 {
+            for x in x0..=x1 {
+                if nearest <= self.texel(depth, level, x, y) {
+                    return false;
+                }
+            }
+        }
+        true
+    }
+
+    /// The max depth over the whole screen (the top texel).
+    pub fn farthest(&self, depth: &[f32]) -> f32 {
+        match self.levels.last() {
+            Some(l) => l.2[0],
+            None => depth[0],
+        }
+    }
+}
+
+/// dst texels in `r` (destination coordinates) = max of their 2 × 2 source children.
+fn reduce(src: &[f32], sw: u32, sh: u32, dst: &mut [f32], dw: u32, r: Rect) {
+    let (sw, sh, dw) = (sw as usize, sh as usize, dw as usize);
+    for y in r.y0 as usize..=r.y1 as usize {
+        let s0 = 2 * y;
+        let s1 = (2 * y + 1).min(sh - 1);
+        let (row0, row1) = (&src[s0 * sw..(s0 + 1) * sw], &src[s1 * sw..(s1 + 1) * sw]);
+        let out = &mut dst[y * dw..(y + 1) * dw];
+        for x in r.x0 as usize..=r.x1 as usize {
+            let a = 2 * x;
+            let b = (2 * x + 1).min(sw - 1);
+            out[x] = row0[a].max(row0[b]).max(row1[a]).max(row1[b]);
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn brute_max(depth: &[f32], w: u32, r: Rect) -> f32 {
+        let mut m = f32::MIN;
+        for y in r.y0..=r.y1 {
+            for x in r.x0..=r.x1 {
+                m = m.max(depth[(y * w + x) as usize]);
+            }
+        }
+        m
+    }
+
+    #[test]
+    fn pyramid_is_exactly_conservative_on_odd_sizes() {
+        let (w, h) = (37u32, 23u32);
+        let mut rng = sightline_scene::rng::Rng::new(9);
+        let depth: Vec<f32> = (0..w * h).map(|_| rng.f32()).collect();
+        let mut p = DepthPyramid::new(w, h);
+        p.build(&depth);
+        assert_eq!(p.level_count(), 7);
+        for _ in 0..2000 {
+            let (xa, xb) = (rng.below(w), rng.below(w));
+            let (ya, yb) = (rng.below(h), rng.below(h));
+            let r = Rect { x0: xa.min(xb), x1: xa.max(xb), y0: ya.min(yb), y1: ya.max(yb) };
+            let m = brute_max(&depth, w, r);
+            // Anything nearer than or at the true max is never called occluded.
+            assert!(!p.is_occluded(&depth, r, m));
+            assert!(!p.is_occluded(&depth, r, m - 1e-3));
+            // Something behind everything is occluded.
+            assert!(p.is_occluded(&depth, r, 1.5) || m >= 1.5);
+        }
+        assert_eq!(p.farthest(&depth), brute_max(&depth, w, Rect { x0: 0, y0: 0, x1: w - 1, y1: h - 1 }));
+    }
+
+    #[test]
+    fn incremental_update_equals_rebuild() {
+        let (w, h) = (64u32, 40u32);
+        let mut depth = vec![1.0f32; (w * h) as usize];
+        let mut p = DepthPyramid::new(w, h);
+        p.build(&depth);
+        // Draw a rectangle of depth 0.3 and update only it.
+        let r = Rect { x0: 5, y0: 7, x1: 30, y1: 20 };
+        for y in r.y0..=r.y1 {
+            for x in r.x0..=r.x1 {
+                depth[(y * w + x) as usize] = 0.3;
+            }
+        }
+        p.update(&depth, r);
+        let mut q = DepthPyramid::new(w, h);
+        q.build(&depth);
+        assert_eq!(p.levels, q.levels);
+        assert!(p.is_occluded(&depth, Rect { x0: 10, y0: 10, x1: 20, y1: 15 }, 0.5));
+        assert!(!p.is_occluded(&depth, Rect { x0: 10, y0: 10, x1: 40, y1: 15 }, 0.5));
+    }
+
+    #[test]
+    fn cleared_buffer_occludes_nothing() {
+        let depth = vec![1.0f32; 100];
+        let p = DepthPyramid::new(10, 10);
+        assert!(!p.is_occluded(&depth, Rect { x0: 0, y0: 0, x1: 9, y1: 9 }, 0.999));
+        assert!(!p.is_occluded(&depth, Rect { x0: 2, y0: 2, x1: 3, y1: 3 }, f32::NAN));
+    }
+}

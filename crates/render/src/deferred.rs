@@ -1,0 +1,187 @@
+//! Deferred shading: color every pixel from its triangle ID after visibility is settled.
+//!
+//! Rasterization writes only depth and IDs, so each pixel is shaded once however deep the
+//! overdraw. Per pixel the triangle is found from its ID, and the world-space (perspective-
+//! correct) barycentric weights of the pixel center come from the 2D homogeneous form of
+//! Olano & Greer ("Triangle Scan Conversion using 2D Homogeneous Coordinates", 1997): with
+//! the clip-space rows `h_i = (x_i, y_i, w_i)`, the weights of the point seen through NDC
+//! `p = (x, y, 1)` are proportional to `(h_j × h_k) · p`. That equals interpolating `a/w`
+//! and `1/w` linearly in screen space and dividing (Heckbert & Moreton 1991; Blinn 1992),
+//! needs no clipped vertices, and works for triangles crossing the eye plane. Affine
+//! (screen-space) weights, for comparison, are `β_i·w_i` renormalized.
+//!
+//! Triangles and instances are prepared once and cached per band of rows (direct-mapped
+//! caches), so a triangle covering many pixels costs one setup.
+
+use glam::{Mat4, Vec3, Vec3A};
+use rayon::prelude::*;
+use sightline_scene::{Camera, Instance, Material, Mesh, Scene};
+
+use crate::shading::{InstanceShading, ShadeOptions, ShadingMode, TriangleShader};
+use crate::Framebuffer;
+
+const BAND_ROWS: usize = 8;
+const TRI_CACHE: usize = 256;
+const INST_CACHE: usize = 64;
+
+/// Finds the instance drawing global triangle `g` (instances ordered by first triangle).
+struct Lookup<'a> {
+    instances: &'a [Instance],
+    order: Option<Vec<u32>>,
+}
+
+impl<'a> Lookup<'a> {
+    fn new(instances: &'a [Instance]) -> Self {
+        let sorted = instances.windows(2).all(|w| w[0].first_triangle <= w[1].first_triangle);
+        let order = (!sorted).then(|| {
+            let mut o: Vec<u32> =
+                (0..instances.len() as u32).filter(|&i| instances[i as usize].triangle_count > 0).collect();
+            o.sort_by_key(|&i| instances[i as usize].first_triangle);
+            o
+        });
+        Self { instances, order }
+    }
+
+    fn find(&self, g: u32) -> Option<u32> {
+        let inst = |k: usize| match &self.order {
+            Some(o) => o[k],
+            None => k as u32,
+        };
+        let n = self.order.as_ref().map_or(self.instances.len(), |o| o.len());
+        // Last position whose first triangle is ≤ g; step back over empty instances.
+        let (mut lo, mut hi) = (0, n);
+        while lo < hi {
+            let mid = (lo + hi) / 2;
+            if self.instances[inst(mid) as usize].first_triangle <= g {
+                lo = mid + 1;
+            } else {
+                hi = mid;
+            }
+        }
+        let mut k = lo;
+        while k > 0 {
+            k -= 1;
+            let i = inst(k);
+            let it = &self.instances[i as usize];
+            if g < it.first_triangle {
+                return None;
+            }
+            if g - it.first_triangle < it.triangle_count {
+                return Some(i);
+            }
+            if it.triangle_count > 0 {
+                return None;
+            }
+        }
+        None
+    }
+}
+
+struct InstEntry<'a> {
+    index: u32,
+    clip: Mat4,
+    shading: InstanceShading<'a>,
+    mesh: &'a Mesh,
+}
+
+#[derive(Clone, Copy)]
+struct TriEntry<'a> {
+    id: u32,
+    rows: [Vec3A; 3],
+    w: [f32; 3],
+    shader: TriangleShader<'a>,
+}
+
+/// Shades every pixel of `fb` whose ID is not 0 (mode `None`: nothing to do). IDs that no
+/// instance claims are left with their current color.
+pub fn shade_pass(scene: &Scene, instances: &[Instance], camera: &Camera, fb: &mut Framebuffer, opts: &ShadeOptions) {
+    if opts.mode == ShadingMode::None {
+        return;
+    }
+    let lookup = Lookup::new(instances);
+    let default = Material::default();
+    let (w, h) = (fb.width() as usize, fb.height() as usize);
+    let eye = camera.view.eye;
+    let (sx, sy) = (2.0 / w as f32, 2.0 / h as f32);
+    let ids = &fb.ids;
+    fb.color.par_chunks_mut(w * BAND_ROWS).enumerate().for_each(|(band, color)| {
+        let mut insts: Vec<Option<InstEntry>> = (0..INST_CACHE).map(|_| None).collect();
+        let mut tris: Vec<Option<TriEntry>> = vec![None; TRI_CACHE];
+        let y0 = band * BAND_ROWS;
+        for (r, crow) in color.chunks_mut(w).enumerate() {
+            let y = y0 + r;
+            if y >= h {
+                break;
+            }
+            let ndc_y = 1.0 - (y as f32 + 0.5) * sy;
+            let irow = &ids[y * w..(y + 1) * w];
+            for (x, (c, &id)) in crow.iter_mut().zip(irow).enumerate() {
+                if id == 0 {
+                    continue;
+                }
+                let slot = (id as usize).wrapping_mul(0x9E37_79B1) >> 24 & (TRI_CACHE - 1);
+                let entry = match &tris[slot] {
+                    Some(e) if e.id == id => *e,
+                    _ => {
+                        let Some(e) = prepare(id, &lookup, &mut insts, scene, camera, eye, &default, opts) else {
+                            continue;
+                        };
+                        tris[slot] = Some(e);
+                        e
+                    }
+                };
+                let p = Vec3A::new((x as f32 + 0.5) * sx - 1.0, ndc_y, 1.0);
+                let mut b = Vec3::new(entry.rows[0].dot(p), entry.rows[1].dot(p), entry.rows[2].dot(p));
+                if !opts.perspective_correct {
+                    b *= Vec3::from(entry.w);
+                }
+                let s = b.x + b.y + b.z;
+                let b = if s != 0.0 { b / s } else { Vec3::splat(1.0 / 3.0) };
+                *c = entry.shader.shade(b, opts);
+            }
+        }
+    });
+}
+
+#[allow(clippy::too_many_arguments)]
+fn prepare<'a>(
+    id: u32,
+    lookup: &Lookup,
+    insts: &mut [Option<InstEntry<'a>>],
+    scene: &'a Scene,
+    camera: &Camera,
+    eye: Vec3,
+    default: &'a Material,
+    opts: &ShadeOptions,
+) -> Option<TriEntry<'a>> {
+    let g = id - 1;
+    let index = lookup.find(g)?;
+    let inst = &lookup.instances[index as usize];
+    let slot = index as usize & (INST_CACHE - 1);
+    if !matches!(&insts[slot], Some(e) if e.index == index) {
+        let mesh = scene.mesh(inst.mesh)?;
+        let material = inst.material.and_then(|m| scene.material(m)).unwrap_or(default);
+        insts[slot] = Some(InstEntry {
+            index,
+            clip: camera.clip_from_local(&inst.world_from_local),
+            shading: InstanceShading::new(inst.world_from_local, material),
+            mesh,
+        });
+    }
+    let e = insts[slot].as_ref()?;
+    let t = (g - inst.first_triangle) as usize;
+    if t >= e.mesh.triangle_count() {
+        return None;
+    }
+    let h = e
+        .mesh
+        .triangle(t)
+        .map(|i| e.clip * e.mesh.positions()[i as usize].extend(1.0))
+        .map(|c| Vec3A::new(c.x, c.y, c.w));
+    Some(TriEntry {
+        id,
+        rows: [h[1].cross(h[2]), h[2].cross(h[0]), h[0].cross(h[1])],
+        w: [h[0].z, h[1].z, h[2].z],
+        shader: TriangleShader::new(&e.shading, e.mesh, t, eye, opts),
+    })
+}

@@ -1,0 +1,114 @@
+//! What to draw and how: draw items and render options.
+
+use serde::Serialize;
+use sightline_scene::Instance;
+
+use crate::depth::DepthFormat;
+use crate::shading::ShadeOptions;
+
+/// One entry of a draw list: a triangle range of one instance. The renderer draws items in
+/// the order given (triangles within an item in mesh order), which is what an occlusion
+/// culler needs to submit clusters front to back.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+pub struct DrawItem {
+    /// Index into the `instances` slice passed with the list.
+    pub instance: u32,
+    /// First triangle of the range, within the instance's mesh.
+    pub first: u32,
+    /// Number of triangles.
+    pub count: u32,
+}
+
+impl DrawItem {
+    /// The whole of instance number `index`.
+    pub fn whole(index: u32, inst: &Instance) -> Self {
+        Self { instance: index, first: 0, count: inst.triangle_count }
+    }
+}
+
+/// Every instance, whole, in order.
+pub fn draw_all(instances: &[Instance]) -> Vec<DrawItem> {
+    instances.iter().enumerate().map(|(i, inst)| DrawItem::whole(i as u32, inst)).collect()
+}
+
+/// Supersampling antialiasing (ordered grid, box-filter resolve).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize)]
+pub enum Antialias {
+    /// One sample per pixel, at its center.
+    #[default]
+    Off,
+    /// 2 × 2 samples per pixel.
+    Ssaa2x2,
+    /// 4 × 4 samples per pixel.
+    Ssaa4x4,
+}
+
+impl Antialias {
+    /// Samples per pixel side.
+    pub fn factor(self) -> u32 {
+        match self {
+            Antialias::Off => 1,
+            Antialias::Ssaa2x2 => 2,
+            Antialias::Ssaa4x4 => 4,
+        }
+    }
+}
+
+/// Wireframe drawing.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize)]
+pub enum Wireframe {
+    /// Filled triangles only.
+    #[default]
+    Off,
+    /// Triangle edges drawn over the shaded image.
+    Overlay,
+    /// Only the edges, on the background (depth and IDs stay cleared).
+    Only,
+}
+
+/// How a frame is rendered.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct RenderOptions {
+    /// Drop back faces (counter-clockwise in NDC is front). On by default.
+    pub backface_culling: bool,
+    /// Depth buffer precision.
+    pub depth_format: DepthFormat,
+    /// Shading (mode `None`: depth and IDs only).
+    pub shading: ShadeOptions,
+    /// Supersampling.
+    pub antialias: Antialias,
+    /// Wireframe mode.
+    pub wireframe: Wireframe,
+    /// Wireframe line color.
+    pub wire_color: [u8; 4],
+    /// Clear color.
+    pub background: [u8; 4],
+    /// Clip x and y against a wide guard band instead of the frustum (same pixels, fewer
+    /// clipped triangles). On by default.
+    pub guard_band: bool,
+}
+
+impl Default for RenderOptions {
+    fn default() -> Self {
+        Self {
+            backface_culling: true,
+            depth_format: DepthFormat::F32,
+            shading: ShadeOptions::default(),
+            antialias: Antialias::Off,
+            wireframe: Wireframe::Off,
+            wire_color: [20, 20, 20, 255],
+            // The references' sky (0.62, 0.76, 0.92).
+            background: [158, 194, 235, 255],
+            guard_band: true,
+        }
+    }
+}
+
+impl RenderOptions {
+    /// Depth and IDs only, no shading: the fastest path (what visibility needs).
+    pub fn ids_only() -> Self {
+        let mut o = Self::default();
+        o.shading.mode = crate::shading::ShadingMode::None;
+        o
+    }
+}

@@ -1,0 +1,356 @@
+//! The renderer: geometry → binning → parallel tile rasterization → deferred shading.
+//!
+//! The core primitive is [`Renderer::draw`]: draw a list of (instance, triangle range)
+//! items, in the order given, into the depth and ID planes of a framebuffer, without
+//! clearing it. An occlusion culler calls it batch after batch and reads `fb.depth` in
+//! between. [`Renderer::render`] clears, draws, shades (deferred: only the final visible
+//! pixel of each position is shaded, from its triangle ID), resolves supersampling and
+//! draws the wireframe.
+//!
+//! Stages and their parallelism (rayon; the image is bit-identical for any thread count):
+//! 1. geometry over chunks of the draw list (contiguous, so submission order is kept);
+//! 2. binning of each chunk's triangles to 64×64 tiles;
+//! 3. rasterization over tiles, each tile walking the chunks' lists in order, into a
+//!    tile-local buffer copied back to the framebuffer afterwards (tiles own their pixels).
+//!
+//! All big buffers live in the `Renderer` and are reused from frame to frame.
+
+use std::sync::atomic::Ordering;
+use std::time::Instant;
+
+use glam::Vec4;
+use rayon::prelude::*;
+use sightline_scene::{Camera, Instance, Scene};
+
+use crate::bin::{bin_chunk, Grid};
+use crate::depth::DepthFormat;
+use crate::geometry::{split, Chunk, Item, Source};
+use crate::options::{DrawItem, RenderOptions, Wireframe};
+use crate::raster::{raster_tri, TileBuf, TILE, TILE_SHIFT};
+use crate::setup::Viewport;
+use crate::stats::{ms_since, FrameStats};
+use crate::{aa, deferred, wire, Error, Framebuffer, Result};
+
+/// A rasterizer with its reusable buffers. Create once, render many frames.
+#[derive(Debug, Default)]
+pub struct Renderer {
+    chunks: Vec<Chunk>,
+    work: Vec<Vec<crate::geometry::Piece>>,
+    tiles: Vec<TileBuf>,
+    grid: Option<Grid>,
+    ranges: Vec<(u32, u32, u32)>,
+    supersampled: Option<Framebuffer>,
+}
+
+#[derive(Debug, Default, Clone, Copy)]
+struct TileStats {
+    tested: u64,
+    written: u64,
+    empty: u64,
+}
+
+impl TileStats {
+    fn sum(a: Self, b: Self) -> Self {
+        Self { tested: a.tested + b.tested, written: a.written + b.written, empty: a.empty + b.empty }
+    }
+}
+
+impl Renderer {
+    /// A renderer with no buffers yet (they grow on first use).
+    pub fn new() -> Self {
+        Self::default()
+    }
+
+    /// Clears `fb`, draws `items` (instances from `instances`), shades, resolves
+    /// antialiasing and draws the wireframe, as `opts` says.
+    pub fn render(
+        &mut self,
+        scene: &Scene,
+        instances: &[Instance],
+        items: &[DrawItem],
+        camera: &Camera,
+        fb: &mut Framebuffer,
+        opts: &RenderOptions,
+    ) -> Result<FrameStats> {
+        let t0 = Instant::now();
+        let s = opts.antialias.factor();
+        let fill = opts.wireframe != Wireframe::Only;
+        let mut stats = FrameStats::default();
+        if s == 1 {
+            fb.clear(opts.background);
+            if fill {
+                stats = self.draw(scene, instances, items, camera, fb, opts)?;
+                let t = Instant::now();
+                deferred::shade_pass(scene, instances, camera, fb, &opts.shading);
+                stats.ms_shading = ms_since(t);
+            }
+            stats.covered_pixels = fb.ids.par_iter().filter(|&&i| i != 0).count() as u64;
+        } else {
+            let (w, h) = (fb.width() * s, fb.height() * s);
+            let mut ss = match self.supersampled.take() {
+                Some(f) if f.width() == w && f.height() == h => f,
+                _ => Framebuffer::new(w, h)?,
+            };
+            if ss.depth_tests.is_some() != fb.depth_tests.is_some() {
+                ss.count_depth_tests(fb.depth_tests.is_some());
+            }
+            ss.clear(opts.background);
+            let r = if fill {
+                self.draw(scene, instances, items, camera, &mut ss, opts)
+            } else {
+                Ok(FrameStats::default())
+            };
+            match r {
+                Ok(st) => stats = st,
+                Err(e) => {
+                    self.supersampled = Some(ss);
+                    return Err(e);
+                }
+            }
+            let t = Instant::now();
+            if fill {
+                deferred::shade_pass(scene, instances, camera, &mut ss, &opts.shading);
+            }
+            stats.covered_pixels = ss.ids.par_iter().filter(|&&i| i != 0).count() as u64;
+            aa::resolve(&ss, s, fb);
+            stats.ms_shading = ms_since(t);
+            self.supersampled = Some(ss);
+        }
+        if opts.wireframe != Wireframe::Off {
+            let t = Instant::now();
+            wire::draw_wireframe(scene, instances, items, camera, fb, opts)?;
+            stats.ms_wireframe = ms_since(t);
+        }
+        stats.update_overdraw();
+        stats.ms_total = ms_since(t0);
+        Ok(stats)
+    }
+
+    /// Draws `items` into the depth and ID planes of `fb` (depth test LESS), in order,
+    /// without clearing and without shading. Counters cover this call only
+    /// (`covered_pixels` is left 0).
+    pub fn draw(
+        &mut self,
+        scene: &Scene,
+        instances: &[Instance],
+        items: &[DrawItem],
+        camera: &Camera,
+        fb: &mut Framebuffer,
+        opts: &RenderOptions,
+    ) -> Result<FrameStats> {
+        let t0 = Instant::now();
+        let mut resolved: Vec<Item> = Vec::with_capacity(items.len());
+        self.ranges.clear();
+        let mut last: Option<(u32, glam::Mat4)> = None;
+        for (k, d) in items.iter().enumerate() {
+            let inst = instances.get(d.instance as usize).ok_or_else(|| {
+                Error::InvalidDraw(format!("item {k} names instance {} of {}", d.instance, instances.len()))
+            })?;
+            let mesh = scene.try_mesh(inst.mesh)?;
+            let n = mesh.triangle_count() as u64;
+            if d.first as u64 + d.count as u64 > n {
+                return Err(Error::InvalidDraw(format!(
+                    "item {k}: triangles {}..{} of mesh '{}' with {n} triangles",
+                    d.first,
+                    d.first as u64 + d.count as u64,
+                    mesh.name()
+                )));
+            }
+            // Consecutive clusters of one instance share the matrix.
+            let m = match last {
+                Some((i, m)) if i == d.instance => m,
+                _ => camera.clip_from_local(&inst.world_from_local),
+            };
+            last = Some((d.instance, m));
+            resolved.push(Item {
+                src: Source::Mesh { positions: mesh.positions(), indices: mesh.indices(), clip_from_local: m },
+                first_id: inst.first_triangle.wrapping_add(1),
+                source_triangles: n as u32,
+            });
+            self.ranges.push((k as u32, d.first, d.count));
+        }
+        let mut st = self.run(&resolved, fb, opts);
+        st.ms_total = ms_since(t0);
+        Ok(st)
+    }
+
+    /// Draws raw clip-space triangles (no scene), triangle `k` with ID `first_id + k`: the
+    /// lower-level entry for tests and tools. Non-finite input is dropped, never a panic.
+    pub fn draw_clip_triangles(
+        &mut self,
+        triangles: &[[Vec4; 3]],
+        first_id: u32,
+        fb: &mut Framebuffer,
+        opts: &RenderOptions,
+    ) -> FrameStats {
+        let t0 = Instant::now();
+        let n = triangles.len().min(u32::MAX as usize) as u32;
+        let items = [Item { src: Source::Clip(&triangles[..n as usize]), first_id, source_triangles: n }];
+        self.ranges.clear();
+        self.ranges.push((0, 0, n));
+        let mut st = self.run(&items, fb, opts);
+        st.ms_total = ms_since(t0);
+        st
+    }
+
+    fn run(&mut self, items: &[Item], fb: &mut Framebuffer, opts: &RenderOptions) -> FrameStats {
+        let mut st = FrameStats::default();
+        let vp = Viewport::new(fb.width(), fb.height(), opts.guard_band);
+        let grid = Grid::new(fb.width(), fb.height());
+        self.prepare_tiles(grid);
+
+        // 1. Geometry.
+        let t = Instant::now();
+        let total: u64 = self.ranges.iter().map(|r| r.2 as u64).sum();
+        let threads = rayon::current_num_threads().max(1);
+        let n = ((total / 2048) as usize).clamp(1, 4 * threads);
+        split(&self.ranges, n, &mut self.work);
+        if self.chunks.len() < n {
+            self.chunks.resize_with(n, Chunk::default);
+        }
+        let cull = opts.backface_culling;
+        let chunks = &mut self.chunks[..n];
+        chunks.par_iter_mut().zip(self.work.par_iter()).for_each(|(c, w)| c.process(items, w, &vp, cull));
+        st.ms_geometry = ms_since(t);
+
+        // 2. Binning.
+        let t = Instant::now();
+        chunks.par_iter_mut().for_each(|c| bin_chunk(c, &grid));
+        st.ms_binning = ms_since(t);
+
+        // 3. Rasterization.
+        let t = Instant::now();
+        let chunks = &self.chunks[..n];
+        let ts = raster_tiles(&mut self.tiles, chunks, fb, opts.depth_format);
+        store_tiles(&self.tiles, &grid, fb, opts.depth_format);
+        st.ms_raster = ms_since(t);
+
+        let mut multi_empty = 0;
+        for c in chunks {
+            st.add(&c.stats);
+            multi_empty += c.multi.iter().filter(|f| !f.load(Ordering::Relaxed)).count() as u64;
+        }
+        let binned: u64 = chunks.iter().map(|c| c.tris.len() as u64).sum();
+        let empty = ts.empty + multi_empty;
+        st.too_small += empty;
+        st.rasterized = binned - empty;
+        st.fragments_tested = ts.tested;
+        st.fragments_written = ts.written;
+        st.update_overdraw();
+        st
+    }
+
+    fn prepare_tiles(&mut self, grid: Grid) {
+        if self.grid == Some(grid) {
+            return;
+        }
+        self.tiles.clear();
+        for ty in 0..grid.tiles_y {
+            for tx in 0..grid.tiles_x {
+                let (x0, y0) = (tx * TILE, ty * TILE);
+                let w = TILE.min(grid.width - x0);
+                let h = TILE.min(grid.height - y0);
+                self.tiles.push(TileBuf::new(x0, y0, w, h));
+            }
+        }
+        self.grid = Some(grid);
+    }
+}
+
+fn raster_tiles(tiles: &mut [TileBuf], chunks: &[Chunk], fb: &Framebuffer, fmt: DepthFormat) -> TileStats {
+    let count = fb.depth_tests.is_some();
+    let f = match (fmt, count) {
+        (DepthFormat::F32, false) => raster_tile::<0, false>,
+        (DepthFormat::F32, true) => raster_tile::<0, true>,
+        (DepthFormat::Unorm16, false) => raster_tile::<16, false>,
+        (DepthFormat::Unorm16, true) => raster_tile::<16, true>,
+        (DepthFormat::Unorm24, false) => raster_tile::<24, false>,
+        (DepthFormat::Unorm24, true) => raster_tile::<24, true>,
+    };
+    tiles
+        .par_iter_mut()
+        .enumerate()
+        .map(|(i, tile)| f(tile, i, chunks, fb, fmt))
+        .reduce(TileStats::default, TileStats::sum)
+}
+
+fn raster_tile<const F: u8, const C: bool>(
+    tile: &mut TileBuf,
+    index: usize,
+    chunks: &[Chunk],
+    fb: &Framebuffer,
+    fmt: DepthFormat,
+) -> TileStats {
+    let mut st = TileStats::default();
+    tile.dirty = chunks.iter().any(|c| !c.bins[index].is_empty());
+    if !tile.dirty {
+        return st;
+    }
+    // Load the tile's pixels (earlier batches may have drawn here).
+    let width = fb.width() as usize;
+    for r in 0..tile.h as usize {
+        let src = (tile.y0 as usize + r) * width + tile.x0 as usize;
+        let dst = r << TILE_SHIFT;
+        let w = tile.w as usize;
+        for (k, d) in tile.depth[dst..dst + w].iter_mut().zip(&fb.depth[src..src + w]) {
+            *k = fmt.key_of_stored(*d);
+        }
+        tile.ids[dst..dst + w].copy_from_slice(&fb.ids[src..src + w]);
+        if let (true, Some(c)) = (C, &fb.depth_tests) {
+            tile.counts[dst..dst + w].copy_from_slice(&c[src..src + w]);
+        }
+    }
+    for c in chunks {
+        for &i in &c.bins[index] {
+            let t = &c.tris[i as usize];
+            let r = raster_tri::<F, C>(t, tile);
+            st.tested += r.covered as u64;
+            st.written += r.written as u64;
+            if t.multi == u32::MAX {
+                st.empty += (r.covered == 0) as u64;
+            } else if r.covered > 0 {
+                c.multi[t.multi as usize].store(true, Ordering::Relaxed);
+            }
+        }
+    }
+    st
+}
+
+fn store_tiles(tiles: &[TileBuf], grid: &Grid, fb: &mut Framebuffer, fmt: DepthFormat) {
+    let width = fb.width() as usize;
+    let tx = grid.tiles_x as usize;
+    let copy_row = |y: usize, depth: &mut [f32], ids: &mut [u32]| {
+        let row = &tiles[(y >> TILE_SHIFT) * tx..(y >> TILE_SHIFT) * tx + tx];
+        let r = (y & (TILE as usize - 1)) << TILE_SHIFT;
+        for t in row.iter().filter(|t| t.dirty) {
+            let (x0, w) = (t.x0 as usize, t.w as usize);
+            for (d, k) in depth[x0..x0 + w].iter_mut().zip(&t.depth[r..r + w]) {
+                *d = fmt.depth(*k);
+            }
+            ids[x0..x0 + w].copy_from_slice(&t.ids[r..r + w]);
+        }
+    };
+    fb.depth
+        .par_chunks_mut(width)
+        .zip(fb.ids.par_chunks_mut(width))
+        .enumerate()
+        .for_each(|(y, (d, i))| copy_row(y, d, i));
+    if let Some(counts) = &mut fb.depth_tests {
+        counts.par_chunks_mut(width).enumerate().for_each(|(y, c)| {
+            let row = &tiles[(y >> TILE_SHIFT) * tx..(y >> TILE_SHIFT) * tx + tx];
+            let r = (y & (TILE as usize - 1)) << TILE_SHIFT;
+            for t in row.iter().filter(|t| t.dirty) {
+                let (x0, w) = (t.x0 as usize, t.w as usize);
+                c[x0..x0 + w].copy_from_slice(&t.counts[r..r + w]);
+            }
+        });
+    }
+}
+
+/// Renders every instance of `scene` (world transforms must be up to date) with a fresh
+/// [`Renderer`]. For many frames keep a `Renderer` and call [`Renderer::render`].
+pub fn render_scene(scene: &Scene, camera: &Camera, fb: &mut Framebuffer, opts: &RenderOptions) -> Result<FrameStats> {
+    let instances = scene.instances();
+    let items = crate::options::draw_all(&instances);
+    Renderer::new().render(scene, &instances, &items, camera, fb, opts)
+}

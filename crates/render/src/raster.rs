@@ -1,0 +1,327 @@
+//! Edge-function rasterization of set-up triangles into one screen tile.
+//!
+//! Pineda, "A Parallel Algorithm for Polygon Rasterization" (SIGGRAPH 1988): each edge
+//! a→b defines `E(p) = (b−a) × (p−a)`, positive on the inside of a positively oriented
+//! triangle; a pixel is covered when its center gives `E ≥ 0` on all three edges, and E is
+//! stepped incrementally (one add per pixel and edge). On snapped integer coordinates the
+//! test is exact, so two triangles sharing an edge never both cover a center, nor miss one.
+//!
+//! Ties (`E = 0`): the edge belongs to the triangle for which it is a LEFT or a BOTTOM edge
+//! as seen in the image (llvmpipe's rule, ../shared/anchors/fillrule_probe.py). With
+//! positive area in y-down coordinates, an edge running up the screen (dy < 0) has the
+//! triangle on its right: a left edge; a horizontal edge running right-to-left (dy = 0,
+//! dx < 0) has the triangle above it: a bottom edge. Other edges get a bias of −1, which
+//! turns `E ≥ 0` into `E > 0` on integers.
+//!
+//! Small triangles (extent ≤ 64 px, nearly all of a big scene) run on i32 over their
+//! bounding box; larger ones walk 8×8 blocks with i64 edges, skipping blocks outside an
+//! edge and filling blocks inside all edges without edge tests (the block-level trivial
+//! reject/accept of Greene 1996 and Intel's Masked Occlusion Culling).
+
+use crate::setup::{Tri, ONE, SUBPIXEL_BITS};
+
+/// Tile side in pixels (a power of two).
+pub const TILE: u32 = 64;
+/// log2 of [`TILE`].
+pub const TILE_SHIFT: u32 = 6;
+const BLOCK: i32 = 8;
+/// Largest extent (in fixed-point units) handled with 32-bit edge values: |E| stays below
+/// 2·2^14·(2^14 + 256) < 2^31 even one step past the box.
+const SMALL_EXTENT: i32 = 1 << 14;
+
+/// One tile's depth keys, IDs and depth-test counts (row stride [`TILE`]).
+#[derive(Debug, Clone)]
+pub struct TileBuf {
+    /// Left pixel column.
+    pub x0: u32,
+    /// Top pixel row.
+    pub y0: u32,
+    /// Width (≤ TILE at the right border).
+    pub w: u32,
+    /// Height.
+    pub h: u32,
+    /// Depth keys ([`crate::DepthFormat::key`]).
+    pub depth: Vec<u32>,
+    /// Triangle IDs.
+    pub ids: Vec<u32>,
+    /// Depth tests per pixel (only used when counting).
+    pub counts: Vec<u32>,
+    /// Whether the tile received triangles in the current pass.
+    pub dirty: bool,
+}
+
+impl TileBuf {
+    /// An empty tile at pixel (x0, y0) of size w × h.
+    pub fn new(x0: u32, y0: u32, w: u32, h: u32) -> Self {
+        let n = (TILE * TILE) as usize;
+        Self { x0, y0, w, h, depth: vec![0; n], ids: vec![0; n], counts: vec![0; n], dirty: false }
+    }
+}
+
+/// Per-triangle result of rasterizing into one tile.
+#[derive(Debug, Clone, Copy, Default)]
+pub struct TriRaster {
+    /// Pixel centers covered (= fragments depth-tested).
+    pub covered: u32,
+    /// Fragments that passed the depth test.
+    pub written: u32,
+}
+
+#[derive(Clone, Copy)]
+struct Edge {
+    /// E at pixel center (px, py) is `a·px + b·py + c` (bias included).
+    a: i64,
+    b: i64,
+    c: i64,
+}
+
+#[inline(always)]
+fn edges(t: &Tri) -> [Edge; 3] {
+    let half = (ONE / 2) as i64;
+    let one = ONE as i64;
+    std::array::from_fn(|i| {
+        let j = (i + 1) % 3;
+        let (ax, ay) = (t.x[i] as i64, t.y[i] as i64);
+        let (dx, dy) = (t.x[j] as i64 - ax, t.y[j] as i64 - ay);
+        let inclusive = dy < 0 || (dy == 0 && dx < 0);
+        Edge { a: -dy * one, b: dx * one, c: dx * (half - ay) - dy * (half - ax) - (!inclusive) as i64 }
+    })
+}
+
+/// True when some pixel center of the triangle's bounding box is covered (used by setup
+/// for tiny boxes).
+pub fn covers_any(t: &Tri) -> bool {
+    let e = edges(t);
+    let [x0, y0, x1, y1] = t.bbox.map(|v| v as i64);
+    (y0..=y1).any(|py| (x0..=x1).any(|px| e.iter().all(|e| e.a * px + e.b * py + e.c >= 0)))
+}
+
+/// True when the triangle covers no pixel center of the inclusive pixel rectangle (a
+/// conservative test: false means "maybe").
+pub fn misses_rect(t: &Tri, r: [i32; 4]) -> bool {
+    let e = edges(t);
+    let (w, h) = ((r[2] - r[0]) as i64, (r[3] - r[1]) as i64);
+    e.iter().any(|e| {
+        let e00 = e.a * r[0] as i64 + e.b * r[1] as i64 + e.c;
+        e00 + e.a.max(0) * w + e.b.max(0) * h < 0
+    })
+}
+
+/// Depth key of window z for a format given as a const (0 = f32, 16, 24).
+#[inline(always)]
+pub fn key<const FMT: u8>(z: f32) -> u32 {
+    let z = if z > 0.0 { z.min(1.0) + 0.0 } else { 0.0 };
+    match FMT {
+        16 => (z * 65535.0 + 0.5) as u32,
+        24 => (z * 16_777_215.0 + 0.5) as u32,
+        _ => z.to_bits(),
+    }
+}
+
+/// Rasterizes one triangle into `tile` (depth test LESS; IDs written with depth).
+#[inline]
+pub fn raster_tri<const FMT: u8, const COUNT: bool>(t: &Tri, tile: &mut TileBuf) -> TriRaster {
+    let x0 = (t.bbox[0] as i32).max(tile.x0 as i32);
+    let y0 = (t.bbox[1] as i32).max(tile.y0 as i32);
+    let x1 = (t.bbox[2] as i32).min((tile.x0 + tile.w) as i32 - 1);
+    let y1 = (t.bbox[3] as i32).min((tile.y0 + tile.h) as i32 - 1);
+    if x0 > x1 || y0 > y1 {
+        return TriRaster::default();
+    }
+    let ext_x = t.x[0].max(t.x[1]).max(t.x[2]) - t.x[0].min(t.x[1]).min(t.x[2]);
+    let ext_y = t.y[0].max(t.y[1]).max(t.y[2]) - t.y[0].min(t.y[1]).min(t.y[2]);
+    if ext_x <= SMALL_EXTENT && ext_y <= SMALL_EXTENT {
+        raster_small::<FMT, COUNT>(t, tile, [x0, y0, x1, y1])
+    } else {
+        raster_blocks::<FMT, COUNT>(t, tile, [x0, y0, x1, y1])
+    }
+}
+
+/// Depth at fixed-point offset (dx, dy) from vertex 0.
+#[inline(always)]
+fn depth_row(t: &Tri, py: i32) -> f32 {
+    t.z0 + t.zy * (((py << SUBPIXEL_BITS) + ONE / 2 - t.y[0]) as f32)
+}
+
+#[inline(always)]
+fn depth_at(t: &Tri, zrow: f32, px: i32) -> f32 {
+    zrow + t.zx * (((px << SUBPIXEL_BITS) + ONE / 2 - t.x[0]) as f32)
+}
+
+#[inline(always)]
+fn fragment<const FMT: u8, const COUNT: bool>(tile: &mut TileBuf, idx: usize, z: f32, id: u32, r: &mut TriRaster) {
+    let k = key::<FMT>(z);
+    r.covered += 1;
+    if COUNT {
+        tile.counts[idx] += 1;
+    }
+    if k < tile.depth[idx] {
+        tile.depth[idx] = k;
+        tile.ids[idx] = id;
+        r.written += 1;
+    }
+}
+
+fn raster_small<const FMT: u8, const COUNT: bool>(
+    t: &Tri,
+    tile: &mut TileBuf,
+    [x0, y0, x1, y1]: [i32; 4],
+) -> TriRaster {
+    let e = edges(t);
+    // Edge values at the first pixel; they fit i32 (see SMALL_EXTENT).
+    let start = |e: &Edge| (e.a * x0 as i64 + e.b * y0 as i64 + e.c) as i32;
+    let (mut r0, mut r1, mut r2) = (start(&e[0]), start(&e[1]), start(&e[2]));
+    let (a0, a1, a2) = (e[0].a as i32, e[1].a as i32, e[2].a as i32);
+    let (b0, b1, b2) = (e[0].b as i32, e[1].b as i32, e[2].b as i32);
+    let mut out = TriRaster::default();
+    let (tx, ty) = (tile.x0 as i32, tile.y0 as i32);
+    for py in y0..=y1 {
+        let (mut e0, mut e1, mut e2) = (r0, r1, r2);
+        let zrow = depth_row(t, py);
+        let row = ((py - ty) as usize) << TILE_SHIFT;
+        for px in x0..=x1 {
+            if (e0 | e1 | e2) >= 0 {
+                let z = depth_at(t, zrow, px);
+                fragment::<FMT, COUNT>(tile, row + (px - tx) as usize, z, t.id, &mut out);
+            }
+            e0 = e0.wrapping_add(a0);
+            e1 = e1.wrapping_add(a1);
+            e2 = e2.wrapping_add(a2);
+        }
+        r0 = r0.wrapping_add(b0);
+        r1 = r1.wrapping_add(b1);
+        r2 = r2.wrapping_add(b2);
+    }
+    out
+}
+
+fn raster_blocks<const FMT: u8, const COUNT: bool>(
+    t: &Tri,
+    tile: &mut TileBuf,
+    [x0, y0, x1, y1]: [i32; 4],
+) -> TriRaster {
+    let e = edges(t);
+    let mut out = TriRaster::default();
+    let (tx, ty) = (tile.x0 as i32, tile.y0 as i32);
+    let mut by = y0 & !(BLOCK - 1);
+    while by <= y1 {
+        let (ry0, ry1) = (by.max(y0), (by + BLOCK - 1).min(y1));
+        let mut bx = x0 & !(BLOCK - 1);
+        while bx <= x1 {
+            let (rx0, rx1) = (bx.max(x0), (bx + BLOCK - 1).min(x1));
+            let (w, h) = ((rx1 - rx0) as i64, (ry1 - ry0) as i64);
+            let mut outside = false;
+            let mut inside = true;
+            let mut e00 = [0i64; 3];
+            for k in 0..3 {
+                let v = e[k].a * rx0 as i64 + e[k].b * ry0 as i64 + e[k].c;
+                e00[k] = v;
+                let lo = v + e[k].a.min(0) * w + e[k].b.min(0) * h;
+                let hi = v + e[k].a.max(0) * w + e[k].b.max(0) * h;
+                outside |= hi < 0;
+                inside &= lo >= 0;
+            }
+            if !outside {
+                for py in ry0..=ry1 {
+                    let zrow = depth_row(t, py);
+                    let row = ((py - ty) as usize) << TILE_SHIFT;
+                    let dy = (py - ry0) as i64;
+                    let mut ev = [0i64; 3];
+                    for k in 0..3 {
+                        ev[k] = e00[k] + e[k].b * dy;
+                    }
+                    for px in rx0..=rx1 {
+                        if inside || (ev[0] | ev[1] | ev[2]) >= 0 {
+                            let z = depth_at(t, zrow, px);
+                            fragment::<FMT, COUNT>(tile, row + (px - tx) as usize, z, t.id, &mut out);
+                        }
+                        for k in 0..3 {
+                            ev[k] += e[k].a;
+                        }
+                    }
+                }
+            }
+            bx += BLOCK;
+        }
+        by += BLOCK;
+    }
+    out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::setup::{setup, Setup, SnappedVertex, Viewport};
+
+    fn tri(pts: [(f32, f32); 3], id: u32, vp: &Viewport) -> Option<Tri> {
+        let v = pts.map(|(x, y)| SnappedVertex { x: crate::setup::snap(x), y: crate::setup::snap(y), z: 0.5 });
+        match setup(v, id, false, vp) {
+            Setup::Ready(t) => Some(t),
+            _ => None,
+        }
+    }
+
+    fn draw(tris: &[Tri], w: u32, h: u32) -> (Vec<u32>, Vec<u32>) {
+        let mut tile = TileBuf::new(0, 0, w, h);
+        tile.depth.fill(u32::MAX);
+        for t in tris {
+            raster_tri::<0, true>(t, &mut tile);
+        }
+        let pick =
+            |v: &Vec<u32>| (0..h).flat_map(|y| (0..w).map(move |x| (y * TILE + x) as usize)).map(|i| v[i]).collect();
+        (pick(&tile.ids), pick(&tile.counts))
+    }
+
+    /// fillrule_probe.py in image coordinates (y down): which triangle owns centers on a
+    /// shared horizontal and a shared vertical edge.
+    #[test]
+    fn llvmpipe_tie_rule_probe() {
+        let vp = Viewport::new(8, 8, true);
+        let flip = |(x, y): (f32, f32)| (x, 8.0 - y); // the probe gives GL window coords
+        let case = |p: [(f32, f32); 6]| {
+            let p = p.map(flip);
+            let a = tri([p[0], p[1], p[2]], 1, &vp).unwrap();
+            let b = tri([p[3], p[4], p[5]], 2, &vp).unwrap();
+            draw(&[a, b], 8, 8)
+        };
+        // Horizontal edge at GL y 4.5 = image row 3: goes to the triangle visually above.
+        let (ids, counts) = case([(0.0, 4.5), (4.0, 0.0), (8.0, 4.5), (0.0, 4.5), (8.0, 4.5), (4.0, 9.0)]);
+        assert_eq!(&ids[3 * 8 + 2..3 * 8 + 6], &[2, 2, 2, 2]);
+        assert!(counts[3 * 8 + 2..3 * 8 + 6].iter().all(|&c| c == 1));
+        // Vertical edge at x 4.5 = column 4: goes to the triangle on the right.
+        let (ids, _) = case([(4.5, 0.0), (4.5, 8.0), (0.0, 4.0), (4.5, 8.0), (4.5, 0.0), (9.0, 4.0)]);
+        for row in 2..6 {
+            assert_eq!(ids[row * 8 + 4], 2, "row {row}");
+            assert_eq!(ids[row * 8 + 3], 1, "row {row}");
+        }
+    }
+
+    #[test]
+    fn small_and_block_paths_agree() {
+        // The same big triangle drawn through both paths (by shrinking the extent limit
+        // artificially is not possible, so compare against a direct per-pixel evaluation).
+        let vp = Viewport::new(64, 64, true);
+        let t = tri([(0.3, 0.7), (63.2, 20.1), (10.4, 63.9)], 1, &vp).unwrap();
+        let e = edges(&t);
+        let (ids, _) = draw(&[t], 64, 64);
+        for py in 0..64i64 {
+            for px in 0..64i64 {
+                let inside = e.iter().all(|e| e.a * px + e.b * py + e.c >= 0);
+                assert_eq!(ids[(py * 64 + px) as usize] == 1, inside, "{px},{py}");
+            }
+        }
+        let mut big = t;
+        big.x = t.x.map(|v| v * 2);
+        big.y = t.y.map(|v| v * 2);
+        big.bbox = [0, 0, 63, 63];
+        assert!(big.x.iter().max().unwrap() > &SMALL_EXTENT);
+        let (ids, _) = draw(&[big], 64, 64);
+        let e = edges(&big);
+        for py in 0..64i64 {
+            for px in 0..64i64 {
+                let inside = e.iter().all(|e| e.a * px + e.b * py + e.c >= 0);
+                assert_eq!(ids[(py * 64 + px) as usize] == 1, inside, "{px},{py}");
+            }
+        }
+    }
+}

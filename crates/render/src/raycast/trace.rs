@@ -1,0 +1,139 @@
+//! Two-level packet tracing: the TLAS over instances, then each instance's BLAS with the
+//! packet mapped into its local space, then the triangles of each leaf.
+//!
+//! Closest-hit queries (`ANY = false`) keep the nearest hit per lane; any-hit queries
+//! (`ANY = true`, shadow rays) close a lane at its first hit and stop when all are closed.
+
+use super::blas::Blas;
+use super::packet::{chunk_bits, Beam, Frustum, Hits, Rays, CHUNK, CHUNKS};
+use super::tlas::Tlas;
+use super::traverse::{traverse, Entry};
+use super::triangle::{intersect_general, intersect_shared, shared_setup};
+
+/// Per-thread scratch space for tracing packets.
+pub(crate) struct Scratch {
+    /// The packet in the current instance's space.
+    pub local: Rays,
+    /// Traversal stack of the TLAS.
+    pub tlas_stack: Vec<Entry>,
+    /// Traversal stack of the BLASes.
+    pub blas_stack: Vec<Entry>,
+}
+
+impl Scratch {
+    /// Scratch with stacks sized for trees of the given depths.
+    pub fn new(tlas_depth: usize, blas_depth: usize) -> Self {
+        Self {
+            local: Rays::new(),
+            tlas_stack: Vec::with_capacity(tlas_depth + 4),
+            blas_stack: Vec::with_capacity(blas_depth + 4),
+        }
+    }
+}
+
+/// Tests the lanes of `mask` against the triangles of one BLAS leaf.
+#[inline(always)]
+#[allow(clippy::too_many_arguments)]
+fn leaf<const ANY: bool>(
+    blas: &Blas,
+    rays: &Rays,
+    hits: &mut Hits,
+    first: u32,
+    count: u32,
+    mut mask: u64,
+    inst: u32,
+) -> u64 {
+    let mut done = 0u64;
+    let end = first.saturating_add(count).min(blas.tris.len() as u32);
+    for k in first..end {
+        let tri = &blas.tris[k as usize];
+        let mut got = 0u64;
+        match rays.shared {
+            Some(o) => {
+                let s = shared_setup(tri, o);
+                for c in 0..CHUNKS {
+                    let bits = chunk_bits(mask, c);
+                    if bits != 0 {
+                        got |= intersect_shared::<ANY>(&s, rays, hits, c, bits, inst, k)
+                            << (c * CHUNK);
+                    }
+                }
+            }
+            None => {
+                for c in 0..CHUNKS {
+                    let bits = chunk_bits(mask, c);
+                    if bits != 0 {
+                        got |= intersect_general::<ANY>(tri, rays, hits, c, bits, inst, k)
+                            << (c * CHUNK);
+                    }
+                }
+            }
+        }
+        if ANY {
+            done |= got;
+            mask &= !got;
+            if mask == 0 {
+                break;
+            }
+        }
+    }
+    done
+}
+
+/// Traces the lanes of `mask` through the scene. `beam` (the packet's corner rays) enables
+/// frustum culling. Returns the lanes closed by any-hit queries.
+#[inline(always)]
+pub(crate) fn trace<const ANY: bool>(
+    blases: &[Blas],
+    tlas: &Tlas,
+    rays: &Rays,
+    beam: Option<&Beam>,
+    hits: &mut Hits,
+    mask: u64,
+    s: &mut Scratch,
+) -> u64 {
+    let world = beam.map_or(Frustum::OFF, |b| b.frustum());
+    let Scratch {
+        local,
+        tlas_stack,
+        blas_stack,
+    } = s;
+    traverse(
+        &tlas.bvh,
+        rays,
+        hits,
+        &world,
+        mask,
+        tlas_stack,
+        |hits, first, count, m| {
+            let mut done = 0u64;
+            let end = first.saturating_add(count) as usize;
+            for k in first as usize..end.min(tlas.bvh.order.len()) {
+                let ii = tlas.bvh.order[k];
+                let Some(inst) = tlas.instances.get(ii as usize) else {
+                    continue;
+                };
+                let Some(blas) = blases.get(inst.blas as usize) else {
+                    continue;
+                };
+                let m = m & !done;
+                if m == 0 {
+                    break;
+                }
+                let (lr, fr): (&Rays, Frustum) = if inst.identity {
+                    (rays, world)
+                } else {
+                    rays.transform_into(&inst.local_from_world, m, local);
+                    let fr = beam.map_or(Frustum::OFF, |b| {
+                        b.transformed(&inst.local_from_world).frustum()
+                    });
+                    (&*local, fr)
+                };
+                done |= traverse(&blas.bvh, lr, hits, &fr, m, blas_stack, |hits, f, n, lm| {
+                    leaf::<ANY>(blas, lr, hits, f, n, lm, ii)
+                });
+            }
+            done
+        },
+    )
+}
