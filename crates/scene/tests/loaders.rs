@@ -630,7 +630,8 @@ fn gltf_index_types_strips_fans_and_no_indices() {
 #[test]
 fn other_gltf_problems_name_the_file() {
     let dir = tmp_dir("misc");
-    let cases: Vec<(&str, Box<dyn FnOnce(&mut serde_json::Value)>, &str)> = vec![
+    type Edit = Box<dyn FnOnce(&mut serde_json::Value)>;
+    let cases: Vec<(&str, Edit, &str)> = vec![
         (
             "nopos.gltf",
             Box::new(|d| d["meshes"][0]["primitives"][0]["attributes"] = serde_json::json!({"NORMAL": 0})),
