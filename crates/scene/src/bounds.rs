@@ -25,10 +25,7 @@ impl Default for Aabb {
 
 impl Aabb {
     /// The empty box: contains nothing, and is the identity of [`Aabb::union`].
-    pub const EMPTY: Aabb = Aabb {
-        min: Vec3::INFINITY,
-        max: Vec3::NEG_INFINITY,
-    };
+    pub const EMPTY: Aabb = Aabb { min: Vec3::INFINITY, max: Vec3::NEG_INFINITY };
 
     /// A box from its corners (not reordered).
     pub const fn new(min: Vec3, max: Vec3) -> Self {
@@ -64,10 +61,7 @@ impl Aabb {
     /// The smallest box containing both.
     #[inline]
     pub fn union(&self, o: &Aabb) -> Aabb {
-        Aabb {
-            min: self.min.min(o.min),
-            max: self.max.max(o.max),
-        }
+        Aabb { min: self.min.min(o.min), max: self.max.max(o.max) }
     }
 
     /// Center point (meaningless for the empty box).
@@ -131,10 +125,7 @@ impl Aabb {
             lo += a.min(b);
             hi += a.max(b);
         }
-        Aabb {
-            min: lo.into(),
-            max: hi.into(),
-        }
+        Aabb { min: lo.into(), max: hi.into() }
     }
 }
 

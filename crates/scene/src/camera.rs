@@ -35,32 +35,21 @@ impl View {
     /// Looks from `eye` along `gaze` (any length) with `up` as the approximate up direction.
     pub fn look_along(eye: Vec3, gaze: Vec3, up: Vec3) -> Result<Self> {
         if !eye.is_finite() || !gaze.is_finite() || !up.is_finite() {
-            return Err(Error::InvalidCamera(format!(
-                "eye {eye}, gaze {gaze} and up {up} must be finite"
-            )));
+            return Err(Error::InvalidCamera(format!("eye {eye}, gaze {gaze} and up {up} must be finite")));
         }
         let (ed, gd, ud) = (eye.as_dvec3(), gaze.as_dvec3(), up.as_dvec3());
         if gd.length_squared() == 0.0 {
-            return Err(Error::InvalidCamera(
-                "gaze is zero: eye and target coincide".into(),
-            ));
+            return Err(Error::InvalidCamera("gaze is zero: eye and target coincide".into()));
         }
         let w = -gd.normalize();
         let uxw = ud.cross(w);
         if uxw.length() <= 1e-9 * ud.length().max(1e-300) {
-            return Err(Error::InvalidCamera(format!(
-                "up {up} is zero or parallel to the gaze {gaze}"
-            )));
+            return Err(Error::InvalidCamera(format!("up {up} is zero or parallel to the gaze {gaze}")));
         }
         let u = uxw.normalize();
         let v = w.cross(u);
         let _ = ed;
-        Ok(Self {
-            eye,
-            u: u.as_vec3(),
-            v: v.as_vec3(),
-            w: w.as_vec3(),
-        })
+        Ok(Self { eye, u: u.as_vec3(), v: v.as_vec3(), w: w.as_vec3() })
     }
 
     /// The gaze direction (−w).
@@ -70,12 +59,7 @@ impl View {
 
     /// `view_from_world` in f64: rows u, v, w and translation −(u·e, v·e, w·e).
     pub fn view_from_world_f64(&self) -> DMat4 {
-        let (u, v, w, e) = (
-            self.u.as_dvec3(),
-            self.v.as_dvec3(),
-            self.w.as_dvec3(),
-            self.eye.as_dvec3(),
-        );
+        let (u, v, w, e) = (self.u.as_dvec3(), self.v.as_dvec3(), self.w.as_dvec3(), self.eye.as_dvec3());
         DMat4::from_cols(
             glam::DVec4::new(u.x, v.x, w.x, 0.0),
             glam::DVec4::new(u.y, v.y, w.y, 0.0),
@@ -121,10 +105,7 @@ impl Camera {
         near: f32,
         far: f32,
     ) -> Result<Self> {
-        Self::new(
-            View::look_at(eye, target, up)?,
-            Projection::perspective(fovy_deg.to_radians(), aspect, near, far)?,
-        )
+        Self::new(View::look_at(eye, target, up)?, Projection::perspective(fovy_deg.to_radians(), aspect, near, far)?)
     }
 
     /// `clip_from_world` in f64 (product formed in double precision).
@@ -151,10 +132,7 @@ impl Camera {
         let (u, vv, w) = (v.u.as_dvec3(), v.v.as_dvec3(), v.w.as_dvec3());
         let (o, d) = self.projection.view_ray(ndc.as_dvec2());
         let to_world = |p: DVec3| u * p.x + vv * p.y + w * p.z;
-        (
-            (v.eye.as_dvec3() + to_world(o)).as_vec3(),
-            to_world(d).as_vec3(),
-        )
+        ((v.eye.as_dvec3() + to_world(o)).as_vec3(), to_world(d).as_vec3())
     }
 }
 
@@ -197,25 +175,14 @@ mod tests {
         assert!(View::look_at(Vec3::ZERO, Vec3::Y * 3.0, Vec3::Y).is_err());
         assert!(View::look_at(Vec3::ZERO, Vec3::Z, Vec3::ZERO).is_err());
         assert!(View::look_at(Vec3::NAN, Vec3::Z, Vec3::Y).is_err());
-        let e = View::look_at(Vec3::ZERO, Vec3::NEG_Y, Vec3::Y)
-            .unwrap_err()
-            .to_string();
+        let e = View::look_at(Vec3::ZERO, Vec3::NEG_Y, Vec3::Y).unwrap_err().to_string();
         assert!(e.contains("parallel"), "{e}");
     }
 
     #[test]
     fn rays_hit_the_projected_point() {
         let cams = [
-            Camera::perspective_look_at(
-                Vec3::new(1.0, 2.0, 3.0),
-                Vec3::ZERO,
-                Vec3::Y,
-                50.0,
-                1.5,
-                0.1,
-                100.0,
-            )
-            .unwrap(),
+            Camera::perspective_look_at(Vec3::new(1.0, 2.0, 3.0), Vec3::ZERO, Vec3::Y, 50.0, 1.5, 0.1, 100.0).unwrap(),
             Camera::new(
                 View::look_at(Vec3::new(1.0, 2.0, 3.0), Vec3::ZERO, Vec3::Y).unwrap(),
                 Projection::orthographic(-2.0, 3.0, -1.0, 2.0, 0.5, 50.0).unwrap(),

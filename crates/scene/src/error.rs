@@ -68,9 +68,6 @@ pub type Result<T, E = Error> = std::result::Result<T, E>;
 impl Error {
     /// A load error for `path` with a message.
     pub fn load(path: impl Into<PathBuf>, why: impl Into<String>) -> Self {
-        Error::Load {
-            path: path.into(),
-            why: why.into(),
-        }
+        Error::Load { path: path.into(), why: why.into() }
     }
 }

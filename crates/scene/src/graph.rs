@@ -107,12 +107,7 @@ pub struct NodeDesc {
 impl NodeDesc {
     /// A group node with an identity transform.
     pub fn new(name: impl Into<String>) -> Self {
-        Self {
-            name: name.into(),
-            local: Affine3A::IDENTITY,
-            mesh: None,
-            material: None,
-        }
+        Self { name: name.into(), local: Affine3A::IDENTITY, mesh: None, material: None }
     }
     /// Sets the local transform from TRS (checked when the node is added).
     pub fn transform(mut self, t: Transform) -> Self {
@@ -439,9 +434,7 @@ impl Scene {
             if !node.dirty {
                 continue; // handled with a dirty ancestor
             }
-            let parent_world = node
-                .parent
-                .map_or(Affine3A::IDENTITY, |p| self.nodes[p].world_from_local);
+            let parent_world = node.parent.map_or(Affine3A::IDENTITY, |p| self.nodes[p].world_from_local);
             stack.push((id, parent_world));
             // Propagate.
             while let Some((n, parent_world)) = stack.pop() {
@@ -471,8 +464,7 @@ impl Scene {
         let mut out = Vec::new();
         let mut first = 0u32;
         // (node, inherited material)
-        let mut stack: Vec<(NodeId, Option<MaterialId>)> =
-            self.roots.iter().rev().map(|&r| (r, None)).collect();
+        let mut stack: Vec<(NodeId, Option<MaterialId>)> = self.roots.iter().rev().map(|&r| (r, None)).collect();
         while let Some((id, inherited)) = stack.pop() {
             let n = &self.nodes[id];
             let material = n.material.or(inherited);
@@ -496,8 +488,6 @@ impl Scene {
 
     /// World bounds of everything drawn (as of the last update).
     pub fn world_aabb(&self) -> Aabb {
-        self.nodes
-            .values()
-            .fold(Aabb::EMPTY, |b, n| b.union(&n.world_aabb))
+        self.nodes.values().fold(Aabb::EMPTY, |b, n| b.union(&n.world_aabb))
     }
 }

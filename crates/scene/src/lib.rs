@@ -60,19 +60,11 @@ pub use transform::{affine_from_mat4, validate_affine, Transform};
 /// transforms already propagated.
 pub fn load(path: impl AsRef<std::path::Path>) -> Result<Scene> {
     let path = path.as_ref();
-    let ext = path
-        .extension()
-        .and_then(|e| e.to_str())
-        .map(|e| e.to_ascii_lowercase());
+    let ext = path.extension().and_then(|e| e.to_str()).map(|e| e.to_ascii_lowercase());
     let mut scene = match ext.as_deref() {
         Some("gltf") | Some("glb") => gltf_loader::load_gltf(path)?,
         Some("obj") => obj_loader::load_obj(path)?,
-        _ => {
-            return Err(Error::load(
-                path,
-                "unknown file type: expected .gltf, .glb or .obj",
-            ))
-        }
+        _ => return Err(Error::load(path, "unknown file type: expected .gltf, .glb or .obj")),
     };
     scene.update_transforms();
     Ok(scene)

@@ -20,13 +20,11 @@ pub struct Texture {
 impl Texture {
     /// A texture from raw RGBA8 data; `None` when the sizes do not match or are zero.
     pub fn new(width: u32, height: u32, rgba: Vec<u8>) -> Option<Self> {
-        (width > 0 && height > 0 && rgba.len() == width as usize * height as usize * 4).then_some(
-            Self {
-                width,
-                height,
-                rgba,
-            },
-        )
+        (width > 0 && height > 0 && rgba.len() == width as usize * height as usize * 4).then_some(Self {
+            width,
+            height,
+            rgba,
+        })
     }
 
     /// The texel at integer coordinates (clamped to the image).
@@ -35,12 +33,7 @@ impl Texture {
         let x = x.min(self.width - 1) as usize;
         let y = y.min(self.height - 1) as usize;
         let i = (y * self.width as usize + x) * 4;
-        [
-            self.rgba[i],
-            self.rgba[i + 1],
-            self.rgba[i + 2],
-            self.rgba[i + 3],
-        ]
+        [self.rgba[i], self.rgba[i + 1], self.rgba[i + 2], self.rgba[i + 3]]
     }
 }
 
@@ -57,21 +50,13 @@ pub struct Material {
 
 impl Default for Material {
     fn default() -> Self {
-        Self {
-            name: "default".into(),
-            base_color: [0.8, 0.8, 0.8, 1.0],
-            base_color_texture: None,
-        }
+        Self { name: "default".into(), base_color: [0.8, 0.8, 0.8, 1.0], base_color_texture: None }
     }
 }
 
 impl Material {
     /// A plain colored material.
     pub fn color(name: impl Into<String>, rgb: [f32; 3]) -> Self {
-        Self {
-            name: name.into(),
-            base_color: [rgb[0], rgb[1], rgb[2], 1.0],
-            base_color_texture: None,
-        }
+        Self { name: name.into(), base_color: [rgb[0], rgb[1], rgb[2], 1.0], base_color_texture: None }
     }
 }

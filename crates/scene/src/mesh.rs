@@ -36,28 +36,16 @@ impl Mesh {
         indices: Vec<u32>,
     ) -> Result<Self> {
         let name = name.into();
-        let bad = |why: String| Error::InvalidMesh {
-            name: name.clone(),
-            why,
-        };
+        let bad = |why: String| Error::InvalidMesh { name: name.clone(), why };
         if indices.len() % 3 != 0 {
-            return Err(bad(format!(
-                "{} indices is not a multiple of 3",
-                indices.len()
-            )));
+            return Err(bad(format!("{} indices is not a multiple of 3", indices.len())));
         }
         if let Some(i) = positions.iter().position(|p| !p.is_finite()) {
-            return Err(bad(format!(
-                "position {i} is not finite: {:?}",
-                positions[i]
-            )));
+            return Err(bad(format!("position {i} is not finite: {:?}", positions[i])));
         }
         let n = positions.len();
         if let Some(k) = indices.iter().position(|&i| i as usize >= n) {
-            return Err(bad(format!(
-                "index {} at slot {k} is out of range for {n} vertices",
-                indices[k]
-            )));
+            return Err(bad(format!("index {} at slot {k} is out of range for {n} vertices", indices[k])));
         }
         if let Some(nr) = &normals {
             if nr.len() != n {
@@ -79,11 +67,7 @@ impl Mesh {
         let mut aabb = Aabb::EMPTY;
         let mut degenerate = 0;
         for t in indices.chunks_exact(3) {
-            let [a, b, c] = [
-                positions[t[0] as usize],
-                positions[t[1] as usize],
-                positions[t[2] as usize],
-            ];
+            let [a, b, c] = [positions[t[0] as usize], positions[t[1] as usize], positions[t[2] as usize]];
             aabb.grow(a);
             aabb.grow(b);
             aabb.grow(c);
@@ -91,15 +75,7 @@ impl Mesh {
                 degenerate += 1;
             }
         }
-        Ok(Self {
-            name,
-            positions,
-            normals,
-            uvs,
-            indices,
-            aabb,
-            degenerate,
-        })
+        Ok(Self { name, positions, normals, uvs, indices, aabb, degenerate })
     }
 
     /// The mesh's name (from the file, or given by a builder).
@@ -129,11 +105,7 @@ impl Mesh {
     /// The three vertex indices of triangle `t`.
     #[inline]
     pub fn triangle(&self, t: usize) -> [u32; 3] {
-        [
-            self.indices[3 * t],
-            self.indices[3 * t + 1],
-            self.indices[3 * t + 2],
-        ]
+        [self.indices[3 * t], self.indices[3 * t + 1], self.indices[3 * t + 2]]
     }
     /// The three local-space corners of triangle `t`.
     #[inline]
@@ -151,9 +123,7 @@ impl Mesh {
     /// Bytes of vertex data (positions, normals, UVs) held by this mesh.
     pub fn vertex_bytes(&self) -> usize {
         let n = self.positions.len();
-        n * 12
-            + self.normals.as_ref().map_or(0, |_| n * 12)
-            + self.uvs.as_ref().map_or(0, |_| n * 8)
+        n * 12 + self.normals.as_ref().map_or(0, |_| n * 12) + self.uvs.as_ref().map_or(0, |_| n * 8)
     }
 }
 
@@ -168,13 +138,9 @@ mod tests {
     #[test]
     fn validates_indices_and_positions() {
         assert!(Mesh::new("ok", tri(), None, None, vec![0, 1, 2]).is_ok());
-        let e = Mesh::new("m", tri(), None, None, vec![0, 1, 3])
-            .unwrap_err()
-            .to_string();
+        let e = Mesh::new("m", tri(), None, None, vec![0, 1, 3]).unwrap_err().to_string();
         assert!(e.contains("'m'") && e.contains("out of range"), "{e}");
-        let e = Mesh::new("m", tri(), None, None, vec![0, 1])
-            .unwrap_err()
-            .to_string();
+        let e = Mesh::new("m", tri(), None, None, vec![0, 1]).unwrap_err().to_string();
         assert!(e.contains("multiple of 3"), "{e}");
         let mut p = tri();
         p[1].y = f32::NAN;

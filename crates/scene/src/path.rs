@@ -49,8 +49,8 @@ impl CameraKey {
 /// Reads a camera path JSON file.
 pub fn read_path(path: &Path) -> Result<Vec<CameraKey>> {
     let text = std::fs::read_to_string(path).map_err(|e| Error::load(path, e.to_string()))?;
-    let keys: Vec<CameraKey> = serde_json::from_str(&text)
-        .map_err(|e| Error::load(path, format!("not a camera path: {e}")))?;
+    let keys: Vec<CameraKey> =
+        serde_json::from_str(&text).map_err(|e| Error::load(path, format!("not a camera path: {e}")))?;
     if keys.is_empty() {
         return Err(Error::load(path, "camera path has no frames"));
     }
@@ -60,10 +60,7 @@ pub fn read_path(path: &Path) -> Result<Vec<CameraKey>> {
 /// Writes a camera path JSON file.
 pub fn write_path(path: &Path, keys: &[CameraKey]) -> Result<()> {
     let text = serde_json::to_string_pretty(keys).map_err(|e| Error::load(path, e.to_string()))?;
-    std::fs::write(path, text).map_err(|source| Error::Io {
-        path: path.into(),
-        source,
-    })
+    std::fs::write(path, text).map_err(|source| Error::Io { path: path.into(), source })
 }
 
 /// A polyline sampled by arc length.
@@ -89,21 +86,12 @@ impl Polyline {
     }
 }
 
-fn sample(
-    line: &Polyline,
-    frames: usize,
-    lookahead: f32,
-    key: impl Fn(Vec3, Vec3) -> CameraKey,
-) -> Vec<CameraKey> {
+fn sample(line: &Polyline, frames: usize, lookahead: f32, key: impl Fn(Vec3, Vec3) -> CameraKey) -> Vec<CameraKey> {
     let len = line.length();
     let frames = frames.max(1);
     (0..frames)
         .map(|i| {
-            let s = if frames == 1 {
-                0.0
-            } else {
-                len * i as f32 / (frames - 1) as f32
-            };
+            let s = if frames == 1 { 0.0 } else { len * i as f32 / (frames - 1) as f32 };
             key(line.at(s), line.at(s + lookahead))
         })
         .collect()
@@ -154,13 +142,7 @@ impl CityLayout {
             };
         }
         pts.dedup();
-        let to_world = |p: [i32; 2]| {
-            Vec3::new(
-                self.street(p[0] as u32),
-                EYE_HEIGHT,
-                self.street(p[1] as u32),
-            )
-        };
+        let to_world = |p: [i32; 2]| Vec3::new(self.street(p[0] as u32), EYE_HEIGHT, self.street(p[1] as u32));
         let mut line = Polyline(pts.into_iter().map(to_world).collect());
         if line.0.len() < 2 {
             let p = line.0[0];
@@ -212,9 +194,7 @@ fn aerial(bounds: &Aabb, height: f32, frames: usize) -> Vec<CameraKey> {
 /// at 5% of its height looking horizontally; `aerial` circles above it.
 pub fn generic_path(bounds: &Aabb, street: bool, frames: usize) -> Result<Vec<CameraKey>> {
     if !bounds.is_finite() {
-        return Err(Error::InvalidParams(
-            "cannot make a camera path for an empty scene".into(),
-        ));
+        return Err(Error::InvalidParams("cannot make a camera path for an empty scene".into()));
     }
     let e = bounds.extent().max(Vec3::splat(1e-3));
     if !street {
@@ -222,10 +202,7 @@ pub fn generic_path(bounds: &Aabb, street: bool, frames: usize) -> Result<Vec<Ca
     }
     let y = bounds.min.y + e.y * 0.05;
     let c = bounds.center();
-    let line = Polyline(vec![
-        Vec3::new(c.x, y, bounds.min.z - e.z * 0.1),
-        Vec3::new(c.x, y, bounds.max.z),
-    ]);
+    let line = Polyline(vec![Vec3::new(c.x, y, bounds.min.z - e.z * 0.1), Vec3::new(c.x, y, bounds.max.z)]);
     let far = e.length() * 2.0;
     Ok(sample(&line, frames, e.z * 0.1, |eye, target| CameraKey {
         eye: eye.into(),
@@ -247,24 +224,12 @@ mod tests {
         let c = city(&CityParams::for_triangles(100_000)).unwrap();
         let keys = c.layout.street_path(200, 7);
         assert_eq!(keys.len(), 200);
-        let buildings: Vec<Aabb> = c
-            .scene
-            .instances()
-            .iter()
-            .map(|i| i.world_aabb)
-            .filter(|b| b.max.y > 0.0)
-            .collect();
+        let buildings: Vec<Aabb> = c.scene.instances().iter().map(|i| i.world_aabb).filter(|b| b.max.y > 0.0).collect();
         for k in &keys {
             let eye = Vec3::from(k.eye);
             assert_eq!(k.eye[1], EYE_HEIGHT);
-            assert_eq!(
-                k.target[1], EYE_HEIGHT,
-                "street cameras look exactly horizontally"
-            );
-            assert!(
-                buildings.iter().all(|b| !b.contains_point(eye)),
-                "eye {eye} inside a building"
-            );
+            assert_eq!(k.target[1], EYE_HEIGHT, "street cameras look exactly horizontally");
+            assert!(buildings.iter().all(|b| !b.contains_point(eye)), "eye {eye} inside a building");
             k.camera(16.0 / 9.0).unwrap();
         }
     }
@@ -280,10 +245,7 @@ mod tests {
         assert_eq!(read_path(&f).unwrap(), keys);
         std::fs::write(&f, "[{\"eye\": 1}]").unwrap();
         let e = read_path(&f).unwrap_err().to_string();
-        assert!(
-            e.contains("aerial.json") && e.contains("camera path"),
-            "{e}"
-        );
+        assert!(e.contains("aerial.json") && e.contains("camera path"), "{e}");
         std::fs::remove_dir_all(&dir).ok();
     }
 }

@@ -67,9 +67,7 @@ impl Projection {
             )));
         }
         if !(aspect > 0.0 && aspect.is_finite()) {
-            return Err(Error::InvalidCamera(format!(
-                "aspect ratio {aspect} must be positive (zero-size viewport?)"
-            )));
+            return Err(Error::InvalidCamera(format!("aspect ratio {aspect} must be positive (zero-size viewport?)")));
         }
         let t = (near as f64 * (fovy as f64 * 0.5).tan()) as f32;
         let r = t * aspect;
@@ -77,44 +75,15 @@ impl Projection {
     }
 
     /// An asymmetric perspective projection with the window l, r, b, t at the near plane.
-    pub fn frustum(
-        left: f32,
-        right: f32,
-        bottom: f32,
-        top: f32,
-        near: f32,
-        far: f32,
-    ) -> Result<Self> {
-        let p = Projection::Perspective {
-            left,
-            right,
-            bottom,
-            top,
-            near,
-            far,
-        };
+    pub fn frustum(left: f32, right: f32, bottom: f32, top: f32, near: f32, far: f32) -> Result<Self> {
+        let p = Projection::Perspective { left, right, bottom, top, near, far };
         p.validate()?;
         Ok(p)
     }
 
     /// An orthographic projection of the view-space box l, r, b, t, near, far.
-    pub fn orthographic(
-        left: f32,
-        right: f32,
-        bottom: f32,
-        top: f32,
-        near: f32,
-        far: f32,
-    ) -> Result<Self> {
-        let p = Projection::Parallel {
-            left,
-            right,
-            bottom,
-            top,
-            near,
-            far,
-            shear: [0.0, 0.0],
-        };
+    pub fn orthographic(left: f32, right: f32, bottom: f32, top: f32, near: f32, far: f32) -> Result<Self> {
+        let p = Projection::Parallel { left, right, bottom, top, near, far, shear: [0.0, 0.0] };
         p.validate()?;
         Ok(p)
     }
@@ -133,57 +102,21 @@ impl Projection {
         phi: f32,
     ) -> Result<Self> {
         if !(beta > 0.0 && beta <= std::f32::consts::FRAC_PI_2) {
-            return Err(Error::InvalidCamera(format!(
-                "oblique angle {} degrees is not in (0, 90]",
-                beta.to_degrees()
-            )));
+            return Err(Error::InvalidCamera(format!("oblique angle {} degrees is not in (0, 90]", beta.to_degrees())));
         }
         let k = 1.0 / beta.tan();
-        let p = Projection::Parallel {
-            left,
-            right,
-            bottom,
-            top,
-            near,
-            far,
-            shear: [k * phi.cos(), k * phi.sin()],
-        };
+        let p = Projection::Parallel { left, right, bottom, top, near, far, shear: [k * phi.cos(), k * phi.sin()] };
         p.validate()?;
         Ok(p)
     }
 
     /// Cavalier projection (β = 45°: receding lines keep their full length).
-    pub fn cavalier(
-        left: f32,
-        right: f32,
-        bottom: f32,
-        top: f32,
-        near: f32,
-        far: f32,
-        phi: f32,
-    ) -> Result<Self> {
-        Self::oblique(
-            left,
-            right,
-            bottom,
-            top,
-            near,
-            far,
-            std::f32::consts::FRAC_PI_4,
-            phi,
-        )
+    pub fn cavalier(left: f32, right: f32, bottom: f32, top: f32, near: f32, far: f32, phi: f32) -> Result<Self> {
+        Self::oblique(left, right, bottom, top, near, far, std::f32::consts::FRAC_PI_4, phi)
     }
 
     /// Cabinet projection (β = arctan 2 ≈ 63.4°: receding lines at half length).
-    pub fn cabinet(
-        left: f32,
-        right: f32,
-        bottom: f32,
-        top: f32,
-        near: f32,
-        far: f32,
-        phi: f32,
-    ) -> Result<Self> {
+    pub fn cabinet(left: f32, right: f32, bottom: f32, top: f32, near: f32, far: f32, phi: f32) -> Result<Self> {
         Self::oblique(left, right, bottom, top, near, far, 2f32.atan(), phi)
     }
 
@@ -192,9 +125,7 @@ impl Projection {
     pub fn validate(&self) -> Result<()> {
         let (l, r, b, t, n, f, perspective) = self.bounds();
         if ![l, r, b, t, n, f].iter().all(|x| x.is_finite()) {
-            return Err(Error::InvalidCamera(format!(
-                "projection parameters must be finite: {self:?}"
-            )));
+            return Err(Error::InvalidCamera(format!("projection parameters must be finite: {self:?}")));
         }
         if let Projection::Parallel { shear, .. } = self {
             if !shear[0].is_finite() || !shear[1].is_finite() {
@@ -207,17 +138,13 @@ impl Projection {
             )));
         }
         if perspective && n <= 0.0 {
-            return Err(Error::InvalidCamera(format!(
-                "near = {n}: a perspective projection needs near > 0"
-            )));
+            return Err(Error::InvalidCamera(format!("near = {n}: a perspective projection needs near > 0")));
         }
         if n < 0.0 {
             return Err(Error::InvalidCamera(format!("near = {n} is negative")));
         }
         if n >= f {
-            return Err(Error::InvalidCamera(format!(
-                "near = {n} must be smaller than far = {f}"
-            )));
+            return Err(Error::InvalidCamera(format!("near = {n} must be smaller than far = {f}")));
         }
         Ok(())
     }
@@ -225,23 +152,12 @@ impl Projection {
     /// (left, right, bottom, top, near, far, is_perspective).
     pub fn bounds(&self) -> (f32, f32, f32, f32, f32, f32, bool) {
         match *self {
-            Projection::Perspective {
-                left,
-                right,
-                bottom,
-                top,
-                near,
-                far,
-            } => (left, right, bottom, top, near, far, true),
-            Projection::Parallel {
-                left,
-                right,
-                bottom,
-                top,
-                near,
-                far,
-                ..
-            } => (left, right, bottom, top, near, far, false),
+            Projection::Perspective { left, right, bottom, top, near, far } => {
+                (left, right, bottom, top, near, far, true)
+            }
+            Projection::Parallel { left, right, bottom, top, near, far, .. } => {
+                (left, right, bottom, top, near, far, false)
+            }
         }
     }
 
@@ -268,12 +184,7 @@ impl Projection {
             Projection::Perspective { .. } => DMat4::from_cols(
                 DVec4::new(2.0 * n / (r - l), 0.0, 0.0, 0.0),
                 DVec4::new(0.0, 2.0 * n / (t - b), 0.0, 0.0),
-                DVec4::new(
-                    (r + l) / (r - l),
-                    (t + b) / (t - b),
-                    -(f + n) / (f - n),
-                    -1.0,
-                ),
+                DVec4::new((r + l) / (r - l), (t + b) / (t - b), -(f + n) / (f - n), -1.0),
                 DVec4::new(0.0, 0.0, -2.0 * f * n / (f - n), 0.0),
             ),
             Projection::Parallel { shear, .. } => {
@@ -281,12 +192,7 @@ impl Projection {
                     DVec4::new(2.0 / (r - l), 0.0, 0.0, 0.0),
                     DVec4::new(0.0, 2.0 / (t - b), 0.0, 0.0),
                     DVec4::new(0.0, 0.0, -2.0 / (f - n), 0.0),
-                    DVec4::new(
-                        -(r + l) / (r - l),
-                        -(t + b) / (t - b),
-                        -(f + n) / (f - n),
-                        1.0,
-                    ),
+                    DVec4::new(-(r + l) / (r - l), -(t + b) / (t - b), -(f + n) / (f - n), 1.0),
                 );
                 // x += sx·(−z), y += sy·(−z)
                 let h = DMat4::from_cols(
@@ -319,10 +225,7 @@ impl Projection {
                 // The sheared point (x', y') = (x + sx·d, y + sy·d) at depth d must equal the
                 // window point, so the projector moves by (−sx, −sy) per unit of depth.
                 let (sx, sy) = (shear[0] as f64, shear[1] as f64);
-                (
-                    DVec3::new(x - sx * n, y - sy * n, -n),
-                    DVec3::new(-sx, -sy, -1.0),
-                )
+                (DVec3::new(x - sx * n, y - sy * n, -n), DVec3::new(-sx, -sy, -1.0))
             }
         }
     }
@@ -336,35 +239,24 @@ mod tests {
     #[test]
     fn frustum_corners_map_to_ndc_cube_corners() {
         let (l, r, b, t, n, f) = (-0.3, 0.5, -0.2, 0.4, 0.7, 40.0);
-        let p = Projection::frustum(l, r, b, t, n, f)
-            .unwrap()
-            .clip_from_view_f64();
+        let p = Projection::frustum(l, r, b, t, n, f).unwrap().clip_from_view_f64();
         for (i, &d) in [n, f].iter().enumerate() {
             let s = d / n;
-            for (x, y, nx, ny) in [
-                (l, b, -1.0, -1.0),
-                (r, b, 1.0, -1.0),
-                (l, t, -1.0, 1.0),
-                (r, t, 1.0, 1.0),
-            ] {
+            for (x, y, nx, ny) in [(l, b, -1.0, -1.0), (r, b, 1.0, -1.0), (l, t, -1.0, 1.0), (r, t, 1.0, 1.0)] {
                 let c = p * DVec4::new((x * s) as f64, (y * s) as f64, -d as f64, 1.0);
                 let ndc = c.truncate() / c.w;
                 let want = DVec3::new(nx, ny, if i == 0 { -1.0 } else { 1.0 });
                 assert!((ndc - want).abs().max_element() < 1e-6, "{ndc} vs {want}");
             }
         }
-        let o = Projection::orthographic(l, r, b, t, n, f)
-            .unwrap()
-            .clip_from_view_f64();
+        let o = Projection::orthographic(l, r, b, t, n, f).unwrap().clip_from_view_f64();
         let c = o * DVec4::new(r as f64, t as f64, -f as f64, 1.0);
         assert!((c.truncate() - DVec3::ONE).abs().max_element() < 1e-9);
     }
 
     #[test]
     fn perspective_preserves_depth_order() {
-        let p = Projection::perspective(1.0, 1.5, 0.1, 1000.0)
-            .unwrap()
-            .clip_from_view_f64();
+        let p = Projection::perspective(1.0, 1.5, 0.1, 1000.0).unwrap().clip_from_view_f64();
         let dir = DVec3::new(0.3, -0.2, -1.0);
         let mut last = -2.0;
         for k in 1..2000 {
@@ -390,14 +282,8 @@ mod tests {
     #[test]
     fn cavalier_keeps_receding_length_and_cabinet_halves_it() {
         for (p, want) in [
-            (
-                Projection::cavalier(-1.0, 1.0, -1.0, 1.0, 0.0, 10.0, 0.0).unwrap(),
-                1.0,
-            ),
-            (
-                Projection::cabinet(-1.0, 1.0, -1.0, 1.0, 0.0, 10.0, 0.0).unwrap(),
-                0.5,
-            ),
+            (Projection::cavalier(-1.0, 1.0, -1.0, 1.0, 0.0, 10.0, 0.0).unwrap(), 1.0),
+            (Projection::cabinet(-1.0, 1.0, -1.0, 1.0, 0.0, 10.0, 0.0).unwrap(), 0.5),
         ] {
             let m = p.clip_from_view_f64();
             // A unit step along −z moves the image by `want` (in view units; NDC scale is 1 here).

@@ -44,26 +44,14 @@ impl MeshBuilder {
 
     /// Validates and returns the mesh.
     pub fn build(self, name: &str) -> Result<Mesh> {
-        Mesh::new(
-            name,
-            self.positions,
-            Some(self.normals),
-            Some(self.uvs),
-            self.indices,
-        )
+        Mesh::new(name, self.positions, Some(self.normals), Some(self.uvs), self.indices)
     }
 }
 
 /// An axis-aligned box `[min, max]` whose faces are split into grids; `cells` gives the
 /// number of quads along x, y, z. With `bottom = false` the face at `min.y` is left out
 /// (buildings standing on the ground never show it).
-pub fn subdivided_box(
-    name: &str,
-    min: Vec3,
-    max: Vec3,
-    cells: [u32; 3],
-    bottom: bool,
-) -> Result<Mesh> {
+pub fn subdivided_box(name: &str, min: Vec3, max: Vec3, cells: [u32; 3], bottom: bool) -> Result<Mesh> {
     let mut b = MeshBuilder::default();
     let e = max - min;
     let [cx, cy, cz] = cells.map(|c| c.max(1));
@@ -88,13 +76,7 @@ pub fn cube(name: &str) -> Result<Mesh> {
 /// A square in the xz-plane, `[−0.5, 0.5]²`, facing +y, split into `n × n` quads.
 pub fn ground_quad(name: &str, n: u32) -> Result<Mesh> {
     let mut b = MeshBuilder::default();
-    b.grid(
-        Vec3::new(-0.5, 0.0, 0.5),
-        Vec3::X,
-        Vec3::NEG_Z,
-        n.max(1),
-        n.max(1),
-    );
+    b.grid(Vec3::new(-0.5, 0.0, 0.5), Vec3::X, Vec3::NEG_Z, n.max(1), n.max(1));
     b.build(name)
 }
 
@@ -105,7 +87,8 @@ mod tests {
     #[test]
     fn box_faces_point_outwards() {
         let m = subdivided_box("b", Vec3::ZERO, Vec3::new(2.0, 3.0, 1.0), [2, 3, 1], true).unwrap();
-        assert_eq!(m.triangle_count(), 2 * (2 * 3 * 2 + 1 * 3 * 2 + 2 * 1 * 2));
+        // Two faces each of 2x3, 1x3 and 2x1 quads, two triangles per quad.
+        assert_eq!(m.triangle_count(), 2 * (2 * 6 + 2 * 3 + 2 * 2));
         let c = m.aabb().center();
         for t in 0..m.triangle_count() {
             let [a, b, cc] = m.triangle_positions(t);

@@ -49,11 +49,7 @@ impl Scene {
             s.degenerate_triangles += m.degenerate_triangles() as u64;
         }
         for id in self.depth_first() {
-            if let Some(m) = self
-                .node(id)
-                .and_then(|n| n.mesh())
-                .and_then(|m| self.mesh(m))
-            {
+            if let Some(m) = self.node(id).and_then(|n| n.mesh()).and_then(|m| self.mesh(m)) {
                 s.instances += 1;
                 s.triangles += m.triangle_count() as u64;
             }

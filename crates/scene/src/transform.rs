@@ -26,32 +26,19 @@ impl Default for Transform {
 
 impl Transform {
     /// No translation, rotation or scale.
-    pub const IDENTITY: Transform = Transform {
-        translation: Vec3::ZERO,
-        rotation: Quat::IDENTITY,
-        scale: Vec3::ONE,
-    };
+    pub const IDENTITY: Transform = Transform { translation: Vec3::ZERO, rotation: Quat::IDENTITY, scale: Vec3::ONE };
 
     /// A pure translation.
     pub fn from_translation(t: Vec3) -> Self {
-        Self {
-            translation: t,
-            ..Self::IDENTITY
-        }
+        Self { translation: t, ..Self::IDENTITY }
     }
     /// A pure rotation.
     pub fn from_rotation(r: Quat) -> Self {
-        Self {
-            rotation: r,
-            ..Self::IDENTITY
-        }
+        Self { rotation: r, ..Self::IDENTITY }
     }
     /// A pure scale.
     pub fn from_scale(s: Vec3) -> Self {
-        Self {
-            scale: s,
-            ..Self::IDENTITY
-        }
+        Self { scale: s, ..Self::IDENTITY }
     }
     /// Builder-style translation.
     pub fn with_translation(mut self, t: Vec3) -> Self {
@@ -71,10 +58,7 @@ impl Transform {
 
     /// The matrix `T * R * S`; errors on NaN/inf components or a zero quaternion.
     pub fn to_affine(&self, what: &str) -> Result<Affine3A> {
-        let bad = |why: &str| Error::InvalidTransform {
-            what: what.to_string(),
-            why: why.to_string(),
-        };
+        let bad = |why: &str| Error::InvalidTransform { what: what.to_string(), why: why.to_string() };
         if !self.translation.is_finite() || !self.scale.is_finite() || !self.rotation.is_finite() {
             return Err(bad("a component is NaN or infinite"));
         }
@@ -82,31 +66,20 @@ impl Transform {
         if len < 1e-6 {
             return Err(bad("rotation quaternion has zero length"));
         }
-        Ok(Affine3A::from_scale_rotation_translation(
-            self.scale,
-            self.rotation / len,
-            self.translation,
-        ))
+        Ok(Affine3A::from_scale_rotation_translation(self.scale, self.rotation / len, self.translation))
     }
 
     /// Decomposes an affine matrix (exact when it has no shear).
     pub fn from_affine(m: &Affine3A) -> Self {
         let (scale, rotation, translation) = m.to_scale_rotation_translation();
-        Self {
-            translation,
-            rotation,
-            scale,
-        }
+        Self { translation, rotation, scale }
     }
 }
 
 /// Checks a matrix given by a caller or a file: finite entries and an affine last row.
 pub fn validate_affine(m: &Affine3A, what: &str) -> Result<()> {
     if !m.is_finite() {
-        return Err(Error::InvalidTransform {
-            what: what.into(),
-            why: "matrix has NaN or infinite entries".into(),
-        });
+        return Err(Error::InvalidTransform { what: what.into(), why: "matrix has NaN or infinite entries".into() });
     }
     Ok(())
 }
@@ -115,16 +88,10 @@ pub fn validate_affine(m: &Affine3A, what: &str) -> Result<()> {
 pub fn affine_from_mat4(m: &Mat4, what: &str) -> Result<Affine3A> {
     let r = m.row(3);
     if !m.is_finite() {
-        return Err(Error::InvalidTransform {
-            what: what.into(),
-            why: "matrix has NaN or infinite entries".into(),
-        });
+        return Err(Error::InvalidTransform { what: what.into(), why: "matrix has NaN or infinite entries".into() });
     }
     if (r - glam::Vec4::W).abs().max_element() > 1e-6 {
-        return Err(Error::InvalidTransform {
-            what: what.into(),
-            why: format!("last row {r} is not (0, 0, 0, 1)"),
-        });
+        return Err(Error::InvalidTransform { what: what.into(), why: format!("last row {r} is not (0, 0, 0, 1)") });
     }
     Ok(Affine3A::from_mat4(*m))
 }

@@ -38,9 +38,7 @@ impl Axonometric {
             Axonometric::Isometric => Vec3::splat((2.0f32 / 3.0).sqrt()),
             Axonometric::Dimetric { fy } => {
                 if !(fy > 0.0 && fy <= 1.0) {
-                    return Err(Error::InvalidCamera(format!(
-                        "dimetric foreshortening {fy} is not in (0, 1]"
-                    )));
+                    return Err(Error::InvalidCamera(format!("dimetric foreshortening {fy} is not in (0, 1]")));
                 }
                 let fxz = ((2.0 - fy * fy) / 2.0).sqrt();
                 Vec3::new(fxz, fy, fxz)
@@ -48,11 +46,7 @@ impl Axonometric {
             Axonometric::Trimetric { fx, fy, fz } => Vec3::new(fx, fy, fz),
         };
         let s = f.length_squared();
-        if !f.is_finite()
-            || f.cmple(Vec3::ZERO).any()
-            || f.cmpgt(Vec3::ONE).any()
-            || (s - 2.0).abs() > 1e-3
-        {
+        if !f.is_finite() || f.cmple(Vec3::ZERO).any() || f.cmpgt(Vec3::ONE).any() || (s - 2.0).abs() > 1e-3 {
             return Err(Error::InvalidCamera(format!(
                 "foreshortenings {f} must lie in (0, 1] with squares summing to 2 (they sum to {s})"
             )));
@@ -63,10 +57,7 @@ impl Axonometric {
     /// The unit direction from the scene towards the viewer (first octant: +x, +y, +z).
     pub fn toward_viewer(&self) -> Result<Vec3> {
         let f = self.foreshortening()?;
-        Ok((Vec3::ONE - f * f)
-            .max(Vec3::ZERO)
-            .map(f32::sqrt)
-            .normalize())
+        Ok((Vec3::ONE - f * f).max(Vec3::ZERO).map(f32::sqrt).normalize())
     }
 
     /// An orthographic camera that frames `bounds` with this view at the given aspect ratio.
@@ -77,29 +68,15 @@ impl Axonometric {
 
 /// An orthographic camera that looks at `bounds` from direction `toward_viewer`, framing the
 /// whole box.
-pub fn parallel_camera(
-    bounds: &Aabb,
-    toward_viewer: Vec3,
-    up: Vec3,
-    aspect: f32,
-) -> Result<Camera> {
+pub fn parallel_camera(bounds: &Aabb, toward_viewer: Vec3, up: Vec3, aspect: f32) -> Result<Camera> {
     if !bounds.is_finite() {
-        return Err(Error::InvalidCamera(
-            "cannot frame an empty or non-finite box".into(),
-        ));
+        return Err(Error::InvalidCamera("cannot frame an empty or non-finite box".into()));
     }
     let c = bounds.center();
     let r = (bounds.extent().length() * 0.5).max(1e-3);
     let view = View::look_along(c + toward_viewer * (2.0 * r), -toward_viewer, up)?;
-    let (hw, hh) = if aspect >= 1.0 {
-        (r * aspect, r)
-    } else {
-        (r, r / aspect)
-    };
-    Camera::new(
-        view,
-        Projection::orthographic(-hw, hw, -hh, hh, 0.0, 4.0 * r)?,
-    )
+    let (hw, hh) = if aspect >= 1.0 { (r * aspect, r) } else { (r, r / aspect) };
+    Camera::new(view, Projection::orthographic(-hw, hw, -hh, hh, 0.0, 4.0 * r)?)
 }
 
 /// The multiview set of CAD programs.
@@ -127,16 +104,9 @@ impl Multiview {
         let fovy = 40f32.to_radians();
         let dist = r / (fovy * 0.5).sin();
         let view = View::look_at(c + dir * dist, c, Vec3::Y)?;
-        let perspective = Camera::new(
-            view,
-            Projection::perspective(fovy, aspect, (dist - r).max(dist * 1e-3), dist + r)?,
-        )?;
-        Ok(Self {
-            top,
-            front,
-            side,
-            perspective,
-        })
+        let perspective =
+            Camera::new(view, Projection::perspective(fovy, aspect, (dist - r).max(dist * 1e-3), dist + r)?)?;
+        Ok(Self { top, front, side, perspective })
     }
 }
 
@@ -155,37 +125,17 @@ mod tests {
         let b = Aabb::new(Vec3::splat(-1.0), Vec3::splat(1.0));
         for (kind, want) in [
             (Axonometric::Isometric, Vec3::splat((2.0f32 / 3.0).sqrt())),
+            (Axonometric::Dimetric { fy: 0.5 }, Vec3::new((1.75f32 / 2.0).sqrt(), 0.5, (1.75f32 / 2.0).sqrt())),
             (
-                Axonometric::Dimetric { fy: 0.5 },
-                Vec3::new((1.75f32 / 2.0).sqrt(), 0.5, (1.75f32 / 2.0).sqrt()),
-            ),
-            (
-                Axonometric::Trimetric {
-                    fx: 0.9,
-                    fy: 0.8,
-                    fz: (2.0f32 - 0.81 - 0.64).sqrt(),
-                },
+                Axonometric::Trimetric { fx: 0.9, fy: 0.8, fz: (2.0f32 - 0.81 - 0.64).sqrt() },
                 Vec3::new(0.9, 0.8, 0.55f32.sqrt()),
             ),
         ] {
             let cam = kind.camera(&b, 1.0).unwrap();
-            let got = Vec3::new(
-                image_len(&cam, Vec3::X),
-                image_len(&cam, Vec3::Y),
-                image_len(&cam, Vec3::Z),
-            );
-            assert!(
-                (got - want).abs().max_element() < 1e-4,
-                "{kind:?}: {got} vs {want}"
-            );
+            let got = Vec3::new(image_len(&cam, Vec3::X), image_len(&cam, Vec3::Y), image_len(&cam, Vec3::Z));
+            assert!((got - want).abs().max_element() < 1e-4, "{kind:?}: {got} vs {want}");
         }
-        assert!(Axonometric::Trimetric {
-            fx: 1.0,
-            fy: 1.0,
-            fz: 1.0
-        }
-        .camera(&b, 1.0)
-        .is_err());
+        assert!(Axonometric::Trimetric { fx: 1.0, fy: 1.0, fz: 1.0 }.camera(&b, 1.0).is_err());
     }
 
     #[test]

@@ -10,78 +10,48 @@ fn approx(a: Vec3, b: Vec3) -> bool {
 #[test]
 fn world_transforms_compose_down_the_tree() {
     let mut s = Scene::new();
-    let a = s
-        .add_node(
-            None,
-            NodeDesc::new("a").transform(Transform::from_translation(Vec3::X * 10.0)),
-        )
-        .unwrap();
+    let a = s.add_node(None, NodeDesc::new("a").transform(Transform::from_translation(Vec3::X * 10.0))).unwrap();
     let b = s
         .add_node(
             Some(a),
-            NodeDesc::new("b").transform(Transform::from_rotation(Quat::from_rotation_y(
-                std::f32::consts::FRAC_PI_2,
-            ))),
+            NodeDesc::new("b").transform(Transform::from_rotation(Quat::from_rotation_y(std::f32::consts::FRAC_PI_2))),
         )
         .unwrap();
     let c = s
         .add_node(
             Some(b),
-            NodeDesc::new("c").transform(
-                Transform::from_translation(Vec3::X).with_scale(Vec3::new(2.0, 1.0, 1.0)),
-            ),
+            NodeDesc::new("c").transform(Transform::from_translation(Vec3::X).with_scale(Vec3::new(2.0, 1.0, 1.0))),
         )
         .unwrap();
     s.update_transforms();
     // c's origin: b rotates +x to −z, so (1,0,0) → (0,0,−1), then + (10,0,0).
     let w = s.node(c).unwrap().world_matrix();
-    assert!(approx(
-        w.transform_point3(Vec3::ZERO),
-        Vec3::new(10.0, 0.0, -1.0)
-    ));
+    assert!(approx(w.transform_point3(Vec3::ZERO), Vec3::new(10.0, 0.0, -1.0)));
     // c's local x axis is scaled by 2 and rotated to −z.
-    assert!(approx(
-        w.transform_vector3(Vec3::X),
-        Vec3::new(0.0, 0.0, -2.0)
-    ));
+    assert!(approx(w.transform_vector3(Vec3::X), Vec3::new(0.0, 0.0, -2.0)));
 }
 
 #[test]
 fn incremental_update_visits_only_dirty_subtrees() {
     let mut s = Scene::new();
     let root = s.add_node(None, NodeDesc::new("root")).unwrap();
-    let groups: Vec<_> = (0..10)
-        .map(|i| {
-            s.add_node(Some(root), NodeDesc::new(format!("g{i}")))
-                .unwrap()
-        })
-        .collect();
+    let groups: Vec<_> = (0..10).map(|i| s.add_node(Some(root), NodeDesc::new(format!("g{i}"))).unwrap()).collect();
     for &g in &groups {
         for j in 0..9 {
-            s.add_node(Some(g), NodeDesc::new(format!("leaf{j}")))
-                .unwrap();
+            s.add_node(Some(g), NodeDesc::new(format!("leaf{j}"))).unwrap();
         }
     }
     assert_eq!(s.update_transforms(), 101);
     assert_eq!(s.update_transforms(), 0, "nothing changed");
-    s.set_local_transform(groups[3], Transform::from_translation(Vec3::Y))
-        .unwrap();
+    s.set_local_transform(groups[3], Transform::from_translation(Vec3::Y)).unwrap();
     assert_eq!(s.update_transforms(), 10, "one group and its nine leaves");
     let leaf = s.node(groups[3]).unwrap().children()[0];
-    assert!(approx(
-        s.node(leaf).unwrap().world_matrix().translation.into(),
-        Vec3::Y
-    ));
+    assert!(approx(s.node(leaf).unwrap().world_matrix().translation.into(), Vec3::Y));
     // A dirty child under a dirty parent is handled once.
-    s.set_local_transform(leaf, Transform::from_translation(Vec3::X))
-        .unwrap();
-    s.set_local_transform(groups[3], Transform::from_translation(Vec3::Z))
-        .unwrap();
+    s.set_local_transform(leaf, Transform::from_translation(Vec3::X)).unwrap();
+    s.set_local_transform(groups[3], Transform::from_translation(Vec3::Z)).unwrap();
     assert_eq!(s.update_transforms(), 10);
-    assert!(approx(
-        s.node(leaf).unwrap().world_matrix().translation.into(),
-        Vec3::new(1.0, 0.0, 1.0)
-    ));
+    assert!(approx(s.node(leaf).unwrap().world_matrix().translation.into(), Vec3::new(1.0, 0.0, 1.0)));
 }
 
 #[test]
@@ -90,12 +60,8 @@ fn a_chain_100000_deep_propagates_without_recursion() {
     let mut parent = None;
     let mut first = None;
     for _ in 0..100_000 {
-        let id = s
-            .add_node(
-                parent,
-                NodeDesc::new("link").transform(Transform::from_translation(Vec3::Y * 0.5)),
-            )
-            .unwrap();
+        let id =
+            s.add_node(parent, NodeDesc::new("link").transform(Transform::from_translation(Vec3::Y * 0.5))).unwrap();
         first.get_or_insert(id);
         parent = Some(id);
     }
@@ -107,8 +73,7 @@ fn a_chain_100000_deep_propagates_without_recursion() {
             let last = parent.unwrap();
             let y = s.node(last).unwrap().world_matrix().translation.y;
             assert!((y - 50_000.0).abs() < 1.0, "{y}");
-            s.set_local_transform(first.unwrap(), Transform::from_translation(Vec3::Y * 1.5))
-                .unwrap();
+            s.set_local_transform(first.unwrap(), Transform::from_translation(Vec3::Y * 1.5)).unwrap();
             assert_eq!(s.update_transforms(), 100_000);
             let instances = s.instances();
             assert!(instances.is_empty());
@@ -122,12 +87,8 @@ fn a_chain_100000_deep_propagates_without_recursion() {
 #[test]
 fn reparent_keeps_world_or_local_as_asked() {
     let mut s = Scene::new();
-    let a = s
-        .add_node(
-            None,
-            NodeDesc::new("a").transform(Transform::from_translation(Vec3::new(5.0, 0.0, 0.0))),
-        )
-        .unwrap();
+    let a =
+        s.add_node(None, NodeDesc::new("a").transform(Transform::from_translation(Vec3::new(5.0, 0.0, 0.0)))).unwrap();
     let b = s
         .add_node(
             None,
@@ -139,24 +100,15 @@ fn reparent_keeps_world_or_local_as_asked() {
         )
         .unwrap();
     let c = s
-        .add_node(
-            Some(a),
-            NodeDesc::new("c").transform(Transform::from_translation(Vec3::new(1.0, 1.0, 1.0))),
-        )
+        .add_node(Some(a), NodeDesc::new("c").transform(Transform::from_translation(Vec3::new(1.0, 1.0, 1.0))))
         .unwrap();
     s.update_transforms();
     let before = s.node(c).unwrap().world_matrix();
     s.set_parent(c, Some(b), Keep::World).unwrap();
     s.update_transforms();
     let after = s.node(c).unwrap().world_matrix();
-    assert!(approx(
-        after.transform_point3(Vec3::ZERO),
-        before.transform_point3(Vec3::ZERO)
-    ));
-    assert!(approx(
-        after.transform_vector3(Vec3::X),
-        before.transform_vector3(Vec3::X)
-    ));
+    assert!(approx(after.transform_point3(Vec3::ZERO), before.transform_point3(Vec3::ZERO)));
+    assert!(approx(after.transform_vector3(Vec3::X), before.transform_vector3(Vec3::X)));
     assert_eq!(s.node(c).unwrap().parent(), Some(b));
     assert_eq!(s.node(c).unwrap().depth(), 1);
     // Keep local: the node moves with its new parent.
@@ -179,16 +131,9 @@ fn cycles_are_refused() {
     let b = s.add_node(Some(a), NodeDesc::new("b")).unwrap();
     let c = s.add_node(Some(b), NodeDesc::new("c")).unwrap();
     let e = s.set_parent(a, Some(c), Keep::Local).unwrap_err();
-    assert!(
-        matches!(e, Error::Cycle { .. }) && e.to_string().contains("cycle"),
-        "{e}"
-    );
+    assert!(matches!(e, Error::Cycle { .. }) && e.to_string().contains("cycle"), "{e}");
     assert!(s.set_parent(a, Some(a), Keep::World).is_err());
-    assert_eq!(
-        s.node(a).unwrap().parent(),
-        None,
-        "a failed reparent changes nothing"
-    );
+    assert_eq!(s.node(a).unwrap().parent(), None, "a failed reparent changes nothing");
 }
 
 #[test]
@@ -197,12 +142,7 @@ fn removing_a_subtree_invalidates_exactly_its_handles() {
     let root = s.add_node(None, NodeDesc::new("root")).unwrap();
     let keep = s.add_node(Some(root), NodeDesc::new("keep")).unwrap();
     let gone = s.add_node(Some(root), NodeDesc::new("gone")).unwrap();
-    let gone_kids: Vec<_> = (0..5)
-        .map(|i| {
-            s.add_node(Some(gone), NodeDesc::new(format!("k{i}")))
-                .unwrap()
-        })
-        .collect();
+    let gone_kids: Vec<_> = (0..5).map(|i| s.add_node(Some(gone), NodeDesc::new(format!("k{i}"))).unwrap()).collect();
     let grandkid = s.add_node(Some(gone_kids[2]), NodeDesc::new("gk")).unwrap();
     let keep_kid = s.add_node(Some(keep), NodeDesc::new("kk")).unwrap();
     assert_eq!(s.remove_node(gone).unwrap(), 7);
@@ -232,20 +172,12 @@ fn materials_are_inherited_unless_overridden() {
     let g = s.add_node(None, NodeDesc::new("g").material(red)).unwrap();
     let mid = s.add_node(Some(g), NodeDesc::new("mid")).unwrap();
     s.add_node(Some(mid), NodeDesc::new("a").mesh(m)).unwrap();
-    let b = s
-        .add_node(Some(mid), NodeDesc::new("b").mesh(m).material(blue))
-        .unwrap();
+    let b = s.add_node(Some(mid), NodeDesc::new("b").mesh(m).material(blue)).unwrap();
     s.add_node(None, NodeDesc::new("plain").mesh(m)).unwrap();
     s.update_transforms();
     let inst = s.instances();
-    assert_eq!(
-        inst.iter().map(|i| i.material).collect::<Vec<_>>(),
-        vec![Some(red), Some(blue), None]
-    );
-    assert_eq!(
-        inst.iter().map(|i| i.first_triangle).collect::<Vec<_>>(),
-        vec![0, 12, 24]
-    );
+    assert_eq!(inst.iter().map(|i| i.material).collect::<Vec<_>>(), vec![Some(red), Some(blue), None]);
+    assert_eq!(inst.iter().map(|i| i.first_triangle).collect::<Vec<_>>(), vec![0, 12, 24]);
     assert_eq!(inst[1].node, b);
     // Instancing: one mesh, three draws.
     assert!(inst.iter().all(|i| i.mesh == m));
@@ -260,54 +192,30 @@ fn world_aabb_follows_the_node() {
             None,
             NodeDesc::new("n").mesh(m).transform(
                 Transform::from_translation(Vec3::new(0.0, 10.0, 0.0))
-                    .with_rotation(Quat::from_rotation_y(0.785398)),
+                    .with_rotation(Quat::from_rotation_y(std::f32::consts::FRAC_PI_4)),
             ),
         )
         .unwrap();
     s.update_transforms();
     let b = s.node(n).unwrap().world_aabb();
     let h = 0.5 * 2f32.sqrt();
-    assert!(
-        approx(b.min, Vec3::new(-h, 9.5, -h)) && approx(b.max, Vec3::new(h, 10.5, h)),
-        "{b:?}"
-    );
+    assert!(approx(b.min, Vec3::new(-h, 9.5, -h)) && approx(b.max, Vec3::new(h, 10.5, h)), "{b:?}");
 }
 
 #[test]
 fn bad_transforms_are_errors_naming_the_node() {
     let mut s = Scene::new();
     let a = s.add_node(None, NodeDesc::new("lamp")).unwrap();
-    let e = s
-        .set_local_transform(
-            a,
-            Transform::from_translation(Vec3::new(f32::NAN, 0.0, 0.0)),
-        )
-        .unwrap_err();
+    let e = s.set_local_transform(a, Transform::from_translation(Vec3::new(f32::NAN, 0.0, 0.0))).unwrap_err();
     assert!(e.to_string().contains("NaN"), "{e}");
-    let e = s
-        .set_local_matrix(a, Affine3A::from_scale(Vec3::splat(f32::INFINITY)))
-        .unwrap_err();
+    let e = s.set_local_matrix(a, Affine3A::from_scale(Vec3::splat(f32::INFINITY))).unwrap_err();
     assert!(e.to_string().contains("lamp"), "{e}");
-    let e = s
-        .add_node(
-            None,
-            NodeDesc::new("bad").matrix(Affine3A::from_translation(Vec3::NAN)),
-        )
-        .unwrap_err();
+    let e = s.add_node(None, NodeDesc::new("bad").matrix(Affine3A::from_translation(Vec3::NAN))).unwrap_err();
     assert!(e.to_string().contains("bad"), "{e}");
-    assert!(s
-        .set_local_transform(
-            a,
-            Transform::from_rotation(Quat::from_xyzw(0.0, 0.0, 0.0, 0.0))
-        )
-        .is_err());
+    assert!(s.set_local_transform(a, Transform::from_rotation(Quat::from_xyzw(0.0, 0.0, 0.0, 0.0))).is_err());
     // Keeping the world transform under a singular parent cannot work.
-    let flat = s
-        .add_node(
-            None,
-            NodeDesc::new("flat").transform(Transform::from_scale(Vec3::new(1.0, 0.0, 1.0))),
-        )
-        .unwrap();
+    let flat =
+        s.add_node(None, NodeDesc::new("flat").transform(Transform::from_scale(Vec3::new(1.0, 0.0, 1.0)))).unwrap();
     assert!(s.set_parent(a, Some(flat), Keep::World).is_err());
     assert!(s.set_parent(a, Some(flat), Keep::Local).is_ok());
 }

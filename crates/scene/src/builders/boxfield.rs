@@ -24,11 +24,7 @@ pub struct BoxfieldParams {
 
 impl Default for BoxfieldParams {
     fn default() -> Self {
-        Self {
-            boxes: 83_334,
-            half_size: 100.0,
-            seed: 1993,
-        }
+        Self { boxes: 83_334, half_size: 100.0, seed: 1993 }
     }
 }
 
@@ -43,9 +39,7 @@ fn random_box(rng: &mut Rng, x: f32, z: f32) -> Aabb {
 /// Builds the boxfield (world transforms propagated).
 pub fn boxfield(params: &BoxfieldParams) -> Result<Scene> {
     if params.boxes == 0 || !(params.half_size > 0.0 && params.half_size.is_finite()) {
-        return Err(Error::InvalidParams(format!(
-            "boxfield needs boxes > 0 and a positive size, got {params:?}"
-        )));
+        return Err(Error::InvalidParams(format!("boxfield needs boxes > 0 and a positive size, got {params:?}")));
     }
     let mut scene = Scene::new();
     let unit = scene.add_mesh(cube("box")?);
@@ -57,10 +51,7 @@ pub fn boxfield(params: &BoxfieldParams) -> Result<Scene> {
         let (x, z) = (rng.range(-s, s), rng.range(-s, s));
         let b = random_box(&mut rng, x, z);
         let t = Transform::from_translation(b.center()).with_scale(b.extent());
-        scene.add_node(
-            Some(root),
-            NodeDesc::new(format!("box {i}")).transform(t).mesh(unit),
-        )?;
+        scene.add_node(Some(root), NodeDesc::new(format!("box {i}")).transform(t).mesh(unit))?;
     }
     scene.update_transforms();
     Ok(scene)
@@ -87,24 +78,14 @@ mod tests {
 
     #[test]
     fn small_boxfield_follows_the_distribution() {
-        let s = boxfield(&BoxfieldParams {
-            boxes: 500,
-            ..Default::default()
-        })
-        .unwrap();
+        let s = boxfield(&BoxfieldParams { boxes: 500, ..Default::default() }).unwrap();
         let st = s.stats();
-        assert_eq!(
-            (st.instances, st.triangles, st.unique_triangles),
-            (500, 6000, 12)
-        );
+        assert_eq!((st.instances, st.triangles, st.unique_triangles), (500, 6000, 12));
         for i in s.instances() {
             let b = i.world_aabb;
             let e = b.extent();
             assert!(b.min.y.abs() < 1e-5 && (0.5..=3.0).contains(&e.y), "{b:?}");
-            assert!(
-                (0.2..=1.0).contains(&e.x) && (0.2..=1.0).contains(&e.z),
-                "{b:?}"
-            );
+            assert!((0.2..=1.0).contains(&e.x) && (0.2..=1.0).contains(&e.z), "{b:?}");
             assert!(b.center().x.abs() <= 100.0 && b.center().z.abs() <= 100.0);
         }
     }

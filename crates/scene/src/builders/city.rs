@@ -50,11 +50,7 @@ impl Prototype {
     fn cells(&self, subdivision: f32) -> [u32; 3] {
         // Floors are taller than windows are wide.
         let c = |len: f32, k: f32| ((len * subdivision * k).round() as u32).max(1);
-        [
-            c(self.size.x, 1.0),
-            c(self.size.y, 0.7),
-            c(self.size.z, 1.0),
-        ]
+        [c(self.size.x, 1.0), c(self.size.y, 0.7), c(self.size.z, 1.0)]
     }
     fn triangles(&self, subdivision: f32) -> u64 {
         let [x, y, z] = self.cells(subdivision).map(u64::from);
@@ -102,14 +98,8 @@ fn prototypes(params: &CityParams) -> Vec<Prototype> {
             let w = 12.0 + 2.0 * rng.below(4) as f32;
             let d = 12.0 + 2.0 * rng.below(4) as f32;
             // Mostly mid-rise, some towers.
-            let h = if rng.f32() < 0.15 {
-                rng.range(45.0, 80.0)
-            } else {
-                rng.range(9.0, 40.0)
-            };
-            Prototype {
-                size: Vec3::new(w, (h / 3.0).round() * 3.0, d),
-            }
+            let h = if rng.f32() < 0.15 { rng.range(45.0, 80.0) } else { rng.range(9.0, 40.0) };
+            Prototype { size: Vec3::new(w, (h / 3.0).round() * 3.0, d) }
         })
         .collect()
 }
@@ -123,11 +113,7 @@ fn placements(params: &CityParams, protos: &[Prototype]) -> Vec<(usize, u32, [f3
             let p = rng.below(protos.len() as u32) as usize;
             let turns = rng.below(4);
             let s = protos[p].size;
-            let (w, d) = if turns % 2 == 1 {
-                (s.z, s.x)
-            } else {
-                (s.x, s.z)
-            };
+            let (w, d) = if turns % 2 == 1 { (s.z, s.x) } else { (s.x, s.z) };
             // Keep at least 1 unit between the building and the lot edge.
             let jx = rng.range(-1.0, 1.0) * ((LOT - w) * 0.5 - 1.0).max(0.0);
             let jz = rng.range(-1.0, 1.0) * ((LOT - d) * 0.5 - 1.0).max(0.0);
@@ -142,12 +128,7 @@ impl CityParams {
     pub fn for_triangles(triangles: u64) -> Self {
         let t = triangles.max(1000) as f64;
         let blocks = ((12.0 * (t / 1e6).powf(0.25)).round() as u32).clamp(2, 64);
-        let mut p = CityParams {
-            blocks,
-            subdivision: 0.5,
-            prototypes: 48,
-            seed: 2026,
-        };
+        let mut p = CityParams { blocks, subdivision: 0.5, prototypes: 48, seed: 2026 };
         let (mut lo, mut hi) = (0.001f32, 64.0f32);
         for _ in 0..60 {
             p.subdivision = 0.5 * (lo + hi);
@@ -164,31 +145,20 @@ impl CityParams {
     /// The number of triangles the city will have (buildings and ground), without building it.
     pub fn triangle_count(&self) -> u64 {
         let protos = prototypes(self);
-        let per: Vec<u64> = protos
-            .iter()
-            .map(|p| p.triangles(self.subdivision))
-            .collect();
+        let per: Vec<u64> = protos.iter().map(|p| p.triangles(self.subdivision)).collect();
         let buildings: u64 = placements(self, &protos).iter().map(|b| per[b.0]).sum();
         buildings + 2 * (self.blocks as u64 + 1).pow(2)
     }
 
     fn validate(&self) -> Result<()> {
         if self.blocks == 0 || self.blocks > 256 {
-            return Err(Error::InvalidParams(format!(
-                "city blocks per side {} is not in 1..=256",
-                self.blocks
-            )));
+            return Err(Error::InvalidParams(format!("city blocks per side {} is not in 1..=256", self.blocks)));
         }
         if !(self.subdivision > 0.0 && self.subdivision <= 64.0) {
-            return Err(Error::InvalidParams(format!(
-                "facade subdivision {} is not in (0, 64]",
-                self.subdivision
-            )));
+            return Err(Error::InvalidParams(format!("facade subdivision {} is not in (0, 64]", self.subdivision)));
         }
         if self.prototypes == 0 {
-            return Err(Error::InvalidParams(
-                "a city needs at least one building prototype".into(),
-            ));
+            return Err(Error::InvalidParams("a city needs at least one building prototype".into()));
         }
         Ok(())
     }
@@ -204,14 +174,8 @@ pub fn city(params: &CityParams) -> Result<City> {
         .enumerate()
         .map(|(i, p)| {
             let h = p.size * Vec3::new(0.5, 0.0, 0.5);
-            subdivided_box(
-                &format!("building {i}"),
-                -h,
-                p.size - h,
-                p.cells(params.subdivision),
-                false,
-            )
-            .map(|m| scene.add_mesh(m))
+            subdivided_box(&format!("building {i}"), -h, p.size - h, p.cells(params.subdivision), false)
+                .map(|m| scene.add_mesh(m))
         })
         .collect::<Result<_>>()?;
     let ground_mesh = scene.add_mesh(ground_quad("ground tile", 1)?);
@@ -236,18 +200,9 @@ pub fn city(params: &CityParams) -> Result<City> {
     let ground = scene.add_node(Some(root), NodeDesc::new("ground").material(asphalt))?;
     for k in 0..=params.blocks {
         for i in 0..=params.blocks {
-            let t = Transform::from_translation(Vec3::new(
-                origin + i as f32 * PITCH,
-                0.0,
-                origin + k as f32 * PITCH,
-            ))
-            .with_scale(Vec3::new(PITCH, 1.0, PITCH));
-            scene.add_node(
-                Some(ground),
-                NodeDesc::new(format!("ground {i},{k}"))
-                    .transform(t)
-                    .mesh(ground_mesh),
-            )?;
+            let t = Transform::from_translation(Vec3::new(origin + i as f32 * PITCH, 0.0, origin + k as f32 * PITCH))
+                .with_scale(Vec3::new(PITCH, 1.0, PITCH));
+            scene.add_node(Some(ground), NodeDesc::new(format!("ground {i},{k}")).transform(t).mesh(ground_mesh))?;
         }
     }
     let buildings = scene.add_node(Some(root), NodeDesc::new("buildings"))?;
@@ -258,17 +213,11 @@ pub fn city(params: &CityParams) -> Result<City> {
     for bz in 0..params.blocks {
         for bx in 0..params.blocks {
             // Block center: between street lines bx and bx + 1.
-            let center = Vec3::new(
-                origin + (bx as f32 + 0.5) * PITCH,
-                0.0,
-                origin + (bz as f32 + 0.5) * PITCH,
-            );
+            let center = Vec3::new(origin + (bx as f32 + 0.5) * PITCH, 0.0, origin + (bz as f32 + 0.5) * PITCH);
             let mat = mats[rng.below(mats.len() as u32) as usize];
             let block = scene.add_node(
                 Some(buildings),
-                NodeDesc::new(format!("block {bx},{bz}"))
-                    .transform(Transform::from_translation(center))
-                    .material(mat),
+                NodeDesc::new(format!("block {bx},{bz}")).transform(Transform::from_translation(center)).material(mat),
             )?;
             for lot in 0..4u32 {
                 let Some(&(p, turns, [jx, jz])) = next.next() else {
@@ -276,12 +225,9 @@ pub fn city(params: &CityParams) -> Result<City> {
                 };
                 let lx = (lot % 2) as f32 * LOT - LOT * 0.5 + jx;
                 let lz = (lot / 2) as f32 * LOT - LOT * 0.5 + jz;
-                let t = Transform::from_translation(Vec3::new(lx, 0.0, lz)).with_rotation(
-                    Quat::from_rotation_y(turns as f32 * std::f32::consts::FRAC_PI_2),
-                );
-                let mut desc = NodeDesc::new(format!("building {bx},{bz},{lot}"))
-                    .transform(t)
-                    .mesh(meshes[p]);
+                let t = Transform::from_translation(Vec3::new(lx, 0.0, lz))
+                    .with_rotation(Quat::from_rotation_y(turns as f32 * std::f32::consts::FRAC_PI_2));
+                let mut desc = NodeDesc::new(format!("building {bx},{bz},{lot}")).transform(t).mesh(meshes[p]);
                 if protos[p].size.y > 44.0 {
                     desc = desc.material(glass);
                 }
@@ -291,14 +237,7 @@ pub fn city(params: &CityParams) -> Result<City> {
         }
     }
     scene.update_transforms();
-    Ok(City {
-        scene,
-        layout: CityLayout {
-            blocks: params.blocks,
-            origin,
-            max_height,
-        },
-    })
+    Ok(City { scene, layout: CityLayout { blocks: params.blocks, origin, max_height } })
 }
 
 #[cfg(test)]
@@ -312,15 +251,8 @@ mod tests {
             let c = city(&p).unwrap();
             let s = c.scene.stats();
             assert_eq!(s.triangles, p.triangle_count());
-            assert!(
-                s.triangles >= target && s.triangles < target + target / 5,
-                "{} for {target}",
-                s.triangles
-            );
-            assert!(
-                s.unique_triangles < s.triangles,
-                "buildings must share meshes"
-            );
+            assert!(s.triangles >= target && s.triangles < target + target / 5, "{} for {target}", s.triangles);
+            assert!(s.unique_triangles < s.triangles, "buildings must share meshes");
         }
     }
 
@@ -332,10 +264,7 @@ mod tests {
         assert_eq!(ia.len(), ib.len());
         for (x, y) in ia.iter().zip(&ib) {
             assert_eq!(x.world_from_local, y.world_from_local);
-            assert_eq!(
-                a.mesh(x.mesh).unwrap().positions(),
-                b.mesh(y.mesh).unwrap().positions()
-            );
+            assert_eq!(a.mesh(x.mesh).unwrap().positions(), b.mesh(y.mesh).unwrap().positions());
         }
     }
 
@@ -351,10 +280,7 @@ mod tests {
             for k in 0..=l.blocks {
                 let s = l.street(k);
                 for (lo, hi) in [(b.min.x, b.max.x), (b.min.z, b.max.z)] {
-                    assert!(
-                        hi < s - STREET * 0.5 || lo > s + STREET * 0.5,
-                        "building {b:?} on street {k}"
-                    );
+                    assert!(hi < s - STREET * 0.5 || lo > s + STREET * 0.5, "building {b:?} on street {k}");
                 }
             }
         }

@@ -31,9 +31,9 @@ pub fn scatter(
     params: &ScatterParams,
 ) -> Result<NodeId> {
     scene.try_mesh(mesh)?;
-    if !params.region.is_finite()
-        || !(params.scale.0 > 0.0 && params.scale.0 <= params.scale.1 && params.scale.1.is_finite())
-    {
+    let (lo, hi) = params.scale;
+    let scale_ok = lo > 0.0 && lo <= hi && hi.is_finite();
+    if !params.region.is_finite() || !scale_ok {
         return Err(Error::InvalidParams(format!(
             "scatter '{name}' needs a finite region and 0 < min scale ≤ max scale, got {params:?}"
         )));
@@ -42,33 +42,19 @@ pub fn scatter(
     let mut rng = Rng::new(params.seed);
     let (lo, hi) = (params.region.min, params.region.max);
     for i in 0..params.count {
-        let p = Vec3::new(
-            rng.range(lo.x, hi.x),
-            rng.range(lo.y, hi.y),
-            rng.range(lo.z, hi.z),
-        );
+        let p = Vec3::new(rng.range(lo.x, hi.x), rng.range(lo.y, hi.y), rng.range(lo.z, hi.z));
         let rotation = if params.upright {
             Quat::from_rotation_y(rng.range(0.0, std::f32::consts::TAU))
         } else {
             // Shoemake's uniform random rotation.
-            let (u1, u2, u3) = (
-                rng.f32(),
-                rng.range(0.0, std::f32::consts::TAU),
-                rng.range(0.0, std::f32::consts::TAU),
-            );
+            let (u1, u2, u3) =
+                (rng.f32(), rng.range(0.0, std::f32::consts::TAU), rng.range(0.0, std::f32::consts::TAU));
             let (a, b) = ((1.0 - u1).sqrt(), u1.sqrt());
             Quat::from_xyzw(a * u2.sin(), a * u2.cos(), b * u3.sin(), b * u3.cos())
         };
         let s = rng.range(params.scale.0, params.scale.1);
-        let t = Transform {
-            translation: p,
-            rotation,
-            scale: Vec3::splat(s),
-        };
-        scene.add_node(
-            Some(group),
-            NodeDesc::new(format!("{name} {i}")).transform(t).mesh(mesh),
-        )?;
+        let t = Transform { translation: p, rotation, scale: Vec3::splat(s) };
+        scene.add_node(Some(group), NodeDesc::new(format!("{name} {i}")).transform(t).mesh(mesh))?;
     }
     Ok(group)
 }
@@ -83,13 +69,7 @@ mod tests {
         let mut s = Scene::new();
         let m = s.add_mesh(cube("c").unwrap());
         let region = Aabb::new(Vec3::splat(-10.0), Vec3::splat(10.0));
-        let params = ScatterParams {
-            count: 100,
-            region,
-            scale: (0.5, 2.0),
-            upright: false,
-            seed: 3,
-        };
+        let params = ScatterParams { count: 100, region, scale: (0.5, 2.0), upright: false, seed: 3 };
         scatter(&mut s, None, "crowd", m, &params).unwrap();
         s.update_transforms();
         let st = s.stats();
@@ -97,10 +77,7 @@ mod tests {
         for i in s.instances() {
             assert!(region.contains_point(i.world_from_local.translation.into()));
         }
-        let bad = ScatterParams {
-            scale: (0.0, 1.0),
-            ..params
-        };
+        let bad = ScatterParams { scale: (0.0, 1.0), ..params };
         assert!(scatter(&mut s, None, "bad", m, &bad).is_err());
     }
 }
