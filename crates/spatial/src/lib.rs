@@ -1,1 +1,124 @@
-//! placeholder
+//! # sightline-spatial
+//!
+//! The spatial side of sightline: bounding volumes, frustum planes and the structures that
+//! make large scenes cheap to cull and to order.
+//!
+//! * Primitives: [`Aabb`] (re-exported from the scene crate, with [`AabbExt`]), [`Sphere`],
+//!   [`Plane`], [`Ray`], [`Frustum`] (six planes from any `clip_from_world`), and
+//!   [`project_box`] (screen rectangle + nearest window depth, for HZB tests).
+//! * [`Bvh`]: a flat binary BVH built with `obvhs` (PLOC), with frustum culling (plane masking,
+//!   plane coherency), front-to-back traversal with a per-node visibility callback, a
+//!   resumable [`FrontToBackCursor`] for batched occlusion culling, and refit.
+//! * [`Tlas`] (BVH over instances, refit + rebuild policy), [`Blas`] (BVH over one mesh's
+//!   triangles, ray casting), [`MeshClusters`] (64–256-triangle clusters with a triangle
+//!   permutation) and [`ClusteredScene`] (one BVH over every (instance, cluster) world box).
+//! * [`LooseOctree`] over instances (Ulrich 2000) and the occupancy octree string
+//!   ([`occupancy_string`]).
+//! * [`BspTree`] (autopartition, Fuchs, Kedem & Naylor 1980) with painter's order.
+//!
+//! ## One way to ask
+//!
+//! Structures that cull implement [`FrustumCull`] (a frustum in, [`Visible`] items out) and
+//! [`FrontToBack`] (an eye in, an order out).
+//!
+//! ## Bad input: the rule for boxes
+//!
+//! Every structure classifies an item's box with [`AabbExt::kind`]:
+//! * [`BoxKind::Empty`] (`min > max` on some axis, no NaN — e.g. a mesh with no triangles):
+//!   holds nothing, so it is never visible and never returned by a query;
+//! * [`BoxKind::Unbounded`] (any NaN or infinite coordinate): treated as "could be anywhere":
+//!   kept out of the trees, always reported visible (never `inside`), and placed first in
+//!   front-to-back orders;
+//! * [`BoxKind::Finite`]: the normal case.
+//!
+//! Nothing panics on such input, on empty scenes or on zero-area triangles.
+
+#![warn(missing_docs)]
+
+mod aabb;
+mod bsp;
+mod bvh;
+mod frustum;
+mod octree;
+mod plane;
+mod project;
+mod ray;
+mod sphere;
+
+pub use aabb::{AabbExt, BoxKind};
+pub use bsp::{BspParams, BspStats, BspTree, BspTriangle};
+pub use bvh::blas::{Blas, RayHit};
+pub use bvh::cluster::{Cluster, MeshClusters, CLUSTER_MAX, CLUSTER_MIN};
+pub use bvh::scene::{ClusterItem, ClusteredScene};
+pub use bvh::tlas::{RefitOutcome, Tlas, REBUILD_RATIO};
+pub use bvh::traverse::{CoherencyCache, FrontToBackCursor};
+pub use bvh::{Bvh, BvhNode, BvhPreset};
+pub use frustum::{Containment, Frustum, PlaneMask, ALL_PLANES};
+pub use octree::occupancy::{occupancy_string, occupancy_voxels, Occupancy};
+pub use octree::LooseOctree;
+pub use plane::Plane;
+pub use project::{project_box, BoxProjector, ScreenRect};
+pub use ray::Ray;
+pub use sightline_scene::Aabb;
+pub use sphere::Sphere;
+
+use glam::Vec3;
+
+/// One item that survived frustum culling.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub struct Visible {
+    /// The item's index (an instance index for instance structures, an item index otherwise).
+    pub index: u32,
+    /// True when the item's box lies entirely inside the frustum, so drawing it needs no
+    /// clipping.
+    pub inside: bool,
+}
+
+/// What a traversal callback wants next.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Visit {
+    /// Go on: descend into the node / accept the item.
+    Continue,
+    /// Skip this node's subtree (or this item): e.g. it is occluded.
+    Skip,
+    /// End the whole traversal now.
+    Stop,
+}
+
+/// Options for frustum culling.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct CullOptions {
+    /// Plane masking (Assarsson & Möller 2000): a node fully inside a plane does not test that
+    /// plane again for its children. Off: every node tests all six planes.
+    pub plane_masking: bool,
+}
+
+impl Default for CullOptions {
+    fn default() -> Self {
+        Self { plane_masking: true }
+    }
+}
+
+/// Work counters of one culling query.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct CullStats {
+    /// Nodes (and items) whose box was classified against the frustum.
+    pub boxes_tested: u64,
+    /// Single box–plane tests performed.
+    pub plane_tests: u64,
+    /// Items reported visible.
+    pub visible: u64,
+}
+
+/// Frustum culling: a frustum in, the visible items out (appended to `out`).
+pub trait FrustumCull {
+    /// Appends every item whose box may intersect `frustum` (conservative: an item that
+    /// touches the frustum is reported). Uses plane masking.
+    fn cull(&self, frustum: &Frustum, out: &mut Vec<Visible>);
+}
+
+/// Front-to-back order: an eye in, every item's index out, nearest first (appended to `out`).
+pub trait FrontToBack {
+    /// Appends every item in an approximate front-to-back order for `eye`.
+    fn order(&self, eye: Vec3, out: &mut Vec<u32>);
+}

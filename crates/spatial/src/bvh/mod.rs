@@ -1,0 +1,399 @@
+//! A flat binary BVH over boxes, built with `obvhs`'s PLOC builder and re-laid out for
+//! culling.
+//!
+//! Construction: D. Meister and J. Bittner, "Parallel Locally-Ordered Clustering for Bounding
+//! Volume Hierarchy Construction" (PLOC, IEEE TVCG 2018), followed by obvhs's parallel
+//! reinsertion (D. Meister and J. Bittner, "Parallel Reinsertion for Bounding Volume
+//! Hierarchy Optimization", Eurographics 2018) and SAH leaf collapsing, with obvhs's presets.
+//!
+//! Layout: nodes are 32 bytes (`min`, `count`, `max`, `index`) in depth-first order of sibling
+//! pairs: the root is node 0, an inner node's children are `index` and `index + 1`, and every
+//! child comes after its parent (so refit is one reverse sweep). A leaf holds the items
+//! `items[index .. index + count]`; items are stored in depth-first leaf order, so every
+//! subtree's items are one contiguous range (clusters rely on this). Each item's box is kept
+//! in `item_boxes` in the same order, so leaves with several items can test them one by one.
+//!
+//! Bad input: items with empty boxes are left out; items with NaN/infinite boxes are kept in
+//! [`Bvh::unbounded`] and reported by every traversal as visible (see the crate docs).
+
+pub mod blas;
+pub mod cluster;
+pub mod scene;
+pub mod tlas;
+pub mod traverse;
+
+use glam::Vec3;
+use obvhs::bvh2::{leaf_collapser::collapse, reinsertion::ReinsertionOptimizer};
+use obvhs::{ploc::PlocBuilder, BvhBuildParams};
+use sightline_scene::Aabb;
+
+use crate::{AabbExt, BoxKind};
+
+/// A BVH node: a box and either two children (`count == 0`: children `index`, `index + 1`) or
+/// a range of items (`count > 0`: `items[index .. index + count]`).
+#[derive(Debug, Clone, Copy, PartialEq)]
+#[repr(C)]
+pub struct BvhNode {
+    /// Smallest corner.
+    pub min: Vec3,
+    /// Number of items (0 for inner nodes).
+    pub count: u32,
+    /// Largest corner.
+    pub max: Vec3,
+    /// First child (inner) or first item slot (leaf).
+    pub index: u32,
+}
+
+impl BvhNode {
+    /// The node's box.
+    #[inline]
+    pub fn aabb(&self) -> Aabb {
+        Aabb::new(self.min, self.max)
+    }
+    /// True for leaves.
+    #[inline]
+    pub fn is_leaf(&self) -> bool {
+        self.count > 0
+    }
+}
+
+/// Build quality/speed presets (obvhs's `BvhBuildParams`), fastest first.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum BvhPreset {
+    /// PLOC with search distance 1, no reinsertion, one item per leaf.
+    Fastest,
+    /// Search distance 1, a little reinsertion, up to 8 items per leaf.
+    VeryFast,
+    /// Search distance 6 (the default: "fast preset").
+    #[default]
+    Fast,
+    /// Search distance 14, more reinsertion (slower build, better trees).
+    Medium,
+}
+
+impl BvhPreset {
+    /// The obvhs parameters, with the leaf size capped at `max_leaf`.
+    pub fn params(self, max_leaf: u32) -> BvhBuildParams {
+        let mut p = match self {
+            BvhPreset::Fastest => BvhBuildParams::fastest_build(),
+            BvhPreset::VeryFast => BvhBuildParams::very_fast_build(),
+            BvhPreset::Fast => BvhBuildParams::fast_build(),
+            BvhPreset::Medium => BvhBuildParams::medium_build(),
+        };
+        p.max_prims_per_leaf = p.max_prims_per_leaf.min(max_leaf.max(1));
+        p
+    }
+}
+
+/// A flat binary BVH over a list of boxes (item `i` is `boxes[i]` of the build).
+#[derive(Debug, Clone, Default)]
+pub struct Bvh {
+    pub(crate) nodes: Vec<BvhNode>,
+    pub(crate) items: Vec<u32>,
+    pub(crate) item_boxes: Vec<Aabb>,
+    pub(crate) unbounded: Vec<u32>,
+    pub(crate) item_count: usize,
+    pub(crate) depth: u32,
+}
+
+impl Bvh {
+    /// Builds a BVH over `boxes` with `preset`, at most `max_leaf` items per leaf.
+    /// Empty boxes are left out; NaN/infinite ones go to [`Bvh::unbounded`].
+    pub fn build(boxes: &[Aabb], preset: BvhPreset, max_leaf: u32) -> Bvh {
+        let mut ids = Vec::with_capacity(boxes.len());
+        let mut unbounded = Vec::new();
+        for (i, b) in boxes.iter().enumerate() {
+            match b.kind() {
+                BoxKind::Finite => ids.push(i as u32),
+                BoxKind::Unbounded => unbounded.push(i as u32),
+                BoxKind::Empty => {}
+            }
+        }
+        let mut bvh = Self::build_ids(boxes, ids, preset, max_leaf);
+        bvh.unbounded = unbounded;
+        bvh.item_count = boxes.len();
+        bvh
+    }
+
+    /// Builds over the items `ids` (all with finite boxes) of `boxes`.
+    fn build_ids(boxes: &[Aabb], ids: Vec<u32>, preset: BvhPreset, max_leaf: u32) -> Bvh {
+        let mut out = Bvh { item_count: boxes.len(), ..Default::default() };
+        match ids.len() {
+            0 => return out,
+            1 => {
+                let b = boxes[ids[0] as usize];
+                out.nodes.push(BvhNode { min: b.min, count: 1, max: b.max, index: 0 });
+                out.items = ids;
+                out.item_boxes = vec![b];
+                out.depth = 1;
+                return out;
+            }
+            _ => {}
+        }
+        let params = preset.params(max_leaf);
+        let obv: Vec<obvhs::aabb::Aabb> = ids.iter().map(|&i| boxes[i as usize].to_obvhs()).collect();
+        let n = obv.len();
+        let mut bvh2 = PlocBuilder::with_capacity(n).build(
+            params.ploc_search_distance,
+            &obv,
+            (0..n as u32).collect(),
+            params.sort_precision,
+            params.search_depth_threshold,
+        );
+        let mut reinsertion = ReinsertionOptimizer::default();
+        reinsertion.run(&mut bvh2, params.reinsertion_batch_ratio, None);
+        collapse(&mut bvh2, params.max_prims_per_leaf.clamp(1, 255), params.collapse_traversal_cost);
+        reinsertion.run(
+            &mut bvh2,
+            params.reinsertion_batch_ratio * params.post_collapse_reinsertion_batch_ratio_multiplier,
+            None,
+        );
+        out.relayout(&bvh2, &ids, boxes);
+        out
+    }
+
+    /// Copies an obvhs tree into the depth-first pair layout with contiguous leaf items.
+    fn relayout(&mut self, src: &obvhs::bvh2::Bvh2, ids: &[u32], boxes: &[Aabb]) {
+        let cap = src.nodes.len();
+        self.nodes = Vec::with_capacity(cap);
+        self.items = Vec::with_capacity(ids.len());
+        self.item_boxes = Vec::with_capacity(ids.len());
+        let root = &src.nodes[0];
+        self.nodes.push(BvhNode { min: root.aabb().min.into(), count: 0, max: root.aabb().max.into(), index: 0 });
+        // (source node, destination slot, depth)
+        let mut stack: Vec<(u32, u32, u32)> = vec![(0, 0, 1)];
+        let mut max_depth = 1;
+        while let Some((s, d, depth)) = stack.pop() {
+            max_depth = max_depth.max(depth);
+            let sn = &src.nodes[s as usize];
+            if sn.is_leaf() {
+                let first = self.items.len() as u32;
+                let range = sn.first_index as usize..(sn.first_index + sn.prim_count) as usize;
+                for &p in &src.primitive_indices[range] {
+                    let id = ids[p as usize];
+                    self.items.push(id);
+                    self.item_boxes.push(boxes[id as usize]);
+                }
+                let dn = &mut self.nodes[d as usize];
+                dn.count = sn.prim_count;
+                dn.index = first;
+            } else {
+                let pair = self.nodes.len() as u32;
+                for k in 0..2 {
+                    let c = &src.nodes[sn.first_index as usize + k];
+                    self.nodes.push(BvhNode { min: c.aabb().min.into(), count: 0, max: c.aabb().max.into(), index: 0 });
+                }
+                self.nodes[d as usize].index = pair;
+                // Right first so the left subtree is laid out (and its items listed) first.
+                stack.push((sn.first_index + 1, pair + 1, depth + 1));
+                stack.push((sn.first_index, pair, depth + 1));
+            }
+        }
+        self.depth = max_depth;
+    }
+
+    /// The nodes (root first; empty for a tree with no finite item).
+    pub fn nodes(&self) -> &[BvhNode] {
+        &self.nodes
+    }
+
+    /// Item ids in leaf order (a leaf's `index..index + count` slice of this).
+    pub fn items(&self) -> &[u32] {
+        &self.items
+    }
+
+    /// Item boxes in leaf order (parallel to [`Bvh::items`]).
+    pub fn item_boxes(&self) -> &[Aabb] {
+        &self.item_boxes
+    }
+
+    /// Items whose boxes are NaN or infinite: not in the tree, always reported visible.
+    pub fn unbounded(&self) -> &[u32] {
+        &self.unbounded
+    }
+
+    /// Number of boxes the tree was built from (including empty and unbounded ones).
+    pub fn item_count(&self) -> usize {
+        self.item_count
+    }
+
+    /// Depth of the tree (1 for a single leaf, 0 for an empty tree).
+    pub fn depth(&self) -> u32 {
+        self.depth
+    }
+
+    /// The root box (empty when the tree has no finite item).
+    pub fn bounds(&self) -> Aabb {
+        self.nodes.first().map_or(Aabb::EMPTY, |n| n.aabb())
+    }
+
+    /// The SAH cost relative to the root's area: `Σ_inner A(n) + Σ_leaf A(n)·count`, over
+    /// `A(root)` (traversal and intersection cost 1). 0 for an empty tree.
+    pub fn sah_cost(&self) -> f32 {
+        let Some(root) = self.nodes.first() else {
+            return 0.0;
+        };
+        let mut cost = 0.0f64;
+        for n in &self.nodes {
+            let a = n.aabb().half_area() as f64;
+            cost += if n.is_leaf() { a * n.count as f64 } else { a };
+        }
+        let ra = root.aabb().half_area() as f64;
+        if ra > 0.0 {
+            (cost / ra) as f32
+        } else {
+            self.nodes.len() as f32
+        }
+    }
+
+    /// Refits every node to new item boxes (`boxes[i]` is item `i`'s box, as in the build).
+    ///
+    /// Returns false (and leaves the tree unusable until rebuilt) when the boxes no longer
+    /// fit the tree: a different count, or an item whose box kind changed (became empty,
+    /// NaN or infinite, or the reverse) — the caller must rebuild then.
+    pub fn refit(&mut self, boxes: &[Aabb]) -> bool {
+        if boxes.len() != self.item_count {
+            return false;
+        }
+        for (slot, &id) in self.items.iter().enumerate() {
+            let b = boxes[id as usize];
+            if b.kind() != BoxKind::Finite {
+                return false;
+            }
+            self.item_boxes[slot] = b;
+        }
+        if self.unbounded.iter().any(|&id| boxes[id as usize].kind() != BoxKind::Unbounded) {
+            return false;
+        }
+        // Items that were empty must still be empty.
+        let in_tree = self.items.len() + self.unbounded.len();
+        let empty_now = boxes.iter().filter(|b| b.kind() == BoxKind::Empty).count();
+        if in_tree + empty_now != boxes.len() {
+            return false;
+        }
+        self.refit_nodes();
+        true
+    }
+
+    /// Recomputes node boxes from `item_boxes` (one reverse sweep: children follow parents).
+    pub(crate) fn refit_nodes(&mut self) {
+        for i in (0..self.nodes.len()).rev() {
+            let n = self.nodes[i];
+            let b = if n.is_leaf() {
+                let r = n.index as usize..(n.index + n.count) as usize;
+                self.item_boxes[r].iter().fold(Aabb::EMPTY, |acc, b| acc.union(b))
+            } else {
+                let (l, r) = (self.nodes[n.index as usize], self.nodes[n.index as usize + 1]);
+                l.aabb().union(&r.aabb())
+            };
+            self.nodes[i].min = b.min;
+            self.nodes[i].max = b.max;
+        }
+    }
+
+    /// Heap bytes held (nodes, items, item boxes).
+    pub fn memory_bytes(&self) -> usize {
+        self.nodes.capacity() * std::mem::size_of::<BvhNode>()
+            + self.items.capacity() * 4
+            + self.item_boxes.capacity() * std::mem::size_of::<Aabb>()
+            + self.unbounded.capacity() * 4
+    }
+
+    /// Checks the structure: every child inside its parent, every finite item exactly once,
+    /// children after parents. Returns a description of the first problem.
+    pub fn validate(&self) -> Result<(), String> {
+        let mut seen = vec![false; self.item_count];
+        for (i, n) in self.nodes.iter().enumerate() {
+            let b = n.aabb();
+            if n.is_leaf() {
+                let r = n.index as usize..(n.index + n.count) as usize;
+                if r.end > self.items.len() {
+                    return Err(format!("leaf {i} range {r:?} out of bounds"));
+                }
+                for s in r {
+                    let id = self.items[s] as usize;
+                    if id >= seen.len() || std::mem::replace(&mut seen[id], true) {
+                        return Err(format!("item {id} missing or listed twice"));
+                    }
+                    if !b.contains(&self.item_boxes[s]) {
+                        return Err(format!("leaf {i} does not contain item {id}"));
+                    }
+                }
+            } else {
+                let c = n.index as usize;
+                if c <= i || c + 1 >= self.nodes.len() {
+                    return Err(format!("node {i} has children at {c}"));
+                }
+                for k in [c, c + 1] {
+                    if !b.contains(&self.nodes[k].aabb()) {
+                        return Err(format!("node {i} does not contain child {k}"));
+                    }
+                }
+            }
+        }
+        for &u in &self.unbounded {
+            if std::mem::replace(&mut seen[u as usize], true) {
+                return Err(format!("unbounded item {u} also in the tree"));
+            }
+        }
+        Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn random_boxes(n: usize, seed: u64) -> Vec<Aabb> {
+        let mut rng = sightline_scene::rng::Rng::new(seed);
+        (0..n)
+            .map(|_| {
+                let c = Vec3::new(rng.range(-50.0, 50.0), rng.range(0.0, 10.0), rng.range(-50.0, 50.0));
+                let e = Vec3::new(rng.range(0.1, 2.0), rng.range(0.1, 2.0), rng.range(0.1, 2.0));
+                Aabb::new(c - e, c + e)
+            })
+            .collect()
+    }
+
+    #[test]
+    fn builds_valid_trees_for_every_preset_and_size() {
+        for preset in [BvhPreset::Fastest, BvhPreset::VeryFast, BvhPreset::Fast, BvhPreset::Medium] {
+            for n in [0, 1, 2, 3, 17, 1000] {
+                let boxes = random_boxes(n, n as u64);
+                let bvh = Bvh::build(&boxes, preset, 4);
+                bvh.validate().unwrap();
+                assert_eq!(bvh.items().len(), n);
+                assert!(bvh.sah_cost() >= 0.0);
+            }
+        }
+    }
+
+    #[test]
+    fn bad_boxes_are_sorted_out() {
+        let mut boxes = random_boxes(50, 1);
+        boxes[3] = Aabb::EMPTY;
+        boxes[7] = Aabb::new(Vec3::NAN, Vec3::ONE);
+        boxes[9] = Aabb::new(Vec3::NEG_INFINITY, Vec3::ONE);
+        let mut bvh = Bvh::build(&boxes, BvhPreset::Fast, 4);
+        bvh.validate().unwrap();
+        assert_eq!(bvh.items().len(), 47);
+        assert_eq!(bvh.unbounded(), &[7, 9]);
+        assert!(bvh.refit(&boxes));
+        boxes[3] = Aabb::new(Vec3::ZERO, Vec3::ONE);
+        assert!(!bvh.refit(&boxes));
+    }
+
+    #[test]
+    fn refit_contains_moved_boxes() {
+        let mut boxes = random_boxes(300, 2);
+        let mut bvh = Bvh::build(&boxes, BvhPreset::Fast, 4);
+        let fresh = bvh.sah_cost();
+        for (i, b) in boxes.iter_mut().enumerate() {
+            let d = Vec3::new((i % 7) as f32 * 3.0, 0.0, -((i % 5) as f32) * 4.0);
+            *b = Aabb::new(b.min + d, b.max + d);
+        }
+        assert!(bvh.refit(&boxes));
+        bvh.validate().unwrap();
+        assert!(bvh.sah_cost() > fresh * 0.5);
+    }
+}

@@ -1,0 +1,272 @@
+//! A whole scene for culling: per-mesh clusters (built once per mesh, shared by every
+//! instance of it) and one BVH over the world boxes of all (instance, cluster) pairs.
+//!
+//! One structure serves both extremes: a city of many small instances (each instance is one
+//! cluster, so the BVH is a BVH over instances) and one 10^6-triangle mesh loaded from an OBJ
+//! (thousands of clusters of one instance carry the culling). The occlusion culler of issue 5
+//! walks it front to back with [`ClusteredScene::traverse_front_to_back`] or, batch by batch,
+//! with a [`FrontToBackCursor`] from [`ClusteredScene::cursor`]; it asks "is this box possibly
+//! visible?" for every node and cluster box, and draws the surviving items' triangles
+//! ([`ClusteredScene::triangles`], original mesh-local triangle indices; the global triangle
+//! index is `instance.first_triangle + t`).
+
+use std::collections::HashMap;
+
+use glam::Vec3;
+use rayon::prelude::*;
+use sightline_scene::{Aabb, Instance, MeshId, Scene};
+
+use super::cluster::MeshClusters;
+use super::tlas::RefitOutcome;
+use super::traverse::FrontToBackCursor;
+use super::{Bvh, BvhPreset};
+use crate::{CullOptions, CullStats, FrontToBack, Frustum, FrustumCull, Visible, Visit, REBUILD_RATIO};
+
+/// Items per BVH leaf.
+const SCENE_LEAF: u32 = 4;
+
+/// One BVH item: a cluster of an instance's mesh.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub struct ClusterItem {
+    /// Index of the instance in the slice the scene was built from.
+    pub instance: u32,
+    /// Index of the cluster in that instance's mesh's [`MeshClusters`].
+    pub cluster: u32,
+}
+
+/// Per-mesh clusters plus a BVH over every (instance, cluster) world box.
+#[derive(Debug, Clone, Default)]
+pub struct ClusteredScene {
+    meshes: Vec<MeshClusters>,
+    instance_mesh: Vec<u32>,
+    instance_first_item: Vec<u32>,
+    items: Vec<ClusterItem>,
+    bvh: Bvh,
+    build_cost: f32,
+}
+
+impl ClusteredScene {
+    /// Builds for `scene.instances()` (call `scene.update_transforms()` first).
+    pub fn build(scene: &Scene) -> ClusteredScene {
+        Self::from_instances(scene, &scene.instances())
+    }
+
+    /// Builds for the given instances of `scene` (instances whose mesh handle is stale get no
+    /// items). Meshes are clustered in parallel, once each.
+    pub fn from_instances(scene: &Scene, instances: &[Instance]) -> ClusteredScene {
+        let mut mesh_slot: HashMap<MeshId, u32> = HashMap::new();
+        let mut mesh_ids: Vec<MeshId> = Vec::new();
+        let instance_mesh: Vec<u32> = instances
+            .iter()
+            .map(|inst| {
+                if scene.mesh(inst.mesh).is_none() {
+                    return u32::MAX;
+                }
+                *mesh_slot.entry(inst.mesh).or_insert_with(|| {
+                    mesh_ids.push(inst.mesh);
+                    mesh_ids.len() as u32 - 1
+                })
+            })
+            .collect();
+        let meshes: Vec<MeshClusters> =
+            mesh_ids.par_iter().map(|&id| scene.mesh(id).map(MeshClusters::build).unwrap_or_default()).collect();
+        let mut items = Vec::new();
+        let mut instance_first_item = Vec::with_capacity(instances.len() + 1);
+        for (i, &m) in instance_mesh.iter().enumerate() {
+            instance_first_item.push(items.len() as u32);
+            if m == u32::MAX {
+                continue;
+            }
+            let n = meshes[m as usize].clusters().len() as u32;
+            items.extend((0..n).map(|c| ClusterItem { instance: i as u32, cluster: c }));
+        }
+        instance_first_item.push(items.len() as u32);
+        let mut s = ClusteredScene { meshes, instance_mesh, instance_first_item, items, ..Default::default() };
+        let boxes = s.item_boxes(instances);
+        s.bvh = Bvh::build(&boxes, BvhPreset::Fast, SCENE_LEAF);
+        s.build_cost = s.bvh.sah_cost();
+        s
+    }
+
+    /// World boxes of every item for the given instance transforms.
+    fn item_boxes(&self, instances: &[Instance]) -> Vec<Aabb> {
+        let mut boxes = vec![Aabb::EMPTY; self.items.len()];
+        boxes.par_chunks_mut(4096).enumerate().for_each(|(chunk, out)| {
+            let base = chunk * 4096;
+            for (k, b) in out.iter_mut().enumerate() {
+                let it = self.items[base + k];
+                let inst = &instances[it.instance as usize];
+                let mc = &self.meshes[self.instance_mesh[it.instance as usize] as usize];
+                *b = if mc.clusters().len() == 1 {
+                    inst.world_aabb
+                } else {
+                    let local = mc.clusters()[it.cluster as usize].aabb;
+                    local.transformed(&inst.world_from_local)
+                };
+            }
+        });
+        boxes
+    }
+
+    /// Refits after instances moved (same instances, same order as the build), rebuilding
+    /// the BVH when its SAH cost grew beyond [`REBUILD_RATIO`] × the fresh build's. Clusters
+    /// are mesh-local and never rebuilt.
+    pub fn update(&mut self, instances: &[Instance]) -> RefitOutcome {
+        if instances.len() + 1 != self.instance_first_item.len() {
+            return RefitOutcome::Rebuilt { cost_ratio: f32::INFINITY };
+        }
+        let boxes = self.item_boxes(instances);
+        let ratio = if self.bvh.refit(&boxes) {
+            if self.build_cost > 0.0 {
+                self.bvh.sah_cost() / self.build_cost
+            } else {
+                1.0
+            }
+        } else {
+            f32::INFINITY
+        };
+        if ratio <= REBUILD_RATIO {
+            return RefitOutcome::Refitted { cost_ratio: ratio };
+        }
+        self.bvh = Bvh::build(&boxes, BvhPreset::Fast, SCENE_LEAF);
+        self.build_cost = self.bvh.sah_cost();
+        RefitOutcome::Rebuilt { cost_ratio: ratio }
+    }
+
+    /// Number of items ((instance, cluster) pairs).
+    pub fn item_count(&self) -> usize {
+        self.items.len()
+    }
+
+    /// Item `i`: which instance and which of its mesh's clusters.
+    pub fn item(&self, i: u32) -> ClusterItem {
+        self.items[i as usize]
+    }
+
+    /// Items of instance `instance` (a contiguous range of item indices).
+    pub fn instance_items(&self, instance: u32) -> std::ops::Range<u32> {
+        let i = instance as usize;
+        self.instance_first_item[i]..self.instance_first_item[i + 1]
+    }
+
+    /// The original (mesh-local) triangle indices that item `i` draws.
+    pub fn triangles(&self, i: u32) -> &[u32] {
+        let it = self.items[i as usize];
+        self.meshes[self.instance_mesh[it.instance as usize] as usize].triangles(it.cluster as usize)
+    }
+
+    /// The clusters of the mesh instance `instance` draws.
+    pub fn mesh_clusters(&self, instance: u32) -> Option<&MeshClusters> {
+        self.meshes.get(*self.instance_mesh.get(instance as usize)? as usize)
+    }
+
+    /// Total number of clusters over the distinct meshes.
+    pub fn cluster_count(&self) -> usize {
+        self.meshes.iter().map(|m| m.clusters().len()).sum()
+    }
+
+    /// The BVH over items.
+    pub fn bvh(&self) -> &Bvh {
+        &self.bvh
+    }
+
+    /// Frustum culling: appends visible items (indices into the items) to `out`.
+    pub fn cull_with(&self, frustum: &Frustum, opts: CullOptions, out: &mut Vec<Visible>) -> CullStats {
+        self.bvh.cull_with(frustum, opts, out)
+    }
+
+    /// Front-to-back traversal over items, culled by `frustum` when given; `node_visit`
+    /// answers "is this node/cluster box possibly visible?" (`Skip` prunes it). See
+    /// [`Bvh::traverse_front_to_back`].
+    pub fn traverse_front_to_back(
+        &self,
+        frustum: Option<&Frustum>,
+        eye: Vec3,
+        node_visit: impl FnMut(&Aabb) -> Visit,
+        item_visit: impl FnMut(Visible) -> Visit,
+    ) {
+        self.bvh.traverse_front_to_back(frustum, eye, node_visit, item_visit)
+    }
+
+    /// A resumable front-to-back traversal (batches of items; see [`FrontToBackCursor`]);
+    /// pass [`ClusteredScene::bvh`] to its `next_batch`.
+    pub fn cursor(&self, frustum: Option<&Frustum>, eye: Vec3) -> FrontToBackCursor {
+        FrontToBackCursor::new(&self.bvh, frustum, eye)
+    }
+
+    /// Heap bytes held (clusters, items, BVH).
+    pub fn memory_bytes(&self) -> usize {
+        self.meshes.iter().map(|m| m.memory_bytes()).sum::<usize>()
+            + self.instance_mesh.capacity() * 4
+            + self.instance_first_item.capacity() * 4
+            + self.items.capacity() * std::mem::size_of::<ClusterItem>()
+            + self.bvh.memory_bytes()
+    }
+}
+
+impl FrustumCull for ClusteredScene {
+    fn cull(&self, frustum: &Frustum, out: &mut Vec<Visible>) {
+        self.bvh.cull_with(frustum, CullOptions::default(), out);
+    }
+}
+
+impl FrontToBack for ClusteredScene {
+    fn order(&self, eye: Vec3, out: &mut Vec<u32>) {
+        self.bvh.order_front_to_back(eye, out);
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use sightline_scene::{shapes, NodeDesc, Transform};
+
+    #[test]
+    fn one_big_mesh_is_culled_in_parts_and_instances_share_clusters() {
+        let mut scene = Scene::new();
+        let big = scene.add_mesh(
+            shapes::subdivided_box("big", Vec3::ZERO, Vec3::new(40.0, 2.0, 40.0), [80, 4, 80], false).unwrap(),
+        );
+        let cube = scene.add_mesh(shapes::cube("c").unwrap());
+        scene.add_node(None, NodeDesc::new("big").mesh(big)).unwrap();
+        for i in 0..10 {
+            let t = Transform::from_translation(Vec3::new(i as f32 * 3.0, 5.0, 0.0));
+            scene.add_node(None, NodeDesc::new("c").transform(t).mesh(cube)).unwrap();
+        }
+        scene.update_transforms();
+        let cs = ClusteredScene::build(&scene);
+        let big_clusters = cs.mesh_clusters(0).unwrap().clusters().len();
+        assert!(big_clusters > 50);
+        assert_eq!(cs.item_count(), big_clusters + 10);
+        assert_eq!(cs.instance_items(3), (big_clusters as u32 + 2)..(big_clusters as u32 + 3));
+        // Every triangle of the big mesh is drawn by exactly one of its items.
+        let mut seen = vec![0u8; scene.mesh(big).unwrap().triangle_count()];
+        for it in cs.instance_items(0) {
+            for &t in cs.triangles(it) {
+                seen[t as usize] += 1;
+            }
+        }
+        assert!(seen.iter().all(|&s| s == 1));
+        // A camera close to a corner of the big mesh sees only part of it.
+        let cam = sightline_scene::Camera::perspective_look_at(
+            Vec3::new(1.0, 3.0, 1.0),
+            Vec3::new(5.0, 2.0, 5.0),
+            Vec3::Y,
+            40.0,
+            1.0,
+            0.1,
+            10.0,
+        )
+        .unwrap();
+        let mut out = Vec::new();
+        cs.cull(&Frustum::from_camera(&cam), &mut out);
+        let big_visible = out.iter().filter(|v| cs.item(v.index).instance == 0).count();
+        assert!(big_visible > 0 && big_visible * 4 < big_clusters, "{big_visible} of {big_clusters}");
+        // Moving instances: refit keeps everything findable.
+        let mut inst = scene.instances();
+        for i in inst.iter_mut().skip(1) {
+            i.world_aabb = Aabb::new(i.world_aabb.min + Vec3::Y, i.world_aabb.max + Vec3::Y);
+        }
+        assert!(matches!(cs.clone().update(&inst), RefitOutcome::Refitted { .. }));
+    }
+}

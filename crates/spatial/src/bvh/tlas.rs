@@ -1,0 +1,195 @@
+//! The top-level BVH over a scene's instances (one item per [`Instance`], its world box),
+//! with refit after instances move and a rebuild policy.
+//!
+//! Refit keeps the topology and recomputes boxes bottom-up: cheap, but a tree refitted after
+//! large motions has overlapping, bloated nodes. The policy measures the SAH cost after each
+//! refit and rebuilds when it exceeds [`REBUILD_RATIO`] × the cost right after the last full
+//! build (a common heuristic, e.g. Kopta et al., "Fast, Effective BVH Updates for Animated
+//! Scenes", I3D 2012, rebuild on measured degradation).
+
+use glam::Vec3;
+use sightline_scene::{Aabb, Instance};
+
+use super::traverse::CoherencyCache;
+use super::{Bvh, BvhPreset};
+use crate::{CullOptions, CullStats, FrontToBack, Frustum, FrustumCull, Visible, Visit};
+
+/// Rebuild when the refitted tree's SAH cost exceeds this multiple of the fresh build's.
+pub const REBUILD_RATIO: f32 = 1.5;
+
+/// Instances per leaf: small leaves cull finely; items of bigger leaves are tested one by one.
+const TLAS_LEAF: u32 = 4;
+
+/// What [`Tlas::update`] did.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum RefitOutcome {
+    /// Boxes refitted; the SAH cost is now `cost_ratio` × the fresh build's.
+    Refitted {
+        /// SAH cost after refit over SAH cost after the last build.
+        cost_ratio: f32,
+    },
+    /// Rebuilt from scratch: refit degraded too much (`cost_ratio` is the refit's ratio) or
+    /// the set of valid boxes changed (ratio infinite).
+    Rebuilt {
+        /// The ratio that triggered the rebuild.
+        cost_ratio: f32,
+    },
+}
+
+/// A BVH over instances: item `i` is instance `i` of the slice it was built from.
+#[derive(Debug, Clone, Default)]
+pub struct Tlas {
+    bvh: Bvh,
+    preset: BvhPreset,
+    build_cost: f32,
+}
+
+impl Tlas {
+    /// Builds over the world boxes of `instances` (the fast preset).
+    pub fn from_instances(instances: &[Instance]) -> Tlas {
+        let boxes: Vec<Aabb> = instances.iter().map(|i| i.world_aabb).collect();
+        Self::build(&boxes, BvhPreset::Fast)
+    }
+
+    /// Builds over `boxes` (item `i` is `boxes[i]`).
+    pub fn build(boxes: &[Aabb], preset: BvhPreset) -> Tlas {
+        let bvh = Bvh::build(boxes, preset, TLAS_LEAF);
+        let build_cost = bvh.sah_cost();
+        Tlas { bvh, preset, build_cost }
+    }
+
+    /// The underlying BVH (for custom traversals).
+    pub fn bvh(&self) -> &Bvh {
+        &self.bvh
+    }
+
+    /// SAH cost of the tree right after its last full build.
+    pub fn build_cost(&self) -> f32 {
+        self.build_cost
+    }
+
+    /// Refits to new boxes (same count and order as the build) without the rebuild policy.
+    /// Returns the SAH cost ratio, or `None` when the boxes no longer fit the tree (an item's
+    /// box became empty, NaN or infinite, or the count changed): rebuild then.
+    pub fn refit(&mut self, boxes: &[Aabb]) -> Option<f32> {
+        if !self.bvh.refit(boxes) {
+            return None;
+        }
+        Some(self.cost_ratio())
+    }
+
+    /// Current SAH cost over the fresh build's.
+    pub fn cost_ratio(&self) -> f32 {
+        if self.build_cost > 0.0 {
+            self.bvh.sah_cost() / self.build_cost
+        } else {
+            1.0
+        }
+    }
+
+    /// Refits to new boxes and rebuilds when the SAH cost grew beyond [`REBUILD_RATIO`] × the
+    /// fresh build's, or when the boxes no longer fit the tree.
+    pub fn update(&mut self, boxes: &[Aabb]) -> RefitOutcome {
+        match self.refit(boxes) {
+            Some(r) if r <= REBUILD_RATIO => RefitOutcome::Refitted { cost_ratio: r },
+            other => {
+                *self = Self::build(boxes, self.preset);
+                RefitOutcome::Rebuilt { cost_ratio: other.unwrap_or(f32::INFINITY) }
+            }
+        }
+    }
+
+    /// [`Tlas::update`] from instances (their world boxes).
+    pub fn update_instances(&mut self, instances: &[Instance]) -> RefitOutcome {
+        let boxes: Vec<Aabb> = instances.iter().map(|i| i.world_aabb).collect();
+        self.update(&boxes)
+    }
+
+    /// Frustum culling with options; see [`Bvh::cull_with`].
+    pub fn cull_with(&self, frustum: &Frustum, opts: CullOptions, out: &mut Vec<Visible>) -> CullStats {
+        self.bvh.cull_with(frustum, opts, out)
+    }
+
+    /// Frustum culling with plane coherency; see [`Bvh::cull_coherent`].
+    pub fn cull_coherent(&self, frustum: &Frustum, cache: &mut CoherencyCache, out: &mut Vec<Visible>) -> CullStats {
+        self.bvh.cull_coherent(frustum, cache, out)
+    }
+
+    /// Front-to-back traversal with callbacks; see [`Bvh::traverse_front_to_back`].
+    pub fn traverse_front_to_back(
+        &self,
+        frustum: Option<&Frustum>,
+        eye: Vec3,
+        node_visit: impl FnMut(&Aabb) -> Visit,
+        item_visit: impl FnMut(Visible) -> Visit,
+    ) {
+        self.bvh.traverse_front_to_back(frustum, eye, node_visit, item_visit)
+    }
+
+    /// Heap bytes held.
+    pub fn memory_bytes(&self) -> usize {
+        self.bvh.memory_bytes()
+    }
+}
+
+impl FrustumCull for Tlas {
+    fn cull(&self, frustum: &Frustum, out: &mut Vec<Visible>) {
+        self.bvh.cull_with(frustum, CullOptions::default(), out);
+    }
+}
+
+impl FrontToBack for Tlas {
+    fn order(&self, eye: Vec3, out: &mut Vec<u32>) {
+        self.bvh.order_front_to_back(eye, out);
+    }
+}
+
+impl FrustumCull for Bvh {
+    fn cull(&self, frustum: &Frustum, out: &mut Vec<Visible>) {
+        self.cull_with(frustum, CullOptions::default(), out);
+    }
+}
+
+impl FrontToBack for Bvh {
+    fn order(&self, eye: Vec3, out: &mut Vec<u32>) {
+        self.order_front_to_back(eye, out);
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn big_moves_trigger_rebuild_small_ones_refit() {
+        let mut rng = sightline_scene::rng::Rng::new(4);
+        let mut boxes: Vec<Aabb> = (0..2000)
+            .map(|_| {
+                let c = Vec3::new(rng.range(-100.0, 100.0), 0.0, rng.range(-100.0, 100.0));
+                Aabb::new(c, c + Vec3::ONE)
+            })
+            .collect();
+        let mut tlas = Tlas::build(&boxes, BvhPreset::Fast);
+        // Small jitter: refit.
+        for b in &mut boxes {
+            let d = Vec3::new(rng.range(-0.1, 0.1), 0.0, rng.range(-0.1, 0.1));
+            *b = Aabb::new(b.min + d, b.max + d);
+        }
+        assert!(matches!(tlas.update(&boxes), RefitOutcome::Refitted { .. }));
+        // Shuffle everything across the world: the refitted tree degrades, so rebuild.
+        for b in &mut boxes {
+            let c = Vec3::new(rng.range(-100.0, 100.0), 0.0, rng.range(-100.0, 100.0));
+            *b = Aabb::new(c, c + Vec3::ONE);
+        }
+        match tlas.update(&boxes) {
+            RefitOutcome::Rebuilt { cost_ratio } => assert!(cost_ratio > REBUILD_RATIO),
+            o => panic!("expected a rebuild, got {o:?}"),
+        }
+        tlas.bvh().validate().unwrap();
+        assert!((tlas.cost_ratio() - 1.0).abs() < 1e-6);
+        // A box turning NaN forces a rebuild too, and the item stays visible.
+        boxes[5] = Aabb::new(Vec3::NAN, Vec3::NAN);
+        assert!(matches!(tlas.update(&boxes), RefitOutcome::Rebuilt { .. }));
+        assert_eq!(tlas.bvh().unbounded(), &[5]);
+    }
+}

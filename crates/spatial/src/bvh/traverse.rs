@@ -1,0 +1,429 @@
+//! BVH traversals: frustum culling (plane masking, plane coherency), and front-to-back
+//! traversal with a per-node visibility callback, whole or in resumable batches.
+//!
+//! Culling follows Assarsson & Möller 2000 (see [`crate::Frustum`]): a node fully inside a
+//! plane clears that plane's mask bit for its subtree, and a node fully inside every plane
+//! reports its whole subtree `inside` without further tests.
+//!
+//! Front-to-back: at each inner node the child whose box is nearer to the eye (squared
+//! distance to the box, 0 when the eye is inside; ties broken by the distance to the box
+//! center) is visited first, and a leaf's items are visited nearest first. This is the order
+//! an occlusion culler wants (issue 5): near occluders are drawn before the far nodes are
+//! tested against the depth pyramid. [`FrontToBackCursor`] stops after a batch of items and
+//! resumes where it stopped, so the caller can draw a batch and refresh its pyramid between
+//! batches without fighting the borrow checker over callbacks.
+
+use glam::Vec3;
+use sightline_scene::Aabb;
+
+use super::Bvh;
+use crate::{AabbExt, Containment, CullOptions, CullStats, Frustum, PlaneMask, Visible, Visit, ALL_PLANES};
+
+/// Per-node plane-coherency state for [`Bvh::cull_coherent`]: the plane that last rejected
+/// each node, tested first next frame.
+#[derive(Debug, Clone, Default)]
+pub struct CoherencyCache {
+    start: Vec<u8>,
+}
+
+impl CoherencyCache {
+    /// An empty cache (sized on first use).
+    pub fn new() -> Self {
+        Self::default()
+    }
+}
+
+const KIND_NODE: u8 = 0;
+const KIND_ITEM: u8 = 1;
+const KIND_UNBOUNDED: u8 = 2;
+
+#[derive(Debug, Clone, Copy)]
+struct Entry {
+    id: u32,
+    mask: PlaneMask,
+    kind: u8,
+}
+
+/// A front-to-back traversal that can stop after a batch of visible items and resume.
+///
+/// ```
+/// # use sightline_spatial::*;
+/// # use glam::Vec3;
+/// let boxes: Vec<Aabb> = (0..100)
+///     .map(|i| Aabb::new(Vec3::new(i as f32, 0.0, 0.0), Vec3::new(i as f32 + 0.5, 1.0, 1.0)))
+///     .collect();
+/// let bvh = Bvh::build(&boxes, BvhPreset::Fast, 4);
+/// let mut cursor = FrontToBackCursor::new(&bvh, None, Vec3::new(-10.0, 0.5, 0.5));
+/// let mut batch = Vec::new();
+/// let mut all = Vec::new();
+/// while cursor.next_batch(&bvh, |_node_box| true, 16, &mut batch) {
+///     all.extend(batch.drain(..).map(|v| v.index)); // draw, then refresh the depth pyramid
+/// }
+/// all.extend(batch.drain(..).map(|v| v.index));
+/// assert_eq!(all.len(), 100);
+/// assert_eq!(all[0], 0); // nearest first
+/// ```
+#[derive(Debug, Clone)]
+pub struct FrontToBackCursor {
+    stack: Vec<Entry>,
+    frustum: Option<Frustum>,
+    eye: Vec3,
+}
+
+impl FrontToBackCursor {
+    /// Starts a traversal of `bvh` for `eye`, culling against `frustum` when given.
+    /// Unbounded items come first.
+    pub fn new(bvh: &Bvh, frustum: Option<&Frustum>, eye: Vec3) -> Self {
+        let mut stack = Vec::with_capacity(64);
+        if !bvh.nodes.is_empty() {
+            stack.push(Entry { id: 0, mask: ALL_PLANES, kind: KIND_NODE });
+        }
+        for k in (0..bvh.unbounded.len()).rev() {
+            stack.push(Entry { id: k as u32, mask: ALL_PLANES, kind: KIND_UNBOUNDED });
+        }
+        Self { stack, frustum: frustum.copied(), eye }
+    }
+
+    /// True when the traversal has finished.
+    pub fn is_done(&self) -> bool {
+        self.stack.is_empty()
+    }
+
+    /// Continues the traversal: `possibly_visible(box)` is asked for every node and item box
+    /// that passes the frustum (false skips it and its subtree); visible items are appended to
+    /// `out` until it has grown by `max_items`. Returns true when more may remain.
+    pub fn next_batch(
+        &mut self,
+        bvh: &Bvh,
+        mut possibly_visible: impl FnMut(&Aabb) -> bool,
+        max_items: usize,
+        out: &mut Vec<Visible>,
+    ) -> bool {
+        let mut emitted = 0usize;
+        let max = max_items.max(1);
+        run(
+            bvh,
+            self.frustum.as_ref(),
+            self.eye,
+            &mut self.stack,
+            |b| {
+                if possibly_visible(b) {
+                    Visit::Continue
+                } else {
+                    Visit::Skip
+                }
+            },
+            |v| {
+                out.push(v);
+                emitted += 1;
+                if emitted >= max {
+                    Visit::Stop
+                } else {
+                    Visit::Continue
+                }
+            },
+        );
+        !self.stack.is_empty()
+    }
+}
+
+/// The front-to-back core shared by the callback and cursor forms. Returns when the stack is
+/// empty or a callback said `Stop` (the stack then holds the rest of the traversal).
+fn run(
+    bvh: &Bvh,
+    frustum: Option<&Frustum>,
+    eye: Vec3,
+    stack: &mut Vec<Entry>,
+    mut node_visit: impl FnMut(&Aabb) -> Visit,
+    mut item_visit: impl FnMut(Visible) -> Visit,
+) {
+    let mut order: Vec<(f32, u32)> = Vec::new();
+    while let Some(e) = stack.pop() {
+        let mut mask = e.mask;
+        match e.kind {
+            KIND_UNBOUNDED => {
+                let id = bvh.unbounded[e.id as usize];
+                let b = Aabb::new(Vec3::NAN, Vec3::NAN);
+                match node_visit(&b) {
+                    Visit::Stop => return,
+                    Visit::Skip => continue,
+                    Visit::Continue => {}
+                }
+                if item_visit(Visible { index: id, inside: false }) == Visit::Stop {
+                    return;
+                }
+            }
+            KIND_ITEM => {
+                let b = &bvh.item_boxes[e.id as usize];
+                if let Some(f) = frustum {
+                    if mask != 0 && f.classify_masked(b, &mut mask) == Containment::Outside {
+                        continue;
+                    }
+                }
+                match node_visit(b) {
+                    Visit::Stop => return,
+                    Visit::Skip => continue,
+                    Visit::Continue => {}
+                }
+                let v = Visible { index: bvh.items[e.id as usize], inside: frustum.is_some() && mask == 0 };
+                if item_visit(v) == Visit::Stop {
+                    return;
+                }
+            }
+            _ => {
+                let n = bvh.nodes[e.id as usize];
+                let b = n.aabb();
+                if let Some(f) = frustum {
+                    if mask != 0 && f.classify_masked(&b, &mut mask) == Containment::Outside {
+                        continue;
+                    }
+                }
+                match node_visit(&b) {
+                    Visit::Stop => return,
+                    Visit::Skip => continue,
+                    Visit::Continue => {}
+                }
+                if n.count == 1 {
+                    // The leaf box is the item box: no second test.
+                    let v = Visible { index: bvh.items[n.index as usize], inside: frustum.is_some() && mask == 0 };
+                    if item_visit(v) == Visit::Stop {
+                        return;
+                    }
+                } else if n.is_leaf() {
+                    order.clear();
+                    for s in n.index..n.index + n.count {
+                        let d = bvh.item_boxes[s as usize].distance_squared(eye);
+                        order.push((d, s));
+                    }
+                    // Farthest pushed first so the nearest pops first.
+                    order.sort_unstable_by(|a, b| b.0.total_cmp(&a.0));
+                    stack.extend(order.iter().map(|&(_, s)| Entry { id: s, mask, kind: KIND_ITEM }));
+                } else {
+                    let (a, c) = (n.index, n.index + 1);
+                    let (near, far) = if nearer(&bvh.nodes[a as usize].aabb(), &bvh.nodes[c as usize].aabb(), eye) {
+                        (a, c)
+                    } else {
+                        (c, a)
+                    };
+                    stack.push(Entry { id: far, mask, kind: KIND_NODE });
+                    stack.push(Entry { id: near, mask, kind: KIND_NODE });
+                }
+            }
+        }
+    }
+}
+
+/// True when box `a` should be visited before box `b` from `eye`.
+#[inline]
+fn nearer(a: &Aabb, b: &Aabb, eye: Vec3) -> bool {
+    let (da, db) = (a.distance_squared(eye), b.distance_squared(eye));
+    if da != db {
+        return da < db;
+    }
+    a.center().distance_squared(eye) <= b.center().distance_squared(eye)
+}
+
+impl Bvh {
+    /// Frustum culling: appends every item whose box may intersect `frustum` to `out`
+    /// (unbounded items first, never `inside`). Conservative.
+    pub fn cull_with(&self, frustum: &Frustum, opts: CullOptions, out: &mut Vec<Visible>) -> CullStats {
+        self.cull_impl(frustum, opts.plane_masking, None, out)
+    }
+
+    /// Frustum culling with plane masking and plane coherency: each node first tests the
+    /// plane that rejected it last time (kept in `cache`).
+    pub fn cull_coherent(&self, frustum: &Frustum, cache: &mut CoherencyCache, out: &mut Vec<Visible>) -> CullStats {
+        if cache.start.len() != self.nodes.len() {
+            cache.start.clear();
+            cache.start.resize(self.nodes.len(), 0);
+        }
+        self.cull_impl(frustum, true, Some(&mut cache.start), out)
+    }
+
+    fn cull_impl(
+        &self,
+        frustum: &Frustum,
+        masking: bool,
+        mut coherency: Option<&mut Vec<u8>>,
+        out: &mut Vec<Visible>,
+    ) -> CullStats {
+        let mut stats = CullStats::default();
+        let before = out.len();
+        out.extend(self.unbounded.iter().map(|&index| Visible { index, inside: false }));
+        if self.nodes.is_empty() {
+            stats.visible = (out.len() - before) as u64;
+            return stats;
+        }
+        let mut tests = 0u32;
+        let mut stack: Vec<(u32, PlaneMask)> = Vec::with_capacity(64);
+        stack.push((0, ALL_PLANES));
+        while let Some((i, parent_mask)) = stack.pop() {
+            let n = &self.nodes[i as usize];
+            // Without masking every node tests all six planes again.
+            let mut mask = if masking { parent_mask } else { ALL_PLANES };
+            if mask != 0 {
+                stats.boxes_tested += 1;
+                let mut tmp = 0u8;
+                let start = match coherency.as_deref_mut() {
+                    Some(s) => &mut s[i as usize],
+                    None => &mut tmp,
+                };
+                let c = frustum.classify_counted(&n.aabb(), &mut mask, start, &mut tests);
+                if c == Containment::Outside {
+                    continue;
+                }
+            }
+            if n.is_leaf() {
+                let r = n.index..n.index + n.count;
+                if n.count == 1 || mask == 0 {
+                    out.extend(r.map(|s| Visible { index: self.items[s as usize], inside: mask == 0 }));
+                } else {
+                    for s in r {
+                        let mut m = if masking { mask } else { ALL_PLANES };
+                        let mut st = 0u8;
+                        stats.boxes_tested += 1;
+                        let b = &self.item_boxes[s as usize];
+                        if frustum.classify_counted(b, &mut m, &mut st, &mut tests) != Containment::Outside {
+                            out.push(Visible { index: self.items[s as usize], inside: m == 0 });
+                        }
+                    }
+                }
+            } else {
+                stack.push((n.index + 1, mask));
+                stack.push((n.index, mask));
+            }
+        }
+        stats.plane_tests = tests as u64;
+        stats.visible = (out.len() - before) as u64;
+        stats
+    }
+
+    /// Front-to-back traversal for `eye`, culled by `frustum` when given.
+    ///
+    /// `node_visit(box)` is called for every node and item box that passes the frustum, in
+    /// front-to-back order: `Skip` prunes it (e.g. occluded in a depth pyramid), `Stop` ends
+    /// the traversal. `item_visit` receives each surviving item (with its `inside` flag) in
+    /// front-to-back order and may also return `Stop`. Unbounded items come first (their box
+    /// is passed as all-NaN).
+    pub fn traverse_front_to_back(
+        &self,
+        frustum: Option<&Frustum>,
+        eye: Vec3,
+        node_visit: impl FnMut(&Aabb) -> Visit,
+        item_visit: impl FnMut(Visible) -> Visit,
+    ) {
+        let mut cursor = FrontToBackCursor::new(self, frustum, eye);
+        run(self, frustum, eye, &mut cursor.stack, node_visit, item_visit);
+    }
+
+    /// Every item (unbounded first, then the tree's) in front-to-back order for `eye`.
+    pub fn order_front_to_back(&self, eye: Vec3, out: &mut Vec<u32>) {
+        self.traverse_front_to_back(
+            None,
+            eye,
+            |_| Visit::Continue,
+            |v| {
+                out.push(v.index);
+                Visit::Continue
+            },
+        );
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::BvhPreset;
+    use sightline_scene::Camera;
+
+    fn grid_boxes() -> Vec<Aabb> {
+        let mut v = Vec::new();
+        for x in 0..20 {
+            for z in 0..20 {
+                let p = Vec3::new(x as f32 * 3.0 - 30.0, 0.0, z as f32 * 3.0 - 30.0);
+                v.push(Aabb::new(p, p + Vec3::ONE));
+            }
+        }
+        v
+    }
+
+    #[test]
+    fn cull_variants_agree_with_brute_force() {
+        let boxes = grid_boxes();
+        let bvh = Bvh::build(&boxes, BvhPreset::Fast, 4);
+        let cam = Camera::perspective_look_at(
+            Vec3::new(0.0, 5.0, 0.0),
+            Vec3::new(10.0, 0.0, 10.0),
+            Vec3::Y,
+            50.0,
+            1.5,
+            0.1,
+            30.0,
+        )
+        .unwrap();
+        let f = Frustum::from_camera(&cam);
+        let brute: Vec<u32> =
+            (0..boxes.len() as u32).filter(|&i| f.classify(&boxes[i as usize]) != Containment::Outside).collect();
+        assert!(!brute.is_empty() && brute.len() < boxes.len());
+        let mut cache = CoherencyCache::new();
+        for variant in 0..4 {
+            let mut out = Vec::new();
+            match variant {
+                0 => bvh.cull_with(&f, CullOptions { plane_masking: true }, &mut out),
+                1 => bvh.cull_with(&f, CullOptions { plane_masking: false }, &mut out),
+                _ => bvh.cull_coherent(&f, &mut cache, &mut out),
+            };
+            let mut got: Vec<u32> = out.iter().map(|v| v.index).collect();
+            got.sort_unstable();
+            // Every item the brute force keeps is kept (the tree may keep a few more only if
+            // its node test is looser, which plane tests on item boxes exclude).
+            assert_eq!(got, brute, "variant {variant}");
+            for v in &out {
+                if v.inside {
+                    assert_eq!(f.classify(&boxes[v.index as usize]), Containment::Inside);
+                }
+            }
+        }
+        let mut got = Vec::new();
+        bvh.traverse_front_to_back(
+            Some(&f),
+            cam.view.eye,
+            |_| Visit::Continue,
+            |v| {
+                got.push(v.index);
+                Visit::Continue
+            },
+        );
+        got.sort_unstable();
+        assert_eq!(got, brute);
+    }
+
+    #[test]
+    fn front_to_back_is_roughly_sorted_and_callbacks_prune() {
+        let boxes = grid_boxes();
+        let bvh = Bvh::build(&boxes, BvhPreset::Fast, 4);
+        let eye = Vec3::new(-40.0, 0.5, -40.0);
+        let mut order = Vec::new();
+        bvh.order_front_to_back(eye, &mut order);
+        assert_eq!(order.len(), boxes.len());
+        let d = |i: u32| boxes[i as usize].distance_squared(eye).sqrt();
+        // The first item is the nearest; the first tenth is nearer than the last tenth.
+        assert_eq!(order[0], 0);
+        let head: f32 = order[..40].iter().map(|&i| d(i)).sum::<f32>() / 40.0;
+        let tail: f32 = order[360..].iter().map(|&i| d(i)).sum::<f32>() / 40.0;
+        assert!(head * 1.5 < tail, "{head} {tail}");
+        // A callback that rejects everything beyond x > 0 never sees items there.
+        let mut got = Vec::new();
+        bvh.traverse_front_to_back(
+            None,
+            eye,
+            |b| if b.min.x > 0.0 { Visit::Skip } else { Visit::Continue },
+            |v| {
+                got.push(v.index);
+                Visit::Continue
+            },
+        );
+        assert!(got.iter().all(|&i| boxes[i as usize].min.x <= 0.0));
+        assert_eq!(got.len(), 220);
+    }
+}
