@@ -60,21 +60,13 @@ fn to_f64(m: &Affine3A) -> DAffine3 {
 }
 
 fn invalid(name: &str, why: String) -> Error {
-    Error::Scene(sightline_scene::Error::InvalidTransform {
-        what: format!("CSG object '{name}'"),
-        why,
-    })
+    Error::Scene(sightline_scene::Error::InvalidTransform { what: format!("CSG object '{name}'"), why })
 }
 
 impl CsgObject {
     /// Compiles `csg` and places it with `world_from_object`. Errors on singular or
     /// non-finite transforms (of the object or of any node).
-    pub fn new(
-        name: impl Into<String>,
-        csg: &Csg,
-        world_from_object: Affine3A,
-        color: [f32; 4],
-    ) -> Result<Self> {
+    pub fn new(name: impl Into<String>, csg: &Csg, world_from_object: Affine3A, color: [f32; 4]) -> Result<Self> {
         let name = name.into();
         let tree = csg.compile().map_err(|why| invalid(&name, why))?;
         let m = to_f64(&world_from_object);
@@ -87,22 +79,13 @@ impl CsgObject {
         let bounds = if lo.cmple(hi).all() {
             let c = m.transform_point3((lo + hi) * 0.5);
             let h = (hi - lo) * 0.5;
-            let e = m.matrix3.x_axis.abs() * h.x
-                + m.matrix3.y_axis.abs() * h.y
-                + m.matrix3.z_axis.abs() * h.z;
+            let e = m.matrix3.x_axis.abs() * h.x + m.matrix3.y_axis.abs() * h.y + m.matrix3.z_axis.abs() * h.z;
             let pad = e * 1e-9 + 1e-9;
             Aabb::new((c - e - pad).as_vec3(), (c + e + pad).as_vec3())
         } else {
             Aabb::EMPTY
         };
-        Ok(Self {
-            name,
-            color,
-            tree,
-            object_from_world: inv,
-            normal_to_world: inv.matrix3.transpose(),
-            bounds,
-        })
+        Ok(Self { name, color, tree, object_from_world: inv, normal_to_world: inv.matrix3.transpose(), bounds })
     }
 
     /// World-space bounds (empty when the solid is provably empty).
@@ -154,9 +137,7 @@ impl CsgObject {
         let lo_ = self.object_from_world.transform_point3(o);
         let ld = self.object_from_world.transform_vector3(d);
         let spans = self.tree.spans(lo_, ld, scratch);
-        let s = spans
-            .iter()
-            .find(|s| s.enter.t >= t0 && s.enter.t.is_finite())?;
+        let s = spans.iter().find(|s| s.enter.t >= t0 && s.enter.t.is_finite())?;
         if !(s.enter.t < t1) {
             return None;
         }
@@ -183,22 +164,13 @@ pub fn classic_demo() -> Csg {
 /// new framebuffer of the given size.
 pub fn render_classic_demo(width: u32, height: u32) -> Result<Framebuffer> {
     let scene = Scene::new();
-    let object = CsgObject::new(
-        "classic",
-        &classic_demo(),
-        Affine3A::from_rotation_y(0.35),
-        [0.85, 0.45, 0.25, 1.0],
-    )?;
+    let object = CsgObject::new("classic", &classic_demo(), Affine3A::from_rotation_y(0.35), [0.85, 0.45, 0.25, 1.0])?;
     let caster = RayCaster::build(&scene)?.with_csg(vec![object]);
     let view = View::look_at(Vec3::new(3.2, 2.6, 4.0), Vec3::ZERO, Vec3::Y)?;
     let aspect = width as f32 / height.max(1) as f32;
     let camera = Camera::new(view, Projection::perspective(0.6, aspect, 0.1, 100.0)?)?;
     let mut fb = Framebuffer::new(width, height)?;
-    let opts = RaycastOptions {
-        shadows: true,
-        background: [40, 44, 52, 255],
-        ..RaycastOptions::default()
-    };
+    let opts = RaycastOptions { shadows: true, background: [40, 44, 52, 255], ..RaycastOptions::default() };
     caster.render(&camera, &opts, &mut fb)?;
     Ok(fb)
 }
@@ -206,5 +178,5 @@ pub fn render_classic_demo(width: u32, height: u32) -> Result<Framebuffer> {
 /// Renders [`classic_demo`] to a PNG file (what `sightline csg` writes).
 pub fn write_classic_demo_png(path: &Path, width: u32, height: u32) -> Result<()> {
     let fb = render_classic_demo(width, height)?;
-    crate::raycast::write_color_png(&fb, path)
+    crate::output::write_color_png(&fb, path)
 }

@@ -27,10 +27,7 @@ enum Node {
 impl Csg {
     /// A canonical primitive with an identity transform.
     pub fn primitive(shape: Shape) -> Self {
-        Self {
-            node: Node::Prim(shape),
-            transform: DAffine3::IDENTITY,
-        }
+        Self { node: Node::Prim(shape), transform: DAffine3::IDENTITY }
     }
     /// A sphere of radius `r` around `center`.
     pub fn sphere(center: Vec3, r: f32) -> Self {
@@ -38,9 +35,7 @@ impl Csg {
     }
     /// An axis-aligned box between `min` and `max`.
     pub fn cuboid(min: Vec3, max: Vec3) -> Self {
-        Self::primitive(Shape::Cube)
-            .scaled((max - min) * 0.5)
-            .translated((min + max) * 0.5)
+        Self::primitive(Shape::Cube).scaled((max - min) * 0.5).translated((min + max) * 0.5)
     }
     /// A capped cylinder of radius `r` from `a` to `b`.
     pub fn cylinder(a: Vec3, b: Vec3, r: f32) -> Self {
@@ -58,12 +53,7 @@ impl Csg {
         let helper = if y.x.abs() < 0.9 { DVec3::X } else { DVec3::Z };
         let x = helper.cross(y).normalize();
         let z = x.cross(y);
-        let m = DAffine3::from_cols(
-            x * r as f64,
-            y * len * 0.5,
-            z * r as f64,
-            ((a + b) * 0.5).as_dvec3(),
-        );
+        let m = DAffine3::from_cols(x * r as f64, y * len * 0.5, z * r as f64, ((a + b) * 0.5).as_dvec3());
         Self::primitive(shape).transformed_f64(m)
     }
 
@@ -94,10 +84,7 @@ impl Csg {
     }
 
     fn op(op: Op, a: Csg, b: Csg) -> Self {
-        Self {
-            node: Node::Op(op, Box::new(a), Box::new(b)),
-            transform: DAffine3::IDENTITY,
-        }
+        Self { node: Node::Op(op, Box::new(a), Box::new(b)), transform: DAffine3::IDENTITY }
     }
     /// Points in `self` or `other`.
     pub fn union(self, other: Csg) -> Self {
@@ -114,11 +101,7 @@ impl Csg {
 
     /// Compiles the expression. Errors name the first singular or non-finite transform.
     pub fn compile(&self) -> Result<CsgTree, String> {
-        let mut tree = CsgTree {
-            prims: Vec::new(),
-            program: Vec::new(),
-            bounds: (DVec3::ZERO, DVec3::ZERO),
-        };
+        let mut tree = CsgTree { prims: Vec::new(), program: Vec::new(), bounds: (DVec3::ZERO, DVec3::ZERO) };
         // Explicit stack: (node, object_from_parent, visited children?)
         let mut bounds: Vec<(DVec3, DVec3)> = Vec::new();
         let mut stack: Vec<(&Csg, DAffine3, bool)> = vec![(self, DAffine3::IDENTITY, false)];

@@ -23,13 +23,9 @@ pub(crate) struct Blas {
 impl Blas {
     /// Builds over `count` triangles whose corners `corners(i)` gives.
     pub fn build(count: usize, corners: impl Fn(usize) -> [Vec3; 3]) -> Blas {
-        let all: Vec<[Vec3A; 3]> = (0..count)
-            .map(|i| corners(i).map(Vec3A::from))
-            .collect();
-        let boxes: Vec<ObAabb> = all
-            .iter()
-            .map(|t| ObAabb::new(t[0].min(t[1]).min(t[2]), t[0].max(t[1]).max(t[2])))
-            .collect();
+        let all: Vec<[Vec3A; 3]> = (0..count).map(|i| corners(i).map(Vec3A::from)).collect();
+        let boxes: Vec<ObAabb> =
+            all.iter().map(|t| ObAabb::new(t[0].min(t[1]).min(t[2]), t[0].max(t[1]).max(t[2]))).collect();
         let bvh = Bvh::build(&boxes, BuildParams::BLAS);
         let tris = bvh.order.iter().map(|&i| all[i as usize]).collect();
         Blas { tris, bvh }
@@ -43,10 +39,7 @@ impl Blas {
     /// A BLAS of the mesh already placed in the world (for instances whose transform cannot
     /// be inverted, e.g. a zero scale that flattens the mesh).
     pub fn from_mesh_placed(mesh: &Mesh, world_from_local: &Affine3A) -> Blas {
-        Self::build(mesh.triangle_count(), |i| {
-            mesh.triangle_positions(i)
-                .map(|p| world_from_local.transform_point3(p))
-        })
+        Self::build(mesh.triangle_count(), |i| mesh.triangle_positions(i).map(|p| world_from_local.transform_point3(p)))
     }
 
     /// Bounds of everything in the BLAS (empty box for no triangles).

@@ -32,12 +32,7 @@ pub(crate) struct Child {
 
 impl Child {
     /// A child that nothing can hit (an empty box).
-    pub const EMPTY: Child = Child {
-        lo: [f32::INFINITY; 3],
-        link: 0,
-        hi: [f32::NEG_INFINITY; 3],
-        count: 0,
-    };
+    pub const EMPTY: Child = Child { lo: [f32::INFINITY; 3], link: 0, hi: [f32::NEG_INFINITY; 3], count: 0 };
 
     /// True for a leaf.
     #[inline(always)]
@@ -66,19 +61,11 @@ pub(crate) struct BuildParams {
 
 impl BuildParams {
     /// For triangle BVHs traversed by packets.
-    pub const BLAS: BuildParams = BuildParams {
-        max_leaf: 4,
-        traversal_cost: 1.0,
-        search: PlocSearchDistance::Low,
-        reinsertion: 0.05,
-    };
+    pub const BLAS: BuildParams =
+        BuildParams { max_leaf: 4, traversal_cost: 1.0, search: PlocSearchDistance::Low, reinsertion: 0.05 };
     /// For the instance BVH: one instance per leaf.
-    pub const TLAS: BuildParams = BuildParams {
-        max_leaf: 1,
-        traversal_cost: 1.0,
-        search: PlocSearchDistance::Medium,
-        reinsertion: 0.1,
-    };
+    pub const TLAS: BuildParams =
+        BuildParams { max_leaf: 1, traversal_cost: 1.0, search: PlocSearchDistance::Medium, reinsertion: 0.1 };
 }
 
 /// A binary BVH in pair layout.
@@ -98,12 +85,7 @@ impl Bvh {
     /// Builds over the given boxes (all finite). Empty input gives an empty tree.
     pub fn build(boxes: &[ObAabb], params: BuildParams) -> Bvh {
         if boxes.is_empty() {
-            return Bvh {
-                root: Child::EMPTY,
-                pairs: Vec::new(),
-                order: Vec::new(),
-                depth: 0,
-            };
+            return Bvh { root: Child::EMPTY, pairs: Vec::new(), order: Vec::new(), depth: 0 };
         }
         let mut bvh2 = PlocBuilder::with_capacity(boxes.len()).build(
             params.search,
@@ -114,11 +96,7 @@ impl Bvh {
         );
         let mut reinsert = ReinsertionOptimizer::default();
         reinsert.run(&mut bvh2, params.reinsertion, None);
-        collapse(
-            &mut bvh2,
-            params.max_leaf.clamp(1, 255),
-            params.traversal_cost,
-        );
+        collapse(&mut bvh2, params.max_leaf.clamp(1, 255), params.traversal_cost);
         Self::from_bvh2(&bvh2)
     }
 
@@ -127,12 +105,7 @@ impl Bvh {
         let mut pairs: Vec<Pair> = Vec::with_capacity(b.nodes.len() / 2);
         let mut order = Vec::with_capacity(b.primitive_indices.len());
         if b.nodes.is_empty() {
-            return Bvh {
-                root: Child::EMPTY,
-                pairs,
-                order,
-                depth: 0,
-            };
+            return Bvh { root: Child::EMPTY, pairs, order, depth: 0 };
         }
         let make = |idx: usize, order: &mut Vec<u32>, pairs: &mut Vec<Pair>| -> Child {
             let n = &b.nodes[idx];
@@ -146,20 +119,10 @@ impl Bvh {
                     return Child::EMPTY; // malformed leaf: never hit
                 }
                 order.extend_from_slice(&b.primitive_indices[s..e]);
-                Child {
-                    lo,
-                    link: first,
-                    hi,
-                    count: (e - s) as u32,
-                }
+                Child { lo, link: first, hi, count: (e - s) as u32 }
             } else {
                 pairs.push(Pair([Child::EMPTY; 2]));
-                Child {
-                    lo,
-                    link: pairs.len() as u32 - 1,
-                    hi,
-                    count: 0,
-                }
+                Child { lo, link: pairs.len() as u32 - 1, hi, count: 0 }
             }
         };
         let root = make(0, &mut order, &mut pairs);
@@ -186,12 +149,7 @@ impl Bvh {
                 }
             }
         }
-        Bvh {
-            root,
-            pairs,
-            order,
-            depth,
-        }
+        Bvh { root, pairs, order, depth }
     }
 
     /// Checks the structure: every primitive exactly once, children inside their parents'

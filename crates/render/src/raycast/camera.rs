@@ -8,7 +8,7 @@
 //! near and far planes, measured along the gaze (view depth), which is exactly the part the
 //! rasterizer keeps after clipping.
 
-use glam::{DVec2, DVec3, Vec2, Vec3A};
+use glam::{DVec2, DVec3, Vec3A};
 use sightline_scene::Camera;
 
 use super::packet::Beam;
@@ -103,25 +103,16 @@ impl CameraRays {
 
     /// The ray through a window position (pixel units, y down), not necessarily a center.
     pub fn ray_at(&self, x: f64, y: f64, camera: &Camera) -> (Vec3A, Vec3A) {
-        let ndc = DVec2::new(
-            Self::ndc_x(x, self.width as f64),
-            Self::ndc_y(y, self.height as f64),
-        );
+        let ndc = DVec2::new(Self::ndc_x(x, self.width as f64), Self::ndc_y(y, self.height as f64));
         let (o, d) = camera.projection.view_ray(ndc);
-        (
-            (self.eye + self.to_world(o)).as_vec3().into(),
-            self.to_world(d).as_vec3().into(),
-        )
+        ((self.eye + self.to_world(o)).as_vec3().into(), self.to_world(d).as_vec3().into())
     }
 
     /// The corner rays of the pixel block `[x0, x1) × [y0, y1)` (at pixel corners).
     pub fn beam(&self, x0: u32, y0: u32, x1: u32, y1: u32, camera: &Camera) -> Beam {
         let pts = [(x0, y0), (x1, y0), (x1, y1), (x0, y1)];
         let rays = pts.map(|(x, y)| self.ray_at(x as f64, y as f64, camera));
-        Beam {
-            o: rays.map(|r| r.0),
-            d: rays.map(|r| r.1),
-        }
+        Beam { o: rays.map(|r| r.0), d: rays.map(|r| r.1) }
     }
 
     /// The `[t_near, t_far]` of a ray between the near and far planes; `None` for rays that
@@ -140,8 +131,8 @@ impl CameraRays {
 
     /// NDC of a pixel center, as the brief of [`Camera::ray_through_ndc`] takes it.
     #[cfg(test)]
-    pub fn ndc(&self, c: u32, r: u32) -> Vec2 {
-        Vec2::new(
+    pub fn ndc(&self, c: u32, r: u32) -> glam::Vec2 {
+        glam::Vec2::new(
             Self::ndc_x(c as f64 + 0.5, self.width as f64) as f32,
             Self::ndc_y(r as f64 + 0.5, self.height as f64) as f32,
         )
@@ -159,13 +150,8 @@ mod tests {
         let view = View::look_at(Vec3::new(1.0, 2.0, 5.0), Vec3::ZERO, Vec3::Y).unwrap();
         let cams = [
             Camera::new(view, Projection::perspective(1.0, 1.0, 0.1, 100.0).unwrap()).unwrap(),
-            Camera::new(view, Projection::orthographic(-2.0, 2.0, -2.0, 2.0, 0.5, 50.0).unwrap())
-                .unwrap(),
-            Camera::new(
-                view,
-                Projection::cabinet(-2.0, 2.0, -2.0, 2.0, 0.5, 50.0, 0.5).unwrap(),
-            )
-            .unwrap(),
+            Camera::new(view, Projection::orthographic(-2.0, 2.0, -2.0, 2.0, 0.5, 50.0).unwrap()).unwrap(),
+            Camera::new(view, Projection::cabinet(-2.0, 2.0, -2.0, 2.0, 0.5, 50.0, 0.5).unwrap()).unwrap(),
         ];
         for cam in cams {
             // 8 × 8 pixels: every NDC value is exact in f32, so the rays must match bit for bit.

@@ -212,19 +212,12 @@ pub(crate) struct Beam {
 impl Beam {
     /// The beam mapped by `local_from_world`.
     pub fn transformed(&self, m: &Affine3A) -> Beam {
-        Beam {
-            o: self.o.map(|p| m.transform_point3a(p)),
-            d: self.d.map(|v| m.transform_vector3a(v)),
-        }
+        Beam { o: self.o.map(|p| m.transform_point3a(p)), d: self.d.map(|v| m.transform_vector3a(v)) }
     }
 
     /// The four side planes, oriented inwards; culling is off when they are degenerate.
     pub fn frustum(&self) -> Frustum {
-        let mut f = Frustum {
-            on: true,
-            n: [[0.0; 4]; 3],
-            c: [0.0; 4],
-        };
+        let mut f = Frustum { on: true, n: [[0.0; 4]; 3], c: [0.0; 4] };
         let q = (0..4).map(|k| self.o[k] + self.d[k]).sum::<Vec3A>() * 0.25;
         for k in 0..4 {
             let (a, b) = (k, (k + 1) % 4);
@@ -261,11 +254,7 @@ pub(crate) struct Frustum {
 
 impl Frustum {
     /// A frustum that culls nothing.
-    pub const OFF: Frustum = Frustum {
-        on: false,
-        n: [[0.0; 4]; 3],
-        c: [0.0; 4],
-    };
+    pub const OFF: Frustum = Frustum { on: false, n: [[0.0; 4]; 3], c: [0.0; 4] };
 
     /// True when the box lies entirely outside one of the planes (beyond rounding).
     #[inline(always)]

@@ -7,7 +7,7 @@
 //! is singular (or nearly so) get a private BLAS of their triangles placed in world space and
 //! an identity transform instead.
 
-use glam::{Affine3A, Mat3A, Vec3A};
+use glam::{Affine3A, Vec3A};
 use obvhs::aabb::Aabb as ObAabb;
 use sightline_scene::Aabb;
 
@@ -25,10 +25,10 @@ pub(crate) struct InstanceRec {
     pub local_from_world: Affine3A,
     /// Maps BLAS points to world (identity for placed BLASes).
     pub world_from_blas: Affine3A,
-    /// Maps BLAS normals to world: the inverse transpose of `world_from_blas`'s 3×3 part.
-    pub normal_to_world: Mat3A,
     /// True when `local_from_world` is the identity (rays are used as they are).
     pub identity: bool,
+    /// True when the transform mirrors (negative determinant): front faces flip winding.
+    pub mirror: bool,
 }
 
 /// True when `m` can be inverted with a finite, well-conditioned result.
@@ -65,10 +65,7 @@ impl Tlas {
             // Pad by a relative epsilon: the box must contain every transformed vertex
             // despite rounding.
             let pad = (wb.max - wb.min).max(wb.max.abs().max(wb.min.abs())) * 1e-6;
-            boxes.push(ObAabb::new(
-                Vec3A::from(wb.min - pad),
-                Vec3A::from(wb.max + pad),
-            ));
+            boxes.push(ObAabb::new(Vec3A::from(wb.min - pad), Vec3A::from(wb.max + pad)));
             instances.push(rec);
         }
         let bvh = Bvh::build(&boxes, BuildParams::TLAS);
@@ -84,8 +81,8 @@ impl InstanceRec {
             scene_index,
             local_from_world: world_from_local.inverse(),
             world_from_blas: world_from_local,
-            normal_to_world: world_from_local.matrix3.inverse().transpose(),
             identity: world_from_local == Affine3A::IDENTITY,
+            mirror: world_from_local.matrix3.determinant() < 0.0,
         }
     }
 
@@ -96,8 +93,8 @@ impl InstanceRec {
             scene_index,
             local_from_world: Affine3A::IDENTITY,
             world_from_blas: Affine3A::IDENTITY,
-            normal_to_world: Mat3A::IDENTITY,
             identity: true,
+            mirror: false,
         }
     }
 }

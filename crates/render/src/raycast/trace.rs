@@ -8,7 +8,7 @@ use super::blas::Blas;
 use super::packet::{chunk_bits, Beam, Frustum, Hits, Rays, CHUNK, CHUNKS};
 use super::tlas::Tlas;
 use super::traverse::{traverse, Entry};
-use super::triangle::{intersect_general, intersect_shared, shared_setup};
+use super::triangle::{intersect_general, intersect_shared, shared_setup, Job};
 
 /// Per-thread scratch space for tracing packets.
 pub(crate) struct Scratch {
@@ -42,6 +42,7 @@ fn leaf<const ANY: bool>(
     count: u32,
     mut mask: u64,
     inst: u32,
+    cull: f32,
 ) -> u64 {
     let mut done = 0u64;
     let end = first.saturating_add(count).min(blas.tris.len() as u32);
@@ -54,8 +55,8 @@ fn leaf<const ANY: bool>(
                 for c in 0..CHUNKS {
                     let bits = chunk_bits(mask, c);
                     if bits != 0 {
-                        got |= intersect_shared::<ANY>(&s, rays, hits, c, bits, inst, k)
-                            << (c * CHUNK);
+                        let job = Job { c, bits, inst, prim: k, cull };
+                        got |= intersect_shared::<ANY>(&s, rays, hits, job) << (c * CHUNK);
                     }
                 }
             }
@@ -63,8 +64,8 @@ fn leaf<const ANY: bool>(
                 for c in 0..CHUNKS {
                     let bits = chunk_bits(mask, c);
                     if bits != 0 {
-                        got |= intersect_general::<ANY>(tri, rays, hits, c, bits, inst, k)
-                            << (c * CHUNK);
+                        let job = Job { c, bits, inst, prim: k, cull };
+                        got |= intersect_general::<ANY>(tri, rays, hits, job) << (c * CHUNK);
                     }
                 }
             }
@@ -81,59 +82,53 @@ fn leaf<const ANY: bool>(
 }
 
 /// Traces the lanes of `mask` through the scene. `beam` (the packet's corner rays) enables
-/// frustum culling. Returns the lanes closed by any-hit queries.
+/// frustum culling; `backface` drops triangles seen from behind. Returns the lanes closed by
+/// any-hit queries.
 #[inline(always)]
+#[allow(clippy::too_many_arguments)]
 pub(crate) fn trace<const ANY: bool>(
     blases: &[Blas],
     tlas: &Tlas,
     rays: &Rays,
     beam: Option<&Beam>,
+    backface: bool,
     hits: &mut Hits,
     mask: u64,
     s: &mut Scratch,
 ) -> u64 {
     let world = beam.map_or(Frustum::OFF, |b| b.frustum());
-    let Scratch {
-        local,
-        tlas_stack,
-        blas_stack,
-    } = s;
-    traverse(
-        &tlas.bvh,
-        rays,
-        hits,
-        &world,
-        mask,
-        tlas_stack,
-        |hits, first, count, m| {
-            let mut done = 0u64;
-            let end = first.saturating_add(count) as usize;
-            for k in first as usize..end.min(tlas.bvh.order.len()) {
-                let ii = tlas.bvh.order[k];
-                let Some(inst) = tlas.instances.get(ii as usize) else {
-                    continue;
-                };
-                let Some(blas) = blases.get(inst.blas as usize) else {
-                    continue;
-                };
-                let m = m & !done;
-                if m == 0 {
-                    break;
-                }
-                let (lr, fr): (&Rays, Frustum) = if inst.identity {
-                    (rays, world)
-                } else {
-                    rays.transform_into(&inst.local_from_world, m, local);
-                    let fr = beam.map_or(Frustum::OFF, |b| {
-                        b.transformed(&inst.local_from_world).frustum()
-                    });
-                    (&*local, fr)
-                };
-                done |= traverse(&blas.bvh, lr, hits, &fr, m, blas_stack, |hits, f, n, lm| {
-                    leaf::<ANY>(blas, lr, hits, f, n, lm, ii)
-                });
+    let Scratch { local, tlas_stack, blas_stack } = s;
+    traverse(&tlas.bvh, rays, hits, &world, mask, tlas_stack, |hits, first, count, m| {
+        let mut done = 0u64;
+        let end = first.saturating_add(count) as usize;
+        for k in first as usize..end.min(tlas.bvh.order.len()) {
+            let ii = tlas.bvh.order[k];
+            let Some(inst) = tlas.instances.get(ii as usize) else {
+                continue;
+            };
+            let Some(blas) = blases.get(inst.blas as usize) else {
+                continue;
+            };
+            let m = m & !done;
+            if m == 0 {
+                break;
             }
-            done
-        },
-    )
+            let (lr, fr): (&Rays, Frustum) = if inst.identity {
+                (rays, world)
+            } else {
+                rays.transform_into(&inst.local_from_world, m, local);
+                let fr = beam.map_or(Frustum::OFF, |b| b.transformed(&inst.local_from_world).frustum());
+                (&*local, fr)
+            };
+            let cull = match (backface, inst.mirror) {
+                (false, _) => 0.0,
+                (true, false) => 1.0,
+                (true, true) => -1.0,
+            };
+            done |= traverse(&blas.bvh, lr, hits, &fr, m, blas_stack, |hits, f, n, lm| {
+                leaf::<ANY>(blas, lr, hits, f, n, lm, ii, cull)
+            });
+        }
+        done
+    })
 }

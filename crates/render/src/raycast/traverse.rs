@@ -89,14 +89,7 @@ fn lane_hits(rays: &Rays, hits: &Hits, i: usize, lo: &[f32; 3], hi: &[f32; 3]) -
 
 /// The lanes that may hit `child` (a superset after an early hit) and its sort key.
 #[inline(always)]
-fn child_mask(
-    child: &Child,
-    rays: &Rays,
-    hits: &Hits,
-    fr: &Frustum,
-    mask: u64,
-    first: usize,
-) -> u64 {
+fn child_mask(child: &Child, rays: &Rays, hits: &Hits, fr: &Frustum, mask: u64, first: usize) -> u64 {
     if !child.is_leaf() && lane_hits(rays, hits, first, &child.lo, &child.hi) {
         return mask;
     }
@@ -161,11 +154,7 @@ where
                 let eb: Entry = (b.link, b.count, mb);
                 match (ma != 0, mb != 0) {
                     (true, true) => {
-                        let (near, far) = if key(a, rays, first) <= key(b, rays, first) {
-                            (ea, eb)
-                        } else {
-                            (eb, ea)
-                        };
+                        let (near, far) = if key(a, rays, first) <= key(b, rays, first) { (ea, eb) } else { (eb, ea) };
                         stack.push(far);
                         cur = near;
                         continue;

