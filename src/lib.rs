@@ -24,12 +24,12 @@ pub use sightline_spatial as spatial;
 /// The everyday types.
 pub mod prelude {
     pub use glam::{Affine3A, Mat4, Quat, Vec2, Vec3};
+    pub use sightline_render::Framebuffer;
     pub use sightline_scene::builders::{boxfield, city, BoxfieldParams, CityParams};
     pub use sightline_scene::path::CameraKey;
     pub use sightline_scene::{
         Aabb, Camera, Instance, Keep, Material, Mesh, MeshId, NodeDesc, NodeId, Projection, Scene, Transform, View,
     };
-    pub use sightline_render::Framebuffer;
 }
 
 /// Triangles of the default city.
@@ -60,7 +60,10 @@ impl std::str::FromStr for SceneSpec {
             "boxfield" => Ok(SceneSpec::Boxfield),
             _ => {
                 if let Some(n) = s.strip_prefix("city:") {
-                    let n: u64 = n.replace('_', "").parse().map_err(|_| format!("'{s}': expected city:TRIANGLES, e.g. city:10000000"))?;
+                    let n: u64 = n
+                        .replace('_', "")
+                        .parse()
+                        .map_err(|_| format!("'{s}': expected city:TRIANGLES, e.g. city:10000000"))?;
                     if !(1_000..=100_000_000).contains(&n) {
                         return Err(format!("'{s}': the city's triangle count must be between 1000 and 100000000"));
                     }
@@ -90,7 +93,9 @@ impl SceneSpec {
                 let c = scene::builders::city(&scene::builders::CityParams::for_triangles(*n))?;
                 Ok(LoadedScene { scene: c.scene, layout: Some(c.layout) })
             }
-            SceneSpec::Boxfield => Ok(LoadedScene { scene: scene::builders::boxfield(&Default::default())?, layout: None }),
+            SceneSpec::Boxfield => {
+                Ok(LoadedScene { scene: scene::builders::boxfield(&Default::default())?, layout: None })
+            }
             SceneSpec::File(p) => Ok(LoadedScene { scene: scene::load(p)?, layout: None }),
         }
     }

@@ -1,8 +1,10 @@
 //! Command-line parsing (clap) and dispatch. The commands and flags scripts rely on are
 //! listed in CLI.md of the shared design; keep their names.
 
+mod common;
 mod info;
 mod path;
+mod render;
 
 use std::path::PathBuf;
 
@@ -58,6 +60,8 @@ enum Command {
         #[arg(long, value_name = "FILE")]
         out: PathBuf,
     },
+    /// Render one frame to PNGs (color, depth, IDs, depth complexity), .npy and JSON
+    Render(Box<render::RenderArgs>),
 }
 
 /// Runs one command.
@@ -66,6 +70,7 @@ pub fn run(cli: Cli) -> Result<()> {
         Command::Info { scene, json } => info::run(&scene.scene, json),
         Command::ExportObj { scene, out } => path::export_obj(&scene.scene, &out),
         Command::Path { scene, kind, frames, out } => path::run(&scene.scene, kind, frames, &out),
+        Command::Render(a) => render::run(&a),
     }
 }
 

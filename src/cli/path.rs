@@ -25,7 +25,8 @@ pub fn run(spec: &SceneSpec, kind: PathKind, frames: usize, out: &Path) -> Resul
 
 pub fn export_obj(spec: &SceneSpec, out: &Path) -> Result<()> {
     let loaded = super::load_scene(spec)?;
-    sightline::scene::export::export_obj(&loaded.scene, out).with_context(|| format!("exporting to {}", out.display()))?;
+    sightline::scene::export::export_obj(&loaded.scene, out)
+        .with_context(|| format!("exporting to {}", out.display()))?;
     let s = loaded.scene.stats();
     println!("wrote {} triangles to {}", s.triangles, out.display());
     Ok(())

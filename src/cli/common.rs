@@ -1,0 +1,214 @@
+//! Options shared by `render`, `walk` and `bench`: image size, threads, camera choice,
+//! shading switches.
+
+use std::path::{Path, PathBuf};
+
+use anyhow::{bail, Context, Result};
+use glam::Vec3;
+use sightline::render::{Antialias, DepthFormat, RenderOptions, ShadingMode, Wireframe};
+use sightline::scene::path::CameraKey;
+use sightline::scene::Camera;
+use sightline::LoadedScene;
+
+/// `WIDTHxHEIGHT`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Size {
+    pub width: u32,
+    pub height: u32,
+}
+
+impl std::str::FromStr for Size {
+    type Err = String;
+    fn from_str(s: &str) -> Result<Self, String> {
+        let (w, h) = s.split_once(['x', 'X']).ok_or_else(|| format!("'{s}': expected WIDTHxHEIGHT, e.g. 1280x720"))?;
+        let p = |v: &str| v.trim().parse::<u32>().map_err(|_| format!("'{s}': expected WIDTHxHEIGHT, e.g. 1280x720"));
+        let (width, height) = (p(w)?, p(h)?);
+        if width == 0 || height == 0 || width > 8192 || height > 8192 {
+            return Err(format!("'{s}': each side must be between 1 and 8192"));
+        }
+        Ok(Size { width, height })
+    }
+}
+
+impl Size {
+    pub fn aspect(&self) -> f32 {
+        self.width as f32 / self.height as f32
+    }
+}
+
+/// `x,y,z`.
+pub fn parse_vec3(s: &str) -> Result<Vec3, String> {
+    let v: Vec<f32> = s
+        .split(',')
+        .map(|c| c.trim().parse::<f32>())
+        .collect::<Result<_, _>>()
+        .map_err(|_| format!("'{s}': expected x,y,z"))?;
+    match v.as_slice() {
+        [x, y, z] if v.iter().all(|c| c.is_finite()) => Ok(Vec3::new(*x, *y, *z)),
+        _ => Err(format!("'{s}': expected three finite numbers x,y,z")),
+    }
+}
+
+/// `on|off`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+pub enum OnOff {
+    On,
+    Off,
+}
+
+impl OnOff {
+    pub fn on(self) -> bool {
+        self == OnOff::On
+    }
+}
+
+/// Shading switches for pictures.
+#[derive(Debug, Clone, clap::Args)]
+pub struct Look {
+    /// Shading: none (depth and IDs only), flat, gouraud, per-pixel
+    #[arg(long, value_enum, default_value = "flat")]
+    pub shading: ShadingArg,
+    /// Supersampling antialiasing
+    #[arg(long, value_enum, default_value = "off")]
+    pub aa: AaArg,
+    /// Wireframe drawing (Bresenham lines)
+    #[arg(long, value_enum, default_value = "off")]
+    pub wireframe: WireArg,
+    /// Depth buffer format
+    #[arg(long, value_enum, default_value = "f32")]
+    pub depth_format: DepthArg,
+}
+
+#[derive(Debug, Clone, Copy, clap::ValueEnum)]
+pub enum ShadingArg {
+    None,
+    Flat,
+    Gouraud,
+    PerPixel,
+}
+
+#[derive(Debug, Clone, Copy, clap::ValueEnum)]
+pub enum AaArg {
+    Off,
+    #[value(name = "2x2")]
+    X2,
+    #[value(name = "4x4")]
+    X4,
+}
+
+#[derive(Debug, Clone, Copy, clap::ValueEnum)]
+pub enum WireArg {
+    Off,
+    Overlay,
+    Only,
+}
+
+#[derive(Debug, Clone, Copy, clap::ValueEnum)]
+pub enum DepthArg {
+    F32,
+    #[value(name = "24")]
+    U24,
+    #[value(name = "16")]
+    U16,
+}
+
+impl Look {
+    pub fn options(&self, backface: OnOff) -> RenderOptions {
+        let mut o = RenderOptions { backface_culling: backface.on(), ..Default::default() };
+        o.shading.mode = match self.shading {
+            ShadingArg::None => ShadingMode::None,
+            ShadingArg::Flat => ShadingMode::Flat,
+            ShadingArg::Gouraud => ShadingMode::Gouraud,
+            ShadingArg::PerPixel => ShadingMode::PerPixel,
+        };
+        o.antialias = match self.aa {
+            AaArg::Off => Antialias::Off,
+            AaArg::X2 => Antialias::Ssaa2x2,
+            AaArg::X4 => Antialias::Ssaa4x4,
+        };
+        o.wireframe = match self.wireframe {
+            WireArg::Off => Wireframe::Off,
+            WireArg::Overlay => Wireframe::Overlay,
+            WireArg::Only => Wireframe::Only,
+        };
+        o.depth_format = match self.depth_format {
+            DepthArg::F32 => DepthFormat::F32,
+            DepthArg::U24 => DepthFormat::Unorm24,
+            DepthArg::U16 => DepthFormat::Unorm16,
+        };
+        o
+    }
+}
+
+/// Runs `f` on a rayon pool of `threads` threads (all cores when `None`).
+pub fn with_threads<T: Send>(threads: Option<usize>, f: impl FnOnce() -> T + Send) -> Result<T> {
+    match threads {
+        None => Ok(f()),
+        Some(0) => bail!("--threads must be at least 1"),
+        Some(n) => {
+            let pool = rayon::ThreadPoolBuilder::new().num_threads(n).build().context("starting the thread pool")?;
+            Ok(pool.install(f))
+        }
+    }
+}
+
+/// Reads a camera path file, or makes the scene's street path when none is given.
+pub fn path_keys(loaded: &LoadedScene, path: Option<&Path>, frames: Option<usize>) -> Result<Vec<CameraKey>> {
+    let mut keys = match path {
+        Some(p) => sightline::scene::path::read_path(p)?,
+        None => loaded.path(true, frames.unwrap_or(120))?,
+    };
+    if let Some(n) = frames {
+        anyhow::ensure!(n > 0, "--frames must be at least 1");
+        keys.truncate(n);
+    }
+    Ok(keys)
+}
+
+/// The camera of `render`: `--eye/--target` when given, else frame `frame` of `--path`, else
+/// the first frame of the scene's street path.
+pub struct CameraChoice<'a> {
+    pub eye: Option<Vec3>,
+    pub target: Option<Vec3>,
+    pub up: Vec3,
+    pub fov: f32,
+    pub near: Option<f32>,
+    pub far: Option<f32>,
+    pub path: Option<&'a PathBuf>,
+    pub frame: usize,
+}
+
+impl CameraChoice<'_> {
+    pub fn camera(&self, loaded: &LoadedScene, size: Size) -> Result<Camera> {
+        match (self.eye, self.target) {
+            (Some(eye), Some(target)) => {
+                let b = loaded.scene.world_aabb();
+                let reach = if b.is_finite() { (b.center() - eye).length() + b.extent().length() } else { 1000.0 };
+                let key = CameraKey {
+                    eye: eye.into(),
+                    target: target.into(),
+                    up: self.up.into(),
+                    fovy_deg: self.fov,
+                    near: self.near.unwrap_or(0.1),
+                    far: self.far.unwrap_or(reach.max(1.0) * 1.5),
+                };
+                Ok(key.camera(size.aspect())?)
+            }
+            (None, None) => {
+                let keys = path_keys(loaded, self.path.map(|p| p.as_path()), None)?;
+                let key = keys
+                    .get(self.frame)
+                    .with_context(|| format!("--frame {} but the path has {} frames", self.frame, keys.len()))?;
+                let mut key = *key;
+                if let Some(n) = self.near {
+                    key.near = n;
+                }
+                if let Some(f) = self.far {
+                    key.far = f;
+                }
+                Ok(key.camera(size.aspect())?)
+            }
+            _ => bail!("--eye and --target go together"),
+        }
+    }
+}
