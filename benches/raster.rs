@@ -23,10 +23,8 @@ fn bench(c: &mut Criterion) {
     let tris: u64 = instances.iter().map(|i| i.triangle_count as u64).sum();
     let aspect = W as f32 / H as f32;
     let cam = |k: sightline_scene::path::CameraKey| -> Camera { k.camera(aspect).expect("camera") };
-    let frames = [
-        ("street", cam(city.layout.street_path(100, 11)[40])),
-        ("aerial", cam(city.layout.aerial_path(100)[40])),
-    ];
+    let frames =
+        [("street", cam(city.layout.street_path(100, 11)[40])), ("aerial", cam(city.layout.aerial_path(100)[40]))];
     let mut group = c.benchmark_group("raster_city_1280x720");
     group
         .sample_size(10)
@@ -34,41 +32,38 @@ fn bench(c: &mut Criterion) {
         .measurement_time(Duration::from_secs(2))
         .throughput(Throughput::Elements(tris));
     for threads in [1usize, 2] {
-        let pool = rayon::ThreadPoolBuilder::new()
-            .num_threads(threads)
-            .build()
-            .expect("thread pool");
+        let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().expect("thread pool");
         for (name, camera) in &frames {
             for cull in [false, true] {
-                let opts = RenderOptions {
-                    backface_culling: cull,
-                    ..RenderOptions::default()
-                };
+                let opts = RenderOptions { backface_culling: cull, ..RenderOptions::default() };
                 let mut r = Renderer::new();
                 let mut fb = Framebuffer::new(W, H).expect("framebuffer");
                 let label = format!("{name}/cull_{}/{threads}t", if cull { "on" } else { "off" });
                 pool.install(|| {
-                    let s = r
-                        .render(scene, &instances, &items, camera, &mut fb, &opts)
-                        .expect("render");
-                    let s = r
-                        .render(scene, &instances, &items, camera, &mut fb, &opts)
-                        .expect("render");
+                    let s = r.render(scene, &instances, &items, camera, &mut fb, &opts).expect("render");
+                    let s = r.render(scene, &instances, &items, camera, &mut fb, &opts).expect("render");
                     eprintln!(
                         "{label}: {tris} tris, rejected {}, culled {}, clipped {}, small {}, rasterized {}, \
                          written {} / tested {}, overdraw {:.2}; ms geometry {:.1}, binning {:.1}, raster {:.1}, \
                          shading {:.1}, total {:.1}",
-                        s.trivially_rejected, s.backface_culled, s.clipped, s.too_small, s.rasterized,
-                        s.fragments_written, s.fragments_tested, s.overdraw, s.ms_geometry, s.ms_binning,
-                        s.ms_raster, s.ms_shading, s.ms_total
+                        s.trivially_rejected,
+                        s.backface_culled,
+                        s.clipped,
+                        s.too_small,
+                        s.rasterized,
+                        s.fragments_written,
+                        s.fragments_tested,
+                        s.overdraw,
+                        s.ms_geometry,
+                        s.ms_binning,
+                        s.ms_raster,
+                        s.ms_shading,
+                        s.ms_total
                     );
                 });
                 group.bench_function(&label, |b| {
                     pool.install(|| {
-                        b.iter(|| {
-                            r.render(scene, &instances, &items, camera, &mut fb, &opts)
-                                .expect("render")
-                        })
+                        b.iter(|| r.render(scene, &instances, &items, camera, &mut fb, &opts).expect("render"))
                     })
                 });
             }

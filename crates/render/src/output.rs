@@ -56,7 +56,7 @@ pub fn id_color(id: u32) -> [u8; 4] {
 /// The heat-map ramp: 0 → black, then blue, cyan, green, yellow, red for t in (0, 1].
 pub fn heat_color(t: f32) -> [u8; 4] {
     const STOPS: [[f32; 3]; 5] = [[0.0, 0.0, 1.0], [0.0, 1.0, 1.0], [0.0, 1.0, 0.0], [1.0, 1.0, 0.0], [1.0, 0.0, 0.0]];
-    if !(t > 0.0) {
+    if t.is_nan() || t <= 0.0 {
         return [0, 0, 0, 255];
     }
     let x = t.min(1.0) * (STOPS.len() - 1) as f32;
@@ -105,7 +105,7 @@ pub fn npy_bytes(descr: &str, height: u32, width: u32, data: &[u8]) -> Vec<u8> {
     out.extend_from_slice(b"\x93NUMPY\x01\x00");
     out.extend_from_slice(&(header_len as u16).to_le_bytes());
     out.extend_from_slice(dict.as_bytes());
-    out.extend(std::iter::repeat_n(b' ', pad));
+    out.resize(out.len() + pad, b' ');
     out.push(b'\n');
     out.extend_from_slice(data);
     out
