@@ -131,14 +131,14 @@ impl CsgObject {
             near = near.max(u.min(v));
             far = far.min(u.max(v));
         }
-        if !(near <= far) {
+        if near.is_nan() || far.is_nan() || near > far {
             return None;
         }
         let lo_ = self.object_from_world.transform_point3(o);
         let ld = self.object_from_world.transform_vector3(d);
         let spans = self.tree.spans(lo_, ld, scratch);
         let s = spans.iter().find(|s| s.enter.t >= t0 && s.enter.t.is_finite())?;
-        if !(s.enter.t < t1) {
+        if s.enter.t >= t1 {
             return None;
         }
         let n = (self.normal_to_world * s.enter.normal).normalize_or_zero();

@@ -46,7 +46,7 @@ fn slab(o: f64, d: f64, lo: f64, hi: f64) -> Option<(f64, f64, f64)> {
 #[inline]
 fn roots(a: f64, b: f64, c: f64) -> Option<(f64, f64)> {
     let disc = b * b - a * c;
-    if !(disc >= 0.0) || a == 0.0 {
+    if disc.is_nan() || disc < 0.0 || a == 0.0 {
         return None;
     }
     let s = disc.sqrt();
@@ -162,7 +162,7 @@ impl Shape {
                     };
                     // The slab can still leave a piece at the apex's height or above it
                     // numerically: keep the longer piece.
-                    if best.is_none_or(|b| b.exit.t - b.enter.t < t1 - t0) {
+                    if best.map_or(true, |b| b.exit.t - b.enter.t < t1 - t0) {
                         best = Some(Span::new(enter, exit));
                     }
                 }

@@ -111,7 +111,7 @@ impl Csg {
                 Node::Prim(shape) => {
                     let m = object_from_node;
                     let det = m.matrix3.determinant();
-                    if !(det.is_finite() && det.abs() > 1e-300) || !m.translation.is_finite() {
+                    if !det.is_finite() || det.abs() <= 1e-300 || !m.translation.is_finite() {
                         return Err(format!("{shape:?} has a singular or non-finite transform"));
                     }
                     let inv = m.inverse();

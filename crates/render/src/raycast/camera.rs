@@ -119,9 +119,9 @@ impl CameraRays {
     /// do not move forward (zero, NaN or backwards directions).
     #[inline(always)]
     pub fn interval(&self, o: Vec3A, d: Vec3A) -> Option<(f32, f32)> {
-        let og = self.gaze.dot(Vec3A::from(o).as_dvec3() - self.eye);
+        let og = self.gaze.dot(o.as_dvec3() - self.eye);
         let dg = self.gaze.dot(d.as_dvec3());
-        if !(dg > 0.0) || !dg.is_finite() || !og.is_finite() {
+        if dg.is_nan() || dg <= 0.0 || !dg.is_finite() || !og.is_finite() {
             return None;
         }
         let t0 = ((self.near - og) / dg).max(0.0);

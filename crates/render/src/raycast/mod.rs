@@ -235,11 +235,14 @@ impl<'s> RayCaster<'s> {
         let mut records = Vec::with_capacity(instances.len());
         for (i, b) in blas_of_instance.iter().enumerate() {
             if let Some(b) = b {
-                records.push(InstanceRec::placed(*b, i as u32, instances[i].world_from_local));
+                let inst = &instances[i];
+                let first_id = crate::triangle_id(inst.first_triangle, 0);
+                records.push(InstanceRec::placed(*b, i as u32, first_id, inst.world_from_local));
             }
         }
         for (k, &i) in placed_jobs.iter().enumerate() {
-            records.push(InstanceRec::in_world((blases.len() + k) as u32, i as u32));
+            let first_id = crate::triangle_id(instances[i].first_triangle, 0);
+            records.push(InstanceRec::in_world((blases.len() + k) as u32, i as u32, first_id));
         }
         blases.extend(placed);
         let tlas = Tlas::build(records, &blases);
@@ -317,7 +320,13 @@ impl<'s> RayCaster<'s> {
     }
 
     fn query<const ANY: bool>(&self, origin: Vec3, dir: Vec3, t_min: f32, t_max: f32) -> Option<RayHit> {
-        if !origin.is_finite() || !dir.is_finite() || dir == Vec3::ZERO || !(t_min <= t_max) {
+        if !origin.is_finite()
+            || !dir.is_finite()
+            || dir == Vec3::ZERO
+            || t_min.is_nan()
+            || t_max.is_nan()
+            || t_min > t_max
+        {
             return None;
         }
         let mut rays = Rays::new();

@@ -158,6 +158,8 @@ pub(crate) struct Hits {
     pub inst: Lu,
     /// Leaf-order triangle of the hit.
     pub prim: Lu,
+    /// Global triangle ID of the hit (`NO_GID`: none).
+    pub gid: Lu,
     /// Edge function weighting vertex 1.
     pub e1: Lf,
     /// Edge function weighting vertex 2.
@@ -168,6 +170,8 @@ pub(crate) struct Hits {
 
 /// `inst` value of a lane without a hit.
 pub(crate) const NO_HIT: u32 = u32::MAX;
+/// `gid` value of a lane without a hit.
+pub(crate) const NO_GID: u32 = u32::MAX;
 
 impl Hits {
     /// Empty intervals, no hits.
@@ -177,6 +181,7 @@ impl Hits {
             t: [[f32::NEG_INFINITY; CHUNK]; CHUNKS],
             inst: [[NO_HIT; CHUNK]; CHUNKS],
             prim: [[0; CHUNK]; CHUNKS],
+            gid: [[NO_GID; CHUNK]; CHUNKS],
             e1: [[0.0; CHUNK]; CHUNKS],
             e2: [[0.0; CHUNK]; CHUNKS],
             det: [[1.0; CHUNK]; CHUNKS],
@@ -190,6 +195,7 @@ impl Hits {
         self.tmin[c][j] = tmin;
         self.t[c][j] = tmax;
         self.inst[c][j] = NO_HIT;
+        self.gid[c][j] = NO_GID;
     }
 
     /// (tmin, t) of lane `i`.

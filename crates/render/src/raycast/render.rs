@@ -325,8 +325,8 @@ impl<'a> Frame<'a, '_> {
         let light = self.opts.shading.light_dir.as_dvec3();
         let mut smask = 0u64;
         if self.opts.shadows && light.is_finite() && light != DVec3::ZERO {
-            for i in 0..LANES {
-                let Some(s) = surf[i] else { continue };
+            for (i, s) in surf.iter().enumerate() {
+                let Some(s) = *s else { continue };
                 let d = Vec3::from(rays.dir(i)).as_dvec3();
                 let n = if s.normal.dot(d) > 0.0 { -s.normal } else { s.normal };
                 shits.open(i, f32::INFINITY, f32::NEG_INFINITY);

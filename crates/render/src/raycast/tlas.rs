@@ -27,6 +27,8 @@ pub(crate) struct InstanceRec {
     pub world_from_blas: Affine3A,
     /// True when `local_from_world` is the identity (rays are used as they are).
     pub identity: bool,
+    /// ID of the instance's triangle 0 (`1 + first_triangle`).
+    pub first_id: u32,
     /// True when the transform mirrors (negative determinant): front faces flip winding.
     pub mirror: bool,
 }
@@ -75,10 +77,11 @@ impl Tlas {
 
 impl InstanceRec {
     /// The record of a shared BLAS placed by an invertible `world_from_local`.
-    pub fn placed(blas: u32, scene_index: u32, world_from_local: Affine3A) -> Self {
+    pub fn placed(blas: u32, scene_index: u32, first_id: u32, world_from_local: Affine3A) -> Self {
         Self {
             blas,
             scene_index,
+            first_id,
             local_from_world: world_from_local.inverse(),
             world_from_blas: world_from_local,
             identity: world_from_local == Affine3A::IDENTITY,
@@ -87,10 +90,11 @@ impl InstanceRec {
     }
 
     /// The record of a BLAS built directly in world space.
-    pub fn in_world(blas: u32, scene_index: u32) -> Self {
+    pub fn in_world(blas: u32, scene_index: u32, first_id: u32) -> Self {
         Self {
             blas,
             scene_index,
+            first_id,
             local_from_world: Affine3A::IDENTITY,
             world_from_blas: Affine3A::IDENTITY,
             identity: true,

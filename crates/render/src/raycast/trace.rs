@@ -42,12 +42,14 @@ fn leaf<const ANY: bool>(
     count: u32,
     mut mask: u64,
     inst: u32,
+    first_id: u32,
     cull: f32,
 ) -> u64 {
     let mut done = 0u64;
     let end = first.saturating_add(count).min(blas.tris.len() as u32);
     for k in first..end {
         let tri = &blas.tris[k as usize];
+        let gid = first_id.wrapping_add(blas.bvh.order[k as usize]);
         let mut got = 0u64;
         match rays.shared {
             Some(o) => {
@@ -55,7 +57,7 @@ fn leaf<const ANY: bool>(
                 for c in 0..CHUNKS {
                     let bits = chunk_bits(mask, c);
                     if bits != 0 {
-                        let job = Job { c, bits, inst, prim: k, cull };
+                        let job = Job { c, bits, inst, prim: k, gid, cull };
                         got |= intersect_shared::<ANY>(&s, rays, hits, job) << (c * CHUNK);
                     }
                 }
@@ -64,7 +66,7 @@ fn leaf<const ANY: bool>(
                 for c in 0..CHUNKS {
                     let bits = chunk_bits(mask, c);
                     if bits != 0 {
-                        let job = Job { c, bits, inst, prim: k, cull };
+                        let job = Job { c, bits, inst, prim: k, gid, cull };
                         got |= intersect_general::<ANY>(tri, rays, hits, job) << (c * CHUNK);
                     }
                 }
@@ -126,7 +128,7 @@ pub(crate) fn trace<const ANY: bool>(
                 (true, true) => -1.0,
             };
             done |= traverse(&blas.bvh, lr, hits, &fr, m, blas_stack, |hits, f, n, lm| {
-                leaf::<ANY>(blas, lr, hits, f, n, lm, ii, cull)
+                leaf::<ANY>(blas, lr, hits, f, n, lm, ii, inst.first_id, cull)
             });
         }
         done

@@ -22,7 +22,7 @@
 
 use glam::Vec3A;
 
-use super::packet::{Hits, Rays, CHUNK};
+use super::packet::{Hits, Rays, CHUNK, NO_GID};
 
 /// The cross product written out, so that `cross(a, b)` and `cross(b, a)` are exact
 /// negations of each other.
@@ -76,21 +76,38 @@ pub(crate) fn shared_setup(tri: &[Vec3A; 3], o: Vec3A) -> Shared {
     Shared { n0, n1, n2, tnum: n[0] * a[0] + n[1] * a[1] + n[2] * a[2] }
 }
 
-/// Records a hit in lane `j` of chunk `c` when `ok`; returns `ok` as a bit.
+/// Relative depth window inside which two hits count as equally near (2⁻²¹): coplanar
+/// triangles computed from different vertices differ by a few ulps.
+pub(crate) const TIE: f32 = 1.0 / (1u32 << 21) as f32;
+
+/// Does a candidate at `t` with global ID `gid` beat the lane's record (`best`, `best_gid`)?
+/// Nearer wins; within the tie window the smaller global ID wins, which is what the
+/// rasterizer's LESS depth test does with triangles submitted in ID order.
+#[inline(always)]
+fn beats(t: f32, gid: u32, best: f32, best_gid: u32) -> bool {
+    let tie = (best_gid != NO_GID) & (t <= best * (1.0 + TIE)) & (t >= best * (1.0 - TIE));
+    (tie & (gid < best_gid)) | (!tie & (t < best))
+}
+
+/// The inside, facing and interval part of the accept test, shared by both kernels.
 #[inline(always)]
 #[allow(clippy::too_many_arguments)]
-fn record<const ANY: bool>(
-    hits: &mut Hits,
-    c: usize,
-    j: usize,
-    ok: bool,
-    t: f32,
-    e1: f32,
-    e2: f32,
-    det: f32,
-    inst: u32,
-    prim: u32,
-) -> u64 {
+fn inside(e0: f32, e1: f32, e2: f32, det: f32, t: f32, tmin: f32, cull: f32, on: bool) -> bool {
+    let lo = mn(mn(e0, e1), e2);
+    let hi = mx(mx(e0, e1), e2);
+    ((lo >= 0.0) | (hi <= 0.0)) & (det != 0.0) & (det * cull <= 0.0) & (t >= tmin) & on
+}
+
+/// Tests a candidate in lane `j` of chunk `c` and records it when it wins; returns the lane
+/// bit when it does. With `ANY`, a hit closes the lane (t = −∞) instead.
+#[inline(always)]
+#[allow(clippy::too_many_arguments)]
+fn resolve<const ANY: bool>(hits: &mut Hits, j: usize, job: &Job, e0: f32, e1: f32, e2: f32, det: f32, t: f32) -> u64 {
+    let c = job.c;
+    let on = (job.bits >> j) & 1 != 0;
+    let best = hits.t[c][j];
+    let ok = inside(e0, e1, e2, det, t, hits.tmin[c][j], job.cull, on)
+        & if ANY { t < best } else { beats(t, job.gid, best, hits.gid[c][j]) };
     let ht = &mut hits.t[c][j];
     *ht = if ok {
         if ANY {
@@ -102,10 +119,12 @@ fn record<const ANY: bool>(
         *ht
     };
     let hi = &mut hits.inst[c][j];
-    *hi = if ok { inst } else { *hi };
+    *hi = if ok { job.inst } else { *hi };
     let hp = &mut hits.prim[c][j];
-    *hp = if ok { prim } else { *hp };
+    *hp = if ok { job.prim } else { *hp };
     if !ANY {
+        let hg = &mut hits.gid[c][j];
+        *hg = if ok { job.gid } else { *hg };
         let h1 = &mut hits.e1[c][j];
         *h1 = if ok { e1 } else { *h1 };
         let h2 = &mut hits.e2[c][j];
@@ -114,15 +133,6 @@ fn record<const ANY: bool>(
         *hd = if ok { det } else { *hd };
     }
     (ok as u64) << j
-}
-
-/// The accept test shared by both kernels.
-#[inline(always)]
-#[allow(clippy::too_many_arguments)]
-fn accept(e0: f32, e1: f32, e2: f32, det: f32, t: f32, tmin: f32, tmax: f32, cull: f32, on: bool) -> bool {
-    let lo = mn(mn(e0, e1), e2);
-    let hi = mx(mx(e0, e1), e2);
-    ((lo >= 0.0) | (hi <= 0.0)) & (det != 0.0) & (det * cull <= 0.0) & (t >= tmin) & (t < tmax) & on
 }
 
 /// What a kernel call is about: which lanes, which triangle, which facing to keep.
@@ -136,6 +146,8 @@ pub(crate) struct Job {
     pub inst: u32,
     /// Leaf-order triangle to record.
     pub prim: u32,
+    /// Global triangle ID (orders hits at equal depth).
+    pub gid: u32,
     /// Facing selector (see the module docs).
     pub cull: f32,
 }
@@ -145,7 +157,7 @@ pub(crate) struct Job {
 /// (t = −∞) instead.
 #[inline(always)]
 pub(crate) fn intersect_shared<const ANY: bool>(s: &Shared, rays: &Rays, hits: &mut Hits, job: Job) -> u64 {
-    let Job { c, bits, inst, prim, cull } = job;
+    let c = job.c;
     let (dx, dy, dz) = (&rays.d[0][c], &rays.d[1][c], &rays.d[2][c]);
     let mut m = 0u64;
     for j in 0..CHUNK {
@@ -155,9 +167,7 @@ pub(crate) fn intersect_shared<const ANY: bool>(s: &Shared, rays: &Rays, hits: &
         let e2 = x * s.n2[0] + y * s.n2[1] + z * s.n2[2];
         let det = e0 + e1 + e2;
         let t = s.tnum / det;
-        let on = (bits >> j) & 1 != 0;
-        let ok = accept(e0, e1, e2, det, t, hits.tmin[c][j], hits.t[c][j], cull, on);
-        m |= record::<ANY>(hits, c, j, ok, t, e1, e2, det, inst, prim);
+        m |= resolve::<ANY>(hits, j, &job, e0, e1, e2, det, t);
     }
     m
 }
@@ -165,7 +175,7 @@ pub(crate) fn intersect_shared<const ANY: bool>(s: &Shared, rays: &Rays, hits: &
 /// Intersects a triangle with the lanes of a chunk, each lane with its own origin.
 #[inline(always)]
 pub(crate) fn intersect_general<const ANY: bool>(tri: &[Vec3A; 3], rays: &Rays, hits: &mut Hits, job: Job) -> u64 {
-    let Job { c, bits, inst, prim, cull } = job;
+    let c = job.c;
     let v = [tri[0].to_array(), tri[1].to_array(), tri[2].to_array()];
     let mut m = 0u64;
     for j in 0..CHUNK {
@@ -180,9 +190,7 @@ pub(crate) fn intersect_general<const ANY: bool>(tri: &[Vec3A; 3], rays: &Rays, 
         let det = e0 + e1 + e2;
         let tnum = (n0[0] + n1[0] + n2[0]) * a[0] + (n0[1] + n1[1] + n2[1]) * a[1] + (n0[2] + n1[2] + n2[2]) * a[2];
         let t = tnum / det;
-        let on = (bits >> j) & 1 != 0;
-        let ok = accept(e0, e1, e2, det, t, hits.tmin[c][j], hits.t[c][j], cull, on);
-        m |= record::<ANY>(hits, c, j, ok, t, e1, e2, det, inst, prim);
+        m |= resolve::<ANY>(hits, j, &job, e0, e1, e2, det, t);
     }
     m
 }
@@ -193,7 +201,7 @@ mod tests {
     use crate::raycast::packet::NO_HIT;
 
     fn job(inst: u32, prim: u32) -> Job {
-        Job { c: 0, bits: 1, inst, prim, cull: 0.0 }
+        Job { c: 0, bits: 1, inst, prim, gid: prim, cull: 0.0 }
     }
 
     fn one_ray(o: Vec3A, d: Vec3A) -> (Rays, Hits) {
