@@ -55,7 +55,7 @@ pub use bvh::traverse::{CoherencyCache, FrontToBackCursor};
 pub use bvh::{Bvh, BvhNode, BvhPreset};
 pub use frustum::{Containment, Frustum, PlaneMask, ALL_PLANES};
 pub use octree::occupancy::{occupancy_string, occupancy_voxels, Occupancy};
-pub use octree::LooseOctree;
+pub use octree::{octant_order, LooseOctree};
 pub use plane::Plane;
 pub use project::{project_box, BoxProjector, ScreenRect};
 pub use ray::Ray;

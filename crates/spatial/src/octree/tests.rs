@@ -1,4 +1,5 @@
 use super::*;
+use crate::{Containment, CullOptions, FrontToBack, Frustum, FrustumCull, Visit};
 use sightline_scene::rng::Rng;
 use sightline_scene::Camera;
 
@@ -151,4 +152,33 @@ fn bad_boxes_follow_the_rule() {
     t.update(2, Aabb::new(Vec3::ZERO, Vec3::splat(0.1)));
     t.cull(&Frustum::from_camera(&away), &mut out);
     assert!(out.is_empty());
+}
+
+#[test]
+fn octant_order_is_front_to_back_along_every_ray() {
+    let mut rng = Rng::new(3);
+    let center = Vec3::new(0.5, -0.25, 1.0);
+    for _ in 0..2000 {
+        let eye = center + Vec3::new(rng.range(-3.0, 3.0), rng.range(-3.0, 3.0), rng.range(-3.0, 3.0));
+        let order = octant_order(center, eye);
+        let mut rank = [0usize; 8];
+        for (k, &o) in order.iter().enumerate() {
+            rank[o as usize] = k;
+        }
+        let mut sorted = order;
+        sorted.sort_unstable();
+        assert_eq!(sorted, [0, 1, 2, 3, 4, 5, 6, 7]);
+        // Walk a ray from the eye through the 2×2×2 grid [center ± 1]: octants are met in order.
+        let dir = Vec3::new(rng.range(-1.0, 1.0), rng.range(-1.0, 1.0), rng.range(-1.0, 1.0));
+        let mut last = 0usize;
+        for step in 0..4000 {
+            let p = eye + dir * (step as f32 * 0.003);
+            if (p - center).abs().max_element() > 1.0 {
+                continue;
+            }
+            let r = rank[octant(center, p)];
+            assert!(r >= last, "eye {eye} dir {dir}: octant rank went back from {last} to {r}");
+            last = r;
+        }
+    }
 }
