@@ -225,7 +225,7 @@ fn bench(c: &mut Criterion) {
                 out.clear();
                 cs_flat.traverse_front_to_back(
                     Some(f),
-                    Vec3::ZERO,
+                    eye,
                     |_| Visit::Continue,
                     |v| {
                         out.push(v);
