@@ -38,6 +38,7 @@ pub struct ClusterItem {
 #[derive(Debug, Clone, Default)]
 pub struct ClusteredScene {
     meshes: Vec<MeshClusters>,
+    mesh_ids: Vec<MeshId>,
     instance_mesh: Vec<u32>,
     instance_first_item: Vec<u32>,
     items: Vec<ClusterItem>,
@@ -81,15 +82,21 @@ impl ClusteredScene {
             items.extend((0..n).map(|c| ClusterItem { instance: i as u32, cluster: c }));
         }
         instance_first_item.push(items.len() as u32);
-        let mut s = ClusteredScene { meshes, instance_mesh, instance_first_item, items, ..Default::default() };
+        let mut s =
+            ClusteredScene { meshes, mesh_ids, instance_mesh, instance_first_item, items, ..Default::default() };
         let boxes = s.item_boxes(instances);
         s.bvh = Bvh::build(&boxes, BvhPreset::Fast, SCENE_LEAF);
         s.build_cost = s.bvh.sah_cost();
         s
     }
 
-    /// World boxes of every item for the given instance transforms.
-    fn item_boxes(&self, instances: &[Instance]) -> Vec<Aabb> {
+    /// World boxes of every item (index = item id) for `instances` (the build's instances,
+    /// possibly moved), e.g. to put the clusters into a [`crate::LooseOctree`]. All NaN when
+    /// `instances` do not [match](ClusteredScene::matches) the build.
+    pub fn item_boxes(&self, instances: &[Instance]) -> Vec<Aabb> {
+        if !self.matches(instances) {
+            return vec![Aabb::new(Vec3::NAN, Vec3::NAN); self.items.len()];
+        }
         let mut boxes = vec![Aabb::EMPTY; self.items.len()];
         boxes.par_chunks_mut(4096).enumerate().for_each(|(chunk, out)| {
             let base = chunk * 4096;
@@ -108,12 +115,23 @@ impl ClusteredScene {
         boxes
     }
 
+    /// True when `instances` are the build's instances (same count, same meshes), possibly
+    /// moved.
+    pub fn matches(&self, instances: &[Instance]) -> bool {
+        instances.len() + 1 == self.instance_first_item.len()
+            && instances
+                .iter()
+                .zip(&self.instance_mesh)
+                .all(|(inst, &m)| m == u32::MAX || self.mesh_ids[m as usize] == inst.mesh)
+    }
+
     /// Refits after instances moved (same instances, same order as the build), rebuilding
     /// the BVH when its SAH cost grew beyond [`REBUILD_RATIO`] × the fresh build's. Clusters
-    /// are mesh-local and never rebuilt.
-    pub fn update(&mut self, instances: &[Instance]) -> RefitOutcome {
-        if instances.len() + 1 != self.instance_first_item.len() {
-            return RefitOutcome::Rebuilt { cost_ratio: f32::INFINITY };
+    /// are mesh-local and never rebuilt. `None` when `instances` do not match the build
+    /// (count or meshes changed): build a new `ClusteredScene` then.
+    pub fn update(&mut self, instances: &[Instance]) -> Option<RefitOutcome> {
+        if !self.matches(instances) {
+            return None;
         }
         let boxes = self.item_boxes(instances);
         let ratio = if self.bvh.refit(&boxes) {
@@ -126,11 +144,11 @@ impl ClusteredScene {
             f32::INFINITY
         };
         if ratio <= REBUILD_RATIO {
-            return RefitOutcome::Refitted { cost_ratio: ratio };
+            return Some(RefitOutcome::Refitted { cost_ratio: ratio });
         }
         self.bvh = Bvh::build(&boxes, BvhPreset::Fast, SCENE_LEAF);
         self.build_cost = self.bvh.sah_cost();
-        RefitOutcome::Rebuilt { cost_ratio: ratio }
+        Some(RefitOutcome::Rebuilt { cost_ratio: ratio })
     }
 
     /// Number of items ((instance, cluster) pairs).
@@ -267,6 +285,8 @@ mod tests {
         for i in inst.iter_mut().skip(1) {
             i.world_aabb = Aabb::new(i.world_aabb.min + Vec3::Y, i.world_aabb.max + Vec3::Y);
         }
-        assert!(matches!(cs.clone().update(&inst), RefitOutcome::Refitted { .. }));
+        assert!(matches!(cs.clone().update(&inst), Some(RefitOutcome::Refitted { .. })));
+        assert!(cs.clone().update(&inst[1..]).is_none());
+        assert_eq!(cs.item_boxes(&inst).len(), cs.item_count());
     }
 }
