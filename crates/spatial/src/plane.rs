@@ -19,18 +19,19 @@ pub struct Plane {
 }
 
 impl Plane {
-    /// A plane with everything in front of it (normal 0, d = +∞... kept finite as `f32::MAX`).
-    /// Used where input is degenerate so that classification stays conservative.
-    pub const EVERYTHING_IN_FRONT: Plane = Plane { normal: Vec3::ZERO, d: f32::MAX };
+    /// The degenerate plane (zero normal and offset): every point lies on it (distance 0), so
+    /// a classification against it never rejects and never reports "fully inside". Stands in
+    /// for planes made from degenerate or non-finite input, so culling stays conservative.
+    pub const DEGENERATE: Plane = Plane { normal: Vec3::ZERO, d: 0.0 };
 
     /// A plane from any (non-zero) normal and offset; normalizes both.
-    /// A zero or non-finite normal gives [`Plane::EVERYTHING_IN_FRONT`].
+    /// A zero or non-finite normal gives [`Plane::DEGENERATE`].
     pub fn new(normal: Vec3, d: f32) -> Plane {
         Self::from_vec4(normal.extend(d))
     }
 
     /// A plane from `(a, b, c, d)` meaning `a·x + b·y + c·z + d = 0`; normalized.
-    /// A zero or non-finite normal gives [`Plane::EVERYTHING_IN_FRONT`].
+    /// A zero or non-finite normal gives [`Plane::DEGENERATE`].
     pub fn from_vec4(v: Vec4) -> Plane {
         Self::from_dvec4(v.as_dvec4())
     }
@@ -39,7 +40,7 @@ impl Plane {
     pub fn from_dvec4(v: DVec4) -> Plane {
         let len = v.truncate().length();
         if !v.is_finite() || len.is_nan() || len <= 0.0 {
-            return Plane::EVERYTHING_IN_FRONT;
+            return Plane::DEGENERATE;
         }
         let p = v / len;
         Plane { normal: p.truncate().as_vec3(), d: p.w as f32 }
@@ -49,7 +50,7 @@ impl Plane {
     pub fn from_point_normal(point: Vec3, normal: Vec3) -> Plane {
         let n = normal.normalize_or_zero();
         if n == Vec3::ZERO || !point.is_finite() {
-            return Plane::EVERYTHING_IN_FRONT;
+            return Plane::DEGENERATE;
         }
         Plane { normal: n, d: -n.dot(point) }
     }
@@ -114,8 +115,8 @@ mod tests {
         let p = Plane::new(Vec3::new(0.0, 2.0, 0.0), -4.0); // y = 2
         assert!((p.normal - Vec3::Y).length() < 1e-7);
         assert!((p.distance(Vec3::new(5.0, 3.0, -1.0)) - 1.0).abs() < 1e-6);
-        assert_eq!(Plane::new(Vec3::ZERO, 1.0), Plane::EVERYTHING_IN_FRONT);
-        assert_eq!(Plane::new(Vec3::NAN, 1.0), Plane::EVERYTHING_IN_FRONT);
+        assert_eq!(Plane::new(Vec3::ZERO, 1.0), Plane::DEGENERATE);
+        assert_eq!(Plane::new(Vec3::NAN, 1.0), Plane::DEGENERATE);
     }
 
     #[test]

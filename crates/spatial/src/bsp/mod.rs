@@ -112,7 +112,7 @@ impl BspTree {
         });
         let size = if bounds.is_empty() { 1.0 } else { bounds.extent().max_element().max(1e-12) };
         let eps = params.epsilon.max(0.0) * size;
-        tree.nodes.push(Node { plane: Plane::EVERYTHING_IN_FRONT, front: NONE, back: NONE, first: 0, count: 0 });
+        tree.nodes.push(Node { plane: Plane::DEGENERATE, front: NONE, back: NONE, first: 0, count: 0 });
         // Jobs: (node slot, triangle ids in the pool, depth).
         let mut jobs: Vec<(u32, Vec<u32>, usize)> = vec![(0, (0..pool.len() as u32).collect(), 1)];
         let (mut front, mut back, mut here) = (Vec::new(), Vec::new(), Vec::new());
@@ -148,7 +148,7 @@ impl BspTree {
             let first = tree.triangles.len() as u32;
             tree.triangles.extend(here.iter().map(|&t| pool[t as usize]));
             let node = &mut tree.nodes[slot as usize];
-            node.plane = plane.unwrap_or(Plane::EVERYTHING_IN_FRONT);
+            node.plane = plane.unwrap_or(Plane::DEGENERATE);
             node.first = first;
             node.count = here.len() as u32;
             for (list, is_front) in [(&mut front, true), (&mut back, false)] {
@@ -156,13 +156,7 @@ impl BspTree {
                     continue;
                 }
                 let child = tree.nodes.len() as u32;
-                tree.nodes.push(Node {
-                    plane: Plane::EVERYTHING_IN_FRONT,
-                    front: NONE,
-                    back: NONE,
-                    first: 0,
-                    count: 0,
-                });
+                tree.nodes.push(Node { plane: Plane::DEGENERATE, front: NONE, back: NONE, first: 0, count: 0 });
                 let n = &mut tree.nodes[slot as usize];
                 if is_front {
                     n.front = child;
