@@ -46,6 +46,7 @@ mod ray;
 mod sphere;
 
 pub use aabb::{AabbExt, BoxKind};
+pub use bsp::split::{classify_triangle, split_triangle, Pieces, Side};
 pub use bsp::{BspParams, BspStats, BspTree, BspTriangle};
 pub use bvh::blas::{Blas, RayHit};
 pub use bvh::cluster::{Cluster, MeshClusters, CLUSTER_MAX, CLUSTER_MIN};

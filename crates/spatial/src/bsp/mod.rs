@@ -18,7 +18,7 @@ use glam::{Affine3A, Vec3};
 use sightline_scene::{Aabb, Mesh};
 
 use crate::Plane;
-use split::{classify, split_triangle, Side};
+use split::{classify_triangle, split_triangle, Side};
 
 const NONE: u32 = u32::MAX;
 
@@ -127,7 +127,7 @@ impl BspTree {
                 Some(plane) => {
                     for &t in &list {
                         let tri = pool[t as usize];
-                        match classify(&plane, &tri.v, eps) {
+                        match classify_triangle(&plane, &tri.v, eps) {
                             Side::On => here.push(t),
                             Side::Front => front.push(t),
                             Side::Back => back.push(t),
@@ -253,7 +253,7 @@ fn choose_plane(pool: &[BspTriangle], list: &[u32], params: &BspParams, eps: f32
         }
         let (mut f, mut b, mut s) = (0i64, 0i64, 0i64);
         for &t in list.iter().step_by(sample_step) {
-            match classify(&plane, &pool[t as usize].v, eps) {
+            match classify_triangle(&plane, &pool[t as usize].v, eps) {
                 Side::Front => f += 1,
                 Side::Back => b += 1,
                 Side::Spanning => s += 1,

@@ -41,7 +41,7 @@ fn side_of(d: f32, eps: f32) -> i8 {
 
 /// Classifies a triangle against `plane` with thickness `eps`.
 #[inline]
-pub fn classify(plane: &Plane, v: &[Vec3; 3], eps: f32) -> Side {
+pub fn classify_triangle(plane: &Plane, v: &[Vec3; 3], eps: f32) -> Side {
     let s = v.map(|p| side_of(plane.distance(p), eps));
     let pos = s.iter().any(|&x| x > 0);
     let neg = s.iter().any(|&x| x < 0);

@@ -125,7 +125,7 @@ fn split_pieces_keep_orientation_and_area() {
             // Through a vertex: two pieces.
             plane = Plane::from_point_normal(t[it % 3], (t[(it + 1) % 3] - t[(it + 2) % 3]).cross(rv()));
         }
-        if classify(&plane, &t, 1e-6) != Side::Spanning {
+        if classify_triangle(&plane, &t, 1e-6) != Side::Spanning {
             continue;
         }
         spans += 1;
