@@ -20,8 +20,8 @@ use sightline_scene::{Camera, Instance, Material, Mesh, Scene};
 use crate::shading::{InstanceShading, ShadeOptions, ShadingMode, TriangleShader};
 use crate::Framebuffer;
 
-const BAND_ROWS: usize = 8;
-const TRI_CACHE: usize = 256;
+const BAND_ROWS: usize = 16;
+const TRI_CACHE: usize = 1024;
 const INST_CACHE: usize = 64;
 
 /// Finds the instance drawing global triangle `g` (instances ordered by first triangle).
@@ -84,7 +84,6 @@ struct InstEntry<'a> {
     mesh: &'a Mesh,
 }
 
-#[derive(Clone, Copy)]
 struct TriEntry<'a> {
     id: u32,
     rows: [Vec3A; 3],
@@ -106,7 +105,7 @@ pub fn shade_pass(scene: &Scene, instances: &[Instance], camera: &Camera, fb: &m
     let ids = &fb.ids;
     fb.color.par_chunks_mut(w * BAND_ROWS).enumerate().for_each(|(band, color)| {
         let mut insts: Vec<Option<InstEntry>> = (0..INST_CACHE).map(|_| None).collect();
-        let mut tris: Vec<Option<TriEntry>> = vec![None; TRI_CACHE];
+        let mut tris: Vec<Option<TriEntry>> = (0..TRI_CACHE).map(|_| None).collect();
         let y0 = band * BAND_ROWS;
         for (r, crow) in color.chunks_mut(w).enumerate() {
             let y = y0 + r;
@@ -119,17 +118,17 @@ pub fn shade_pass(scene: &Scene, instances: &[Instance], camera: &Camera, fb: &m
                 if id == 0 {
                     continue;
                 }
-                let slot = (id as usize).wrapping_mul(0x9E37_79B1) >> 24 & (TRI_CACHE - 1);
-                let entry = match &tris[slot] {
-                    Some(e) if e.id == id => *e,
-                    _ => {
-                        let Some(e) = prepare(id, &lookup, &mut insts, scene, camera, eye, &default, opts) else {
-                            continue;
-                        };
-                        tris[slot] = Some(e);
-                        e
-                    }
+                let slot = (id as usize).wrapping_mul(0x9E37_79B1) >> 20 & (TRI_CACHE - 1);
+                if !matches!(&tris[slot], Some(e) if e.id == id) {
+                    tris[slot] = prepare(id, &lookup, &mut insts, scene, camera, eye, &default, opts);
+                }
+                let Some(entry) = &tris[slot] else {
+                    continue;
                 };
+                if let Some(k) = entry.shader.constant() {
+                    *c = k;
+                    continue;
+                }
                 let p = Vec3A::new((x as f32 + 0.5) * sx - 1.0, ndc_y, 1.0);
                 let mut b = Vec3::new(entry.rows[0].dot(p), entry.rows[1].dot(p), entry.rows[2].dot(p));
                 if !opts.perspective_correct {
@@ -173,6 +172,11 @@ fn prepare<'a>(
     if t >= e.mesh.triangle_count() {
         return None;
     }
+    let shader = TriangleShader::new(&e.shading, e.mesh, t, eye, opts);
+    if shader.constant().is_some() {
+        // No interpolation needed: skip the clip-space rows.
+        return Some(TriEntry { id, rows: [Vec3A::ZERO; 3], w: [0.0; 3], shader });
+    }
     let h = e
         .mesh
         .triangle(t)
@@ -182,6 +186,6 @@ fn prepare<'a>(
         id,
         rows: [h[1].cross(h[2]), h[2].cross(h[0]), h[0].cross(h[1])],
         w: [h[0].z, h[1].z, h[2].z],
-        shader: TriangleShader::new(&e.shading, e.mesh, t, eye, opts),
+        shader,
     })
 }

@@ -53,7 +53,8 @@ pub struct TileBuf {
 impl TileBuf {
     /// An empty tile at pixel (x0, y0) of size w × h.
     pub fn new(x0: u32, y0: u32, w: u32, h: u32) -> Self {
-        let n = (TILE * TILE) as usize;
+        // +4: the small-triangle path works in groups of four pixels (see raster_small).
+        let n = (TILE * TILE) as usize + 4;
         Self { x0, y0, w, h, depth: vec![0; n], ids: vec![0; n], counts: vec![0; n], dirty: false }
     }
 }
@@ -110,11 +111,21 @@ pub fn misses_rect(t: &Tri, r: [i32; 4]) -> bool {
 /// Depth key of window z for a format given as a const (0 = f32, 16, 24).
 #[inline(always)]
 pub fn key<const FMT: u8>(z: f32) -> u32 {
-    let z = if z > 0.0 { z.min(1.0) + 0.0 } else { 0.0 };
+    // Branch-free so row loops vectorize. Interpolated z can stray a rounding error outside
+    // [0, 1]: below 0 must clamp (a negative float's bits would compare as "far"); above 1
+    // fails LESS against a cleared buffer anyway. NaN gives "far" (f32) or 0 (integers;
+    // setup keeps depth planes finite).
     match FMT {
-        16 => (z * 65535.0 + 0.5) as u32,
-        24 => (z * 16_777_215.0 + 0.5) as u32,
-        _ => z.to_bits(),
+        16 => (z.clamp(0.0, 1.0) * 65535.0 + 0.5) as i32 as u32,
+        24 => (z.clamp(0.0, 1.0) * 16_777_215.0 + 0.5) as i32 as u32,
+        _ => {
+            let b = z.to_bits();
+            if (b as i32) < 0 {
+                0
+            } else {
+                b
+            }
+        }
     }
 }
 
@@ -162,6 +173,131 @@ fn fragment<const FMT: u8, const COUNT: bool>(tile: &mut TileBuf, idx: usize, z:
     }
 }
 
+/// One row of a small triangle: edge values at its first pixel and their steps, the
+/// depth plane along the row, the pixel count.
+#[derive(Clone, Copy)]
+struct Row {
+    e: [i32; 3],
+    a: [i32; 3],
+    n: i32,
+    zrow: f32,
+    zx: f32,
+    dx0: i32,
+    id: u32,
+}
+
+/// Scalar form of a row (the reference; used where SSE2 is not available).
+#[cfg_attr(target_arch = "x86_64", allow(dead_code))]
+#[inline(always)]
+fn row_scalar<const FMT: u8, const COUNT: bool>(
+    r: &Row,
+    depth: &mut [u32],
+    ids: &mut [u32],
+    counts: &mut [u32],
+    out: &mut TriRaster,
+) {
+    let [mut e0, mut e1, mut e2] = r.e;
+    for k in 0..r.n {
+        let inside = (e0 | e1 | e2) >= 0;
+        e0 = e0.wrapping_add(r.a[0]);
+        e1 = e1.wrapping_add(r.a[1]);
+        e2 = e2.wrapping_add(r.a[2]);
+        let z = r.zrow + r.zx * (r.dx0 + (k << SUBPIXEL_BITS)) as f32;
+        let key = key::<FMT>(z);
+        let i = k as usize;
+        let pass = inside & (key < depth[i]);
+        if pass {
+            depth[i] = key;
+            ids[i] = r.id;
+        }
+        if COUNT {
+            counts[i] += inside as u32;
+        }
+        out.covered += inside as u32;
+        out.written += pass as u32;
+    }
+}
+
+/// A row in groups of four pixels with SSE2, branch-free (coverage and the depth test are
+/// unpredictable for small triangles). Same arithmetic as [`row_scalar`], so the same
+/// result bit for bit. Lanes past the row are masked; they read and rewrite unchanged
+/// values of the next row or of the buffer's padding.
+#[cfg(target_arch = "x86_64")]
+#[inline(always)]
+fn row_sse2<const FMT: u8, const COUNT: bool>(
+    r: &Row,
+    depth: &mut [u32],
+    ids: &mut [u32],
+    counts: &mut [u32],
+    out: &mut TriRaster,
+) {
+    use std::arch::x86_64::*;
+    let lanes = |a: i32| [0, a, a.wrapping_mul(2), a.wrapping_mul(3)];
+    let (l0, l1, l2) = (lanes(r.a[0]), lanes(r.a[1]), lanes(r.a[2]));
+    // SAFETY: SSE2 is part of the x86_64 baseline, so the intrinsics are always available;
+    // memory is only touched through 4-element chunks of the slices (unaligned loads and
+    // stores).
+    unsafe {
+        let v = |l: [i32; 4], base: i32| _mm_add_epi32(_mm_set1_epi32(base), _mm_setr_epi32(l[0], l[1], l[2], l[3]));
+        let mut e0 = v(l0, r.e[0]);
+        let mut e1 = v(l1, r.e[1]);
+        let mut e2 = v(l2, r.e[2]);
+        let s0 = _mm_set1_epi32(r.a[0].wrapping_mul(4));
+        let s1 = _mm_set1_epi32(r.a[1].wrapping_mul(4));
+        let s2 = _mm_set1_epi32(r.a[2].wrapping_mul(4));
+        let mut k = _mm_setr_epi32(0, 1, 2, 3);
+        let four = _mm_set1_epi32(4);
+        let n = _mm_set1_epi32(r.n);
+        let minus1 = _mm_set1_epi32(-1);
+        let dx0 = _mm_set1_epi32(r.dx0);
+        let (zrow, zx) = (_mm_set1_ps(r.zrow), _mm_set1_ps(r.zx));
+        let id = _mm_set1_epi32(r.id as i32);
+        let (mut cov, mut wr) = (_mm_setzero_si128(), _mm_setzero_si128());
+        for ((dq, iq), cq) in depth.chunks_exact_mut(4).zip(ids.chunks_exact_mut(4)).zip(counts.chunks_exact_mut(4)) {
+            let inside =
+                _mm_and_si128(_mm_cmpgt_epi32(_mm_or_si128(_mm_or_si128(e0, e1), e2), minus1), _mm_cmplt_epi32(k, n));
+            let dx = _mm_add_epi32(dx0, _mm_slli_epi32(k, SUBPIXEL_BITS as i32));
+            let z = _mm_add_ps(zrow, _mm_mul_ps(zx, _mm_cvtepi32_ps(dx)));
+            let key = match FMT {
+                16 | 24 => {
+                    let m = if FMT == 16 { 65535.0 } else { 16_777_215.0 };
+                    let c = _mm_min_ps(_mm_max_ps(z, _mm_setzero_ps()), _mm_set1_ps(1.0));
+                    _mm_cvttps_epi32(_mm_add_ps(_mm_mul_ps(c, _mm_set1_ps(m)), _mm_set1_ps(0.5)))
+                }
+                _ => {
+                    let bits = _mm_castps_si128(z);
+                    _mm_andnot_si128(_mm_srai_epi32(bits, 31), bits)
+                }
+            };
+            let dp = dq.as_mut_ptr() as *mut __m128i;
+            let ip = iq.as_mut_ptr() as *mut __m128i;
+            let d = _mm_loadu_si128(dp);
+            // Keys are below 2^31, so the signed compare orders them.
+            let pass = _mm_and_si128(inside, _mm_cmplt_epi32(key, d));
+            _mm_storeu_si128(dp, _mm_or_si128(_mm_and_si128(pass, key), _mm_andnot_si128(pass, d)));
+            let old = _mm_loadu_si128(ip);
+            _mm_storeu_si128(ip, _mm_or_si128(_mm_and_si128(pass, id), _mm_andnot_si128(pass, old)));
+            if COUNT {
+                let cp = cq.as_mut_ptr() as *mut __m128i;
+                _mm_storeu_si128(cp, _mm_sub_epi32(_mm_loadu_si128(cp), inside));
+            }
+            cov = _mm_sub_epi32(cov, inside);
+            wr = _mm_sub_epi32(wr, pass);
+            e0 = _mm_add_epi32(e0, s0);
+            e1 = _mm_add_epi32(e1, s1);
+            e2 = _mm_add_epi32(e2, s2);
+            k = _mm_add_epi32(k, four);
+        }
+        let sum = |v: __m128i| {
+            let mut a = [0u32; 4];
+            _mm_storeu_si128(a.as_mut_ptr() as *mut __m128i, v);
+            a[0] + a[1] + a[2] + a[3]
+        };
+        out.covered += sum(cov);
+        out.written += sum(wr);
+    }
+}
+
 fn raster_small<const FMT: u8, const COUNT: bool>(
     t: &Tri,
     tile: &mut TileBuf,
@@ -170,27 +306,34 @@ fn raster_small<const FMT: u8, const COUNT: bool>(
     let e = edges(t);
     // Edge values at the first pixel; they fit i32 (see SMALL_EXTENT).
     let start = |e: &Edge| (e.a * x0 as i64 + e.b * y0 as i64 + e.c) as i32;
-    let (mut r0, mut r1, mut r2) = (start(&e[0]), start(&e[1]), start(&e[2]));
-    let (a0, a1, a2) = (e[0].a as i32, e[1].a as i32, e[2].a as i32);
-    let (b0, b1, b2) = (e[0].b as i32, e[1].b as i32, e[2].b as i32);
-    let mut out = TriRaster::default();
+    let mut r = Row {
+        e: [start(&e[0]), start(&e[1]), start(&e[2])],
+        a: [e[0].a as i32, e[1].a as i32, e[2].a as i32],
+        n: x1 - x0 + 1,
+        zrow: 0.0,
+        zx: t.zx,
+        // Fixed-point x distance from vertex 0 to the first pixel center of a row.
+        dx0: (x0 << SUBPIXEL_BITS) + ONE / 2 - t.x[0],
+        id: t.id,
+    };
+    let b = [e[0].b as i32, e[1].b as i32, e[2].b as i32];
     let (tx, ty) = (tile.x0 as i32, tile.y0 as i32);
+    let n4 = ((r.n + 3) & !3) as usize;
+    let first = (x0 - tx) as usize;
+    let mut out = TriRaster::default();
     for py in y0..=y1 {
-        let (mut e0, mut e1, mut e2) = (r0, r1, r2);
-        let zrow = depth_row(t, py);
-        let row = ((py - ty) as usize) << TILE_SHIFT;
-        for px in x0..=x1 {
-            if (e0 | e1 | e2) >= 0 {
-                let z = depth_at(t, zrow, px);
-                fragment::<FMT, COUNT>(tile, row + (px - tx) as usize, z, t.id, &mut out);
-            }
-            e0 = e0.wrapping_add(a0);
-            e1 = e1.wrapping_add(a1);
-            e2 = e2.wrapping_add(a2);
+        r.zrow = depth_row(t, py);
+        let base = (((py - ty) as usize) << TILE_SHIFT) + first;
+        let depth = &mut tile.depth[base..base + n4];
+        let ids = &mut tile.ids[base..base + n4];
+        let counts = &mut tile.counts[base..base + n4];
+        #[cfg(target_arch = "x86_64")]
+        row_sse2::<FMT, COUNT>(&r, depth, ids, counts, &mut out);
+        #[cfg(not(target_arch = "x86_64"))]
+        row_scalar::<FMT, COUNT>(&r, depth, ids, counts, &mut out);
+        for (e, b) in r.e.iter_mut().zip(b) {
+            *e = e.wrapping_add(b);
         }
-        r0 = r0.wrapping_add(b0);
-        r1 = r1.wrapping_add(b1);
-        r2 = r2.wrapping_add(b2);
     }
     out
 }
@@ -263,7 +406,7 @@ mod tests {
 
     fn draw(tris: &[Tri], w: u32, h: u32) -> (Vec<u32>, Vec<u32>) {
         let mut tile = TileBuf::new(0, 0, w, h);
-        tile.depth.fill(u32::MAX);
+        tile.depth.fill(key::<0>(1.0));
         for t in tris {
             raster_tri::<0, true>(t, &mut tile);
         }
@@ -293,6 +436,48 @@ mod tests {
         for row in 2..6 {
             assert_eq!(ids[row * 8 + 4], 2, "row {row}");
             assert_eq!(ids[row * 8 + 3], 1, "row {row}");
+        }
+    }
+
+    #[cfg(target_arch = "x86_64")]
+    #[test]
+    fn sse2_rows_equal_scalar_rows() {
+        let mut rng = sightline_scene::rng::Rng::new(5);
+        for _ in 0..2000 {
+            let n = 1 + rng.below(40) as i32;
+            let r = Row {
+                e: [0; 3].map(|_| rng.below(4000) as i32 - 2000),
+                a: [0; 3].map(|_| (rng.below(600) as i32 - 300) * 256),
+                n,
+                zrow: rng.range(-0.1, 1.1),
+                zx: rng.range(-1e-3, 1e-3),
+                dx0: rng.below(512) as i32 - 256,
+                id: 1 + rng.below(100),
+            };
+            let len = ((n + 3) & !3) as usize + 4;
+            let init: Vec<u32> = (0..len).map(|_| key::<0>(rng.f32())).collect();
+            for fmt in [0u8, 16, 24] {
+                let (mut d1, mut i1, mut c1) = (init.clone(), vec![7u32; len], vec![0u32; len]);
+                let (mut d2, mut i2, mut c2) = (init.clone(), vec![7u32; len], vec![0u32; len]);
+                let (mut o1, mut o2) = (TriRaster::default(), TriRaster::default());
+                let n4 = ((n + 3) & !3) as usize;
+                match fmt {
+                    16 => {
+                        row_scalar::<16, true>(&r, &mut d1, &mut i1, &mut c1, &mut o1);
+                        row_sse2::<16, true>(&r, &mut d2[..n4], &mut i2[..n4], &mut c2[..n4], &mut o2);
+                    }
+                    24 => {
+                        row_scalar::<24, true>(&r, &mut d1, &mut i1, &mut c1, &mut o1);
+                        row_sse2::<24, true>(&r, &mut d2[..n4], &mut i2[..n4], &mut c2[..n4], &mut o2);
+                    }
+                    _ => {
+                        row_scalar::<0, true>(&r, &mut d1, &mut i1, &mut c1, &mut o1);
+                        row_sse2::<0, true>(&r, &mut d2[..n4], &mut i2[..n4], &mut c2[..n4], &mut o2);
+                    }
+                }
+                assert_eq!((d1, i1, c1), (d2, i2, c2));
+                assert_eq!((o1.covered, o1.written), (o2.covered, o2.written));
+            }
         }
     }
 

@@ -201,6 +201,22 @@ impl<'a> TriangleShader<'a> {
         // Two-sided: turn the surface towards the viewer (decided once per triangle).
         let flip = opts.two_sided && face.dot(eye - centroid) < 0.0;
         let face = if flip { -face } else { face };
+        let textured = valid && mesh.uvs().is_some() && inst.material.base_color_texture.is_some();
+        if opts.mode == ShadingMode::Flat && !textured && opts.depth_cue.is_none() {
+            // The common case: one color for the whole triangle, nothing else needed.
+            let b = base_color(inst.material, None, opts);
+            let c = to_rgba8((b.truncate() * lambert(face.into(), opts)).extend(b.w));
+            return Self {
+                material: inst.material,
+                world,
+                normals: [face; 3],
+                uvs: None,
+                intensity: [0.0; 3],
+                constant: Some(c),
+                eye,
+                flip,
+            };
+        }
         let normals = match (opts.mode, mesh.normals()) {
             (ShadingMode::Gouraud | ShadingMode::PerPixel, Some(n)) if valid => idx.map(|i| {
                 let v = (inst.normal_from_local * Vec3A::from(n[i])).normalize_or_zero();
@@ -217,11 +233,15 @@ impl<'a> TriangleShader<'a> {
             _ => None,
         };
         let intensity = normals.map(|n| lambert(n.into(), opts));
-        let constant = (opts.mode == ShadingMode::Flat && uvs.is_none() && opts.depth_cue.is_none()).then(|| {
-            let b = base_color(inst.material, None, opts);
-            to_rgba8((b.truncate() * lambert(face.into(), opts)).extend(b.w))
-        });
+        let constant = None;
         Self { material: inst.material, world, normals, uvs, intensity, constant, eye, flip }
+    }
+
+    /// The color of every point, when it does not vary over the triangle (flat shading
+    /// without texture or depth cueing).
+    #[inline]
+    pub fn constant(&self) -> Option<[u8; 4]> {
+        self.constant
     }
 
     /// True when the triangle was turned around to face the viewer.
