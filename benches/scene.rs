@@ -14,7 +14,10 @@ fn flat() -> (Scene, Vec<NodeId>) {
     let mut s = Scene::new();
     let root = s.add_node(None, NodeDesc::new("root")).unwrap();
     let ids = (0..NODES)
-        .map(|i| s.add_node(Some(root), NodeDesc::new("n").transform(Transform::from_translation(Vec3::X * i as f32))).unwrap())
+        .map(|i| {
+            s.add_node(Some(root), NodeDesc::new("n").transform(Transform::from_translation(Vec3::X * i as f32)))
+                .unwrap()
+        })
         .collect();
     s.update_transforms();
     (s, ids)
@@ -27,7 +30,8 @@ fn deep() -> (Scene, Vec<NodeId>) {
     for _ in 0..1000 {
         let mut parent = None;
         for _ in 0..1000 {
-            let id = s.add_node(parent, NodeDesc::new("n").transform(Transform::from_translation(Vec3::Y * 0.01))).unwrap();
+            let id =
+                s.add_node(parent, NodeDesc::new("n").transform(Transform::from_translation(Vec3::Y * 0.01))).unwrap();
             ids.push(id);
             parent = Some(id);
         }
