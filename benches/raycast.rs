@@ -1,5 +1,105 @@
-//! Placeholder: replaced by the real benchmark.
-use criterion::{criterion_group, criterion_main, Criterion};
-fn placeholder(_c: &mut Criterion) {}
-criterion_group!(benches, placeholder);
+//! Ray casting the default 10^6-triangle city at 1280×720: BLAS + TLAS build time, and
+//! primary rays per second for a street frame (eye at 1.7 m looking along a street) and an
+//! aerial frame, with 1 and 2 threads.
+//!
+//! * `raycast_build/city`: the caster over the instanced city (one BLAS per distinct
+//!   building mesh, shared by its instances, plus the TLAS).
+//! * `raycast_build/flat`: the same triangles flattened into one world-space mesh (what the
+//!   Embree reference in ../shared/anchors builds from the exported OBJ).
+//! * `raycast_city_1280x720/<frame>/<ids|shaded>/<threads>t`: one frame; the throughput
+//!   line (Melem/s) is million primary rays per second. `ids` writes IDs and depth only (as
+//!   the Embree reference does); `shaded` adds flat shading.
+
+use std::time::Duration;
+
+use criterion::{criterion_group, criterion_main, Criterion, Throughput};
+use glam::Vec3;
+use sightline_render::{Framebuffer, RayCaster, RaycastOptions};
+use sightline_scene::builders::{city, CityParams};
+use sightline_scene::{Camera, Mesh, NodeDesc, Scene};
+
+const W: u32 = 1280;
+const H: u32 = 720;
+
+/// The scene's triangles in world space, as one mesh.
+fn flattened(scene: &Scene) -> Scene {
+    let mut positions: Vec<Vec3> = Vec::new();
+    for inst in scene.instances() {
+        let Some(m) = scene.mesh(inst.mesh) else { continue };
+        for t in 0..m.triangle_count() {
+            positions.extend(m.triangle_positions(t).map(|p| inst.world_from_local.transform_point3(p)));
+        }
+    }
+    let indices = (0..positions.len() as u32).collect();
+    let mut flat = Scene::new();
+    let mesh = flat.add_mesh(Mesh::new("flat", positions, None, None, indices).expect("mesh"));
+    flat.add_node(None, NodeDesc::new("flat").mesh(mesh)).expect("node");
+    flat.update_transforms();
+    flat
+}
+
+fn bench(c: &mut Criterion) {
+    let city = city(&CityParams::default()).expect("city");
+    let scene = &city.scene;
+    let flat = flattened(scene);
+    let aspect = W as f32 / H as f32;
+    let cam = |k: sightline_scene::path::CameraKey| -> Camera { k.camera(aspect).expect("camera") };
+    let frames =
+        [("street", cam(city.layout.street_path(100, 11)[40])), ("aerial", cam(city.layout.aerial_path(100)[40]))];
+
+    let mut group = c.benchmark_group("raycast_build");
+    group.sample_size(10).warm_up_time(Duration::from_millis(300)).measurement_time(Duration::from_secs(2));
+    for threads in [1usize, 2] {
+        let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().expect("thread pool");
+        for (name, s) in [("city", scene), ("flat", &flat)] {
+            pool.install(|| {
+                let rc = RayCaster::build(s).expect("build");
+                eprintln!(
+                    "{name}/{threads}t: {} BLASes, {} stored triangles, {} instances, {:.1} ms",
+                    rc.blas_count(),
+                    rc.stored_triangles(),
+                    rc.instance_count(),
+                    rc.build_ms()
+                );
+            });
+            group.bench_function(format!("{name}/{threads}t"), |b| {
+                pool.install(|| b.iter(|| RayCaster::build(s).expect("build").instance_count()))
+            });
+        }
+    }
+    group.finish();
+
+    let caster = RayCaster::build(scene).expect("build");
+    let mut group = c.benchmark_group("raycast_city_1280x720");
+    group
+        .sample_size(10)
+        .warm_up_time(Duration::from_millis(500))
+        .measurement_time(Duration::from_secs(2))
+        .throughput(Throughput::Elements(W as u64 * H as u64));
+    let mut fb = Framebuffer::new(W, H).expect("framebuffer");
+    for threads in [1usize, 2] {
+        let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().expect("thread pool");
+        for (name, camera) in &frames {
+            for (mode, opts) in [("ids", RaycastOptions::ids_only()), ("shaded", RaycastOptions::default())] {
+                let label = format!("{name}/{mode}/{threads}t");
+                pool.install(|| {
+                    let s = caster.render(camera, &opts, &mut fb).expect("render");
+                    eprintln!(
+                        "{label}: {} hits of {} rays, {:.1} ms, {:.2} Mrays/s",
+                        s.hits,
+                        s.primary_rays,
+                        s.ms_total,
+                        s.primary_rays as f64 / s.ms_total / 1e3
+                    );
+                });
+                group.bench_function(&label, |b| {
+                    pool.install(|| b.iter(|| caster.render(camera, &opts, &mut fb).expect("render").hits))
+                });
+            }
+        }
+    }
+    group.finish();
+}
+
+criterion_group!(benches, bench);
 criterion_main!(benches);

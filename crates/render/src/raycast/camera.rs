@@ -11,7 +11,7 @@
 use glam::{DVec2, DVec3, Vec3A};
 use sightline_scene::Camera;
 
-use super::packet::Beam;
+use super::packet::{safe_recip, Beam, Hits, Rays, CHUNK, CHUNKS, TILE};
 
 /// Per-frame ray generator.
 #[derive(Debug, Clone)]
@@ -92,13 +92,76 @@ impl CameraRays {
     }
 
     /// The ray of pixel (c, r): (origin, direction) in world space.
-    #[inline(always)]
+    #[cfg(test)]
     pub fn ray(&self, c: u32, r: u32) -> (Vec3A, Vec3A) {
         let [ox, dx] = self.cols[c as usize];
         let [oy, dy] = self.rows[r as usize];
         let o = self.eye + self.to_world(DVec3::new(ox, oy, self.z[0]));
         let d = self.to_world(DVec3::new(dx, dy, self.z[1]));
         (o.as_vec3().into(), d.as_vec3().into())
+    }
+
+    /// Fills the 8 × 8 packet whose top-left pixel is (x0, y0): rays, reciprocals and
+    /// near–far intervals. Returns the mask of lanes inside the image with a valid
+    /// interval; the other lanes get empty intervals.
+    #[inline(always)]
+    pub fn fill(&self, x0: u32, y0: u32, rays: &mut Rays, hits: &mut Hits) -> u64 {
+        let (w, h) = (self.width, self.height);
+        let mut inside = 0u64;
+        for ly in 0..TILE {
+            let r = (y0 + ly).min(h - 1);
+            let [oy, dy] = self.rows[r as usize];
+            let (c, j0) = ((ly / 2) as usize, ((ly % 2) * TILE) as usize);
+            for lx in 0..TILE {
+                let col = (x0 + lx).min(w - 1);
+                let [ox, dx] = self.cols[col as usize];
+                let d = self.to_world(DVec3::new(dx, dy, self.z[1]));
+                let j = j0 + lx as usize;
+                rays.d[0][c][j] = d.x as f32;
+                rays.d[1][c][j] = d.y as f32;
+                rays.d[2][c][j] = d.z as f32;
+                let o =
+                    if self.perspective { self.eye } else { self.eye + self.to_world(DVec3::new(ox, oy, self.z[0])) };
+                rays.o[0][c][j] = o.x as f32;
+                rays.o[1][c][j] = o.y as f32;
+                rays.o[2][c][j] = o.z as f32;
+            }
+            if y0 + ly < h {
+                let cols = (w.saturating_sub(x0)).min(TILE);
+                inside |= ((1u64 << cols) - 1) << (ly * TILE);
+            }
+        }
+        rays.shared = self.perspective.then_some(self.eye32);
+        let g = self.gaze;
+        let mut mask = 0u64;
+        for c in 0..CHUNKS {
+            let mut m = 0u64;
+            for j in 0..CHUNK {
+                let d = [rays.d[0][c][j], rays.d[1][c][j], rays.d[2][c][j]];
+                for a in 0..3 {
+                    rays.r[a][c][j] = safe_recip(d[a]);
+                }
+                let dg = g.x * d[0] as f64 + g.y * d[1] as f64 + g.z * d[2] as f64;
+                let og = if self.perspective {
+                    0.0
+                } else {
+                    g.x * (rays.o[0][c][j] as f64 - self.eye.x)
+                        + g.y * (rays.o[1][c][j] as f64 - self.eye.y)
+                        + g.z * (rays.o[2][c][j] as f64 - self.eye.z)
+                };
+                let t0 = (self.near - og) / dg;
+                let t0 = if t0 > 0.0 { t0 } else { 0.0 };
+                let t1 = (self.far - og) / dg;
+                let ok = (dg > 0.0) & (t1 > t0) & (t1 < f64::INFINITY);
+                hits.tmin[c][j] = if ok { t0 as f32 } else { f32::INFINITY };
+                hits.t[c][j] = if ok { t1 as f32 } else { f32::NEG_INFINITY };
+                hits.inst[c][j] = super::packet::NO_HIT;
+                hits.gid[c][j] = super::packet::NO_GID;
+                m |= (ok as u64) << j;
+            }
+            mask |= m << (c * CHUNK);
+        }
+        mask & inside
     }
 
     /// The ray through a window position (pixel units, y down), not necessarily a center.
@@ -117,7 +180,7 @@ impl CameraRays {
 
     /// The `[t_near, t_far]` of a ray between the near and far planes; `None` for rays that
     /// do not move forward (zero, NaN or backwards directions).
-    #[inline(always)]
+    #[cfg(test)]
     pub fn interval(&self, o: Vec3A, d: Vec3A) -> Option<(f32, f32)> {
         let og = self.gaze.dot(o.as_dvec3() - self.eye);
         let dg = self.gaze.dot(d.as_dvec3());
@@ -165,6 +228,34 @@ mod tests {
                     let depth = |t: f32| -(cam.view.view_from_world().transform_point3(o2 + d2 * t)).z;
                     assert!((depth(t0) - cam.projection.near()).abs() < 1e-4);
                     assert!((depth(t1) / cam.projection.far() - 1.0).abs() < 1e-5);
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn packets_hold_the_pixel_rays() {
+        let view = View::look_at(Vec3::new(1.0, 2.0, 5.0), Vec3::ZERO, Vec3::Y).unwrap();
+        for p in [
+            Projection::perspective(1.0, 1.3, 0.1, 100.0).unwrap(),
+            Projection::cavalier(-2.0, 2.0, -2.0, 2.0, 0.5, 50.0, 0.3).unwrap(),
+        ] {
+            let cam = Camera::new(view, p).unwrap();
+            // 13 × 11: partial packets at the right and bottom.
+            let g = CameraRays::new(&cam, 13, 11);
+            let (mut rays, mut hits) = (Rays::new(), Hits::new());
+            for (x0, y0) in [(0, 0), (8, 0), (0, 8), (8, 8)] {
+                let mask = g.fill(x0, y0, &mut rays, &mut hits);
+                for i in 0..64 {
+                    let (c, r) = (x0 + i as u32 % 8, y0 + i as u32 / 8);
+                    let inside = c < 13 && r < 11;
+                    assert_eq!(mask >> i & 1 == 1, inside);
+                    if inside {
+                        let (o, d) = g.ray(c, r);
+                        assert_eq!((rays.origin(i), rays.dir(i)), (o, d));
+                        assert_eq!(hits.range(i), g.interval(o, d).unwrap());
+                        assert_eq!(rays.shared.is_some(), p.is_perspective());
+                    }
                 }
             }
         }

@@ -3,12 +3,13 @@
 //!
 //! Per packet: generate the 64 primary rays and their near–far intervals, trace them as a
 //! packet (closest hit, frustum culling, back-face culling as configured), test the CSG
-//! solids per lane, optionally trace an any-hit shadow packet towards the light, then
-//! resolve each hit: the world point from the exact barycentrics in f64, its window depth
-//! `(z_ndc + 1) / 2` through `clip_from_world` (f64), and the color from the shared
-//! [`crate::shading`] (`TriangleShader`s are cached per band, one per triangle and light
-//! state). Each band owns its rows of the framebuffer, so the image does not depend on the
-//! thread count.
+//! solids per lane, then resolve each hit: the point from the exact barycentrics in f64 and
+//! its window depth `(z_ndc + 1) / 2` through `clip_from_world · world_from_local` (f64).
+//! With shading on, an optional any-hit shadow packet goes towards the light and the color
+//! comes from the shared [`crate::shading`] (`TriangleShader`s cached per band, one per
+//! triangle and light state). Each band owns its rows of the framebuffer, so the image does
+//! not depend on the thread count. The whole packet step is compiled once per instruction
+//! set (AVX-512, AVX2, portable) and picked at run time.
 
 use std::time::Instant;
 
@@ -16,109 +17,34 @@ use glam::{DAffine3, DMat4, DVec3, DVec4, Vec3, Vec3A};
 use rayon::prelude::*;
 use sightline_scene::{Camera, Material};
 
-use super::blas::Blas;
 use super::camera::CameraRays;
-use super::packet::{Beam, Hits, Rays, CHUNK, LANES, NO_HIT, TILE};
-use super::tlas::Tlas;
+use super::packet::{Hits, Rays, CHUNK, LANES, NO_HIT, TILE};
 use super::trace::{trace, Scratch};
 use super::{RayCaster, RaycastOptions, RaycastStats, SimdLevel};
 use crate::csg::CsgScratch;
 use crate::shading::{shade, InstanceShading, ShadeOptions, ShadingMode, TriangleShader};
-use crate::{triangle_id, Framebuffer, Result};
+use crate::{Framebuffer, Result};
 
 /// Entries of the per-band triangle shader cache (direct mapped).
 const CACHE: usize = 256;
-
-/// Traces with the kernels compiled for one instruction set.
-macro_rules! isa_trace {
-    ($name:ident, $features:literal) => {
-        #[cfg(target_arch = "x86_64")]
-        #[target_feature(enable = $features)]
-        #[allow(clippy::too_many_arguments)]
-        fn $name<const ANY: bool>(
-            blases: &[Blas],
-            tlas: &Tlas,
-            rays: &Rays,
-            beam: Option<&Beam>,
-            backface: bool,
-            hits: &mut Hits,
-            mask: u64,
-            s: &mut Scratch,
-        ) -> u64 {
-            trace::<ANY>(blases, tlas, rays, beam, backface, hits, mask, s)
-        }
-    };
-}
-
-isa_trace!(trace_avx512, "avx512f,avx512bw,avx512dq,avx512vl,avx2,bmi1,bmi2,lzcnt,popcnt");
-isa_trace!(trace_avx2, "avx2,bmi1,bmi2,lzcnt,popcnt");
-
-/// [`trace`] on the resolved SIMD level.
-#[allow(clippy::too_many_arguments)]
-#[inline]
-pub(crate) fn trace_on<const ANY: bool>(
-    simd: SimdLevel,
-    blases: &[Blas],
-    tlas: &Tlas,
-    rays: &Rays,
-    beam: Option<&Beam>,
-    backface: bool,
-    hits: &mut Hits,
-    mask: u64,
-    s: &mut Scratch,
-) -> u64 {
-    match simd {
-        #[cfg(target_arch = "x86_64")]
-        // SAFETY: `SimdLevel::resolve` only yields Avx512 when the CPU has every feature
-        // the function enables.
-        SimdLevel::Avx512 => unsafe { trace_avx512::<ANY>(blases, tlas, rays, beam, backface, hits, mask, s) },
-        #[cfg(target_arch = "x86_64")]
-        // SAFETY: as above, for the AVX2 feature set.
-        SimdLevel::Avx2 => unsafe { trace_avx2::<ANY>(blases, tlas, rays, beam, backface, hits, mask, s) },
-        _ => trace::<ANY>(blases, tlas, rays, beam, backface, hits, mask, s),
-    }
-}
-
-/// What a pixel's ray found.
-#[derive(Debug, Clone, Copy)]
-enum Found {
-    Nothing,
-    Triangle {
-        /// TLAS instance record.
-        rec: u32,
-        /// Leaf-order slot in its BLAS.
-        slot: u32,
-        b1: f64,
-        b2: f64,
-    },
-    Csg {
-        object: u32,
-        normal: Vec3,
-    },
-}
-
-/// A resolved hit: where, which surface normal (world, unit), which ID.
-#[derive(Debug, Clone, Copy)]
-struct Surface {
-    p: DVec3,
-    normal: DVec3,
-    id: u32,
-}
 
 /// Per-frame constants.
 struct Frame<'a, 's> {
     caster: &'a RayCaster<'s>,
     camera: &'a Camera,
     gen: CameraRays,
-    clip: DMat4,
     opts: &'a RaycastOptions,
     dark: ShadeOptions,
     shading: Vec<InstanceShading<'a>>,
     csg_materials: Vec<Material>,
     simd: SimdLevel,
+    /// Per TLAS record: rows z and w of `clip_from_world · world_from_blas`.
+    clip_zw: Vec<[DVec4; 2]>,
+    /// `clip_from_world` rows z and w (CSG hits).
+    world_zw: [DVec4; 2],
+    /// Per TLAS record: `world_from_blas` in f64.
     world_f64: Vec<DAffine3>,
     width: u32,
-    height: u32,
 }
 
 /// Per-band scratch and counters.
@@ -129,9 +55,18 @@ struct Band<'a> {
     srays: Rays,
     shits: Hits,
     csg: CsgScratch,
+    /// CSG object hit per lane (`u32::MAX`: none) and its normal.
+    csg_hit: [(u32, Vec3); LANES],
     cache: Vec<Option<(u32, bool, TriangleShader<'a>)>>,
     shadow_rays: u64,
     hit_count: u64,
+}
+
+/// The output slices of one band (rows y0 .. y0 + TILE).
+struct Out<'o> {
+    color: &'o mut [[u8; 4]],
+    depth: &'o mut [f32],
+    ids: &'o mut [u32],
 }
 
 fn to_f64(m: &glam::Affine3A) -> DAffine3 {
@@ -156,31 +91,38 @@ pub(crate) fn render(
     fb.clear(opts.background);
     let default = Material::default();
     let scene = caster.scene;
-    let shading = caster
-        .instances
-        .iter()
-        .map(|i| {
-            let m = i.material.and_then(|m| scene.material(m)).unwrap_or(&default);
-            InstanceShading::new(i.world_from_local, m)
-        })
-        .collect();
+    let clip: DMat4 = camera.clip_from_world_f64();
+    let world_f64: Vec<DAffine3> = caster.tlas.instances.iter().map(|r| to_f64(&r.world_from_blas)).collect();
     let frame = Frame {
         caster,
         camera,
         gen: CameraRays::new(camera, width, height),
-        clip: camera.clip_from_world_f64(),
         opts,
         dark: ShadeOptions { diffuse: 0.0, ..opts.shading },
-        shading,
+        shading: caster
+            .instances
+            .iter()
+            .map(|i| {
+                let m = i.material.and_then(|m| scene.material(m)).unwrap_or(&default);
+                InstanceShading::new(i.world_from_local, m)
+            })
+            .collect(),
         csg_materials: caster
             .csg
             .iter()
             .map(|o| Material { name: o.name.clone(), base_color: o.color, base_color_texture: None })
             .collect(),
         simd: opts.simd.resolve(),
-        world_f64: caster.tlas.instances.iter().map(|r| to_f64(&r.world_from_blas)).collect(),
+        clip_zw: world_f64
+            .iter()
+            .map(|m| {
+                let c = clip * DMat4::from(*m);
+                [c.row(2), c.row(3)]
+            })
+            .collect(),
+        world_zw: [clip.row(2), clip.row(3)],
+        world_f64,
         width,
-        height,
     };
     let w = width as usize;
     let band_len = w * TILE as usize;
@@ -200,6 +142,7 @@ pub(crate) fn render(
                 srays: Rays::new(),
                 shits: Hits::new(),
                 csg: CsgScratch::default(),
+                csg_hit: [(u32::MAX, Vec3::ZERO); LANES],
                 cache: vec![None; CACHE],
                 shadow_rays: 0,
                 hit_count: 0,
@@ -208,9 +151,10 @@ pub(crate) fn render(
                 band.shadow_rays = 0;
                 band.hit_count = 0;
                 let y0 = b as u32 * TILE;
+                let mut out = Out { color, depth, ids };
                 let mut x0 = 0;
                 while x0 < width {
-                    frame.packet(band, x0, y0, color, depth, ids);
+                    frame.packet(band, x0, y0, &mut out);
                     x0 += TILE;
                 }
                 (band.shadow_rays, band.hit_count)
@@ -225,36 +169,72 @@ pub(crate) fn render(
     })
 }
 
-impl<'a> Frame<'a, '_> {
-    /// Casts, resolves and writes the packet at (x0, y0); the band slices start at row y0.
-    fn packet(&self, band: &mut Band<'a>, x0: u32, y0: u32, color: &mut [[u8; 4]], depth: &mut [f32], ids: &mut [u32]) {
-        let caster = self.caster;
-        let Band { scratch, rays, hits, srays, shits, csg, .. } = band;
-        // Primary rays.
-        let mut mask = 0u64;
-        for ly in 0..TILE {
-            for lx in 0..TILE {
-                let i = (ly * TILE + lx) as usize;
-                let (px, py) = (x0 + lx, y0 + ly);
-                hits.open(i, f32::INFINITY, f32::NEG_INFINITY);
-                if px >= self.width || py >= self.height {
-                    continue;
-                }
-                let (o, d) = self.gen.ray(px, py);
-                rays.set(i, o, d);
-                if let Some((a, b)) = self.gen.interval(o, d) {
-                    hits.open(i, a, b);
-                    mask |= 1 << i;
-                }
-            }
+/// The packet step compiled for one instruction set.
+macro_rules! isa_packet {
+    ($name:ident, $features:literal) => {
+        #[cfg(target_arch = "x86_64")]
+        #[target_feature(enable = $features)]
+        fn $name<'a>(f: &Frame<'a, '_>, band: &mut Band<'a>, x0: u32, y0: u32, out: &mut Out<'_>) {
+            f.packet_impl(band, x0, y0, out)
         }
+    };
+}
+
+isa_packet!(packet_avx512, "avx512f,avx512bw,avx512dq,avx512vl,avx2,bmi1,bmi2,lzcnt,popcnt");
+isa_packet!(packet_avx2, "avx2,bmi1,bmi2,lzcnt,popcnt");
+
+/// Window depth from clip rows z and w at a point.
+#[inline(always)]
+fn window_depth(zw: &[DVec4; 2], p: DVec3) -> f32 {
+    let z = zw[0].x * p.x + zw[0].y * p.y + zw[0].z * p.z + zw[0].w;
+    let w = zw[1].x * p.x + zw[1].y * p.y + zw[1].z * p.z + zw[1].w;
+    let zw = (z / w + 1.0) * 0.5;
+    if zw.is_finite() {
+        zw.clamp(0.0, 1.0) as f32
+    } else {
+        1.0
+    }
+}
+
+impl<'a> Frame<'a, '_> {
+    /// Casts, resolves and writes the packet at (x0, y0) on the resolved SIMD level.
+    fn packet(&self, band: &mut Band<'a>, x0: u32, y0: u32, out: &mut Out<'_>) {
+        match self.simd {
+            #[cfg(target_arch = "x86_64")]
+            // SAFETY: `SimdLevel::resolve` yields Avx512 only when the CPU has every feature
+            // `packet_avx512` enables.
+            SimdLevel::Avx512 => unsafe { packet_avx512(self, band, x0, y0, out) },
+            #[cfg(target_arch = "x86_64")]
+            // SAFETY: as above, for the AVX2 feature set.
+            SimdLevel::Avx2 => unsafe { packet_avx2(self, band, x0, y0, out) },
+            _ => self.packet_impl(band, x0, y0, out),
+        }
+    }
+
+    /// Local-space hit point of lane (c, j) of a triangle hit, in f64, and the record.
+    #[inline(always)]
+    fn local_point(&self, hits: &Hits, c: usize, j: usize) -> Option<(usize, DVec3, f64, f64)> {
+        let rec = hits.inst[c][j] as usize;
+        let r = self.caster.tlas.instances.get(rec)?;
+        let blas = self.caster.blases.get(r.blas as usize)?;
+        let v = blas.tris.get(hits.prim[c][j] as usize)?;
+        let rdet = 1.0 / hits.det[c][j] as f64;
+        let (b1, b2) = (hits.e1[c][j] as f64 * rdet, hits.e2[c][j] as f64 * rdet);
+        let v0 = Vec3::from(v[0]).as_dvec3();
+        let p = v0 + (Vec3::from(v[1]).as_dvec3() - v0) * b1 + (Vec3::from(v[2]).as_dvec3() - v0) * b2;
+        Some((rec, p, b1, b2))
+    }
+
+    #[inline(always)]
+    fn packet_impl(&self, band: &mut Band<'a>, x0: u32, y0: u32, out: &mut Out<'_>) {
+        let caster = self.caster;
+        let Band { scratch, rays, hits, srays, shits, csg, csg_hit, .. } = band;
+        let mask = self.gen.fill(x0, y0, rays, hits);
         if mask == 0 {
             return;
         }
-        rays.shared = self.gen.perspective.then_some(self.gen.eye32);
         let beam = self.gen.beam(x0, y0, x0 + TILE, y0 + TILE, self.camera);
-        trace_on::<false>(
-            self.simd,
+        trace::<false>(
             &caster.blases,
             &caster.tlas,
             rays,
@@ -264,151 +244,138 @@ impl<'a> Frame<'a, '_> {
             mask,
             scratch,
         );
-        // Per lane: what was found.
-        let mut found = [Found::Nothing; LANES];
-        for (i, f) in found.iter_mut().enumerate() {
-            if mask >> i & 1 == 0 {
-                continue;
-            }
-            let (c, j) = (i / CHUNK, i % CHUNK);
-            if hits.inst[c][j] != NO_HIT {
-                let det = hits.det[c][j] as f64;
-                *f = Found::Triangle {
-                    rec: hits.inst[c][j],
-                    slot: hits.prim[c][j],
-                    b1: hits.e1[c][j] as f64 / det,
-                    b2: hits.e2[c][j] as f64 / det,
-                };
-            }
-            if !caster.csg.is_empty() {
+        // CSG solids, per lane, in front of the triangle hit.
+        let has_csg = !caster.csg.is_empty();
+        if has_csg {
+            for (i, ch) in csg_hit.iter_mut().enumerate() {
+                *ch = (u32::MAX, Vec3::ZERO);
+                if mask >> i & 1 == 0 {
+                    continue;
+                }
                 let (o, d) = (Vec3::from(rays.origin(i)), Vec3::from(rays.dir(i)));
                 let (tmin, mut t) = hits.range(i);
                 for (k, obj) in caster.csg.iter().enumerate() {
                     if let Some(h) = obj.intersect_with(o, d, tmin, t, csg) {
                         t = h.t;
-                        *f = Found::Csg { object: k as u32, normal: h.normal };
+                        *ch = (k as u32, h.normal);
                     }
                 }
-                hits.t[c][j] = t;
+                hits.t[i / CHUNK][i % CHUNK] = t;
             }
         }
-        // Surfaces, depth and IDs.
-        let mut surf: [Option<Surface>; LANES] = [None; LANES];
-        for i in 0..LANES {
-            let s = match found[i] {
-                Found::Nothing => continue,
-                Found::Triangle { rec, slot, b1, b2 } => self.triangle_surface(rec, slot, b1, b2),
-                Found::Csg { object, normal } => {
-                    let (c, j) = (i / CHUNK, i % CHUNK);
-                    let t = hits.t[c][j] as f64;
-                    let o = Vec3::from(rays.origin(i)).as_dvec3();
-                    let d = Vec3::from(rays.dir(i)).as_dvec3();
-                    Some(Surface { p: o + d * t, normal: normal.as_dvec3(), id: caster.csg_id(object as usize) })
-                }
+        // Depth and IDs.
+        let w = self.width as usize;
+        let mut hit_mask = 0u64;
+        let mut bits = mask;
+        while bits != 0 {
+            let i = bits.trailing_zeros() as usize;
+            bits &= bits - 1;
+            let (c, j) = (i / CHUNK, i % CHUNK);
+            let at = (i / TILE as usize) * w + x0 as usize + i % TILE as usize;
+            let (z, id) = if has_csg && csg_hit[i].0 != u32::MAX {
+                let t = hits.t[c][j] as f64;
+                let p = Vec3::from(rays.origin(i)).as_dvec3() + Vec3::from(rays.dir(i)).as_dvec3() * t;
+                (window_depth(&self.world_zw, p), caster.csg_id(csg_hit[i].0 as usize))
+            } else if hits.inst[c][j] != NO_HIT {
+                let Some((rec, p, _, _)) = self.local_point(hits, c, j) else { continue };
+                let Some(zw) = self.clip_zw.get(rec) else { continue };
+                (window_depth(zw, p), hits.gid[c][j])
+            } else {
+                continue;
             };
-            let Some(s) = s else { continue };
-            let (lx, ly) = (i as u32 % TILE, i as u32 / TILE);
-            let at = ly as usize * self.width as usize + (x0 + lx) as usize;
-            let clip = self.clip * DVec4::new(s.p.x, s.p.y, s.p.z, 1.0);
-            let z = (clip.z / clip.w + 1.0) * 0.5;
-            if let (Some(dp), Some(id)) = (depth.get_mut(at), ids.get_mut(at)) {
-                *dp = if z.is_finite() { z.clamp(0.0, 1.0) as f32 } else { 1.0 };
-                *id = s.id;
+            if let (Some(dp), Some(dst)) = (out.depth.get_mut(at), out.ids.get_mut(at)) {
+                *dp = z;
+                *dst = id;
+                hit_mask |= 1 << i;
             }
-            surf[i] = Some(s);
-            band.hit_count += 1;
         }
-        if self.opts.shading.mode == ShadingMode::None {
+        band.hit_count += hit_mask.count_ones() as u64;
+        if self.opts.shading.mode == ShadingMode::None || hit_mask == 0 {
             return;
         }
-        // Shadows: lanes whose surface (turned to the viewer) faces the light.
+        // World point and normal of each hit (for shadows and CSG shading).
+        let surface = |i: usize| -> Option<(DVec3, DVec3)> {
+            let (c, j) = (i / CHUNK, i % CHUNK);
+            if has_csg && csg_hit[i].0 != u32::MAX {
+                let t = hits.t[c][j] as f64;
+                let p = Vec3::from(rays.origin(i)).as_dvec3() + Vec3::from(rays.dir(i)).as_dvec3() * t;
+                return Some((p, csg_hit[i].1.as_dvec3()));
+            }
+            let (rec, p, _, _) = self.local_point(hits, c, j)?;
+            let m = self.world_f64.get(rec)?;
+            let r = caster.tlas.instances.get(rec)?;
+            let v = caster.blases.get(r.blas as usize)?.tris.get(hits.prim[c][j] as usize)?;
+            let wv = v.map(|q| m.transform_point3(Vec3::from(q).as_dvec3()));
+            Some((m.transform_point3(p), (wv[1] - wv[0]).cross(wv[2] - wv[0]).normalize_or_zero()))
+        };
+        // Shadows: lanes whose surface, turned to the viewer, faces the light.
         let light = self.opts.shading.light_dir.as_dvec3();
-        let mut smask = 0u64;
+        let mut dark = 0u64;
         if self.opts.shadows && light.is_finite() && light != DVec3::ZERO {
-            for (i, s) in surf.iter().enumerate() {
-                let Some(s) = *s else { continue };
-                let d = Vec3::from(rays.dir(i)).as_dvec3();
-                let n = if s.normal.dot(d) > 0.0 { -s.normal } else { s.normal };
+            let mut smask = 0u64;
+            let mut bits = hit_mask;
+            while bits != 0 {
+                let i = bits.trailing_zeros() as usize;
+                bits &= bits - 1;
                 shits.open(i, f32::INFINITY, f32::NEG_INFINITY);
+                let Some((p, n)) = surface(i) else { continue };
+                let d = Vec3::from(rays.dir(i)).as_dvec3();
+                let n = if n.dot(d) > 0.0 { -n } else { n };
                 if n.dot(light) <= 0.0 {
                     continue;
                 }
-                let eps = 1e-4 * (1.0 + s.p.abs().max_element());
-                let o = s.p + n * eps;
-                srays.set(i, Vec3A::from(o.as_vec3()), Vec3A::from(light.as_vec3()));
+                let eps = 1e-4 * (1.0 + p.abs().max_element());
+                srays.set(i, Vec3A::from((p + n * eps).as_vec3()), Vec3A::from(light.as_vec3()));
                 shits.open(i, 0.0, f32::INFINITY);
                 smask |= 1 << i;
             }
             srays.shared = None;
             band.shadow_rays += smask.count_ones() as u64;
-        }
-        let mut dark = 0u64;
-        if smask != 0 {
-            dark = trace_on::<true>(self.simd, &caster.blases, &caster.tlas, srays, None, false, shits, smask, scratch);
-            for i in 0..LANES {
-                if (smask & !dark) >> i & 1 == 0 {
-                    continue;
-                }
-                let (o, d) = (Vec3::from(srays.origin(i)), Vec3::from(srays.dir(i)));
-                if caster.csg.iter().any(|obj| obj.intersect_with(o, d, 0.0, f32::INFINITY, csg).is_some()) {
-                    dark |= 1 << i;
+            if smask != 0 {
+                dark = trace::<true>(&caster.blases, &caster.tlas, srays, None, false, shits, smask, scratch);
+                let mut open = smask & !dark;
+                while open != 0 {
+                    let i = open.trailing_zeros() as usize;
+                    open &= open - 1;
+                    let (o, d) = (Vec3::from(srays.origin(i)), Vec3::from(srays.dir(i)));
+                    if caster.csg.iter().any(|obj| obj.intersect_with(o, d, 0.0, f32::INFINITY, csg).is_some()) {
+                        dark |= 1 << i;
+                    }
                 }
             }
         }
         // Colors.
         let eye = self.camera.view.eye;
-        for i in 0..LANES {
-            let Some(s) = surf[i] else { continue };
+        let mut bits = hit_mask;
+        while bits != 0 {
+            let i = bits.trailing_zeros() as usize;
+            bits &= bits - 1;
+            let (c, j) = (i / CHUNK, i % CHUNK);
             let shadowed = dark >> i & 1 != 0;
             let opts = if shadowed { &self.dark } else { &self.opts.shading };
-            let rgba = match found[i] {
-                Found::Triangle { rec, b1, b2, .. } => {
-                    let Some(shader) = self.shader(&mut band.cache, rec, s.id, shadowed, eye) else {
-                        continue;
-                    };
-                    shader.shade(Vec3::new((1.0 - b1 - b2) as f32, b1 as f32, b2 as f32), opts)
-                }
-                Found::Csg { object, normal } => {
-                    let d = Vec3::from(rays.dir(i));
-                    let dist = (s.p - Vec3::from(rays.origin(i)).as_dvec3()).length() as f32;
-                    let Some(m) = self.csg_materials.get(object as usize) else {
-                        continue;
-                    };
-                    shade(m, normal, None, -d.normalize_or_zero(), dist, opts)
-                }
-                Found::Nothing => continue,
+            let rgba = if has_csg && csg_hit[i].0 != u32::MAX {
+                let (k, normal) = csg_hit[i];
+                let d = Vec3::from(rays.dir(i));
+                let dist = hits.t[c][j] * d.length();
+                let Some(m) = self.csg_materials.get(k as usize) else { continue };
+                shade(m, normal, None, -d.normalize_or_zero(), dist, opts)
+            } else {
+                let Some((rec, _, b1, b2)) = self.local_point(hits, c, j) else { continue };
+                let Some(sh) = self.shader(&mut band.cache, rec, hits.gid[c][j], shadowed, eye) else { continue };
+                sh.shade(Vec3::new((1.0 - b1 - b2) as f32, b1 as f32, b2 as f32), opts)
             };
-            let (lx, ly) = (i as u32 % TILE, i as u32 / TILE);
-            let at = ly as usize * self.width as usize + (x0 + lx) as usize;
-            if let Some(c) = color.get_mut(at) {
-                *c = rgba;
+            let at = (i / TILE as usize) * w + x0 as usize + i % TILE as usize;
+            if let Some(px) = out.color.get_mut(at) {
+                *px = rgba;
             }
         }
     }
 
-    /// World point, face normal and ID of a triangle hit.
-    fn triangle_surface(&self, rec: u32, slot: u32, b1: f64, b2: f64) -> Option<Surface> {
-        let caster = self.caster;
-        let r = caster.tlas.instances.get(rec as usize)?;
-        let blas = caster.blases.get(r.blas as usize)?;
-        let v = blas.tris.get(slot as usize)?;
-        let tri = *blas.bvh.order.get(slot as usize)?;
-        let inst = caster.instances.get(r.scene_index as usize)?;
-        let m = self.world_f64.get(rec as usize)?;
-        let w = v.map(|p| m.transform_point3(Vec3::from(p).as_dvec3()));
-        let p = w[0] * (1.0 - b1 - b2) + w[1] * b1 + w[2] * b2;
-        Some(Surface {
-            p,
-            normal: (w[1] - w[0]).cross(w[2] - w[0]).normalize_or_zero(),
-            id: triangle_id(inst.first_triangle, tri),
-        })
-    }
-
-    /// The cached shader of the triangle with `id` under instance record `rec`.
+    /// The cached shader of the triangle with `id` under TLAS record `rec`.
     fn shader(
         &self,
         cache: &mut [Option<(u32, bool, TriangleShader<'a>)>],
-        rec: u32,
+        rec: usize,
         id: u32,
         shadowed: bool,
         eye: Vec3,
@@ -420,7 +387,7 @@ impl<'a> Frame<'a, '_> {
             }
         }
         let caster = self.caster;
-        let r = caster.tlas.instances.get(rec as usize)?;
+        let r = caster.tlas.instances.get(rec)?;
         let inst = caster.instances.get(r.scene_index as usize)?;
         let mesh = caster.scene.mesh(inst.mesh)?;
         let ish = self.shading.get(r.scene_index as usize)?;

@@ -100,37 +100,53 @@ pub(crate) fn trace<const ANY: bool>(
 ) -> u64 {
     let world = beam.map_or(Frustum::OFF, |b| b.frustum());
     let Scratch { local, tlas_stack, blas_stack } = s;
-    traverse(&tlas.bvh, rays, hits, &world, mask, tlas_stack, |hits, first, count, m| {
-        let mut done = 0u64;
-        let end = first.saturating_add(count) as usize;
-        for k in first as usize..end.min(tlas.bvh.order.len()) {
-            let ii = tlas.bvh.order[k];
-            let Some(inst) = tlas.instances.get(ii as usize) else {
-                continue;
-            };
-            let Some(blas) = blases.get(inst.blas as usize) else {
-                continue;
-            };
-            let m = m & !done;
-            if m == 0 {
-                break;
+    traverse(
+        &tlas.bvh,
+        rays,
+        hits,
+        &world,
+        mask,
+        tlas_stack,
+        #[inline(always)]
+        |hits, first, count, m| {
+            let mut done = 0u64;
+            let end = first.saturating_add(count) as usize;
+            for k in first as usize..end.min(tlas.bvh.order.len()) {
+                let ii = tlas.bvh.order[k];
+                let Some(inst) = tlas.instances.get(ii as usize) else {
+                    continue;
+                };
+                let Some(blas) = blases.get(inst.blas as usize) else {
+                    continue;
+                };
+                let m = m & !done;
+                if m == 0 {
+                    break;
+                }
+                let (lr, fr): (&Rays, Frustum) = if inst.identity {
+                    (rays, world)
+                } else {
+                    rays.transform_into(&inst.local_from_world, m, local);
+                    let fr = beam.map_or(Frustum::OFF, |b| b.transformed(&inst.local_from_world).frustum());
+                    (&*local, fr)
+                };
+                let cull = match (backface, inst.mirror) {
+                    (false, _) => 0.0,
+                    (true, false) => 1.0,
+                    (true, true) => -1.0,
+                };
+                done |= traverse(
+                    &blas.bvh,
+                    lr,
+                    hits,
+                    &fr,
+                    m,
+                    blas_stack,
+                    #[inline(always)]
+                    |hits, f, n, lm| leaf::<ANY>(blas, lr, hits, f, n, lm, ii, inst.first_id, cull),
+                );
             }
-            let (lr, fr): (&Rays, Frustum) = if inst.identity {
-                (rays, world)
-            } else {
-                rays.transform_into(&inst.local_from_world, m, local);
-                let fr = beam.map_or(Frustum::OFF, |b| b.transformed(&inst.local_from_world).frustum());
-                (&*local, fr)
-            };
-            let cull = match (backface, inst.mirror) {
-                (false, _) => 0.0,
-                (true, false) => 1.0,
-                (true, true) => -1.0,
-            };
-            done |= traverse(&blas.bvh, lr, hits, &fr, m, blas_stack, |hits, f, n, lm| {
-                leaf::<ANY>(blas, lr, hits, f, n, lm, ii, inst.first_id, cull)
-            });
-        }
-        done
-    })
+            done
+        },
+    )
 }
