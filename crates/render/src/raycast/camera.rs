@@ -138,8 +138,8 @@ impl CameraRays {
             let mut m = 0u64;
             for j in 0..CHUNK {
                 let d = [rays.d[0][c][j], rays.d[1][c][j], rays.d[2][c][j]];
-                for a in 0..3 {
-                    rays.r[a][c][j] = safe_recip(d[a]);
+                for (r, &da) in rays.r.iter_mut().zip(&d) {
+                    r[c][j] = safe_recip(da);
                 }
                 let dg = g.x * d[0] as f64 + g.y * d[1] as f64 + g.z * d[2] as f64;
                 let og = if self.perspective {
