@@ -5,6 +5,7 @@ mod common;
 mod info;
 mod path;
 mod render;
+mod walk;
 
 use std::path::PathBuf;
 
@@ -62,6 +63,8 @@ enum Command {
     },
     /// Render one frame to PNGs (color, depth, IDs, depth complexity), .npy and JSON
     Render(Box<render::RenderArgs>),
+    /// Render a camera path with a progress bar; per-method timing, culling counters, verification
+    Walk(Box<walk::WalkArgs>),
 }
 
 /// Runs one command.
@@ -71,6 +74,7 @@ pub fn run(cli: Cli) -> Result<()> {
         Command::ExportObj { scene, out } => path::export_obj(&scene.scene, &out),
         Command::Path { scene, kind, frames, out } => path::run(&scene.scene, kind, frames, &out),
         Command::Render(a) => render::run(&a),
+        Command::Walk(a) => walk::run(&a),
     }
 }
 

@@ -17,8 +17,9 @@ use crate::stats::FrameStats;
 /// Where a draw piece's triangles come from.
 #[derive(Debug, Clone, Copy)]
 pub(crate) enum Source<'a> {
-    /// An indexed mesh under one matrix.
-    Mesh { positions: &'a [Vec3], indices: &'a [u32], clip_from_local: Mat4 },
+    /// An indexed mesh under one matrix; `ids`, when given, maps each triangle of `indices`
+    /// to the triangle number its ID is made from (meshlets keep the original IDs).
+    Mesh { positions: &'a [Vec3], indices: &'a [u32], clip_from_local: Mat4, ids: Option<&'a [u32]> },
     /// Raw clip-space triangles (tests and tools).
     Clip(&'a [[Vec4; 3]]),
 }
@@ -67,13 +68,14 @@ const NONE: SnappedVertex = SnappedVertex { x: 0, y: 0, z: 0.0 };
 
 impl Chunk {
     /// Runs the geometry stage over `pieces`.
+    #[inline(never)] // a stage of its own in profiles
     pub fn process(&mut self, items: &[Item], pieces: &[Piece], vp: &Viewport, cull: bool) {
         self.tris.clear();
         self.stats = FrameStats::default();
         for p in pieces {
             let item = &items[p.item as usize];
             match item.src {
-                Source::Mesh { positions, indices, clip_from_local } => {
+                Source::Mesh { positions, indices, clip_from_local, ids } => {
                     let idx = &indices[3 * p.start as usize..3 * (p.start + p.count) as usize];
                     let (lo, hi) = if p.count == item.source_triangles {
                         (0, positions.len())
@@ -84,9 +86,14 @@ impl Chunk {
                     };
                     self.transform(&positions[lo..hi], &clip_from_local, vp);
                     let first_id = item.first_id.wrapping_add(p.start);
+                    let ids = ids.map(|m| &m[p.start as usize..(p.start + p.count) as usize]);
                     for (k, t) in idx.chunks_exact(3).enumerate() {
                         let v = [t[0] as usize - lo, t[1] as usize - lo, t[2] as usize - lo];
-                        self.triangle(v, first_id.wrapping_add(k as u32), vp, cull);
+                        let id = match ids {
+                            Some(m) => item.first_id.wrapping_add(m[k]),
+                            None => first_id.wrapping_add(k as u32),
+                        };
+                        self.triangle(v, id, vp, cull);
                     }
                 }
                 Source::Clip(tris) => {
@@ -102,6 +109,7 @@ impl Chunk {
         }
     }
 
+    #[inline(never)] // per-vertex work, separate in profiles
     fn transform(&mut self, positions: &[Vec3], m: &Mat4, vp: &Viewport) {
         let vc = &mut self.verts;
         vc.clip.clear();

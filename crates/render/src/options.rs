@@ -26,6 +26,27 @@ impl DrawItem {
     }
 }
 
+/// A triangle range of indexed geometry that is not (or not directly) a scene mesh, e.g.
+/// the meshlets of the occlusion culler; see [`crate::Renderer::draw_sources`].
+#[derive(Debug, Clone, Copy)]
+pub struct DrawSource<'a> {
+    /// Vertex positions (local space).
+    pub positions: &'a [glam::Vec3],
+    /// Triangle indices into `positions`.
+    pub indices: &'a [u32],
+    /// For each triangle of `indices`, the triangle number its ID is made from (`None`: its
+    /// own position in `indices`).
+    pub triangle_ids: Option<&'a [u32]>,
+    /// `world_from_local` of the instance.
+    pub world_from_local: glam::Affine3A,
+    /// Global index of the instance's triangle 0 (the ID written is `1 + first_triangle + id`).
+    pub first_triangle: u32,
+    /// First triangle of the range (in `indices`).
+    pub first: u32,
+    /// Number of triangles.
+    pub count: u32,
+}
+
 /// Every instance, whole, in order.
 pub fn draw_all(instances: &[Instance]) -> Vec<DrawItem> {
     instances.iter().enumerate().map(|(i, inst)| DrawItem::whole(i as u32, inst)).collect()

@@ -25,7 +25,7 @@ use sightline_scene::{Camera, Instance, Scene};
 use crate::bin::{bin_chunk, Grid};
 use crate::depth::DepthFormat;
 use crate::geometry::{split, Chunk, Item, Source};
-use crate::options::{DrawItem, RenderOptions, Wireframe};
+use crate::options::{DrawItem, DrawSource, RenderOptions, Wireframe};
 use crate::raster::{raster_tri, TileBuf, TILE, TILE_SHIFT};
 use crate::setup::Viewport;
 use crate::stats::{ms_since, FrameStats};
@@ -40,6 +40,8 @@ pub struct Renderer {
     grid: Option<Grid>,
     ranges: Vec<(u32, u32, u32)>,
     supersampled: Option<Framebuffer>,
+    /// The target was just cleared: tiles start from the clear values instead of loading.
+    fresh: bool,
 }
 
 #[derive(Debug, Default, Clone, Copy)]
@@ -79,6 +81,7 @@ impl Renderer {
         if s == 1 {
             fb.clear(opts.background);
             if fill {
+                self.fresh = true;
                 stats = self.draw(scene, instances, items, camera, fb, opts)?;
                 let t = Instant::now();
                 deferred::shade_pass(scene, instances, camera, fb, &opts.shading);
@@ -96,6 +99,7 @@ impl Renderer {
             }
             ss.clear(opts.background);
             let r = if fill {
+                self.fresh = true;
                 self.draw(scene, instances, items, camera, &mut ss, opts)
             } else {
                 Ok(FrameStats::default())
@@ -163,8 +167,64 @@ impl Renderer {
             };
             last = Some((d.instance, m));
             resolved.push(Item {
-                src: Source::Mesh { positions: mesh.positions(), indices: mesh.indices(), clip_from_local: m },
+                src: Source::Mesh {
+                    positions: mesh.positions(),
+                    indices: mesh.indices(),
+                    clip_from_local: m,
+                    ids: None,
+                },
                 first_id: inst.first_triangle.wrapping_add(1),
+                source_triangles: n as u32,
+            });
+            self.ranges.push((k as u32, d.first, d.count));
+        }
+        let mut st = self.run(&resolved, fb, opts);
+        st.ms_total = ms_since(t0);
+        Ok(st)
+    }
+
+    /// Draws triangle ranges of arbitrary indexed geometry (e.g. meshlets: clusters with
+    /// their own vertex ranges), in order, into the depth and ID planes of `fb`, like
+    /// [`Renderer::draw`]. Source `k`'s triangle `t` (of its `indices`) writes the ID
+    /// `1 + first_triangle + triangle_ids[t]` (or `t` without a map).
+    pub fn draw_sources(
+        &mut self,
+        sources: &[DrawSource],
+        camera: &Camera,
+        fb: &mut Framebuffer,
+        opts: &RenderOptions,
+    ) -> Result<FrameStats> {
+        let t0 = Instant::now();
+        let mut resolved: Vec<Item> = Vec::with_capacity(sources.len());
+        self.ranges.clear();
+        let mut last: Option<(glam::Affine3A, glam::Mat4)> = None;
+        for (k, d) in sources.iter().enumerate() {
+            let n = (d.indices.len() / 3) as u64;
+            let bad = |why: String| Err(Error::InvalidDraw(format!("source {k}: {why}")));
+            if d.first as u64 + d.count as u64 > n {
+                return bad(format!("triangles {}..{} of {n}", d.first, d.first as u64 + d.count as u64));
+            }
+            if d.triangle_ids.is_some_and(|m| (m.len() as u64) < n) {
+                return bad("the triangle ID map is shorter than the index list".into());
+            }
+            let range = &d.indices[3 * d.first as usize..3 * (d.first + d.count) as usize];
+            if range.iter().any(|&i| i as usize >= d.positions.len()) {
+                return bad("an index is out of range".into());
+            }
+            // Consecutive clusters of one instance share the matrix.
+            let m = match last {
+                Some((w, m)) if crate::cull::same_matrix(&w, &d.world_from_local) => m,
+                _ => camera.clip_from_local(&d.world_from_local),
+            };
+            last = Some((d.world_from_local, m));
+            resolved.push(Item {
+                src: Source::Mesh {
+                    positions: d.positions,
+                    indices: d.indices,
+                    clip_from_local: m,
+                    ids: d.triangle_ids,
+                },
+                first_id: d.first_triangle.wrapping_add(1),
                 source_triangles: n as u32,
             });
             self.ranges.push((k as u32, d.first, d.count));
@@ -221,7 +281,8 @@ impl Renderer {
         // 3. Rasterization.
         let t = Instant::now();
         let chunks = &self.chunks[..n];
-        let ts = raster_tiles(&mut self.tiles, chunks, fb, opts.depth_format);
+        let fresh = std::mem::take(&mut self.fresh);
+        let ts = raster_tiles(&mut self.tiles, chunks, fb, opts.depth_format, fresh);
         store_tiles(&self.tiles, &grid, fb, opts.depth_format);
         st.ms_raster = ms_since(t);
 
@@ -257,7 +318,7 @@ impl Renderer {
     }
 }
 
-fn raster_tiles(tiles: &mut [TileBuf], chunks: &[Chunk], fb: &Framebuffer, fmt: DepthFormat) -> TileStats {
+fn raster_tiles(tiles: &mut [TileBuf], chunks: &[Chunk], fb: &Framebuffer, fmt: DepthFormat, fresh: bool) -> TileStats {
     let count = fb.depth_tests.is_some();
     let f = match (fmt, count) {
         (DepthFormat::F32, false) => raster_tile::<0, false>,
@@ -270,7 +331,7 @@ fn raster_tiles(tiles: &mut [TileBuf], chunks: &[Chunk], fb: &Framebuffer, fmt: 
     tiles
         .par_iter_mut()
         .enumerate()
-        .map(|(i, tile)| f(tile, i, chunks, fb, fmt))
+        .map(|(i, tile)| f(tile, i, chunks, fb, fmt, fresh))
         .reduce(TileStats::default, TileStats::sum)
 }
 
@@ -280,15 +341,22 @@ fn raster_tile<const F: u8, const C: bool>(
     chunks: &[Chunk],
     fb: &Framebuffer,
     fmt: DepthFormat,
+    fresh: bool,
 ) -> TileStats {
     let mut st = TileStats::default();
     tile.dirty = chunks.iter().any(|c| !c.bins[index].is_empty());
     if !tile.dirty {
         return st;
     }
-    // Load the tile's pixels (earlier batches may have drawn here).
+    // Start from the clear values right after a clear; otherwise load the tile's pixels
+    // (earlier batches may have drawn here).
     let width = fb.width() as usize;
-    for r in 0..tile.h as usize {
+    if fresh {
+        tile.depth.fill(fmt.key(1.0));
+        tile.ids.fill(0);
+        tile.counts.fill(0);
+    }
+    for r in (0..tile.h as usize).filter(|_| !fresh) {
         let src = (tile.y0 as usize + r) * width + tile.x0 as usize;
         let dst = r << TILE_SHIFT;
         let w = tile.w as usize;

@@ -159,6 +159,15 @@ fn depth_at(t: &Tri, zrow: f32, px: i32) -> f32 {
     zrow + t.zx * (((px << SUBPIXEL_BITS) + ONE / 2 - t.x[0]) as f32)
 }
 
+/// The depth test: a fragment wins when it is nearer (LESS), or exactly as near and of a
+/// smaller triangle ID. Drawing in ID order with a plain LESS test keeps the first (smallest
+/// ID) of equal depths, so this gives the same image for ANY draw order: what lets culled,
+/// front-to-back and clustered frames equal the brute-force frame pixel for pixel.
+#[inline(always)]
+pub(crate) fn wins(key: u32, id: u32, stored_key: u32, stored_id: u32) -> bool {
+    key < stored_key || (key == stored_key && id < stored_id)
+}
+
 #[inline(always)]
 fn fragment<const FMT: u8, const COUNT: bool>(tile: &mut TileBuf, idx: usize, z: f32, id: u32, r: &mut TriRaster) {
     let k = key::<FMT>(z);
@@ -166,7 +175,9 @@ fn fragment<const FMT: u8, const COUNT: bool>(tile: &mut TileBuf, idx: usize, z:
     if COUNT {
         tile.counts[idx] += 1;
     }
-    if k < tile.depth[idx] {
+    // LESS, with exact ties going to the smaller ID: what in-order drawing gives, but
+    // independent of draw order, so culled and reordered frames equal brute force.
+    if wins(k, id, tile.depth[idx], tile.ids[idx]) {
         tile.depth[idx] = k;
         tile.ids[idx] = id;
         r.written += 1;
@@ -205,7 +216,7 @@ fn row_scalar<const FMT: u8, const COUNT: bool>(
         let z = r.zrow + r.zx * (r.dx0 + (k << SUBPIXEL_BITS)) as f32;
         let key = key::<FMT>(z);
         let i = k as usize;
-        let pass = inside & (key < depth[i]);
+        let pass = inside & wins(key, r.id, depth[i], ids[i]);
         if pass {
             depth[i] = key;
             ids[i] = r.id;
@@ -272,10 +283,12 @@ fn row_sse2<const FMT: u8, const COUNT: bool>(
             let dp = dq.as_mut_ptr() as *mut __m128i;
             let ip = iq.as_mut_ptr() as *mut __m128i;
             let d = _mm_loadu_si128(dp);
-            // Keys are below 2^31, so the signed compare orders them.
-            let pass = _mm_and_si128(inside, _mm_cmplt_epi32(key, d));
-            _mm_storeu_si128(dp, _mm_or_si128(_mm_and_si128(pass, key), _mm_andnot_si128(pass, d)));
             let old = _mm_loadu_si128(ip);
+            // Keys and IDs are below 2^31, so signed compares order them. Ties in depth go to
+            // the smaller ID (see `wins`).
+            let tie = _mm_and_si128(_mm_cmpeq_epi32(key, d), _mm_cmplt_epi32(id, old));
+            let pass = _mm_and_si128(inside, _mm_or_si128(_mm_cmplt_epi32(key, d), tie));
+            _mm_storeu_si128(dp, _mm_or_si128(_mm_and_si128(pass, key), _mm_andnot_si128(pass, d)));
             _mm_storeu_si128(ip, _mm_or_si128(_mm_and_si128(pass, id), _mm_andnot_si128(pass, old)));
             if COUNT {
                 let cp = cq.as_mut_ptr() as *mut __m128i;

@@ -1,0 +1,452 @@
+//! The culling frame loop: draw only what can be seen, and prove nothing visible was lost.
+//!
+//! One [`Culler`] per scene, one call per frame, the method chosen per call:
+//!
+//! * [`Method::Brute`]: every triangle through the pipeline (the reference).
+//! * [`Method::Frustum`]: the (instance, cluster) BVH of `sightline_spatial::ClusteredScene`
+//!   culled against the view frustum; the surviving clusters are drawn.
+//! * [`Method::Hzb`]: frustum culling plus occlusion culling with Greene's z-pyramid
+//!   ([`pyramid`]): the BVH is walked front to back in batches; before anything (node or
+//!   cluster) is drawn, its box is projected to a screen rectangle and nearest depth and tested
+//!   against the pyramid of what is already drawn; a batch is drawn, the pyramid refreshed over
+//!   the drawn rectangles, and the walk resumes. Batches start small (the nearest occluders go
+//!   in first) and double.
+//! * [`Method::OctreeHzb`]: Greene's original: a loose octree over the same clusters, walked
+//!   front to back, skipping a whole octant when its loose cube is occluded.
+//!
+//! Exactness. A box is skipped only when its nearest possible window depth is farther than
+//! the farthest depth stored over every pixel it can touch, so none of its fragments could
+//! pass the depth test; boxes crossing the near plane are always drawn. Draw order does not
+//! change the image either: the depth test breaks exact-depth ties by the smaller triangle
+//! ID, which is what in-order drawing with a LESS test gives. So every method's ID buffer
+//! equals the brute-force one; [`compare_ids`] checks it, and the tests run it on many
+//! cameras.
+
+pub mod meshlets;
+pub mod pyramid;
+mod verify;
+
+use std::cell::RefCell;
+use std::time::Instant;
+
+use glam::Affine3A;
+use serde::Serialize;
+use sightline_scene::{Aabb, Camera, Instance, Scene};
+use sightline_spatial::{BoxProjector, ClusteredScene, CullOptions, Frustum, LooseOctree, ScreenRect, Visible, Visit};
+
+pub use meshlets::{Meshlets, SceneMeshlets};
+pub use pyramid::{DepthPyramid, Rect};
+pub use verify::{compare_ids, Mismatch};
+
+use crate::shading::ShadingMode;
+use crate::stats::ms_since;
+use crate::{draw_all, DrawSource, FrameStats, Framebuffer, RenderOptions, Renderer, Result};
+
+/// How a frame decides what to draw.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum Method {
+    /// Every triangle.
+    Brute,
+    /// View-frustum culling of instances and clusters.
+    Frustum,
+    /// Frustum culling, then front-to-back occlusion culling against a z-pyramid.
+    Hzb,
+    /// Greene's octree walk with z-pyramid tests on octants.
+    OctreeHzb,
+}
+
+impl Method {
+    /// All methods, in the order reports list them.
+    pub const ALL: [Method; 4] = [Method::Brute, Method::Frustum, Method::Hzb, Method::OctreeHzb];
+
+    /// The name used on the command line and in reports.
+    pub fn name(self) -> &'static str {
+        match self {
+            Method::Brute => "brute",
+            Method::Frustum => "frustum",
+            Method::Hzb => "hzb",
+            Method::OctreeHzb => "octree-hzb",
+        }
+    }
+}
+
+/// What one culled frame did and cost.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Serialize)]
+pub struct CullStats {
+    /// Clusters in the scene (the units culled).
+    pub clusters: u64,
+    /// Clusters whose boxes intersect the view frustum.
+    pub clusters_in_frustum: u64,
+    /// Clusters culled by the frustum.
+    pub culled_by_frustum: u64,
+    /// Clusters in the frustum but skipped as occluded (themselves or an ancestor node).
+    pub culled_by_occlusion: u64,
+    /// Boxes (BVH nodes, octants, clusters) tested against the z-pyramid.
+    pub occlusion_tests: u64,
+    /// Boxes found occluded.
+    pub occluded_boxes: u64,
+    /// Clusters drawn.
+    pub clusters_drawn: u64,
+    /// Triangles sent to the rasterizer.
+    pub triangles_drawn: u64,
+    /// Draw batches.
+    pub batches: u64,
+    /// Milliseconds in traversal and occlusion tests.
+    pub ms_cull: f64,
+    /// Milliseconds drawing.
+    pub ms_draw: f64,
+    /// Milliseconds refreshing the pyramid.
+    pub ms_pyramid: f64,
+    /// Milliseconds shading.
+    pub ms_shading: f64,
+    /// Milliseconds for the whole frame.
+    pub ms_total: f64,
+}
+
+/// Per-scene culling state: clusters, their BVH and octree, meshlets, the z-pyramid and a
+/// renderer, all reused frame after frame.
+#[derive(Debug)]
+pub struct Culler {
+    instances: Vec<Instance>,
+    clustered: ClusteredScene,
+    meshlets: SceneMeshlets,
+    item_boxes: Vec<Aabb>,
+    /// `None` only while a walk borrows it.
+    octree: Option<LooseOctree>,
+    pyramid: DepthPyramid,
+    renderer: Renderer,
+    visible: Vec<Visible>,
+    /// First batch size of the front-to-back walk.
+    pub first_batch: usize,
+    /// Largest batch size.
+    pub max_batch: usize,
+}
+
+/// Octree depth for the `octree-hzb` walk.
+const OCTREE_DEPTH: u32 = 6;
+
+impl Culler {
+    /// Builds clusters, meshlets, BVH and octree for the scene's instances (world transforms
+    /// must be up to date).
+    pub fn new(scene: &Scene) -> Self {
+        let instances = scene.instances();
+        let clustered = ClusteredScene::from_instances(scene, &instances);
+        let meshlets = SceneMeshlets::build(scene, &instances, &clustered);
+        let item_boxes = clustered.item_boxes(&instances);
+        let octree = LooseOctree::from_boxes(&item_boxes, OCTREE_DEPTH);
+        Self {
+            instances,
+            clustered,
+            meshlets,
+            item_boxes,
+            octree: Some(octree),
+            pyramid: DepthPyramid::default(),
+            renderer: Renderer::new(),
+            visible: Vec::new(),
+            first_batch: 32,
+            max_batch: 2048,
+        }
+    }
+
+    /// The instances the culler was built for.
+    pub fn instances(&self) -> &[Instance] {
+        &self.instances
+    }
+
+    /// The clusters and their BVH.
+    pub fn clustered(&self) -> &ClusteredScene {
+        &self.clustered
+    }
+
+    /// Heap bytes of the culling structures (clusters, BVH, meshlets, octree, pyramid).
+    pub fn memory_bytes(&self) -> usize {
+        self.clustered.memory_bytes()
+            + self.meshlets.memory_bytes()
+            + self.item_boxes.capacity() * std::mem::size_of::<Aabb>()
+            + self.octree.as_ref().map_or(0, LooseOctree::memory_bytes)
+            + self.pyramid.memory_bytes()
+    }
+
+    /// Renders one frame with `method` into `fb` (cleared first; shaded as `opts` says;
+    /// antialiasing and wireframe are the plain renderer's business and ignored here).
+    pub fn render(
+        &mut self,
+        scene: &Scene,
+        camera: &Camera,
+        method: Method,
+        fb: &mut Framebuffer,
+        opts: &RenderOptions,
+    ) -> Result<(CullStats, FrameStats)> {
+        let t0 = Instant::now();
+        let mut cs = CullStats { clusters: self.clustered.item_count() as u64, ..Default::default() };
+        let mut opts = *opts;
+        opts.antialias = crate::Antialias::Off;
+        opts.wireframe = crate::Wireframe::Off;
+        if method == Method::Brute {
+            let items = draw_all(&self.instances);
+            let fs = self.renderer.render(scene, &self.instances, &items, camera, fb, &opts)?;
+            cs.triangles_drawn = fs.triangles_in;
+            cs.clusters_in_frustum = cs.clusters;
+            cs.clusters_drawn = cs.clusters;
+            cs.ms_draw = fs.ms_total - fs.ms_shading;
+            cs.ms_shading = fs.ms_shading;
+            cs.ms_total = ms_since(t0);
+            return Ok((cs, fs));
+        }
+        fb.clear(opts.background);
+        let frustum = Frustum::from_camera(camera);
+        let t = Instant::now();
+        self.visible.clear();
+        self.clustered.cull_with(&frustum, CullOptions::default(), &mut self.visible);
+        cs.clusters_in_frustum = self.visible.len() as u64;
+        cs.culled_by_frustum = cs.clusters - cs.clusters_in_frustum;
+        cs.ms_cull = ms_since(t);
+        let mut fs = FrameStats::default();
+        match method {
+            Method::Brute => unreachable!("handled above"),
+            Method::Frustum => {
+                let t = Instant::now();
+                let visible = std::mem::take(&mut self.visible);
+                fs = self.draw_items(visible.iter().map(|v| v.index), scene, camera, fb, &opts, &mut cs)?;
+                self.visible = visible;
+                cs.ms_draw = ms_since(t);
+                cs.batches = 1;
+            }
+            Method::Hzb => self.hzb_bvh(scene, camera, &frustum, fb, &opts, &mut cs, &mut fs)?,
+            Method::OctreeHzb => self.hzb_octree(scene, camera, &frustum, fb, &opts, &mut cs, &mut fs)?,
+        }
+        cs.culled_by_occlusion = cs.clusters_in_frustum.saturating_sub(cs.clusters_drawn);
+        if opts.shading.mode != ShadingMode::None {
+            let t = Instant::now();
+            crate::shade_pass(scene, &self.instances, camera, fb, &opts.shading);
+            cs.ms_shading = ms_since(t);
+            fs.ms_shading = cs.ms_shading;
+        }
+        fs.covered_pixels = fb.ids.iter().filter(|&&i| i != 0).count() as u64;
+        fs.update_overdraw();
+        cs.ms_total = ms_since(t0);
+        fs.ms_total = cs.ms_total;
+        Ok((cs, fs))
+    }
+
+    /// Draws the given items (cluster indices) in order.
+    fn draw_items(
+        &mut self,
+        items: impl Iterator<Item = u32>,
+        scene: &Scene,
+        camera: &Camera,
+        fb: &mut Framebuffer,
+        opts: &RenderOptions,
+        cs: &mut CullStats,
+    ) -> Result<FrameStats> {
+        let _ = scene;
+        let mut sources: Vec<DrawSource> = Vec::new();
+        for i in items {
+            let it = self.clustered.item(i);
+            let inst = &self.instances[it.instance as usize];
+            let ml = self.meshlets.of_instance(it.instance);
+            let Some(&(first, count)) = ml.clusters.get(it.cluster as usize) else { continue };
+            sources.push(DrawSource {
+                positions: &ml.positions,
+                indices: &ml.indices,
+                triangle_ids: Some(&ml.triangle_ids),
+                world_from_local: inst.world_from_local,
+                first_triangle: inst.first_triangle,
+                first,
+                count,
+            });
+            cs.clusters_drawn += 1;
+            cs.triangles_drawn += count as u64;
+        }
+        self.renderer.draw_sources(&sources, camera, fb, opts)
+    }
+
+    /// Refreshes the pyramid over the screen rectangles of the drawn items.
+    fn refresh_pyramid(&mut self, drawn: &[Visible], projector: &BoxProjector, depth: &[f32]) {
+        let mut full = false;
+        for v in drawn {
+            let r = projector.project(&self.item_boxes[v.index as usize]);
+            if r.crosses_near {
+                full = true;
+                break;
+            }
+            if let Some(rect) = to_rect(&r) {
+                self.pyramid.update(depth, rect);
+            }
+        }
+        if full {
+            self.pyramid.build(depth);
+        }
+    }
+
+    #[allow(clippy::too_many_arguments)] // the frame's whole context, split for borrowing
+    fn hzb_bvh(
+        &mut self,
+        scene: &Scene,
+        camera: &Camera,
+        frustum: &Frustum,
+        fb: &mut Framebuffer,
+        opts: &RenderOptions,
+        cs: &mut CullStats,
+        fs: &mut FrameStats,
+    ) -> Result<()> {
+        let (w, h) = (fb.width(), fb.height());
+        self.reset_pyramid(w, h);
+        let projector = BoxProjector::new(camera.clip_from_world(), w, h);
+        let mut cursor = self.clustered.cursor(Some(frustum), camera.view.eye);
+        let mut batch = self.first_batch.max(1);
+        let mut out: Vec<Visible> = Vec::new();
+        loop {
+            let t = Instant::now();
+            out.clear();
+            let pyramid = &self.pyramid;
+            let depth = &fb.depth;
+            let more = cursor.next_batch(
+                self.clustered.bvh(),
+                |b| {
+                    cs.occlusion_tests += 1;
+                    let vis = possibly_visible(pyramid, depth, &projector.project(b));
+                    cs.occluded_boxes += !vis as u64;
+                    vis
+                },
+                batch,
+                &mut out,
+            );
+            cs.ms_cull += ms_since(t);
+            if !out.is_empty() {
+                let t = Instant::now();
+                let st = self.draw_items(out.iter().map(|v| v.index), scene, camera, fb, opts, cs)?;
+                fs.add(&st);
+                cs.ms_draw += ms_since(t);
+                cs.batches += 1;
+                let t = Instant::now();
+                self.refresh_pyramid(&out, &projector, &fb.depth);
+                cs.ms_pyramid += ms_since(t);
+            }
+            if !more {
+                return Ok(());
+            }
+            batch = (batch * 2).min(self.max_batch.max(1));
+        }
+    }
+
+    #[allow(clippy::too_many_arguments)] // the frame's whole context, split for borrowing
+    fn hzb_octree(
+        &mut self,
+        scene: &Scene,
+        camera: &Camera,
+        frustum: &Frustum,
+        fb: &mut Framebuffer,
+        opts: &RenderOptions,
+        cs: &mut CullStats,
+        fs: &mut FrameStats,
+    ) -> Result<()> {
+        let (w, h) = (fb.width(), fb.height());
+        self.reset_pyramid(w, h);
+        let projector = BoxProjector::new(camera.clip_from_world(), w, h);
+        let Some(octree) = self.octree.take() else { return Ok(()) };
+        // The walk's two callbacks both need the framebuffer (one reads depth, the other
+        // draws): they never run at the same time, so a RefCell shares it.
+        let batch = self.first_batch.max(1);
+        let walk = RefCell::new(OctreeWalk { culler: self, fb, pending: Vec::new(), batch, cs, fs, err: None });
+        let t = Instant::now();
+        octree.traverse_front_to_back(
+            Some(frustum),
+            camera.view.eye,
+            |b| {
+                let mut g = walk.borrow_mut();
+                let w = &mut *g;
+                w.cs.occlusion_tests += 1;
+                let vis = possibly_visible(&w.culler.pyramid, &w.fb.depth, &projector.project(b));
+                w.cs.occluded_boxes += !vis as u64;
+                if vis {
+                    Visit::Continue
+                } else {
+                    Visit::Skip
+                }
+            },
+            |v| {
+                let mut g = walk.borrow_mut();
+                g.pending.push(v);
+                if g.pending.len() >= g.batch {
+                    g.flush(scene, camera, opts, &projector);
+                }
+                Visit::Continue
+            },
+        );
+        let mut w = walk.into_inner();
+        w.flush(scene, camera, opts, &projector);
+        w.culler.octree = Some(octree);
+        // Traversal time excludes the drawing done inside it.
+        w.cs.ms_cull += (ms_since(t) - w.cs.ms_draw - w.cs.ms_pyramid).max(0.0);
+        match w.err {
+            Some(e) => Err(e),
+            None => Ok(()),
+        }
+    }
+
+    fn reset_pyramid(&mut self, w: u32, h: u32) {
+        if self.pyramid.width() != w || self.pyramid.height() != h {
+            self.pyramid = DepthPyramid::new(w, h);
+        } else {
+            self.pyramid.clear();
+        }
+    }
+}
+
+/// State of the octree walk shared by its callbacks.
+struct OctreeWalk<'a> {
+    culler: &'a mut Culler,
+    fb: &'a mut Framebuffer,
+    pending: Vec<Visible>,
+    batch: usize,
+    cs: &'a mut CullStats,
+    fs: &'a mut FrameStats,
+    err: Option<crate::Error>,
+}
+
+impl OctreeWalk<'_> {
+    /// Draws the pending clusters and refreshes the pyramid over them.
+    fn flush(&mut self, scene: &Scene, camera: &Camera, opts: &RenderOptions, projector: &BoxProjector) {
+        if self.pending.is_empty() || self.err.is_some() {
+            return;
+        }
+        let t = Instant::now();
+        let items = std::mem::take(&mut self.pending);
+        match self.culler.draw_items(items.iter().map(|v| v.index), scene, camera, self.fb, opts, self.cs) {
+            Ok(st) => self.fs.add(&st),
+            Err(e) => self.err = Some(e),
+        }
+        self.cs.ms_draw += ms_since(t);
+        self.cs.batches += 1;
+        let t = Instant::now();
+        self.culler.refresh_pyramid(&items, projector, &self.fb.depth);
+        self.cs.ms_pyramid += ms_since(t);
+        self.batch = (self.batch * 2).min(self.culler.max_batch.max(1));
+        self.pending = items;
+        self.pending.clear();
+    }
+}
+
+/// The pyramid test of one projected box: false only when it is certainly occluded.
+#[inline]
+fn possibly_visible(pyramid: &DepthPyramid, depth: &[f32], r: &ScreenRect) -> bool {
+    if r.crosses_near {
+        return true;
+    }
+    match to_rect(r) {
+        None => false, // off screen: nothing to draw
+        Some(rect) => !pyramid.is_occluded(depth, rect, r.depth),
+    }
+}
+
+fn to_rect(r: &ScreenRect) -> Option<Rect> {
+    (!r.is_empty()).then(|| Rect { x0: r.x0, y0: r.y0, x1: r.x1 - 1, y1: r.y1 - 1 })
+}
+
+/// `world_from_local` equality used to reuse a clip matrix between consecutive sources.
+#[inline]
+pub(crate) fn same_matrix(a: &Affine3A, b: &Affine3A) -> bool {
+    a.matrix3 == b.matrix3 && a.translation == b.translation
+}

@@ -1,0 +1,306 @@
+//! `sightline walk`: render a camera path with one or all visibility methods, verify against
+//! brute force, summarize per method (median / p95 ms, triangles drawn, culled shares).
+
+use std::io::Write;
+use std::path::PathBuf;
+use std::time::Instant;
+
+use anyhow::{bail, Context, Result};
+use serde::Serialize;
+use sightline::render::{
+    compare_ids, output, CullStats, Culler, FrameStats, Framebuffer, Method, RayCaster, RaycastOptions, RenderOptions,
+};
+
+use super::common::{self, Look, OnOff, Size};
+
+/// Methods `walk` can run.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+pub enum WalkMethod {
+    /// Every triangle through the pipeline
+    Brute,
+    /// View-frustum culling of instances and clusters (BVH)
+    Frustum,
+    /// Frustum culling plus front-to-back occlusion culling with a z-pyramid
+    Hzb,
+    /// Greene's octree walk with z-pyramid tests on octants
+    OctreeHzb,
+    /// Ray casting through the two-level BVH
+    Raycast,
+    /// All of the above, interleaved frame by frame
+    All,
+}
+
+#[derive(Debug, clap::Args)]
+pub struct WalkArgs {
+    #[command(flatten)]
+    pub scene: super::SceneArg,
+    /// Camera path JSON (default: the scene's street path)
+    #[arg(long, value_name = "FILE")]
+    pub path: Option<PathBuf>,
+    /// Frames to render (default: the whole path; 120 for the built-in path)
+    #[arg(long)]
+    pub frames: Option<usize>,
+    /// Visibility method
+    #[arg(long, value_enum, default_value = "hzb")]
+    pub method: WalkMethod,
+    /// Also render every frame with brute force and compare triangle IDs; a mismatch fails the run
+    #[arg(long)]
+    pub verify: bool,
+    /// Image size
+    #[arg(long, default_value = "1280x720")]
+    pub size: Size,
+    /// Drop triangles facing away from the camera
+    #[arg(long, value_enum, default_value = "on")]
+    pub backface_culling: OnOff,
+    /// Worker threads (default: all cores)
+    #[arg(long)]
+    pub threads: Option<usize>,
+    /// Directory for per-frame counters (CSV, JSON) and PNG frames
+    #[arg(long, value_name = "DIR")]
+    pub out: Option<PathBuf>,
+    /// Write every k-th frame as PNG into --out (0: none)
+    #[arg(long, default_value_t = 0)]
+    pub png_every: usize,
+    /// Summary as JSON
+    #[arg(long, value_name = "FILE")]
+    pub json: Option<PathBuf>,
+    #[command(flatten)]
+    pub look: Look,
+}
+
+/// One rendered frame of one method.
+#[derive(Debug, Clone, Serialize)]
+pub struct FrameRecord {
+    pub frame: usize,
+    pub method: &'static str,
+    pub ms: f64,
+    pub triangles_drawn: u64,
+    pub cull: CullStats,
+    pub raster: FrameStats,
+    pub verified: Option<bool>,
+}
+
+/// One method's summary: what scripts read.
+#[derive(Debug, Clone, Serialize)]
+pub struct MethodSummary {
+    pub method: &'static str,
+    pub frames: usize,
+    pub median_ms: f64,
+    pub p95_ms: f64,
+    pub mean_ms: f64,
+    pub triangles_drawn_median: u64,
+    pub culled_by_frustum_share: f64,
+    pub culled_by_occlusion_share: f64,
+    pub verified_frames: usize,
+    pub mismatched_frames: usize,
+}
+
+fn methods(m: WalkMethod) -> Vec<(&'static str, Option<Method>)> {
+    let one = |x: Method| (x.name(), Some(x));
+    match m {
+        WalkMethod::Brute => vec![one(Method::Brute)],
+        WalkMethod::Frustum => vec![one(Method::Frustum)],
+        WalkMethod::Hzb => vec![one(Method::Hzb)],
+        WalkMethod::OctreeHzb => vec![one(Method::OctreeHzb)],
+        WalkMethod::Raycast => vec![("raycast", None)],
+        WalkMethod::All => {
+            let mut v: Vec<_> = Method::ALL.iter().map(|&x| one(x)).collect();
+            v.push(("raycast", None));
+            v
+        }
+    }
+}
+
+pub fn run(a: &WalkArgs) -> Result<()> {
+    let loaded = super::load_scene(&a.scene.scene)?;
+    let keys = common::path_keys(&loaded, a.path.as_deref(), a.frames)?;
+    let opts = a.look.options(a.backface_culling);
+    let records = common::with_threads(a.threads, || walk(&loaded, &keys, a, &opts))??;
+    let summaries = summarize(&records, a);
+    print_table(&summaries);
+    if let Some(dir) = &a.out {
+        write_frames(dir, &records)?;
+    }
+    if let Some(p) = &a.json {
+        let v = serde_json::json!({ "scene": format!("{:?}", a.scene.scene), "size": [a.size.width, a.size.height], "methods": summaries });
+        std::fs::write(p, serde_json::to_string_pretty(&v)?).with_context(|| format!("writing {}", p.display()))?;
+    }
+    let bad: usize = summaries.iter().map(|s| s.mismatched_frames).sum();
+    if bad > 0 {
+        bail!("{bad} frames differ from brute force");
+    }
+    Ok(())
+}
+
+fn walk(
+    loaded: &sightline::LoadedScene,
+    keys: &[sightline::scene::path::CameraKey],
+    a: &WalkArgs,
+    opts: &RenderOptions,
+) -> Result<Vec<FrameRecord>> {
+    let scene = &loaded.scene;
+    let list = methods(a.method);
+    let needs_raster = list.iter().any(|m| m.1.is_some()) || a.verify;
+    let mut culler = needs_raster.then(|| Culler::new(scene));
+    let caster = if list.iter().any(|m| m.1.is_none()) { Some(RayCaster::build(scene)?) } else { None };
+    let mut fb = Framebuffer::new(a.size.width, a.size.height)?;
+    let mut reference = Framebuffer::new(a.size.width, a.size.height)?;
+    let bar = indicatif::ProgressBar::new((keys.len() * list.len()) as u64).with_style(
+        indicatif::ProgressStyle::with_template("{bar:40} {pos}/{len} frames·methods {msg} [{elapsed} < {eta}]")
+            .unwrap_or_else(|_| indicatif::ProgressStyle::default_bar()),
+    );
+    let mut out = Vec::new();
+    let mut rc_opts = RaycastOptions::from_render(opts);
+    rc_opts.shadows = false;
+    for (f, key) in keys.iter().enumerate() {
+        let cam = key.camera(a.size.aspect()).with_context(|| format!("frame {f} of the path"))?;
+        let mut have_reference = false;
+        if a.verify {
+            // The reference is rendered apart from the timed frames.
+            culler.as_mut().unwrap().render(scene, &cam, Method::Brute, &mut reference, opts)?;
+            have_reference = true;
+        }
+        for (name, method) in &list {
+            let t = Instant::now();
+            let (cs, rs) = match method {
+                Some(m) => culler.as_mut().unwrap().render(scene, &cam, *m, &mut fb, opts)?,
+                None => {
+                    let st = caster.as_ref().unwrap().render(&cam, &rc_opts, &mut fb)?;
+                    let cs = CullStats { ms_total: st.ms_total, ..Default::default() };
+                    (cs, FrameStats::default())
+                }
+            };
+            let ms = t.elapsed().as_secs_f64() * 1e3;
+            let verified = have_reference.then(|| compare_ids(&reference.ids, &fb.ids, fb.width()));
+            if let Some(Some(m)) = &verified {
+                bar.println(format!(
+                    "frame {f}, {name}: {} pixels differ from brute force, first at {:?} (expected ID {}, got {})",
+                    m.pixels, m.first, m.ids.0, m.ids.1
+                ));
+            }
+            if let (Some(dir), true) = (&a.out, a.png_every > 0 && f % a.png_every == 0) {
+                std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
+                output::write_color_png(&fb, &dir.join(format!("{name}_{f:04}.png")))?;
+            }
+            out.push(FrameRecord {
+                frame: f,
+                method: name,
+                ms,
+                triangles_drawn: cs.triangles_drawn,
+                cull: cs,
+                raster: rs,
+                verified: verified.map(|m| m.is_none()),
+            });
+            bar.inc(1);
+        }
+        bar.set_message(format!("frame {f}"));
+    }
+    bar.finish_and_clear();
+    Ok(out)
+}
+
+fn percentile(sorted: &[f64], p: f64) -> f64 {
+    if sorted.is_empty() {
+        return 0.0;
+    }
+    let i = ((sorted.len() - 1) as f64 * p).round() as usize;
+    sorted[i]
+}
+
+fn summarize(records: &[FrameRecord], a: &WalkArgs) -> Vec<MethodSummary> {
+    methods(a.method)
+        .iter()
+        .map(|(name, _)| {
+            let rs: Vec<&FrameRecord> = records.iter().filter(|r| r.method == *name).collect();
+            let mut ms: Vec<f64> = rs.iter().map(|r| r.ms).collect();
+            ms.sort_by(f64::total_cmp);
+            let mut tris: Vec<u64> = rs.iter().map(|r| r.triangles_drawn).collect();
+            tris.sort_unstable();
+            let share = |f: &dyn Fn(&CullStats) -> u64| {
+                let total: u64 = rs.iter().map(|r| r.cull.clusters).sum();
+                if total == 0 {
+                    0.0
+                } else {
+                    rs.iter().map(|r| f(&r.cull)).sum::<u64>() as f64 / total as f64
+                }
+            };
+            MethodSummary {
+                method: name,
+                frames: rs.len(),
+                median_ms: percentile(&ms, 0.5),
+                p95_ms: percentile(&ms, 0.95),
+                mean_ms: ms.iter().sum::<f64>() / ms.len().max(1) as f64,
+                triangles_drawn_median: tris.get(tris.len() / 2).copied().unwrap_or(0),
+                culled_by_frustum_share: share(&|c| c.culled_by_frustum),
+                culled_by_occlusion_share: share(&|c| c.culled_by_occlusion),
+                verified_frames: rs.iter().filter(|r| r.verified.is_some()).count(),
+                mismatched_frames: rs.iter().filter(|r| r.verified == Some(false)).count(),
+            }
+        })
+        .collect()
+}
+
+fn print_table(s: &[MethodSummary]) {
+    let brute = s.iter().find(|m| m.method == "brute").map(|m| m.median_ms);
+    println!(
+        "{:<11} {:>6} {:>10} {:>10} {:>9} {:>14} {:>9} {:>9} {:>9}",
+        "method", "frames", "median ms", "p95 ms", "vs brute", "tris drawn", "frustum%", "occl%", "verified"
+    );
+    for m in s {
+        let ratio = brute.map_or("-".into(), |b| format!("{:.1}x", b / m.median_ms.max(1e-9)));
+        let ver = if m.verified_frames == 0 {
+            "-".to_string()
+        } else {
+            format!("{}/{}", m.verified_frames - m.mismatched_frames, m.verified_frames)
+        };
+        println!(
+            "{:<11} {:>6} {:>10.2} {:>10.2} {:>9} {:>14} {:>8.1}% {:>8.1}% {:>9}",
+            m.method,
+            m.frames,
+            m.median_ms,
+            m.p95_ms,
+            ratio,
+            m.triangles_drawn_median,
+            100.0 * m.culled_by_frustum_share,
+            100.0 * m.culled_by_occlusion_share,
+            ver
+        );
+    }
+}
+
+fn write_frames(dir: &std::path::Path, records: &[FrameRecord]) -> Result<()> {
+    std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
+    let csv = dir.join("frames.csv");
+    let mut f =
+        std::io::BufWriter::new(std::fs::File::create(&csv).with_context(|| format!("creating {}", csv.display()))?);
+    writeln!(
+        f,
+        "frame,method,ms,triangles_drawn,clusters_in_frustum,clusters_drawn,culled_by_frustum,culled_by_occlusion,occlusion_tests,batches,ms_cull,ms_draw,ms_pyramid,ms_shading,fragments_written,verified"
+    )?;
+    for r in records {
+        let c = &r.cull;
+        writeln!(
+            f,
+            "{},{},{:.3},{},{},{},{},{},{},{},{:.3},{:.3},{:.3},{:.3},{},{}",
+            r.frame,
+            r.method,
+            r.ms,
+            r.triangles_drawn,
+            c.clusters_in_frustum,
+            c.clusters_drawn,
+            c.culled_by_frustum,
+            c.culled_by_occlusion,
+            c.occlusion_tests,
+            c.batches,
+            c.ms_cull,
+            c.ms_draw,
+            c.ms_pyramid,
+            c.ms_shading,
+            r.raster.fragments_written,
+            r.verified.map_or("".into(), |v| v.to_string())
+        )?;
+    }
+    let json = dir.join("frames.json");
+    std::fs::write(&json, serde_json::to_string(records)?).with_context(|| format!("writing {}", json.display()))?;
+    Ok(())
+}

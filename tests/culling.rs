@@ -1,0 +1,98 @@
+//! Culling is exactly conservative: with every culling method the triangle-ID buffer equals
+//! the brute-force one, on many cameras, for the instanced city, for the same city loaded
+//! back as one big OBJ mesh, and for a glTF scene.
+
+use sightline::render::{compare_ids, Culler, Framebuffer, Method, RenderOptions};
+use sightline::scene::builders::{city, CityParams};
+use sightline::scene::path::CameraKey;
+use sightline::scene::Scene;
+
+const W: u32 = 320;
+const H: u32 = 180;
+
+/// Renders every camera with every method and checks the IDs against brute force.
+/// Returns per-method triangles drawn, summed over the street cameras.
+fn check(scene: &Scene, keys: &[CameraKey], what: &str) -> [u64; 4] {
+    check_with(scene, keys, what, &RenderOptions::ids_only())
+}
+
+fn check_with(scene: &Scene, keys: &[CameraKey], what: &str, opts: &RenderOptions) -> [u64; 4] {
+    let mut culler = Culler::new(scene);
+    let opts = *opts;
+    let mut reference = Framebuffer::new(W, H).unwrap();
+    let mut fb = Framebuffer::new(W, H).unwrap();
+    let mut drawn = [0u64; 4];
+    let mut seeing = 0;
+    for (k, key) in keys.iter().enumerate() {
+        let cam = key.camera(W as f32 / H as f32).unwrap();
+        culler.render(scene, &cam, Method::Brute, &mut reference, &opts).unwrap();
+        seeing += reference.ids.iter().any(|&i| i != 0) as usize;
+        for (m, method) in Method::ALL.iter().enumerate() {
+            let (cs, _) = culler.render(scene, &cam, *method, &mut fb, &opts).unwrap();
+            drawn[m] += cs.triangles_drawn;
+            if let Some(mm) = compare_ids(&reference.ids, &fb.ids, W) {
+                panic!("{what}, camera {k}, {}: {mm:?}", method.name());
+            }
+        }
+    }
+    // A test on empty images would prove nothing.
+    assert!(seeing * 4 >= keys.len() * 3, "{what}: only {seeing} of {} cameras see anything", keys.len());
+    drawn
+}
+
+fn small_city() -> sightline::scene::builders::City {
+    city(&CityParams::for_triangles(200_000)).unwrap()
+}
+
+#[test]
+fn culled_city_equals_brute_force_on_street_and_aerial_cameras() {
+    let c = small_city();
+    let street = c.layout.street_path(16, 3);
+    let drawn = check(&c.scene, &street, "street");
+    // Occlusion culling pays off at street level.
+    assert!(drawn[2] * 2 < drawn[1], "hzb drew {} triangles, frustum {}", drawn[2], drawn[1]);
+    assert!(drawn[3] < drawn[1], "octree-hzb drew {} triangles, frustum {}", drawn[3], drawn[1]);
+    let aerial = c.layout.aerial_path(8);
+    check(&c.scene, &aerial, "aerial");
+}
+
+#[test]
+fn culled_city_from_one_obj_mesh_equals_brute_force() {
+    let c = small_city();
+    let dir = std::env::temp_dir().join(format!("sightline-culling-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let obj = dir.join("city.obj");
+    sightline::scene::export::export_obj(&c.scene, &obj).unwrap();
+    let flat = sightline::scene::load(&obj).unwrap();
+    assert_eq!(flat.stats().instances, 1);
+    let street = c.layout.street_path(12, 5);
+    let drawn = check(&flat, &street, "obj street");
+    // Clusters carry the culling when there is no instance structure.
+    assert!(drawn[2] * 2 < drawn[1], "hzb drew {} triangles, frustum {}", drawn[2], drawn[1]);
+    check(&flat, &c.layout.aerial_path(4), "obj aerial");
+    std::fs::remove_dir_all(&dir).ok();
+}
+
+#[test]
+fn culled_gltf_scene_equals_brute_force() {
+    let scene = sightline::scene::load(concat!(env!("CARGO_MANIFEST_DIR"), "/assets/nested.gltf")).unwrap();
+    let b = scene.world_aabb();
+    let c = b.center();
+    let r = b.extent().length();
+    let keys: Vec<CameraKey> = (0..8)
+        .map(|i| {
+            let a = i as f32 * std::f32::consts::TAU / 8.0;
+            CameraKey {
+                eye: [c.x + r * a.cos(), c.y + 0.3 * r, c.z + r * a.sin()],
+                target: c.into(),
+                up: [0.0, 1.0, 0.0],
+                fovy_deg: 50.0,
+                near: 0.01,
+                far: 10.0 * r,
+            }
+        })
+        .collect();
+    // Its triangles are one-sided: look at both sides, shaded, to cover that path too.
+    let opts = RenderOptions { backface_culling: false, ..Default::default() };
+    check_with(&scene, &keys, "gltf", &opts);
+}
