@@ -31,6 +31,7 @@ impl Grid {
 }
 
 /// Bins all triangles of a chunk (also assigns their multi-tile flags).
+#[inline(never)] // a stage of its own in profiles
 pub(crate) fn bin_chunk(chunk: &mut Chunk, grid: &Grid) {
     let n = grid.len();
     chunk.bins.resize_with(n, Vec::new);

@@ -85,7 +85,6 @@ struct InstEntry<'a> {
 }
 
 struct TriEntry<'a> {
-    id: u32,
     rows: [Vec3A; 3],
     w: [f32; 3],
     shader: TriangleShader<'a>,
@@ -105,7 +104,11 @@ pub fn shade_pass(scene: &Scene, instances: &[Instance], camera: &Camera, fb: &m
     let ids = &fb.ids;
     fb.color.par_chunks_mut(w * BAND_ROWS).enumerate().for_each(|(band, color)| {
         let mut insts: Vec<Option<InstEntry>> = (0..INST_CACHE).map(|_| None).collect();
-        let mut tris: Vec<Option<TriEntry>> = (0..TRI_CACHE).map(|_| None).collect();
+        // Direct-mapped triangle cache: a small slot per entry (flat triangles need nothing
+        // but their color), full interpolation data only for the others.
+        let mut slots = vec![Slot { id: 0, color: [0; 4], full: NO_FULL }; TRI_CACHE];
+        let mut fulls: Vec<TriEntry> = Vec::new();
+        let mut hint = 0u32;
         let y0 = band * BAND_ROWS;
         for (r, crow) in color.chunks_mut(w).enumerate() {
             let y = y0 + r;
@@ -119,16 +122,30 @@ pub fn shade_pass(scene: &Scene, instances: &[Instance], camera: &Camera, fb: &m
                     continue;
                 }
                 let slot = (id as usize).wrapping_mul(0x9E37_79B1) >> 20 & (TRI_CACHE - 1);
-                if !matches!(&tris[slot], Some(e) if e.id == id) {
-                    tris[slot] = prepare(id, &lookup, &mut insts, scene, camera, eye, &default, opts);
+                if slots[slot].id != id {
+                    slots[slot] = match prepare(id, &lookup, &mut insts, scene, camera, eye, &default, opts, &mut hint)
+                    {
+                        None => Slot { id, color: *c, full: NO_FULL },
+                        Some(Prepared::Constant(k)) => Slot { id, color: k, full: NO_FULL },
+                        Some(Prepared::Full(e)) => {
+                            // Reuse the entry this slot pointed at, else append.
+                            let old = slots[slot].full;
+                            let at = if (old as usize) < fulls.len() {
+                                fulls[old as usize] = e;
+                                old
+                            } else {
+                                fulls.push(e);
+                                fulls.len() as u32 - 1
+                            };
+                            Slot { id, color: [0; 4], full: at }
+                        }
+                    };
                 }
-                let Some(entry) = &tris[slot] else {
+                let sl = &slots[slot];
+                let Some(entry) = fulls.get(sl.full as usize) else {
+                    *c = sl.color;
                     continue;
                 };
-                if let Some(k) = entry.shader.constant() {
-                    *c = k;
-                    continue;
-                }
                 let p = Vec3A::new((x as f32 + 0.5) * sx - 1.0, ndc_y, 1.0);
                 let mut b = Vec3::new(entry.rows[0].dot(p), entry.rows[1].dot(p), entry.rows[2].dot(p));
                 if !opts.perspective_correct {
@@ -142,6 +159,21 @@ pub fn shade_pass(scene: &Scene, instances: &[Instance], camera: &Camera, fb: &m
     });
 }
 
+const NO_FULL: u32 = u32::MAX;
+
+/// A triangle cache slot: the ID it holds, its color when constant, else its full entry.
+#[derive(Clone, Copy)]
+struct Slot {
+    id: u32,
+    color: [u8; 4],
+    full: u32,
+}
+
+enum Prepared<'a> {
+    Constant([u8; 4]),
+    Full(TriEntry<'a>),
+}
+
 #[allow(clippy::too_many_arguments)]
 fn prepare<'a>(
     id: u32,
@@ -152,9 +184,18 @@ fn prepare<'a>(
     eye: Vec3,
     default: &'a Material,
     opts: &ShadeOptions,
-) -> Option<TriEntry<'a>> {
+    hint: &mut u32,
+) -> Option<Prepared<'a>> {
     let g = id - 1;
-    let index = lookup.find(g)?;
+    // Neighboring pixels mostly show the same instance: try the last one before searching.
+    let index = match lookup.instances.get(*hint as usize) {
+        Some(i) if g >= i.first_triangle && g - i.first_triangle < i.triangle_count => *hint,
+        _ => {
+            let i = lookup.find(g)?;
+            *hint = i;
+            i
+        }
+    };
     let inst = &lookup.instances[index as usize];
     let slot = index as usize & (INST_CACHE - 1);
     if !matches!(&insts[slot], Some(e) if e.index == index) {
@@ -172,20 +213,19 @@ fn prepare<'a>(
     if t >= e.mesh.triangle_count() {
         return None;
     }
-    let shader = TriangleShader::new(&e.shading, e.mesh, t, eye, opts);
-    if shader.constant().is_some() {
+    if let Some(k) = crate::shading::flat_color(&e.shading, e.mesh, t, eye, opts) {
         // No interpolation needed: skip the clip-space rows.
-        return Some(TriEntry { id, rows: [Vec3A::ZERO; 3], w: [0.0; 3], shader });
+        return Some(Prepared::Constant(k));
     }
+    let shader = TriangleShader::new(&e.shading, e.mesh, t, eye, opts);
     let h = e
         .mesh
         .triangle(t)
         .map(|i| e.clip * e.mesh.positions()[i as usize].extend(1.0))
         .map(|c| Vec3A::new(c.x, c.y, c.w));
-    Some(TriEntry {
-        id,
+    Some(Prepared::Full(TriEntry {
         rows: [h[1].cross(h[2]), h[2].cross(h[0]), h[0].cross(h[1])],
         w: [h[0].z, h[1].z, h[2].z],
         shader,
-    })
+    }))
 }

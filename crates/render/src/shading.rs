@@ -170,6 +170,26 @@ impl<'a> InstanceShading<'a> {
     }
 }
 
+/// The color of triangle `tri` when it is the same at every point (flat shading without
+/// texture or depth cueing), else `None`. Cheaper than a [`TriangleShader`]: the face
+/// normal is taken in local space and carried to world space by the normal matrix.
+pub fn flat_color(inst: &InstanceShading, mesh: &Mesh, tri: usize, eye: Vec3, opts: &ShadeOptions) -> Option<[u8; 4]> {
+    let textured = mesh.uvs().is_some() && inst.material.base_color_texture.is_some();
+    if opts.mode != ShadingMode::Flat || textured || opts.depth_cue.is_some() || tri >= mesh.triangle_count() {
+        return None;
+    }
+    let p = mesh.triangle_positions(tri).map(Vec3A::from);
+    let n_local = (p[1] - p[0]).cross(p[2] - p[0]);
+    let mut n = (inst.normal_from_local * n_local).normalize_or_zero();
+    // Facing: the sign of n·(eye − p0) in world space.
+    let p0 = inst.world_from_local.transform_point3a(p[0]);
+    if opts.two_sided && n.dot(Vec3A::from(eye) - p0) < 0.0 {
+        n = -n;
+    }
+    let b = base_color(inst.material, None, opts);
+    Some(to_rgba8((b.truncate() * lambert(n.into(), opts)).extend(b.w)))
+}
+
 /// Everything needed to shade points of one triangle from barycentric weights, prepared
 /// once per triangle.
 #[derive(Debug, Clone, Copy)]
@@ -201,11 +221,8 @@ impl<'a> TriangleShader<'a> {
         // Two-sided: turn the surface towards the viewer (decided once per triangle).
         let flip = opts.two_sided && face.dot(eye - centroid) < 0.0;
         let face = if flip { -face } else { face };
-        let textured = valid && mesh.uvs().is_some() && inst.material.base_color_texture.is_some();
-        if opts.mode == ShadingMode::Flat && !textured && opts.depth_cue.is_none() {
-            // The common case: one color for the whole triangle, nothing else needed.
-            let b = base_color(inst.material, None, opts);
-            let c = to_rgba8((b.truncate() * lambert(face.into(), opts)).extend(b.w));
+        if let Some(c) = flat_color(inst, mesh, tri, eye.into(), opts) {
+            // The common case: one color for the whole triangle (same as the rasterizer's).
             return Self {
                 material: inst.material,
                 world,
