@@ -169,6 +169,7 @@ struct Slot {
     full: u32,
 }
 
+#[allow(clippy::large_enum_variant)] // a short-lived return value; boxing would allocate
 enum Prepared<'a> {
     Constant([u8; 4]),
     Full(TriEntry<'a>),
