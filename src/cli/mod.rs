@@ -1,6 +1,8 @@
 //! Command-line parsing (clap) and dispatch. The commands and flags scripts rely on are
 //! listed in CLI.md of the shared design; keep their names.
 
+mod bench;
+mod chart;
 mod common;
 mod info;
 mod path;
@@ -65,6 +67,8 @@ enum Command {
     Render(Box<render::RenderArgs>),
     /// Render a camera path with a progress bar; per-method timing, culling counters, verification
     Walk(Box<walk::WalkArgs>),
+    /// Every method over a path, verified, as a Markdown table and charts
+    Bench(Box<bench::BenchArgs>),
 }
 
 /// Runs one command.
@@ -75,6 +79,7 @@ pub fn run(cli: Cli) -> Result<()> {
         Command::Path { scene, kind, frames, out } => path::run(&scene.scene, kind, frames, &out),
         Command::Render(a) => render::run(&a),
         Command::Walk(a) => walk::run(&a),
+        Command::Bench(a) => bench::run(&a),
     }
 }
 

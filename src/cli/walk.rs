@@ -78,6 +78,9 @@ pub struct FrameRecord {
     pub cull: CullStats,
     pub raster: FrameStats,
     pub verified: Option<bool>,
+    /// Share of pixels whose ID equals brute force's (ray casting is checked this way: it
+    /// decides visibility differently, so it agrees on ≥ 99.5% rather than exactly).
+    pub agreement: Option<f64>,
 }
 
 /// One method's summary: what scripts read.
@@ -93,6 +96,8 @@ pub struct MethodSummary {
     pub culled_by_occlusion_share: f64,
     pub verified_frames: usize,
     pub mismatched_frames: usize,
+    /// Lowest per-frame ID agreement with brute force (ray casting with --verify).
+    pub min_id_agreement: Option<f64>,
 }
 
 fn methods(m: WalkMethod) -> Vec<(&'static str, Option<Method>)> {
@@ -171,7 +176,10 @@ fn walk(
                 }
             };
             let ms = t.elapsed().as_secs_f64() * 1e3;
-            let verified = have_reference.then(|| compare_ids(&reference.ids, &fb.ids, fb.width()));
+            let diff = have_reference.then(|| compare_ids(&reference.ids, &fb.ids, fb.width()));
+            let agreement = diff.map(|d| 1.0 - d.map_or(0, |m| m.pixels) as f64 / fb.len() as f64);
+            // Culling methods must equal brute force exactly; ray casting is reported as agreement.
+            let verified = if method.is_some() { diff } else { None };
             if let Some(Some(m)) = &verified {
                 bar.println(format!(
                     "frame {f}, {name}: {} pixels differ from brute force, first at {:?} (expected ID {}, got {})",
@@ -190,6 +198,7 @@ fn walk(
                 cull: cs,
                 raster: rs,
                 verified: verified.map(|m| m.is_none()),
+                agreement,
             });
             bar.inc(1);
         }
@@ -235,6 +244,7 @@ fn summarize(records: &[FrameRecord], a: &WalkArgs) -> Vec<MethodSummary> {
                 culled_by_occlusion_share: share(&|c| c.culled_by_occlusion),
                 verified_frames: rs.iter().filter(|r| r.verified.is_some()).count(),
                 mismatched_frames: rs.iter().filter(|r| r.verified == Some(false)).count(),
+                min_id_agreement: rs.iter().filter_map(|r| r.agreement).reduce(f64::min),
             }
         })
         .collect()
@@ -248,7 +258,9 @@ fn print_table(s: &[MethodSummary]) {
     );
     for m in s {
         let ratio = brute.map_or("-".into(), |b| format!("{:.1}x", b / m.median_ms.max(1e-9)));
-        let ver = if m.verified_frames == 0 {
+        let ver = if let (0, Some(a)) = (m.verified_frames, m.min_id_agreement) {
+            format!("{:.2}%", 100.0 * a)
+        } else if m.verified_frames == 0 {
             "-".to_string()
         } else {
             format!("{}/{}", m.verified_frames - m.mismatched_frames, m.verified_frames)

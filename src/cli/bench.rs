@@ -1,0 +1,99 @@
+//! `sightline bench`: every method over the path, verified against brute force, as a
+//! Markdown table and charts.
+
+use std::fmt::Write as _;
+use std::path::PathBuf;
+
+use anyhow::{Context, Result};
+
+use super::chart::{bar_chart, Bar};
+use super::walk::{self, WalkArgs, WalkMethod};
+
+#[derive(Debug, clap::Args)]
+pub struct BenchArgs {
+    #[command(flatten)]
+    pub scene: super::SceneArg,
+    /// Camera path JSON (default: the scene's street path)
+    #[arg(long, value_name = "FILE")]
+    pub path: Option<PathBuf>,
+    /// Frames to render (default: the whole path)
+    #[arg(long)]
+    pub frames: Option<usize>,
+    /// Output directory for bench.md, bench.json, frames.csv and the charts
+    #[arg(long, value_name = "DIR", default_value = "bench-out")]
+    pub out: PathBuf,
+    /// Image size
+    #[arg(long, default_value = "1280x720")]
+    pub size: super::common::Size,
+    /// Worker threads (default: all cores)
+    #[arg(long)]
+    pub threads: Option<usize>,
+}
+
+pub fn run(a: &BenchArgs) -> Result<()> {
+    std::fs::create_dir_all(&a.out).with_context(|| format!("creating {}", a.out.display()))?;
+    let json = a.out.join("bench.json");
+    let w = WalkArgs {
+        scene: a.scene.clone(),
+        path: a.path.clone(),
+        frames: a.frames,
+        method: WalkMethod::All,
+        verify: true,
+        size: a.size,
+        backface_culling: super::common::OnOff::On,
+        threads: a.threads,
+        out: Some(a.out.clone()),
+        png_every: 0,
+        json: Some(json.clone()),
+        look: super::common::Look {
+            shading: super::common::ShadingArg::Flat,
+            aa: super::common::AaArg::Off,
+            wireframe: super::common::WireArg::Off,
+            depth_format: super::common::DepthArg::F32,
+        },
+    };
+    let result = walk::run(&w);
+    let summary: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&json)?)?;
+    let methods = summary["methods"].as_array().cloned().unwrap_or_default();
+    let brute = methods.iter().find(|m| m["method"] == "brute").and_then(|m| m["median_ms"].as_f64());
+    let mut md = String::new();
+    writeln!(md, "# sightline bench\n")?;
+    writeln!(
+        md,
+        "scene `{}`, {}×{}, {} frames, threads: {}\n",
+        summary["scene"].as_str().unwrap_or("?"),
+        a.size.width,
+        a.size.height,
+        methods.first().and_then(|m| m["frames"].as_u64()).unwrap_or(0),
+        a.threads.map_or("all".into(), |t| t.to_string())
+    )?;
+    writeln!(md, "| method | median ms | p95 ms | × faster than brute | triangles drawn (median) | verified |")?;
+    writeln!(md, "|---|---:|---:|---:|---:|---|")?;
+    let mut bars = Vec::new();
+    let mut tri_bars = Vec::new();
+    for m in &methods {
+        let name = m["method"].as_str().unwrap_or("?");
+        let med = m["median_ms"].as_f64().unwrap_or(0.0);
+        let p95 = m["p95_ms"].as_f64().unwrap_or(0.0);
+        let tris = m["triangles_drawn_median"].as_u64().unwrap_or(0);
+        let verified =
+            match (m["verified_frames"].as_u64(), m["mismatched_frames"].as_u64(), m["min_id_agreement"].as_f64()) {
+                (Some(0), _, Some(a)) => format!("{:.2}% ID agreement (min)", 100.0 * a),
+                (Some(v), Some(bad), _) => format!("{}/{v} identical", v - bad),
+                _ => "-".into(),
+            };
+        let ratio = brute.map_or("-".into(), |b| format!("{:.1}", b / med.max(1e-9)));
+        writeln!(md, "| {name} | {med:.2} | {p95:.2} | {ratio} | {tris} | {verified} |")?;
+        bars.push(Bar { label: name.into(), value: med, high: Some(p95) });
+        if name != "raycast" {
+            tri_bars.push(Bar { label: name.into(), value: tris as f64, high: None });
+        }
+    }
+    writeln!(md, "\n![frame times](bench.png)\n\n![triangles drawn](triangles.png)")?;
+    std::fs::write(a.out.join("bench.md"), &md)?;
+    bar_chart(&a.out.join("bench.png"), "median frame time (bar) and p95 (line)", "ms", &bars)?;
+    bar_chart(&a.out.join("triangles.png"), "triangles drawn per frame (median)", "triangles", &tri_bars)?;
+    println!("\n{md}");
+    println!("wrote {}", a.out.join("bench.md").display());
+    result
+}

@@ -1,0 +1,100 @@
+//! Bar charts of benchmark results (plotters), for people who would rather look than read.
+
+use std::path::Path;
+
+use anyhow::{anyhow, Result};
+use plotters::prelude::*;
+
+/// Fonts tried for labels (Debian's fonts-dejavu-core); without one the chart has no text.
+const FONTS: [&str; 2] =
+    ["/usr/share/fonts/truetype/dejavu/DejaVuSans.ttf", "/usr/share/fonts/truetype/dejavu/DejaVuSansMono.ttf"];
+
+fn register_font() -> bool {
+    static ONCE: std::sync::OnceLock<bool> = std::sync::OnceLock::new();
+    *ONCE.get_or_init(|| {
+        for f in FONTS {
+            if let Ok(bytes) = std::fs::read(f) {
+                // plotters keeps fonts for the whole run.
+                let bytes: &'static [u8] = Box::leak(bytes.into_boxed_slice());
+                if plotters::style::register_font("sans-serif", FontStyle::Normal, bytes).is_ok() {
+                    return true;
+                }
+            }
+        }
+        false
+    })
+}
+
+/// One bar: label, value, and an optional error bar top (e.g. p95).
+pub struct Bar {
+    pub label: String,
+    pub value: f64,
+    pub high: Option<f64>,
+}
+
+/// Writes a horizontal bar chart PNG.
+pub fn bar_chart(path: &Path, title: &str, unit: &str, bars: &[Bar]) -> Result<()> {
+    let text = register_font();
+    let h = 120 + 46 * bars.len() as u32;
+    let root = BitMapBackend::new(path, (900, h)).into_drawing_area();
+    let e = |e: &dyn std::fmt::Display| anyhow!("drawing {}: {e}", path.display());
+    root.fill(&WHITE).map_err(|x| e(&x))?;
+    let max = bars.iter().map(|b| b.high.unwrap_or(b.value).max(b.value)).fold(0.0, f64::max).max(1e-9) * 1.15;
+    let n = bars.len();
+    let mut builder = ChartBuilder::on(&root);
+    builder.margin(16).x_label_area_size(if text { 40 } else { 10 }).y_label_area_size(if text { 120 } else { 10 });
+    if text {
+        builder.caption(title, ("sans-serif", 22));
+    }
+    let mut chart = builder.build_cartesian_2d(0.0..max, (0..n).into_segmented()).map_err(|x| e(&x))?;
+    if text {
+        chart
+            .configure_mesh()
+            .disable_y_mesh()
+            .x_desc(unit)
+            .y_label_formatter(&|s: &SegmentValue<usize>| match s {
+                SegmentValue::CenterOf(i) | SegmentValue::Exact(i) => {
+                    bars.get(*i).map(|b| b.label.clone()).unwrap_or_default()
+                }
+                SegmentValue::Last => String::new(),
+            })
+            .draw()
+            .map_err(|x| e(&x))?;
+    }
+    let palette = [
+        RGBColor(76, 114, 176),
+        RGBColor(221, 132, 82),
+        RGBColor(85, 168, 104),
+        RGBColor(196, 78, 82),
+        RGBColor(129, 114, 179),
+    ];
+    chart
+        .draw_series(bars.iter().enumerate().map(|(i, b)| {
+            let c = palette[i % palette.len()];
+            Rectangle::new([(0.0, SegmentValue::Exact(i)), (b.value, SegmentValue::Exact(i + 1))], c.filled())
+        }))
+        .map_err(|x| e(&x))?;
+    chart
+        .draw_series(bars.iter().enumerate().filter_map(|(i, b)| {
+            b.high.map(|hi| {
+                PathElement::new(
+                    vec![(b.value, SegmentValue::CenterOf(i)), (hi, SegmentValue::CenterOf(i))],
+                    BLACK.stroke_width(2),
+                )
+            })
+        }))
+        .map_err(|x| e(&x))?;
+    if text {
+        chart
+            .draw_series(bars.iter().enumerate().map(|(i, b)| {
+                Text::new(
+                    format!("{:.2} {unit}", b.value),
+                    (b.high.unwrap_or(b.value).max(b.value) + max * 0.01, SegmentValue::CenterOf(i)),
+                    ("sans-serif", 15),
+                )
+            }))
+            .map_err(|x| e(&x))?;
+    }
+    root.present().map_err(|x| e(&x))?;
+    Ok(())
+}
