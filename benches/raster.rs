@@ -40,7 +40,7 @@ fn bench(c: &mut Criterion) {
                 let mut fb = Framebuffer::new(W, H).expect("framebuffer");
                 let label = format!("{name}/cull_{}/{threads}t", if cull { "on" } else { "off" });
                 pool.install(|| {
-                    let s = r.render(scene, &instances, &items, camera, &mut fb, &opts).expect("render");
+                    r.render(scene, &instances, &items, camera, &mut fb, &opts).expect("render");
                     let s = r.render(scene, &instances, &items, camera, &mut fb, &opts).expect("render");
                     eprintln!(
                         "{label}: {tris} tris, rejected {}, culled {}, clipped {}, small {}, rasterized {}, \

@@ -113,41 +113,38 @@ impl Chunk {
     fn transform(&mut self, positions: &[Vec3], m: &Mat4, vp: &Viewport) {
         let vc = &mut self.verts;
         vc.clip.clear();
-        vc.code.clear();
-        vc.snapped.clear();
-        for p in positions {
-            let c = *m * p.extend(1.0);
-            Self::push_vertex(vc, c, vp);
+        vc.clip.extend(positions.iter().map(|p| *m * p.extend(1.0)));
+        vc.code.resize(positions.len(), 0);
+        vc.snapped.resize(positions.len(), NONE);
+        for ((c, code), s) in vc.clip.iter().zip(vc.code.iter_mut()).zip(vc.snapped.iter_mut()) {
+            (*code, *s) = Self::classify(*c, vp);
         }
     }
 
     fn load_clip(&mut self, tris: &[[Vec4; 3]], vp: &Viewport) {
         let vc = &mut self.verts;
         vc.clip.clear();
+        vc.clip.extend(tris.iter().flatten());
         vc.code.clear();
         vc.snapped.clear();
-        for c in tris.iter().flatten() {
-            Self::push_vertex(vc, *c, vp);
+        for c in &vc.clip {
+            let (code, s) = Self::classify(*c, vp);
+            vc.code.push(code);
+            vc.snapped.push(s);
         }
     }
 
+    /// Outcode and (inside the guard band) the snapped window position of a vertex.
     #[inline(always)]
-    fn push_vertex(vc: &mut VertexCache, c: Vec4, vp: &Viewport) {
-        let mut code = vp.outcode(c);
-        let s = if code & GUARD == 0 {
-            match vp.project(c) {
-                Some(s) => s,
-                None => {
-                    code |= GUARD;
-                    NONE
-                }
-            }
-        } else {
-            NONE
-        };
-        vc.clip.push(c);
-        vc.code.push(code);
-        vc.snapped.push(s);
+    fn classify(c: Vec4, vp: &Viewport) -> (u8, SnappedVertex) {
+        let code = vp.outcode(c);
+        if code & GUARD != 0 {
+            return (code, NONE);
+        }
+        match vp.project(c) {
+            Some(s) => (code, s),
+            None => (code | GUARD, NONE),
+        }
     }
 
     #[inline(always)]

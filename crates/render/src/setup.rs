@@ -159,25 +159,28 @@ pub fn setup(v: [SnappedVertex; 3], id: u32, cull: bool, vp: &Viewport) -> Setup
     if px0 > px1 || py0 > py1 {
         return Setup::TooSmall;
     }
+    let mut tri = Tri {
+        x: [a.x, b.x, c.x],
+        y: [a.y, b.y, c.y],
+        z0: a.z,
+        zx: 0.0,
+        zy: 0.0,
+        id,
+        bbox: [px0 as u16, py0 as u16, px1 as u16, py1 as u16],
+        multi: u32::MAX,
+    };
+    // Tiny boxes: decide coverage now, before the triangle costs a depth plane, binning and
+    // a tile visit.
+    if (px1 - px0 + 1) * (py1 - py0 + 1) <= 4 && !raster::covers_any(&tri) {
+        return Setup::TooSmall;
+    }
     // Depth plane through the snapped vertices, in f64 once per triangle.
     let (dx1, dy1) = ((b.x - a.x) as f64, (b.y - a.y) as f64);
     let (dx2, dy2) = ((c.x - a.x) as f64, (c.y - a.y) as f64);
     let (dz1, dz2) = ((b.z - a.z) as f64, (c.z - a.z) as f64);
     let inv = 1.0 / area as f64;
-    let tri = Tri {
-        x: [a.x, b.x, c.x],
-        y: [a.y, b.y, c.y],
-        z0: a.z,
-        zx: ((dz1 * dy2 - dz2 * dy1) * inv) as f32,
-        zy: ((dx1 * dz2 - dx2 * dz1) * inv) as f32,
-        id,
-        bbox: [px0 as u16, py0 as u16, px1 as u16, py1 as u16],
-        multi: u32::MAX,
-    };
-    // Tiny boxes: decide coverage now, before the triangle costs binning and a tile visit.
-    if (px1 - px0 + 1) * (py1 - py0 + 1) <= 4 && !raster::covers_any(&tri) {
-        return Setup::TooSmall;
-    }
+    tri.zx = ((dz1 * dy2 - dz2 * dy1) * inv) as f32;
+    tri.zy = ((dx1 * dz2 - dx2 * dz1) * inv) as f32;
     Setup::Ready(tri)
 }
 
