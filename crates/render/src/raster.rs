@@ -48,14 +48,77 @@ pub struct TileBuf {
     pub counts: Vec<u32>,
     /// Whether the tile received triangles in the current pass.
     pub dirty: bool,
+    /// In a frame session: whether the tile has been drawn into (else it is still clear).
+    pub touched: bool,
+    /// In a frame session: the tile's z-pyramid levels 1..=6 (32², 16², …, 1² texels, each
+    /// the max window depth of the 2×2 texels below), see [`MIP_OFFSETS`].
+    pub mips: Vec<f32>,
 }
+
+/// Offsets of levels 1..=6 in [`TileBuf::mips`] (index = level − 1), and the total length.
+pub const MIP_OFFSETS: [usize; 7] = [0, 1024, 1280, 1344, 1360, 1364, 1365];
 
 impl TileBuf {
     /// An empty tile at pixel (x0, y0) of size w × h.
     pub fn new(x0: u32, y0: u32, w: u32, h: u32) -> Self {
         // +4: the small-triangle path works in groups of four pixels (see raster_small).
         let n = (TILE * TILE) as usize + 4;
-        Self { x0, y0, w, h, depth: vec![0; n], ids: vec![0; n], counts: vec![0; n], dirty: false }
+        Self {
+            x0,
+            y0,
+            w,
+            h,
+            depth: vec![0; n],
+            ids: vec![0; n],
+            counts: vec![0; n],
+            dirty: false,
+            touched: false,
+            mips: vec![1.0; MIP_OFFSETS[6]],
+        }
+    }
+
+    /// Clears the tile for a frame session: depth keys of `clear` inside the screen and 0
+    /// (nearest) outside it, so that the pyramid's max ignores pixels that do not exist.
+    pub fn clear_for_session(&mut self, clear: u32) {
+        let (w, h) = (self.w as usize, self.h as usize);
+        for r in 0..TILE as usize {
+            let row = &mut self.depth[r << TILE_SHIFT..(r + 1) << TILE_SHIFT];
+            if r < h {
+                row[..w].fill(clear);
+                row[w..].fill(0);
+            } else {
+                row.fill(0);
+            }
+        }
+        self.ids.fill(0);
+        self.counts.fill(0);
+        self.touched = true;
+    }
+
+    /// Recomputes [`TileBuf::mips`] from the depth keys (max of 2×2 per level).
+    pub fn compute_mips(&mut self, fmt: crate::DepthFormat) {
+        let t = TILE as usize;
+        let (first, rest) = self.mips.split_at_mut(MIP_OFFSETS[1]);
+        // Level 1 from the keys: keys order like depths, so take the max key, convert once.
+        for y in 0..t / 2 {
+            let (r0, r1) = (&self.depth[(2 * y) * t..(2 * y + 1) * t], &self.depth[(2 * y + 1) * t..(2 * y + 2) * t]);
+            for x in 0..t / 2 {
+                let k = r0[2 * x].max(r0[2 * x + 1]).max(r1[2 * x]).max(r1[2 * x + 1]);
+                first[y * (t / 2) + x] = fmt.depth(k);
+            }
+        }
+        let _ = rest;
+        for level in 2..=6 {
+            let (below, above) = self.mips.split_at_mut(MIP_OFFSETS[level - 1]);
+            let src = &below[MIP_OFFSETS[level - 2]..];
+            let s = t >> level; // this level's side
+            for y in 0..s {
+                for x in 0..s {
+                    let i = (2 * y) * (2 * s) + 2 * x;
+                    above[y * s + x] = src[i].max(src[i + 1]).max(src[i + 2 * s]).max(src[i + 2 * s + 1]);
+                }
+            }
+        }
     }
 }
 
@@ -311,6 +374,19 @@ fn row_sse2<const FMT: u8, const COUNT: bool>(
     }
 }
 
+/// Runs one row starting at tile buffer index `base`, `n4` (the row length rounded up to a
+/// multiple of four) entries wide.
+#[inline(always)]
+fn run_row<const FMT: u8, const COUNT: bool>(r: &Row, tile: &mut TileBuf, base: usize, n4: usize, out: &mut TriRaster) {
+    let depth = &mut tile.depth[base..base + n4];
+    let ids = &mut tile.ids[base..base + n4];
+    let counts = &mut tile.counts[base..base + n4];
+    #[cfg(target_arch = "x86_64")]
+    row_sse2::<FMT, COUNT>(r, depth, ids, counts, out);
+    #[cfg(not(target_arch = "x86_64"))]
+    row_scalar::<FMT, COUNT>(r, depth, ids, counts, out);
+}
+
 fn raster_small<const FMT: u8, const COUNT: bool>(
     t: &Tri,
     tile: &mut TileBuf,
@@ -337,13 +413,7 @@ fn raster_small<const FMT: u8, const COUNT: bool>(
     for py in y0..=y1 {
         r.zrow = depth_row(t, py);
         let base = (((py - ty) as usize) << TILE_SHIFT) + first;
-        let depth = &mut tile.depth[base..base + n4];
-        let ids = &mut tile.ids[base..base + n4];
-        let counts = &mut tile.counts[base..base + n4];
-        #[cfg(target_arch = "x86_64")]
-        row_sse2::<FMT, COUNT>(&r, depth, ids, counts, &mut out);
-        #[cfg(not(target_arch = "x86_64"))]
-        row_scalar::<FMT, COUNT>(&r, depth, ids, counts, &mut out);
+        run_row::<FMT, COUNT>(&r, tile, base, n4, &mut out);
         for (e, b) in r.e.iter_mut().zip(b) {
             *e = e.wrapping_add(b);
         }
@@ -377,7 +447,25 @@ fn raster_blocks<const FMT: u8, const COUNT: bool>(
                 outside |= hi < 0;
                 inside &= lo >= 0;
             }
-            if !outside {
+            if inside {
+                // Inside all three edges: only the depth test is left, four pixels at a
+                // time (edge values of zero with zero steps pass every lane).
+                let n = rx1 - rx0 + 1;
+                let mut r = Row {
+                    e: [0; 3],
+                    a: [0; 3],
+                    n,
+                    zrow: 0.0,
+                    zx: t.zx,
+                    dx0: (rx0 << SUBPIXEL_BITS) + ONE / 2 - t.x[0],
+                    id: t.id,
+                };
+                for py in ry0..=ry1 {
+                    r.zrow = depth_row(t, py);
+                    let base = (((py - ty) as usize) << TILE_SHIFT) + (rx0 - tx) as usize;
+                    run_row::<FMT, COUNT>(&r, tile, base, ((n + 3) & !3) as usize, &mut out);
+                }
+            } else if !outside {
                 for py in ry0..=ry1 {
                     let zrow = depth_row(t, py);
                     let row = ((py - ty) as usize) << TILE_SHIFT;
@@ -387,7 +475,7 @@ fn raster_blocks<const FMT: u8, const COUNT: bool>(
                         ev[k] = e00[k] + e[k].b * dy;
                     }
                     for px in rx0..=rx1 {
-                        if inside || (ev[0] | ev[1] | ev[2]) >= 0 {
+                        if (ev[0] | ev[1] | ev[2]) >= 0 {
                             let z = depth_at(t, zrow, px);
                             fragment::<FMT, COUNT>(tile, row + (px - tx) as usize, z, t.id, &mut out);
                         }
