@@ -88,6 +88,33 @@ pub enum Wireframe {
 }
 
 /// How a frame is rendered.
+///
+/// ```
+/// use glam::Vec3;
+/// use sightline_render::{draw_all, Framebuffer, RenderOptions, Renderer, ShadingMode};
+/// use sightline_scene::{shapes, Camera, NodeDesc, Scene};
+///
+/// let mut scene = Scene::new();
+/// let cube = scene.add_mesh(shapes::cube("cube")?);
+/// scene.add_node(None, NodeDesc::new("cube").mesh(cube))?;
+/// scene.update_transforms();
+/// let camera = Camera::perspective_look_at(Vec3::new(2.0, 1.5, 3.0), Vec3::ZERO, Vec3::Y, 45.0, 4.0 / 3.0, 0.1, 100.0)?;
+///
+/// let instances = scene.instances();
+/// let items = draw_all(&instances); // or clusters, in any order, in batches via `draw`
+/// let mut renderer = Renderer::new(); // keep it: its buffers are reused frame to frame
+/// let mut fb = Framebuffer::new(64, 48)?;
+/// let mut opts = RenderOptions::default();
+/// let stats = renderer.render(&scene, &instances, &items, &camera, &mut fb, &opts)?;
+/// assert_eq!(stats.triangles_in, 12);
+/// assert!(stats.backface_culled >= 6);
+/// assert!(fb.ids.iter().any(|&id| id != 0));
+///
+/// // IDs and depth only (what visibility needs): no shading pass.
+/// opts.shading.mode = ShadingMode::None;
+/// renderer.render(&scene, &instances, &items, &camera, &mut fb, &opts)?;
+/// # Ok::<(), Box<dyn std::error::Error>>(())
+/// ```
 #[derive(Debug, Clone, Copy, PartialEq, Serialize)]
 pub struct RenderOptions {
     /// Drop back faces (counter-clockwise in NDC is front). On by default.
