@@ -287,13 +287,13 @@ fn write_frames(dir: &std::path::Path, records: &[FrameRecord]) -> Result<()> {
         std::io::BufWriter::new(std::fs::File::create(&csv).with_context(|| format!("creating {}", csv.display()))?);
     writeln!(
         f,
-        "frame,method,ms,triangles_drawn,clusters_in_frustum,clusters_drawn,culled_by_frustum,culled_by_occlusion,occlusion_tests,batches,ms_cull,ms_draw,ms_pyramid,ms_shading,fragments_written,verified"
+        "frame,method,ms,triangles_drawn,clusters_in_frustum,clusters_drawn,culled_by_frustum,culled_by_occlusion,occlusion_tests,batches,ms_cull,ms_draw,ms_shading,ms_geometry,ms_binning,ms_raster,fragments_written,verified"
     )?;
     for r in records {
         let c = &r.cull;
         writeln!(
             f,
-            "{},{},{:.3},{},{},{},{},{},{},{},{:.3},{:.3},{:.3},{:.3},{},{}",
+            "{},{},{:.3},{},{},{},{},{},{},{},{:.3},{:.3},{:.3},{:.3},{:.3},{:.3},{},{}",
             r.frame,
             r.method,
             r.ms,
@@ -306,8 +306,10 @@ fn write_frames(dir: &std::path::Path, records: &[FrameRecord]) -> Result<()> {
             c.batches,
             c.ms_cull,
             c.ms_draw,
-            c.ms_pyramid,
             c.ms_shading,
+            r.raster.ms_geometry,
+            r.raster.ms_binning,
+            r.raster.ms_raster,
             r.raster.fragments_written,
             r.verified.map_or("".into(), |v| v.to_string())
         )?;

@@ -42,6 +42,10 @@ pub struct Renderer {
     supersampled: Option<Framebuffer>,
     /// The target was just cleared: tiles start from the clear values instead of loading.
     fresh: bool,
+    /// Inside a frame session (see [`Renderer::begin_session`]): the depth format.
+    session: Option<DepthFormat>,
+    /// During a session: z-pyramid levels from the tile grid (level 6, one texel per tile) up.
+    upper: Vec<(u32, u32, Vec<f32>)>,
 }
 
 #[derive(Debug, Default, Clone, Copy)]
@@ -234,6 +238,49 @@ impl Renderer {
         Ok(st)
     }
 
+    /// Starts a frame session on `fb` (which the caller has just cleared): until
+    /// [`Renderer::end_session`], the tiles hold the frame, draws neither load nor store
+    /// pixels, and each tile keeps its z-pyramid levels up to date, read through
+    /// [`Renderer::session_pyramid`]. This is what makes many small draw batches cheap for
+    /// the occlusion culler.
+    pub fn begin_session(&mut self, fb: &Framebuffer, format: DepthFormat) {
+        let grid = Grid::new(fb.width(), fb.height());
+        self.prepare_tiles(grid);
+        for t in &mut self.tiles {
+            t.touched = false;
+            t.dirty = false;
+        }
+        self.upper.clear();
+        let (mut w, mut h) = (grid.tiles_x, grid.tiles_y);
+        loop {
+            self.upper.push((w, h, vec![1.0; (w * h) as usize]));
+            if w == 1 && h == 1 {
+                break;
+            }
+            w = w.div_ceil(2);
+            h = h.div_ceil(2);
+        }
+        self.session = Some(format);
+        self.fresh = false;
+    }
+
+    /// Ends the frame session: the drawn tiles are written to `fb`.
+    pub fn end_session(&mut self, fb: &mut Framebuffer) {
+        let Some(fmt) = self.session.take() else { return };
+        let Some(grid) = self.grid else { return };
+        for t in &mut self.tiles {
+            t.dirty = t.touched;
+        }
+        store_tiles(&self.tiles, &grid, fb, fmt);
+    }
+
+    /// The z-pyramid of the frame drawn so far in this session (`None` outside a session).
+    pub fn session_pyramid(&self) -> Option<crate::cull::TilePyramid<'_>> {
+        let fmt = self.session?;
+        let grid = self.grid?;
+        Some(crate::cull::TilePyramid::new(&self.tiles, grid.tiles_x, grid.width, grid.height, &self.upper, fmt))
+    }
+
     /// Draws raw clip-space triangles (no scene), triangle `k` with ID `first_id + k`: the
     /// lower-level entry for tests and tools. Non-finite input is dropped, never a panic.
     pub fn draw_clip_triangles(
@@ -282,8 +329,14 @@ impl Renderer {
         let t = Instant::now();
         let chunks = &self.chunks[..n];
         let fresh = std::mem::take(&mut self.fresh);
-        let ts = raster_tiles(&mut self.tiles, chunks, fb, opts.depth_format, fresh);
-        store_tiles(&self.tiles, &grid, fb, opts.depth_format);
+        let session = self.session;
+        let fmt = session.unwrap_or(opts.depth_format);
+        let ts = raster_tiles(&mut self.tiles, chunks, fb, fmt, fresh, session.is_some());
+        if session.is_some() {
+            update_upper_levels(&self.tiles, &mut self.upper);
+        } else {
+            store_tiles(&self.tiles, &grid, fb, fmt);
+        }
         st.ms_raster = ms_since(t);
 
         let mut multi_empty = 0;
@@ -318,7 +371,36 @@ impl Renderer {
     }
 }
 
-fn raster_tiles(tiles: &mut [TileBuf], chunks: &[Chunk], fb: &Framebuffer, fmt: DepthFormat, fresh: bool) -> TileStats {
+/// Session pyramid levels above the tiles: level 6 holds each tile's max, the rest
+/// reduce 2×2 (odd sizes keep the edge texel's own max).
+fn update_upper_levels(tiles: &[TileBuf], upper: &mut [(u32, u32, Vec<f32>)]) {
+    let Some((_, _, l6)) = upper.first_mut() else { return };
+    for (v, t) in l6.iter_mut().zip(tiles) {
+        *v = if t.touched { t.mips[crate::raster::MIP_OFFSETS[5]] } else { 1.0 };
+    }
+    for k in 1..upper.len() {
+        let (below, above) = upper.split_at_mut(k);
+        let (sw, sh, src) = (&below[k - 1].0, &below[k - 1].1, &below[k - 1].2);
+        let (dw, dh, dst) = &mut above[0];
+        for y in 0..*dh {
+            let (y0, y1) = (2 * y, (2 * y + 1).min(sh - 1));
+            for x in 0..*dw {
+                let (x0, x1) = (2 * x, (2 * x + 1).min(sw - 1));
+                let at = |xx: u32, yy: u32| src[(yy * sw + xx) as usize];
+                dst[(y * *dw + x) as usize] = at(x0, y0).max(at(x1, y0)).max(at(x0, y1)).max(at(x1, y1));
+            }
+        }
+    }
+}
+
+fn raster_tiles(
+    tiles: &mut [TileBuf],
+    chunks: &[Chunk],
+    fb: &Framebuffer,
+    fmt: DepthFormat,
+    fresh: bool,
+    session: bool,
+) -> TileStats {
     let count = fb.depth_tests.is_some();
     let f = match (fmt, count) {
         (DepthFormat::F32, false) => raster_tile::<0, false>,
@@ -331,7 +413,7 @@ fn raster_tiles(tiles: &mut [TileBuf], chunks: &[Chunk], fb: &Framebuffer, fmt: 
     tiles
         .par_iter_mut()
         .enumerate()
-        .map(|(i, tile)| f(tile, i, chunks, fb, fmt, fresh))
+        .map(|(i, tile)| f(tile, i, chunks, fb, fmt, fresh, session))
         .reduce(TileStats::default, TileStats::sum)
 }
 
@@ -342,10 +424,20 @@ fn raster_tile<const F: u8, const C: bool>(
     fb: &Framebuffer,
     fmt: DepthFormat,
     fresh: bool,
+    session: bool,
 ) -> TileStats {
     let mut st = TileStats::default();
     tile.dirty = chunks.iter().any(|c| !c.bins[index].is_empty());
     if !tile.dirty {
+        return st;
+    }
+    if session {
+        // The tile holds the frame: clear it on first use, never load or store here.
+        if !tile.touched {
+            tile.clear_for_session(fmt.key(1.0));
+        }
+        raster_bins::<F, C>(tile, index, chunks, &mut st);
+        tile.compute_mips(fmt);
         return st;
     }
     // Start from the clear values right after a clear; otherwise load the tile's pixels
@@ -368,6 +460,12 @@ fn raster_tile<const F: u8, const C: bool>(
             tile.counts[dst..dst + w].copy_from_slice(&c[src..src + w]);
         }
     }
+    raster_bins::<F, C>(tile, index, chunks, &mut st);
+    st
+}
+
+/// Rasterizes the tile's binned triangles, chunk after chunk, in submission order.
+fn raster_bins<const F: u8, const C: bool>(tile: &mut TileBuf, index: usize, chunks: &[Chunk], st: &mut TileStats) {
     for c in chunks {
         for &i in &c.bins[index] {
             let t = &c.tris[i as usize];
@@ -381,7 +479,6 @@ fn raster_tile<const F: u8, const C: bool>(
             }
         }
     }
-    st
 }
 
 fn store_tiles(tiles: &[TileBuf], grid: &Grid, fb: &mut Framebuffer, fmt: DepthFormat) {

@@ -24,6 +24,7 @@
 
 pub mod meshlets;
 pub mod pyramid;
+pub mod query;
 mod verify;
 
 use std::cell::RefCell;
@@ -35,7 +36,8 @@ use sightline_scene::{Aabb, Camera, Instance, Scene};
 use sightline_spatial::{BoxProjector, ClusteredScene, CullOptions, Frustum, LooseOctree, ScreenRect, Visible, Visit};
 
 pub use meshlets::{Meshlets, SceneMeshlets};
-pub use pyramid::{DepthPyramid, Rect};
+pub use pyramid::{DepthPyramid, Rect, TilePyramid};
+pub use query::{BoxVisibility, OcclusionQueries};
 pub use verify::{compare_ids, Mismatch};
 
 use crate::shading::ShadingMode;
@@ -96,8 +98,6 @@ pub struct CullStats {
     pub ms_cull: f64,
     /// Milliseconds drawing.
     pub ms_draw: f64,
-    /// Milliseconds refreshing the pyramid.
-    pub ms_pyramid: f64,
     /// Milliseconds shading.
     pub ms_shading: f64,
     /// Milliseconds for the whole frame.
@@ -114,7 +114,6 @@ pub struct Culler {
     item_boxes: Vec<Aabb>,
     /// `None` only while a walk borrows it.
     octree: Option<LooseOctree>,
-    pyramid: DepthPyramid,
     renderer: Renderer,
     visible: Vec<Visible>,
     /// First batch size of the front-to-back walk.
@@ -141,7 +140,6 @@ impl Culler {
             meshlets,
             item_boxes,
             octree: Some(octree),
-            pyramid: DepthPyramid::default(),
             renderer: Renderer::new(),
             visible: Vec::new(),
             first_batch: 32,
@@ -159,13 +157,12 @@ impl Culler {
         &self.clustered
     }
 
-    /// Heap bytes of the culling structures (clusters, BVH, meshlets, octree, pyramid).
+    /// Heap bytes of the culling structures (clusters, BVH, meshlets, octree).
     pub fn memory_bytes(&self) -> usize {
         self.clustered.memory_bytes()
             + self.meshlets.memory_bytes()
             + self.item_boxes.capacity() * std::mem::size_of::<Aabb>()
             + self.octree.as_ref().map_or(0, LooseOctree::memory_bytes)
-            + self.pyramid.memory_bytes()
     }
 
     /// Renders one frame with `method` into `fb` (cleared first; shaded as `opts` says;
@@ -230,6 +227,46 @@ impl Culler {
         Ok((cs, fs))
     }
 
+    /// Draws every cluster in the view frustum as occluders (depth and IDs; back faces as
+    /// `opts` says) in one frame session left open, and returns box queries against the
+    /// resulting pyramid. Call [`Culler::end_occluder_pass`] afterwards to write the frame.
+    pub fn occluder_pass(
+        &mut self,
+        scene: &Scene,
+        camera: &Camera,
+        fb: &mut Framebuffer,
+        opts: &RenderOptions,
+    ) -> Result<(CullStats, OcclusionQueries<'_>)> {
+        let t0 = Instant::now();
+        let mut cs = CullStats { clusters: self.clustered.item_count() as u64, ..Default::default() };
+        fb.clear(opts.background);
+        let frustum = Frustum::from_camera(camera);
+        self.visible.clear();
+        self.clustered.cull_with(&frustum, CullOptions::default(), &mut self.visible);
+        cs.clusters_in_frustum = self.visible.len() as u64;
+        cs.culled_by_frustum = cs.clusters - cs.clusters_in_frustum;
+        self.renderer.begin_session(fb, opts.depth_format);
+        let visible = std::mem::take(&mut self.visible);
+        let r = self.draw_items(visible.iter().map(|v| v.index), scene, camera, fb, opts, &mut cs);
+        self.visible = visible;
+        r?;
+        cs.ms_draw = ms_since(t0);
+        cs.ms_total = cs.ms_draw;
+        let pyramid = self.renderer.session_pyramid().expect("a session was just begun");
+        Ok((cs, OcclusionQueries::new(camera, pyramid)))
+    }
+
+    /// The pyramid of the open frame session, if any (between [`Culler::occluder_pass`] and
+    /// [`Culler::end_occluder_pass`]).
+    pub fn renderer_pyramid(&self) -> Option<TilePyramid<'_>> {
+        self.renderer.session_pyramid()
+    }
+
+    /// Ends the pass begun by [`Culler::occluder_pass`]: the frame's depth and IDs go to `fb`.
+    pub fn end_occluder_pass(&mut self, fb: &mut Framebuffer) {
+        self.renderer.end_session(fb);
+    }
+
     /// Draws the given items (cluster indices) in order.
     fn draw_items(
         &mut self,
@@ -262,24 +299,6 @@ impl Culler {
         self.renderer.draw_sources(&sources, camera, fb, opts)
     }
 
-    /// Refreshes the pyramid over the screen rectangles of the drawn items.
-    fn refresh_pyramid(&mut self, drawn: &[Visible], projector: &BoxProjector, depth: &[f32]) {
-        let mut full = false;
-        for v in drawn {
-            let r = projector.project(&self.item_boxes[v.index as usize]);
-            if r.crosses_near {
-                full = true;
-                break;
-            }
-            if let Some(rect) = to_rect(&r) {
-                self.pyramid.update(depth, rect);
-            }
-        }
-        if full {
-            self.pyramid.build(depth);
-        }
-    }
-
     #[allow(clippy::too_many_arguments)] // the frame's whole context, split for borrowing
     fn hzb_bvh(
         &mut self,
@@ -292,43 +311,45 @@ impl Culler {
         fs: &mut FrameStats,
     ) -> Result<()> {
         let (w, h) = (fb.width(), fb.height());
-        self.reset_pyramid(w, h);
         let projector = BoxProjector::new(camera.clip_from_world(), w, h);
         let mut cursor = self.clustered.cursor(Some(frustum), camera.view.eye);
         let mut batch = self.first_batch.max(1);
         let mut out: Vec<Visible> = Vec::new();
-        loop {
+        self.renderer.begin_session(fb, opts.depth_format);
+        let result = loop {
             let t = Instant::now();
             out.clear();
-            let pyramid = &self.pyramid;
-            let depth = &fb.depth;
-            let more = cursor.next_batch(
-                self.clustered.bvh(),
-                |b| {
-                    cs.occlusion_tests += 1;
-                    let vis = possibly_visible(pyramid, depth, &projector.project(b));
-                    cs.occluded_boxes += !vis as u64;
-                    vis
-                },
-                batch,
-                &mut out,
-            );
+            let more = {
+                let Some(pyramid) = self.renderer.session_pyramid() else { break Ok(()) };
+                cursor.next_batch(
+                    self.clustered.bvh(),
+                    |b| {
+                        cs.occlusion_tests += 1;
+                        let vis = possibly_visible(&pyramid, &projector.project(b));
+                        cs.occluded_boxes += !vis as u64;
+                        vis
+                    },
+                    batch,
+                    &mut out,
+                )
+            };
             cs.ms_cull += ms_since(t);
             if !out.is_empty() {
                 let t = Instant::now();
-                let st = self.draw_items(out.iter().map(|v| v.index), scene, camera, fb, opts, cs)?;
-                fs.add(&st);
+                match self.draw_items(out.iter().map(|v| v.index), scene, camera, fb, opts, cs) {
+                    Ok(st) => fs.add(&st),
+                    Err(e) => break Err(e),
+                }
                 cs.ms_draw += ms_since(t);
                 cs.batches += 1;
-                let t = Instant::now();
-                self.refresh_pyramid(&out, &projector, &fb.depth);
-                cs.ms_pyramid += ms_since(t);
             }
             if !more {
-                return Ok(());
+                break Ok(());
             }
             batch = (batch * 2).min(self.max_batch.max(1));
-        }
+        };
+        self.renderer.end_session(fb);
+        result
     }
 
     #[allow(clippy::too_many_arguments)] // the frame's whole context, split for borrowing
@@ -343,8 +364,8 @@ impl Culler {
         fs: &mut FrameStats,
     ) -> Result<()> {
         let (w, h) = (fb.width(), fb.height());
-        self.reset_pyramid(w, h);
         let projector = BoxProjector::new(camera.clip_from_world(), w, h);
+        self.renderer.begin_session(fb, opts.depth_format);
         let Some(octree) = self.octree.take() else { return Ok(()) };
         // The walk's two callbacks both need the framebuffer (one reads depth, the other
         // draws): they never run at the same time, so a RefCell shares it.
@@ -358,7 +379,10 @@ impl Culler {
                 let mut g = walk.borrow_mut();
                 let w = &mut *g;
                 w.cs.occlusion_tests += 1;
-                let vis = possibly_visible(&w.culler.pyramid, &w.fb.depth, &projector.project(b));
+                let vis = match w.culler.renderer.session_pyramid() {
+                    Some(p) => possibly_visible(&p, &projector.project(b)),
+                    None => true,
+                };
                 w.cs.occluded_boxes += !vis as u64;
                 if vis {
                     Visit::Continue
@@ -370,27 +394,20 @@ impl Culler {
                 let mut g = walk.borrow_mut();
                 g.pending.push(v);
                 if g.pending.len() >= g.batch {
-                    g.flush(scene, camera, opts, &projector);
+                    g.flush(scene, camera, opts);
                 }
                 Visit::Continue
             },
         );
         let mut w = walk.into_inner();
-        w.flush(scene, camera, opts, &projector);
+        w.flush(scene, camera, opts);
         w.culler.octree = Some(octree);
+        w.culler.renderer.end_session(w.fb);
         // Traversal time excludes the drawing done inside it.
-        w.cs.ms_cull += (ms_since(t) - w.cs.ms_draw - w.cs.ms_pyramid).max(0.0);
+        w.cs.ms_cull += (ms_since(t) - w.cs.ms_draw).max(0.0);
         match w.err {
             Some(e) => Err(e),
             None => Ok(()),
-        }
-    }
-
-    fn reset_pyramid(&mut self, w: u32, h: u32) {
-        if self.pyramid.width() != w || self.pyramid.height() != h {
-            self.pyramid = DepthPyramid::new(w, h);
-        } else {
-            self.pyramid.clear();
         }
     }
 }
@@ -407,8 +424,8 @@ struct OctreeWalk<'a> {
 }
 
 impl OctreeWalk<'_> {
-    /// Draws the pending clusters and refreshes the pyramid over them.
-    fn flush(&mut self, scene: &Scene, camera: &Camera, opts: &RenderOptions, projector: &BoxProjector) {
+    /// Draws the pending clusters (the tiles refresh their pyramid levels as they draw).
+    fn flush(&mut self, scene: &Scene, camera: &Camera, opts: &RenderOptions) {
         if self.pending.is_empty() || self.err.is_some() {
             return;
         }
@@ -420,9 +437,6 @@ impl OctreeWalk<'_> {
         }
         self.cs.ms_draw += ms_since(t);
         self.cs.batches += 1;
-        let t = Instant::now();
-        self.culler.refresh_pyramid(&items, projector, &self.fb.depth);
-        self.cs.ms_pyramid += ms_since(t);
         self.batch = (self.batch * 2).min(self.culler.max_batch.max(1));
         self.pending = items;
         self.pending.clear();
@@ -431,17 +445,17 @@ impl OctreeWalk<'_> {
 
 /// The pyramid test of one projected box: false only when it is certainly occluded.
 #[inline]
-fn possibly_visible(pyramid: &DepthPyramid, depth: &[f32], r: &ScreenRect) -> bool {
+fn possibly_visible(pyramid: &TilePyramid, r: &ScreenRect) -> bool {
     if r.crosses_near {
         return true;
     }
     match to_rect(r) {
         None => false, // off screen: nothing to draw
-        Some(rect) => !pyramid.is_occluded(depth, rect, r.depth),
+        Some(rect) => !pyramid.is_occluded(rect, r.depth),
     }
 }
 
-fn to_rect(r: &ScreenRect) -> Option<Rect> {
+pub(crate) fn to_rect(r: &ScreenRect) -> Option<Rect> {
     (!r.is_empty()).then(|| Rect { x0: r.x0, y0: r.y0, x1: r.x1 - 1, y1: r.y1 - 1 })
 }
 

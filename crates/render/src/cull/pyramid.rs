@@ -162,6 +162,88 @@ fn reduce(src: &[f32], sw: u32, sh: u32, dst: &mut [f32], dw: u32, r: Rect) {
     }
 }
 
+/// The z-pyramid of a frame session, read straight from the renderer's tiles: levels 1..=6
+/// live in each 64 × 64 tile (computed in the tile's own raster task, right after it drew),
+/// levels 6 and up over the tile grid. Same answers as [`DepthPyramid`] on the same depth,
+/// except that it never reads level 0 (its finest level is 2 × 2 pixels).
+#[derive(Debug, Clone, Copy)]
+pub struct TilePyramid<'a> {
+    tiles: &'a [crate::raster::TileBuf],
+    tiles_x: u32,
+    width: u32,
+    height: u32,
+    upper: &'a [(u32, u32, Vec<f32>)],
+    /// Added to stored depths before comparing: integer depth formats round window depth
+    /// to their grid, so a fragment up to half a step farther can still tie.
+    margin: f32,
+}
+
+impl<'a> TilePyramid<'a> {
+    pub(crate) fn new(
+        tiles: &'a [crate::raster::TileBuf],
+        tiles_x: u32,
+        width: u32,
+        height: u32,
+        upper: &'a [(u32, u32, Vec<f32>)],
+        fmt: crate::DepthFormat,
+    ) -> Self {
+        let margin = match fmt {
+            crate::DepthFormat::F32 => 0.0,
+            crate::DepthFormat::Unorm16 => 1.0 / 65535.0,
+            crate::DepthFormat::Unorm24 => 1.0 / 16_777_215.0,
+        };
+        Self { tiles, tiles_x, width, height, upper, margin }
+    }
+
+    /// Screen width.
+    pub fn width(&self) -> u32 {
+        self.width
+    }
+    /// Screen height.
+    pub fn height(&self) -> u32 {
+        self.height
+    }
+
+    #[inline]
+    fn texel(&self, level: u32, x: u32, y: u32) -> f32 {
+        if level < 6 {
+            let s = 64 >> level;
+            let tile = &self.tiles[((y / s) * self.tiles_x + x / s) as usize];
+            if !tile.touched {
+                return 1.0;
+            }
+            let off = crate::raster::MIP_OFFSETS[level as usize - 1];
+            tile.mips[off + ((y % s) * s + x % s) as usize]
+        } else {
+            let (w, _, d) = &self.upper[(level - 6) as usize];
+            d[(y * w + x) as usize]
+        }
+    }
+
+    /// True when nothing inside the pixel rectangle `r` at window depth ≥ `nearest` can pass
+    /// the depth test against what is drawn so far.
+    pub fn is_occluded(&self, r: Rect, nearest: f32) -> bool {
+        if !(nearest <= 1.0) {
+            return nearest > 1.0; // NaN: not occluded
+        }
+        let top = 5 + self.upper.len() as u32;
+        let span = (r.x1 - r.x0).max(r.y1 - r.y0) + 1;
+        let mut level = 1;
+        while (span >> level) > 3 && level < top {
+            level += 1;
+        }
+        let (x0, y0, x1, y1) = (r.x0 >> level, r.y0 >> level, r.x1 >> level, r.y1 >> level);
+        for y in y0..=y1 {
+            for x in x0..=x1 {
+                if nearest <= self.texel(level, x, y) + self.margin {
+                    return false;
+                }
+            }
+        }
+        true
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

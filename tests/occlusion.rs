@@ -1,0 +1,126 @@
+//! Occlusion queries against the z-pyramid of drawn occluders, and the pyramid's exactness.
+
+use glam::Vec3;
+use sightline::render::cull::Rect;
+use sightline::render::{BoxVisibility, Culler, Framebuffer, RenderOptions};
+use sightline::scene::path::CameraKey;
+use sightline::scene::rng::Rng;
+use sightline::scene::shapes::MeshBuilder;
+use sightline::scene::{Aabb, Camera, NodeDesc, Scene};
+
+/// A 20 × 10 wall in the plane z = −10, facing +z, and a camera at the origin looking down −z.
+fn wall() -> (Scene, Camera) {
+    let mut s = Scene::new();
+    let mut b = MeshBuilder::default();
+    b.grid(Vec3::new(-10.0, -5.0, -10.0), Vec3::X * 20.0, Vec3::Y * 10.0, 4, 2);
+    let m = s.add_mesh(b.build("wall").unwrap());
+    s.add_node(None, NodeDesc::new("wall").mesh(m)).unwrap();
+    s.update_transforms();
+    let key = CameraKey {
+        eye: [0.0; 3],
+        target: [0.0, 0.0, -1.0],
+        up: [0.0, 1.0, 0.0],
+        fovy_deg: 60.0,
+        near: 0.1,
+        far: 100.0,
+    };
+    (s, key.camera(16.0 / 9.0).unwrap())
+}
+
+fn cube_at(center: Vec3, half: f32) -> Aabb {
+    Aabb::new(center - Vec3::splat(half), center + Vec3::splat(half))
+}
+
+#[test]
+fn boxes_behind_beside_and_across_the_near_plane() {
+    let (scene, cam) = wall();
+    let mut culler = Culler::new(&scene);
+    let mut fb = Framebuffer::new(320, 180).unwrap();
+    let opts = RenderOptions::ids_only();
+    {
+        let (_, q) = culler.occluder_pass(&scene, &cam, &mut fb, &opts).unwrap();
+        assert_eq!(q.test(&cube_at(Vec3::new(0.0, 0.0, -12.0), 0.5)), BoxVisibility::Occluded, "right behind the wall");
+        assert_eq!(q.test(&cube_at(Vec3::new(0.0, 0.0, -30.0), 2.0)), BoxVisibility::Occluded, "far behind the wall");
+        // Beside the wall: x beyond its edge at x = 10, still in view at z = −12.
+        assert_eq!(q.test(&cube_at(Vec3::new(12.5, 0.0, -12.0), 0.5)), BoxVisibility::Visible, "beside the wall");
+        // Straddling the wall's plane: partly in front of it.
+        assert_eq!(q.test(&cube_at(Vec3::new(0.0, 0.0, -10.0), 0.5)), BoxVisibility::Visible, "through the wall");
+        assert_eq!(q.test(&cube_at(Vec3::new(0.0, 0.0, -5.0), 0.5)), BoxVisibility::Visible, "in front of the wall");
+        assert_eq!(q.test(&cube_at(Vec3::new(0.0, 0.0, 0.0), 0.5)), BoxVisibility::Visible, "crossing the near plane");
+        assert_eq!(q.test(&cube_at(Vec3::new(0.0, 0.0, 5.0), 0.5)), BoxVisibility::OutsideView, "behind the eye");
+        assert_eq!(q.test(&Aabb::new(Vec3::NAN, Vec3::NAN)), BoxVisibility::Visible, "NaN box");
+    }
+    culler.end_occluder_pass(&mut fb);
+    // The occluders were really drawn: the wall covers the middle of the image.
+    assert_ne!(fb.ids[(90 * 320 + 160) as usize], 0);
+}
+
+#[test]
+fn a_depth_cleared_buffer_occludes_nothing() {
+    let (scene, cam) = wall();
+    let mut culler = Culler::new(&scene);
+    let mut fb = Framebuffer::new(160, 90).unwrap();
+    // Looking away from the wall: nothing is drawn.
+    let away = CameraKey {
+        eye: [0.0; 3],
+        target: [0.0, 0.0, 1.0],
+        up: [0.0, 1.0, 0.0],
+        fovy_deg: 60.0,
+        near: 0.1,
+        far: 100.0,
+    }
+    .camera(16.0 / 9.0)
+    .unwrap();
+    let (_, q) = culler.occluder_pass(&scene, &away, &mut fb, &RenderOptions::ids_only()).unwrap();
+    let mut rng = Rng::new(4);
+    let boxes: Vec<Aabb> = (0..2000)
+        .map(|_| {
+            cube_at(
+                Vec3::new(rng.range(-30.0, 30.0), rng.range(-10.0, 10.0), rng.range(0.5, 90.0)),
+                rng.range(0.01, 2.0),
+            )
+        })
+        .collect();
+    let mut out = Vec::new();
+    q.test_batch(&boxes, &mut out);
+    assert!(out.iter().all(|&v| v != BoxVisibility::Occluded));
+    assert!(out.iter().filter(|&&v| v == BoxVisibility::Visible).count() > 500);
+    let _ = cam;
+}
+
+/// The tiled pyramid never calls a rectangle occluded unless every pixel in it is nearer
+/// than the query depth (checked against the depth buffer itself).
+#[test]
+fn session_pyramid_is_conservative_against_the_depth_buffer() {
+    let c = sightline::scene::builders::city(&sightline::scene::builders::CityParams::for_triangles(100_000)).unwrap();
+    let mut culler = Culler::new(&c.scene);
+    let (w, h) = (300u32, 170u32); // not a multiple of the 64-pixel tile
+    let mut fb = Framebuffer::new(w, h).unwrap();
+    let mut rng = Rng::new(8);
+    for key in c.layout.street_path(4, 2) {
+        let cam = key.camera(w as f32 / h as f32).unwrap();
+        // Draw once to get the finished depth buffer, then again to read its pyramid.
+        let _ = culler.occluder_pass(&c.scene, &cam, &mut fb, &RenderOptions::ids_only()).unwrap();
+        culler.end_occluder_pass(&mut fb);
+        let depth = fb.depth.clone();
+        let _ = culler.occluder_pass(&c.scene, &cam, &mut fb, &RenderOptions::ids_only()).unwrap();
+        let pyramid = culler.renderer_pyramid().unwrap();
+        let mut occluded = 0;
+        for _ in 0..3000 {
+            let (xa, xb, ya, yb) = (rng.below(w), rng.below(w), rng.below(h), rng.below(h));
+            let r = Rect { x0: xa.min(xb), x1: xa.max(xb), y0: ya.min(yb), y1: ya.max(yb) };
+            let z = rng.range(0.9, 1.0);
+            let truth_max = (r.y0..=r.y1)
+                .flat_map(|y| (r.x0..=r.x1).map(move |x| (x, y)))
+                .map(|(x, y)| depth[(y * w + x) as usize])
+                .fold(0.0f32, f32::max);
+            let occ = pyramid.is_occluded(r, z);
+            if occ {
+                occluded += 1;
+                assert!(z > truth_max, "rect {r:?} at {z} called occluded but a pixel has depth {truth_max}");
+            }
+        }
+        assert!(occluded > 0, "street views must occlude something");
+        culler.end_occluder_pass(&mut fb);
+    }
+}
