@@ -1,28 +1,36 @@
-//! The ray caster's BVH layout: a binary BVH stored as sibling pairs, converted from obvhs.
+//! The ray caster's BVH layout: a 4-wide BVH collapsed from the binary BVH obvhs builds.
 //!
 //! obvhs builds the tree (PLOC, Meister & Bittner 2018, "Parallel Locally-Ordered
 //! Clustering for Bounding Volume Hierarchy Construction", then reinsertion and leaf
-//! collapsing); this module re-lays it out for packet traversal. Each inner node is one
-//! 64-byte [`Pair`] holding the boxes of its two children, so one cache line gives everything
-//! a visit needs; a [`Child`] either links to the pair of its own children or is a leaf
-//! naming a run of primitives in *leaf order*. `order[k]` maps leaf-order position `k` back
-//! to the caller's primitive index, so the primitive data can be stored in leaf order and
-//! read sequentially.
+//! collapsing); this module collapses it to four children per node, the way wide BVHs for
+//! SIMD traversal are made (Wald, Benthin & Boulos 2008, "Getting Rid of Packets"; Dammertz
+//! et al. 2008, "Shallow Bounding Volume Hierarchies for Fast SIMD Ray Tracing"): each node
+//! keeps an inner child's place for its two children, opening the child with the largest
+//! surface area first, until four slots are used. A [`Node`] stores its children's boxes as
+//! structure of arrays (two cache lines), so one packet lane is tested against all four
+//! boxes in one SIMD operation. A child is a leaf naming a run of primitives in *leaf
+//! order*; `order[k]` maps leaf-order position `k` back to the caller's primitive index, so
+//! primitive data can be stored in leaf order and read sequentially.
 
 use obvhs::aabb::Aabb as ObAabb;
 use obvhs::bvh2::{leaf_collapser::collapse, reinsertion::ReinsertionOptimizer, Bvh2};
 use obvhs::ploc::{PlocBuilder, PlocSearchDistance, SortPrecision};
 
-/// One child slot of a [`Pair`]: a box plus a link.
+/// Children per node.
+pub(crate) const WIDTH: usize = 4;
+
+/// `link` of an unused child slot.
+pub(crate) const EMPTY_LINK: u32 = u32::MAX;
+
+/// One child as a box plus a link (the root, and what a node slot describes).
 ///
-/// `count == 0`: inner node, `link` is the index of the pair holding its children.
+/// `count == 0`: inner node, `link` is the index of its [`Node`].
 /// `count > 0`: leaf with primitives `link .. link + count` in leaf order.
 #[derive(Debug, Clone, Copy, PartialEq)]
-#[repr(C)]
 pub(crate) struct Child {
     /// Box minimum.
     pub lo: [f32; 3],
-    /// Pair index (inner) or first primitive (leaf).
+    /// Node index (inner) or first primitive (leaf).
     pub link: u32,
     /// Box maximum.
     pub hi: [f32; 3],
@@ -31,20 +39,65 @@ pub(crate) struct Child {
 }
 
 impl Child {
-    /// A child that nothing can hit (an empty box).
-    pub const EMPTY: Child = Child { lo: [f32::INFINITY; 3], link: 0, hi: [f32::NEG_INFINITY; 3], count: 0 };
+    /// No child at all.
+    pub const EMPTY: Child = Child { lo: [f32::INFINITY; 3], link: EMPTY_LINK, hi: [f32::NEG_INFINITY; 3], count: 0 };
 
     /// True for a leaf.
     #[inline(always)]
     pub fn is_leaf(&self) -> bool {
         self.count != 0
     }
+
+    /// True for an unused slot.
+    #[inline(always)]
+    pub fn is_empty(&self) -> bool {
+        self.link == EMPTY_LINK
+    }
 }
 
-/// The two children of an inner node, one cache line.
+/// An inner node: up to four children, boxes as structure of arrays.
 #[derive(Debug, Clone, Copy)]
 #[repr(C, align(64))]
-pub(crate) struct Pair(pub [Child; 2]);
+pub(crate) struct Node {
+    /// Box minima, `[axis][child]`.
+    pub lo: [[f32; WIDTH]; 3],
+    /// Box maxima, `[axis][child]`.
+    pub hi: [[f32; WIDTH]; 3],
+    /// Node index (inner child), first primitive (leaf) or `EMPTY_LINK`.
+    pub link: [u32; WIDTH],
+    /// Primitive count (0: inner or unused).
+    pub count: [u32; WIDTH],
+}
+
+impl Node {
+    /// A node with four unused slots.
+    pub const EMPTY: Node = Node {
+        lo: [[f32::INFINITY; WIDTH]; 3],
+        hi: [[f32::NEG_INFINITY; WIDTH]; 3],
+        link: [EMPTY_LINK; WIDTH],
+        count: [0; WIDTH],
+    };
+
+    /// Slot `k` as a [`Child`].
+    #[cfg(test)]
+    pub fn child(&self, k: usize) -> Child {
+        Child {
+            lo: [self.lo[0][k], self.lo[1][k], self.lo[2][k]],
+            link: self.link[k],
+            hi: [self.hi[0][k], self.hi[1][k], self.hi[2][k]],
+            count: self.count[k],
+        }
+    }
+
+    fn set(&mut self, k: usize, c: &Child) {
+        for a in 0..3 {
+            self.lo[a][k] = c.lo[a];
+            self.hi[a][k] = c.hi[a];
+        }
+        self.link[k] = c.link;
+        self.count[k] = c.count;
+    }
+}
 
 /// How hard the builder works: leaf size and PLOC search effort.
 #[derive(Debug, Clone, Copy)]
@@ -68,16 +121,16 @@ impl BuildParams {
         BuildParams { max_leaf: 1, traversal_cost: 1.0, search: PlocSearchDistance::Medium, reinsertion: 0.1 };
 }
 
-/// A binary BVH in pair layout.
+/// A 4-wide BVH.
 #[derive(Debug, Clone)]
 pub(crate) struct Bvh {
-    /// The root as a child slot (a leaf for tiny trees; empty for no primitives).
+    /// The root as a child (a leaf for tiny trees; empty for no primitives).
     pub root: Child,
-    /// Inner nodes.
-    pub pairs: Vec<Pair>,
+    /// Inner nodes; the root's is `nodes[root.link]` when the root is inner.
+    pub nodes: Vec<Node>,
     /// Leaf-order position → caller's primitive index.
     pub order: Vec<u32>,
-    /// Longest root-to-leaf path (sizes traversal stacks).
+    /// Longest root-to-leaf path in nodes (sizes traversal stacks).
     pub depth: usize,
 }
 
@@ -85,7 +138,7 @@ impl Bvh {
     /// Builds over the given boxes (all finite). Empty input gives an empty tree.
     pub fn build(boxes: &[ObAabb], params: BuildParams) -> Bvh {
         if boxes.is_empty() {
-            return Bvh { root: Child::EMPTY, pairs: Vec::new(), order: Vec::new(), depth: 0 };
+            return Bvh { root: Child::EMPTY, nodes: Vec::new(), order: Vec::new(), depth: 0 };
         }
         let mut bvh2 = PlocBuilder::with_capacity(boxes.len()).build(
             params.search,
@@ -100,14 +153,15 @@ impl Bvh {
         Self::from_bvh2(&bvh2)
     }
 
-    /// Re-lays out an obvhs BVH2 (depth first, so a subtree's pairs are contiguous).
+    /// Collapses an obvhs BVH2 to four children per node (depth first, so a subtree's
+    /// nodes are contiguous).
     pub fn from_bvh2(b: &Bvh2) -> Bvh {
-        let mut pairs: Vec<Pair> = Vec::with_capacity(b.nodes.len() / 2);
+        let mut nodes: Vec<Node> = Vec::with_capacity(b.nodes.len() / 3 + 1);
         let mut order = Vec::with_capacity(b.primitive_indices.len());
         if b.nodes.is_empty() {
-            return Bvh { root: Child::EMPTY, pairs, order, depth: 0 };
+            return Bvh { root: Child::EMPTY, nodes, order, depth: 0 };
         }
-        let make = |idx: usize, order: &mut Vec<u32>, pairs: &mut Vec<Pair>| -> Child {
+        let make = |idx: usize, order: &mut Vec<u32>, nodes: &mut Vec<Node>| -> Child {
             let n = &b.nodes[idx];
             let bb = n.aabb();
             let (lo, hi) = (bb.min.to_array(), bb.max.to_array());
@@ -121,35 +175,63 @@ impl Bvh {
                 order.extend_from_slice(&b.primitive_indices[s..e]);
                 Child { lo, link: first, hi, count: (e - s) as u32 }
             } else {
-                pairs.push(Pair([Child::EMPTY; 2]));
-                Child { lo, link: pairs.len() as u32 - 1, hi, count: 0 }
+                nodes.push(Node::EMPTY);
+                Child { lo, link: nodes.len() as u32 - 1, hi, count: 0 }
             }
         };
-        let root = make(0, &mut order, &mut pairs);
-        // (obvhs node whose children fill pair `p`, depth of the pair)
+        let inner = |i: usize| i < b.nodes.len() && !b.nodes[i].is_leaf();
+        let root = make(0, &mut order, &mut nodes);
+        // (obvhs node whose subtree fills node `p`, depth of `p`)
         let mut stack: Vec<(usize, u32, usize)> = Vec::new();
-        if !root.is_leaf() {
+        if !root.is_leaf() && !root.is_empty() {
             stack.push((0, root.link, 1));
         }
         let mut depth = 1;
-        while let Some((node, p, d)) = stack.pop() {
+        while let Some((n, p, d)) = stack.pop() {
             depth = depth.max(d + 1);
-            let first = b.nodes[node].first_index as usize;
-            let mut kids = [Child::EMPTY; 2];
-            for (k, kid) in kids.iter_mut().enumerate() {
-                if first + k < b.nodes.len() {
-                    *kid = make(first + k, &mut order, &mut pairs);
+            // Open inner children, largest surface area first, until four slots are used.
+            let first = b.nodes[n].first_index as usize;
+            let mut kids = [usize::MAX; WIDTH];
+            let mut nk = 0;
+            for i in [first, first + 1] {
+                if i < b.nodes.len() {
+                    kids[nk] = i;
+                    nk += 1;
                 }
             }
-            pairs[p as usize] = Pair(kids);
-            // Push the right child first so the left subtree is laid out (and popped) first.
-            for k in [1, 0] {
-                if !kids[k].is_leaf() && kids[k].lo[0] <= kids[k].hi[0] {
-                    stack.push((first + k, kids[k].link, d + 1));
+            while nk < WIDTH {
+                let mut best: Option<(usize, f32)> = None;
+                for (k, &i) in kids[..nk].iter().enumerate() {
+                    let a = b.nodes[i].aabb().half_area();
+                    if inner(i) && best.map_or(true, |(_, ba)| a > ba) {
+                        best = Some((k, a));
+                    }
                 }
+                let Some((k, _)) = best else { break };
+                let f = b.nodes[kids[k]].first_index as usize;
+                if f + 1 >= b.nodes.len() {
+                    break;
+                }
+                kids[k] = f;
+                kids[nk] = f + 1;
+                nk += 1;
+            }
+            let mut node = Node::EMPTY;
+            let mut pushes = [None; WIDTH];
+            for (k, &i) in kids[..nk].iter().enumerate() {
+                let c = make(i, &mut order, &mut nodes);
+                node.set(k, &c);
+                if !c.is_leaf() && !c.is_empty() {
+                    pushes[k] = Some((i, c.link, d + 1));
+                }
+            }
+            nodes[p as usize] = node;
+            // Reverse, so the first child's subtree is laid out (and popped) first.
+            for e in pushes.iter().rev().flatten() {
+                stack.push(*e);
             }
         }
-        Bvh { root, pairs, order, depth }
+        Bvh { root, nodes, order, depth }
     }
 
     /// Checks the structure: every primitive exactly once, children inside their parents'
@@ -160,6 +242,9 @@ impl Bvh {
         let mut stack = vec![self.root];
         let inside = |c: &Child, p: &Child| (0..3).all(|a| c.lo[a] >= p.lo[a] && c.hi[a] <= p.hi[a]);
         while let Some(c) = stack.pop() {
+            if c.is_empty() {
+                continue;
+            }
             if c.is_leaf() {
                 for k in c.link..c.link + c.count {
                     let i = *self.order.get(k as usize).ok_or("leaf out of range")? as usize;
@@ -167,13 +252,17 @@ impl Bvh {
                         return Err(format!("primitive {i} missing or twice"));
                     }
                 }
-            } else if c.lo[0] <= c.hi[0] {
-                let p = self.pairs.get(c.link as usize).ok_or("pair out of range")?;
-                for k in p.0 {
-                    if !inside(&k, &c) {
+            } else {
+                let n = self.nodes.get(c.link as usize).ok_or("node out of range")?;
+                for k in 0..WIDTH {
+                    let ch = n.child(k);
+                    if ch.is_empty() {
+                        continue;
+                    }
+                    if !inside(&ch, &c) {
                         return Err("child box outside parent".into());
                     }
-                    stack.push(k);
+                    stack.push(ch);
                 }
             }
         }
@@ -203,6 +292,10 @@ mod tests {
                 let b = Bvh::build(&boxes, params);
                 b.validate(n).unwrap();
                 assert_eq!(b.order.len(), n);
+                // Wide: far fewer nodes than a binary tree would have.
+                if n >= 100 && params.max_leaf == 1 {
+                    assert!(b.nodes.len() < n / 2, "{} nodes for {n} leaves", b.nodes.len());
+                }
             }
         }
     }

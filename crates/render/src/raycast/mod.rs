@@ -18,6 +18,7 @@
 mod blas;
 mod bvh;
 mod camera;
+mod isa;
 mod packet;
 mod render;
 mod tlas;
@@ -334,7 +335,7 @@ impl<'s> RayCaster<'s> {
         rays.set(0, origin.into(), dir.into());
         hits.open(0, t_min, t_max);
         let mut s = Scratch::new(self.tlas.bvh.depth, 64);
-        trace::<ANY>(&self.blases, &self.tlas, &rays, None, false, &mut hits, 1, &mut s);
+        trace::<isa::Portable, ANY>(&self.blases, &self.tlas, &rays, None, false, &mut hits, 1, &mut s);
         let mut best = None;
         if hits.inst[0][0] != NO_HIT {
             let rec = &self.tlas.instances[hits.inst[0][0] as usize];

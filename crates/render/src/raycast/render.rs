@@ -18,6 +18,7 @@ use rayon::prelude::*;
 use sightline_scene::{Camera, Material};
 
 use super::camera::CameraRays;
+use super::isa::{Avx2, Avx512, Isa, Portable};
 use super::packet::{Hits, Rays, CHUNK, LANES, NO_HIT, TILE};
 use super::trace::{trace, Scratch};
 use super::{RayCaster, RaycastOptions, RaycastStats, SimdLevel};
@@ -171,17 +172,17 @@ pub(crate) fn render(
 
 /// The packet step compiled for one instruction set.
 macro_rules! isa_packet {
-    ($name:ident, $features:literal) => {
+    ($name:ident, $isa:ty, $features:literal) => {
         #[cfg(target_arch = "x86_64")]
         #[target_feature(enable = $features)]
         fn $name<'a>(f: &Frame<'a, '_>, band: &mut Band<'a>, x0: u32, y0: u32, out: &mut Out<'_>) {
-            f.packet_impl(band, x0, y0, out)
+            f.packet_impl::<$isa>(band, x0, y0, out)
         }
     };
 }
 
-isa_packet!(packet_avx512, "avx512f,avx512bw,avx512dq,avx512vl,avx2,bmi1,bmi2,lzcnt,popcnt");
-isa_packet!(packet_avx2, "avx2,bmi1,bmi2,lzcnt,popcnt");
+isa_packet!(packet_avx512, Avx512, "avx512f,avx512bw,avx512dq,avx512vl,avx2,bmi1,bmi2,lzcnt,popcnt");
+isa_packet!(packet_avx2, Avx2, "avx2,bmi1,bmi2,lzcnt,popcnt");
 
 /// Window depth from clip rows z and w at a point.
 #[inline(always)]
@@ -207,7 +208,7 @@ impl<'a> Frame<'a, '_> {
             #[cfg(target_arch = "x86_64")]
             // SAFETY: as above, for the AVX2 feature set.
             SimdLevel::Avx2 => unsafe { packet_avx2(self, band, x0, y0, out) },
-            _ => self.packet_impl(band, x0, y0, out),
+            _ => self.packet_impl::<Portable>(band, x0, y0, out),
         }
     }
 
@@ -226,7 +227,7 @@ impl<'a> Frame<'a, '_> {
     }
 
     #[inline(always)]
-    fn packet_impl(&self, band: &mut Band<'a>, x0: u32, y0: u32, out: &mut Out<'_>) {
+    fn packet_impl<I: Isa>(&self, band: &mut Band<'a>, x0: u32, y0: u32, out: &mut Out<'_>) {
         let caster = self.caster;
         let Band { scratch, rays, hits, srays, shits, csg, csg_hit, .. } = band;
         let mask = self.gen.fill(x0, y0, rays, hits);
@@ -234,7 +235,7 @@ impl<'a> Frame<'a, '_> {
             return;
         }
         let beam = self.gen.beam(x0, y0, x0 + TILE, y0 + TILE, self.camera);
-        trace::<false>(
+        trace::<I, false>(
             &caster.blases,
             &caster.tlas,
             rays,
@@ -332,7 +333,7 @@ impl<'a> Frame<'a, '_> {
             srays.shared = None;
             band.shadow_rays += smask.count_ones() as u64;
             if smask != 0 {
-                dark = trace::<true>(&caster.blases, &caster.tlas, srays, None, false, shits, smask, scratch);
+                dark = trace::<I, true>(&caster.blases, &caster.tlas, srays, None, false, shits, smask, scratch);
                 let mut open = smask & !dark;
                 while open != 0 {
                     let i = open.trailing_zeros() as usize;

@@ -5,6 +5,7 @@
 //! (`ANY = true`, shadow rays) close a lane at its first hit and stop when all are closed.
 
 use super::blas::Blas;
+use super::isa::Isa;
 use super::packet::{chunk_bits, Beam, Frustum, Hits, Rays, CHUNK, CHUNKS};
 use super::tlas::Tlas;
 use super::traverse::{traverse, Entry};
@@ -88,7 +89,7 @@ fn leaf<const ANY: bool>(
 /// any-hit queries.
 #[inline(always)]
 #[allow(clippy::too_many_arguments)]
-pub(crate) fn trace<const ANY: bool>(
+pub(crate) fn trace<I: Isa, const ANY: bool>(
     blases: &[Blas],
     tlas: &Tlas,
     rays: &Rays,
@@ -100,7 +101,7 @@ pub(crate) fn trace<const ANY: bool>(
 ) -> u64 {
     let world = beam.map_or(Frustum::OFF, |b| b.frustum());
     let Scratch { local, tlas_stack, blas_stack } = s;
-    traverse(
+    traverse::<I, _>(
         &tlas.bvh,
         rays,
         hits,
@@ -135,7 +136,7 @@ pub(crate) fn trace<const ANY: bool>(
                     (true, false) => 1.0,
                     (true, true) => -1.0,
                 };
-                done |= traverse(
+                done |= traverse::<I, _>(
                     &blas.bvh,
                     lr,
                     hits,

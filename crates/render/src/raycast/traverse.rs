@@ -1,115 +1,75 @@
-//! Packet traversal of a pair-layout BVH: masked, ordered, with early hit and frustum culling.
+//! Packet traversal of a 4-wide BVH: masked, ordered, with early hit and frustum culling.
 //!
 //! The scheme is the BVH packet traversal of Wald, Boulos & Shirley 2007 ("Ray Tracing
 //! Deformable Scenes Using Dynamic Bounding Volume Hierarchies") with the active-ray mask of
 //! Overbeck, Ramamoorthi & Mark 2008 ("Large Ray Packets for Real-time Whitted Ray
-//! Tracing"). A node is entered with the mask of lanes that may hit it; for each child:
+//! Tracing"), on a 4-wide tree. A node is entered with the mask of lanes that may hit it;
+//! for its children:
 //!
-//! 1. *early hit*: if the first active lane hits the child box, descend with the whole mask
-//!    (one scalar box test — the common case near the root for coherent rays);
-//! 2. *frustum cull*: if the box is outside one of the packet's beam planes, no lane hits;
-//! 3. otherwise test every active lane in SIMD and descend with the lanes that hit.
+//! 1. *early hit*: the first active lane is tested against all four boxes at once; an inner
+//!    child it hits is entered with the whole mask (the common case for coherent rays);
+//! 2. *frustum cull*: the other children are tested against the packet's four beam planes,
+//!    again four boxes at once; a box outside one plane is hit by no lane;
+//! 3. the rest, and every leaf, get an exact mask: every active lane tested in SIMD.
 //!
 //! Lane tests clip against each lane's current closest hit, so subtrees behind what the
 //! packet already sees drop out (occlusion). Children are visited near to far along the
-//! first active lane; leaves get an exact lane mask before their primitives are tested. Box
-//! tests use the robust slab test of Ize 2013 ("Robust BVH Ray Traversal"): the exit distance
-//! is scaled up by 1 + 2⁻²⁰ (more than Ize's 1 + 2γ₃ and than the triangle tie window), so
-//! rounding never loses a hit.
+//! first active lane. Box tests use the robust slab test of Ize 2013 ("Robust BVH Ray
+//! Traversal"): the exit distance is scaled up by 1 + 2⁻²⁰ (more than Ize's 1 + 2γ₃ and than
+//! the triangle tie window), so rounding never loses a hit.
 
-use super::bvh::{Bvh, Child};
+use glam::Vec4;
+
+use super::bvh::{Bvh, Node, EMPTY_LINK, WIDTH};
+use super::isa::{Isa, Slab, ROBUST};
 use super::packet::{chunk_bits, Frustum, Hits, Rays, CHUNK, CHUNKS};
-
-/// 1 + 2⁻²⁰: above 1 + 2γ₃ (γ₃ = 3ε / (1 − 3ε), ε = 2⁻²⁴) and the tie window.
-const ROBUST: f32 = 1.0 + 1.0 / (1u32 << 20) as f32;
 
 /// A pending subtree: (link, primitive count, lane mask).
 pub(crate) type Entry = (u32, u32, u64);
 
-#[inline(always)]
-fn mn(a: f32, b: f32) -> f32 {
-    if a < b {
-        a
-    } else {
-        b
-    }
-}
-
-#[inline(always)]
-fn mx(a: f32, b: f32) -> f32 {
-    if a > b {
-        a
-    } else {
-        b
-    }
-}
-
 /// Lanes of `mask` whose interval meets the box.
 #[inline(always)]
-pub(crate) fn box_mask(rays: &Rays, hits: &Hits, lo: &[f32; 3], hi: &[f32; 3], mask: u64) -> u64 {
+pub(crate) fn box_mask<I: Isa>(rays: &Rays, hits: &Hits, lo: &[f32; 3], hi: &[f32; 3], mask: u64) -> u64 {
     let mut out = 0u64;
     for c in 0..CHUNKS {
         let bits = chunk_bits(mask, c);
         if bits == 0 {
             continue;
         }
-        let (ox, oy, oz) = (&rays.o[0][c], &rays.o[1][c], &rays.o[2][c]);
-        let (rx, ry, rz) = (&rays.r[0][c], &rays.r[1][c], &rays.r[2][c]);
-        let (tmin, tmax) = (&hits.tmin[c], &hits.t[c]);
-        let mut m = 0u64;
-        for j in 0..CHUNK {
-            let x0 = (lo[0] - ox[j]) * rx[j];
-            let x1 = (hi[0] - ox[j]) * rx[j];
-            let y0 = (lo[1] - oy[j]) * ry[j];
-            let y1 = (hi[1] - oy[j]) * ry[j];
-            let z0 = (lo[2] - oz[j]) * rz[j];
-            let z1 = (hi[2] - oz[j]) * rz[j];
-            let near = mx(mx(mn(x0, x1), mn(y0, y1)), mx(mn(z0, z1), tmin[j]));
-            let far = mn(mn(mx(x0, x1), mx(y0, y1)), mn(mx(z0, z1), tmax[j]));
-            m |= ((near <= far * ROBUST) as u64) << j;
-        }
+        let s = Slab {
+            o: [&rays.o[0][c], &rays.o[1][c], &rays.o[2][c]],
+            r: [&rays.r[0][c], &rays.r[1][c], &rays.r[2][c]],
+            tmin: &hits.tmin[c],
+            tmax: &hits.t[c],
+        };
+        // SAFETY: `I` is only instantiated for an instruction set the CPU has
+        // (`SimdLevel::resolve`).
+        let m = unsafe { I::slab16(&s, lo, hi) };
         out |= (m & bits) << (c * CHUNK);
     }
     out
 }
 
-/// Does lane `i` meet the box?
+/// Lane `i` against the four boxes of a node, four boxes per SIMD operation: the hit
+/// children as a 4-bit mask, and per child a sort key (the entry distance for boxes the
+/// lane hits, else the distance of the box center along the lane).
 #[inline(always)]
-fn lane_hits(rays: &Rays, hits: &Hits, i: usize, lo: &[f32; 3], hi: &[f32; 3]) -> bool {
+fn lane_vs_node(rays: &Rays, hits: &Hits, i: usize, node: &Node) -> (u32, [f32; WIDTH]) {
     let (c, j) = (i / CHUNK, i % CHUNK);
-    let mut near = hits.tmin[c][j];
-    let mut far = hits.t[c][j];
+    let mut near = Vec4::splat(hits.tmin[c][j]);
+    let mut far = Vec4::splat(hits.t[c][j]);
+    let mut along = Vec4::ZERO;
     for a in 0..3 {
-        let t0 = (lo[a] - rays.o[a][c][j]) * rays.r[a][c][j];
-        let t1 = (hi[a] - rays.o[a][c][j]) * rays.r[a][c][j];
-        near = mx(near, mn(t0, t1));
-        far = mn(far, mx(t0, t1));
+        let (o, r, d) = (rays.o[a][c][j], rays.r[a][c][j], rays.d[a][c][j]);
+        let (lo, hi) = (Vec4::from_array(node.lo[a]), Vec4::from_array(node.hi[a]));
+        let t0 = (lo - Vec4::splat(o)) * r;
+        let t1 = (hi - Vec4::splat(o)) * r;
+        near = near.max(t0.min(t1));
+        far = far.min(t0.max(t1));
+        along += ((lo + hi) * 0.5 - Vec4::splat(o)) * d;
     }
-    near <= far * ROBUST
-}
-
-/// The lanes that may hit `child` (a superset after an early hit) and its sort key.
-#[inline(always)]
-fn child_mask(child: &Child, rays: &Rays, hits: &Hits, fr: &Frustum, mask: u64, first: usize) -> u64 {
-    if !child.is_leaf() && lane_hits(rays, hits, first, &child.lo, &child.hi) {
-        return mask;
-    }
-    if fr.culls(&child.lo, &child.hi) {
-        return 0;
-    }
-    box_mask(rays, hits, &child.lo, &child.hi, mask)
-}
-
-/// Distance of the box center along the first active lane (orders near before far).
-#[inline(always)]
-fn key(child: &Child, rays: &Rays, first: usize) -> f32 {
-    let o = rays.origin(first);
-    let d = rays.dir(first);
-    let mut k = 0.0;
-    for a in 0..3 {
-        k += (0.5 * (child.lo[a] + child.hi[a]) - o[a]) * d[a];
-    }
-    k
+    let hit = near.cmple(far * ROBUST);
+    (hit.bitmask(), Vec4::select(hit, near, along).to_array())
 }
 
 /// Traverses `bvh` with the lanes of `mask`, calling `leaf(hits, first, count, lanes)` for
@@ -117,7 +77,7 @@ fn key(child: &Child, rays: &Rays, first: usize) -> f32 {
 /// finished (any-hit queries), which then leave the traversal; the union is returned.
 /// `stack` is scratch space, used above its current length and restored.
 #[inline(always)]
-pub(crate) fn traverse<F>(
+pub(crate) fn traverse<I: Isa, F>(
     bvh: &Bvh,
     rays: &Rays,
     hits: &mut Hits,
@@ -130,7 +90,10 @@ where
     F: FnMut(&mut Hits, u32, u32, u64) -> u64,
 {
     let root = &bvh.root;
-    let m = box_mask(rays, hits, &root.lo, &root.hi, mask);
+    if root.is_empty() {
+        return 0;
+    }
+    let m = box_mask::<I>(rays, hits, &root.lo, &root.hi, mask);
     if m == 0 {
         return 0;
     }
@@ -146,29 +109,48 @@ where
                 if mask & !done == 0 {
                     break;
                 }
-            } else if let Some(pair) = bvh.pairs.get(link as usize) {
+            } else if let Some(node) = bvh.nodes.get(link as usize) {
                 let first = m.trailing_zeros() as usize;
-                let [a, b] = &pair.0;
-                let ma = child_mask(a, rays, hits, fr, m, first);
-                let mb = child_mask(b, rays, hits, fr, m, first);
-                let ea: Entry = (a.link, a.count, ma);
-                let eb: Entry = (b.link, b.count, mb);
-                match (ma != 0, mb != 0) {
-                    (true, true) => {
-                        let (near, far) = if key(a, rays, first) <= key(b, rays, first) { (ea, eb) } else { (eb, ea) };
-                        stack.push(far);
-                        cur = near;
-                        continue;
+                let (early, key) = lane_vs_node(rays, hits, first, node);
+                let mut valid = 0u32;
+                for k in 0..WIDTH {
+                    valid |= ((node.link[k] != EMPTY_LINK) as u32) << k;
+                }
+                let culled = if valid & !early != 0 { fr.culls4(&node.lo, &node.hi) & !early } else { 0 };
+                let live = valid & !culled;
+                // Children with lanes, as (key, entry), sorted near to far.
+                let mut ents = [(0f32, (0u32, 0u32, 0u64)); WIDTH];
+                let mut n = 0;
+                let mut todo = live;
+                while todo != 0 {
+                    let k = todo.trailing_zeros() as usize;
+                    todo &= todo - 1;
+                    let is_leaf = node.count[k] != 0;
+                    let mk = if early >> k & 1 != 0 && !is_leaf {
+                        m
+                    } else {
+                        let lo = [node.lo[0][k], node.lo[1][k], node.lo[2][k]];
+                        let hi = [node.hi[0][k], node.hi[1][k], node.hi[2][k]];
+                        box_mask::<I>(rays, hits, &lo, &hi, m)
+                    };
+                    if mk != 0 {
+                        let e = (key[k], (node.link[k], node.count[k], mk));
+                        // Insertion sort on at most four entries.
+                        let mut p = n;
+                        while p > 0 && ents[p - 1].0 > e.0 {
+                            ents[p] = ents[p - 1];
+                            p -= 1;
+                        }
+                        ents[p] = e;
+                        n += 1;
                     }
-                    (true, false) => {
-                        cur = ea;
-                        continue;
+                }
+                if n > 0 {
+                    for e in ents[1..n].iter().rev() {
+                        stack.push(e.1);
                     }
-                    (false, true) => {
-                        cur = eb;
-                        continue;
-                    }
-                    (false, false) => {}
+                    cur = ents[0].1;
+                    continue;
                 }
             }
         }
