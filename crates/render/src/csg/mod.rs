@@ -19,7 +19,7 @@ pub mod tree;
 use std::path::Path;
 
 use glam::{Affine3A, DAffine3, DMat3, DVec3, Vec3};
-use sightline_scene::{Aabb, Camera, Projection, Scene, View};
+use sightline_scene::{Aabb, Camera, Material, NodeDesc, Projection, Scene, Transform, View};
 
 pub use interval::{combine, Crossing, Op, Span};
 pub use primitive::Shape;
@@ -160,15 +160,20 @@ pub fn classic_demo() -> Csg {
     cube.intersect(sphere).subtract(holes)
 }
 
-/// Renders [`classic_demo`] (colored, with hard shadows, seen from above and aside) into a
-/// new framebuffer of the given size.
+/// Renders [`classic_demo`] (colored, standing on a ground plane, with hard shadows, seen
+/// from above and aside) into a new framebuffer of the given size.
 pub fn render_classic_demo(width: u32, height: u32) -> Result<Framebuffer> {
-    let scene = Scene::new();
+    let mut scene = Scene::new();
+    let ground = scene.add_mesh(sightline_scene::shapes::ground_quad("ground", 1)?);
+    let gray = scene.add_material(Material::color("ground", [0.55, 0.57, 0.6]));
+    let place = Transform::from_translation(Vec3::new(0.0, -1.0, 0.0)).with_scale(Vec3::new(12.0, 1.0, 12.0));
+    scene.add_node(None, NodeDesc::new("ground").transform(place).mesh(ground).material(gray))?;
+    scene.update_transforms();
     let object = CsgObject::new("classic", &classic_demo(), Affine3A::from_rotation_y(0.35), [0.85, 0.45, 0.25, 1.0])?;
     let caster = RayCaster::build(&scene)?.with_csg(vec![object]);
-    let view = View::look_at(Vec3::new(3.2, 2.6, 4.0), Vec3::ZERO, Vec3::Y)?;
+    let view = View::look_at(Vec3::new(3.2, 2.6, 4.0), Vec3::new(0.0, -0.2, 0.0), Vec3::Y)?;
     let aspect = width as f32 / height.max(1) as f32;
-    let camera = Camera::new(view, Projection::perspective(0.6, aspect, 0.1, 100.0)?)?;
+    let camera = Camera::new(view, Projection::perspective(0.75, aspect, 0.1, 100.0)?)?;
     let mut fb = Framebuffer::new(width, height)?;
     let opts = RaycastOptions { shadows: true, background: [40, 44, 52, 255], ..RaycastOptions::default() };
     caster.render(&camera, &opts, &mut fb)?;
