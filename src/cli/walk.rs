@@ -64,6 +64,9 @@ pub struct WalkArgs {
     /// Summary as JSON
     #[arg(long, value_name = "FILE")]
     pub json: Option<PathBuf>,
+    /// Occlusion culling: clusters in the first front-to-back batch (later batches double)
+    #[arg(long, default_value_t = 32)]
+    pub first_batch: usize,
     #[command(flatten)]
     pub look: Look,
 }
@@ -146,7 +149,11 @@ fn walk(
     let scene = &loaded.scene;
     let list = methods(a.method);
     let needs_raster = list.iter().any(|m| m.1.is_some()) || a.verify;
-    let mut culler = needs_raster.then(|| Culler::new(scene));
+    let mut culler = needs_raster.then(|| {
+        let mut c = Culler::new(scene);
+        c.first_batch = a.first_batch.max(1);
+        c
+    });
     let caster = if list.iter().any(|m| m.1.is_none()) { Some(RayCaster::build(scene)?) } else { None };
     let mut fb = Framebuffer::new(a.size.width, a.size.height)?;
     let mut reference = Framebuffer::new(a.size.width, a.size.height)?;

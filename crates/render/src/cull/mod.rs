@@ -22,6 +22,7 @@
 //! equals the brute-force one; [`compare_ids`] checks it, and the tests run it on many
 //! cameras.
 
+pub mod cone;
 pub mod meshlets;
 pub mod pyramid;
 pub mod query;
@@ -82,6 +83,8 @@ pub struct CullStats {
     pub clusters_in_frustum: u64,
     /// Clusters culled by the frustum.
     pub culled_by_frustum: u64,
+    /// Clusters in the frustum whose triangles all face away from the eye (normal cones).
+    pub culled_by_backface: u64,
     /// Clusters in the frustum but skipped as occluded (themselves or an ancestor node).
     pub culled_by_occlusion: u64,
     /// Boxes (BVH nodes, octants, clusters) tested against the z-pyramid.
@@ -112,6 +115,7 @@ pub struct Culler {
     clustered: ClusteredScene,
     meshlets: SceneMeshlets,
     item_boxes: Vec<Aabb>,
+    cones: Vec<cone::Cone>,
     /// `None` only while a walk borrows it.
     octree: Option<LooseOctree>,
     renderer: Renderer,
@@ -133,12 +137,24 @@ impl Culler {
         let clustered = ClusteredScene::from_instances(scene, &instances);
         let meshlets = SceneMeshlets::build(scene, &instances, &clustered);
         let item_boxes = clustered.item_boxes(&instances);
+        let cone_inputs: Vec<_> = (0..clustered.item_count() as u32)
+            .map(|i| {
+                let it = clustered.item(i);
+                let inst = &instances[it.instance as usize];
+                match scene.mesh(inst.mesh) {
+                    Some(m) => (m.positions(), m.indices(), clustered.triangles(i), inst.world_from_local),
+                    None => (&[][..], &[][..], &[][..], inst.world_from_local),
+                }
+            })
+            .collect();
+        let cones = cone::cones(&cone_inputs);
         let octree = LooseOctree::from_boxes(&item_boxes, OCTREE_DEPTH);
         Self {
             instances,
             clustered,
             meshlets,
             item_boxes,
+            cones,
             octree: Some(octree),
             renderer: Renderer::new(),
             visible: Vec::new(),
@@ -162,6 +178,7 @@ impl Culler {
         self.clustered.memory_bytes()
             + self.meshlets.memory_bytes()
             + self.item_boxes.capacity() * std::mem::size_of::<Aabb>()
+            + self.cones.capacity() * std::mem::size_of::<cone::Cone>()
             + self.octree.as_ref().map_or(0, LooseOctree::memory_bytes)
     }
 
@@ -213,7 +230,7 @@ impl Culler {
             Method::Hzb => self.hzb_bvh(scene, camera, &frustum, fb, &opts, &mut cs, &mut fs)?,
             Method::OctreeHzb => self.hzb_octree(scene, camera, &frustum, fb, &opts, &mut cs, &mut fs)?,
         }
-        cs.culled_by_occlusion = cs.clusters_in_frustum.saturating_sub(cs.clusters_drawn);
+        cs.culled_by_occlusion = cs.clusters_in_frustum.saturating_sub(cs.clusters_drawn + cs.culled_by_backface);
         if opts.shading.mode != ShadingMode::None {
             let t = Instant::now();
             crate::shade_pass(scene, &self.instances, camera, fb, &opts.shading);
@@ -333,6 +350,12 @@ impl Culler {
                     &mut out,
                 )
             };
+            // Clusters facing away would only be dropped triangle by triangle.
+            if opts.backface_culling {
+                let before = out.len();
+                out.retain(|v| !self.cones[v.index as usize].backfacing(camera.view.eye));
+                cs.culled_by_backface += (before - out.len()) as u64;
+            }
             cs.ms_cull += ms_since(t);
             if !out.is_empty() {
                 let t = Instant::now();
@@ -392,6 +415,10 @@ impl Culler {
             },
             |v| {
                 let mut g = walk.borrow_mut();
+                if opts.backface_culling && g.culler.cones[v.index as usize].backfacing(camera.view.eye) {
+                    g.cs.culled_by_backface += 1;
+                    return Visit::Continue;
+                }
                 g.pending.push(v);
                 if g.pending.len() >= g.batch {
                     g.flush(scene, camera, opts);

@@ -6,7 +6,7 @@
 //!
 //! Construction: a top-down median split (as in a kd-tree build): the triangles' box centers
 //! are split at the median of the longest axis of their bounds, recursively (in parallel with
-//! rayon), until a part has at most `CLUSTER_MAX` triangles, so clusters hold 128–256
+//! rayon), until a part has at most `CLUSTER_MAX` triangles, so clusters hold 64–128
 //! triangles (fewer only for small meshes) and are compact cells. A PLOC BVH's subtrees were
 //! tried first and rejected: on regular grids (subdivided faces, scanned surfaces) PLOC merges
 //! into long strips, since the SAH cannot tell a strip from a square on flat geometry, and
@@ -25,7 +25,7 @@ use crate::{AabbExt, BoxKind};
 /// triangles or no mergeable neighbour).
 pub const CLUSTER_MIN: usize = 64;
 /// Largest cluster size.
-pub const CLUSTER_MAX: usize = 256;
+pub const CLUSTER_MAX: usize = 128;
 
 /// One cluster: a box (mesh-local) and a range of the cluster-ordered permutation.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -47,14 +47,30 @@ pub struct MeshClusters {
 
 impl MeshClusters {
     /// Clusters `mesh`'s triangles (one cluster when it has at most [`CLUSTER_MAX`]).
+    ///
+    /// Meshes with more than [`CLUSTER_MAX`] triangles are first grouped by facing (the sign
+    /// and axis of each triangle's dominant normal component), then split spatially within each
+    /// group: clusters of one facing have narrow normal cones, so a renderer can drop a whole
+    /// cluster that faces away (cluster back-face culling) — a facade cluster is then exactly
+    /// planar, not folded around a corner.
     pub fn build(mesh: &Mesh) -> MeshClusters {
         let boxes = triangle_boxes(mesh.positions(), mesh.indices());
-        Self::from_triangle_boxes(&boxes)
+        if mesh.triangle_count() <= CLUSTER_MAX {
+            return Self::from_triangle_boxes(&boxes);
+        }
+        let groups: Vec<u8> = (0..mesh.triangle_count()).map(|t| facing(mesh.triangle_positions(t))).collect();
+        Self::from_grouped_boxes(&boxes, &groups)
     }
 
     /// Clusters items given by their boxes (item `i` is `boxes[i]`); empty boxes are left
     /// out, NaN/infinite ones form clusters of their own with an unbounded (NaN) box.
     pub fn from_triangle_boxes(boxes: &[Aabb]) -> MeshClusters {
+        Self::from_grouped_boxes(boxes, &vec![0; boxes.len()])
+    }
+
+    /// Like [`MeshClusters::from_triangle_boxes`], but no cluster mixes items of different
+    /// `groups[i]`.
+    pub fn from_grouped_boxes(boxes: &[Aabb], groups: &[u8]) -> MeshClusters {
         let mut permutation: Vec<u32> = Vec::with_capacity(boxes.len());
         let mut unbounded: Vec<u32> = Vec::new();
         for (i, b) in boxes.iter().enumerate() {
@@ -65,7 +81,17 @@ impl MeshClusters {
             }
         }
         let centers: Vec<Vec3> = boxes.iter().map(|b| b.center()).collect();
-        let ranges = median_split(&centers, &mut permutation, 0);
+        // Group first (stable: ties keep index order), then split each group's range.
+        permutation.sort_by_key(|&t| groups.get(t as usize).copied().unwrap_or(0));
+        let mut ranges = Vec::new();
+        let mut start = 0;
+        while start < permutation.len() {
+            let g = groups.get(permutation[start] as usize).copied().unwrap_or(0);
+            let len =
+                permutation[start..].iter().take_while(|&&t| groups.get(t as usize).copied().unwrap_or(0) == g).count();
+            ranges.extend(median_split(&centers, &mut permutation[start..start + len], start as u32));
+            start += len;
+        }
         let mut clusters: Vec<Cluster> = ranges
             .into_iter()
             .map(|(first, count)| Cluster {
@@ -107,6 +133,24 @@ impl MeshClusters {
     pub fn memory_bytes(&self) -> usize {
         self.clusters.capacity() * std::mem::size_of::<Cluster>() + self.permutation.capacity() * 4
     }
+}
+
+/// Facing group of a triangle: 2·axis + (component < 0) of its normal's largest component,
+/// 6 for degenerate triangles.
+fn facing([a, b, c]: [Vec3; 3]) -> u8 {
+    let n = (b - a).cross(c - a);
+    let m = n.abs();
+    if !(m.max_element() > 0.0) {
+        return 6;
+    }
+    let axis = if m.x >= m.y && m.x >= m.z {
+        0
+    } else if m.y >= m.z {
+        1
+    } else {
+        2
+    };
+    2 * axis + (n[axis as usize] < 0.0) as u8
 }
 
 /// Splits `perm` (item ids, whose centers are `centers[id]`) at the median of the longest
