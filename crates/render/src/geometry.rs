@@ -11,7 +11,7 @@
 use glam::{Mat4, Vec3, Vec4};
 
 use crate::clip::{self, BAD, GUARD, VIEW_BITS};
-use crate::setup::{setup, Setup, SnappedVertex, Tri, Viewport};
+use crate::setup::{setup_into, Outcome, SnappedVertex, Tri, Viewport};
 use crate::stats::FrameStats;
 
 /// Where a draw piece's triangles come from.
@@ -163,16 +163,17 @@ impl Chunk {
             return;
         }
         let s = [self.verts.snapped[v[0]], self.verts.snapped[v[1]], self.verts.snapped[v[2]]];
-        self.emit(setup(s, id, cull, vp));
+        let o = setup_into(s, id, cull, vp, &mut self.tris);
+        self.count(o);
     }
 
     #[inline(always)]
-    fn emit(&mut self, s: Setup) {
-        match s {
-            Setup::Ready(t) => self.tris.push(t),
-            Setup::BackFace => self.stats.backface_culled += 1,
-            Setup::Degenerate => self.stats.degenerate += 1,
-            Setup::TooSmall => self.stats.too_small += 1,
+    fn count(&mut self, o: Outcome) {
+        match o {
+            Outcome::Ready => {}
+            Outcome::BackFace => self.stats.backface_culled += 1,
+            Outcome::Degenerate => self.stats.degenerate += 1,
+            Outcome::TooSmall => self.stats.too_small += 1,
         }
     }
 
@@ -209,7 +210,8 @@ impl Chunk {
         for i in 1..poly.len() - 1 {
             self.stats.clip_output += 1;
             // Facing was decided above; each fan piece is oriented by its own area.
-            self.emit(setup([s[0], s[i], s[i + 1]], id, false, vp));
+            let o = setup_into([s[0], s[i], s[i + 1]], id, false, vp, &mut self.tris);
+            self.count(o);
         }
     }
 }

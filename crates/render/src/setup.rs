@@ -130,23 +130,52 @@ pub enum Setup {
     Ready(Tri),
 }
 
-/// Sets up a triangle from snapped vertices. Front faces are counter-clockwise in NDC, so
-/// in y-down window coordinates their signed area is negative; `cull` drops the others.
-#[inline]
+/// What setup made of a triangle, when a ready one went straight into the output list.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Outcome {
+    /// A back face while culling is on.
+    BackFace,
+    /// Zero area after snapping.
+    Degenerate,
+    /// No pixel center inside.
+    TooSmall,
+    /// Appended to the output.
+    Ready,
+}
+
+/// Sets up a triangle from snapped vertices (see [`setup_into`]).
 pub fn setup(v: [SnappedVertex; 3], id: u32, cull: bool, vp: &Viewport) -> Setup {
-    let [a, mut b, mut c] = v;
-    let area =
-        (b.x as i64 - a.x as i64) * (c.y as i64 - a.y as i64) - (c.x as i64 - a.x as i64) * (b.y as i64 - a.y as i64);
+    let mut out = Vec::with_capacity(1);
+    match setup_into(v, id, cull, vp, &mut out) {
+        Outcome::BackFace => Setup::BackFace,
+        Outcome::Degenerate => Setup::Degenerate,
+        Outcome::TooSmall => Setup::TooSmall,
+        Outcome::Ready => Setup::Ready(out[0]),
+    }
+}
+
+/// Sets up a triangle from snapped vertices and appends it to `out` when it is to be
+/// rasterized (written in place: no copy of the record per triangle). Front faces are
+/// counter-clockwise in NDC, so in y-down window coordinates their signed area is
+/// negative; `cull` drops the others.
+#[inline]
+pub fn setup_into(v: [SnappedVertex; 3], id: u32, cull: bool, vp: &Viewport, out: &mut Vec<Tri>) -> Outcome {
+    let [a, b0, c0] = v;
+    let area = (b0.x as i64 - a.x as i64) * (c0.y as i64 - a.y as i64)
+        - (c0.x as i64 - a.x as i64) * (b0.y as i64 - a.y as i64);
     if area == 0 {
-        return Setup::Degenerate;
+        return Outcome::Degenerate;
     }
-    if area > 0 {
-        if cull {
-            return Setup::BackFace;
-        }
-    } else {
-        std::mem::swap(&mut b, &mut c);
+    if cull && area > 0 {
+        return Outcome::BackFace;
     }
+    // Orient positively. Front and back faces come in random order, so swap with selects
+    // (conditional moves) rather than a mispredicted branch.
+    let swap = area < 0;
+    let pick = |p: i32, q: i32| if swap { q } else { p };
+    let pickf = |p: f32, q: f32| if swap { q } else { p };
+    let b = SnappedVertex { x: pick(b0.x, c0.x), y: pick(b0.y, c0.y), z: pickf(b0.z, c0.z) };
+    let c = SnappedVertex { x: pick(c0.x, b0.x), y: pick(c0.y, b0.y), z: pickf(c0.z, b0.z) };
     let area = area.abs();
     let (xmin, xmax) = (a.x.min(b.x).min(c.x), a.x.max(b.x).max(c.x));
     let (ymin, ymax) = (a.y.min(b.y).min(c.y), a.y.max(b.y).max(c.y));
@@ -157,9 +186,9 @@ pub fn setup(v: [SnappedVertex; 3], id: u32, cull: bool, vp: &Viewport) -> Setup
     let px1 = ((xmax - half) >> SUBPIXEL_BITS).min(vp.width as i32 - 1);
     let py1 = ((ymax - half) >> SUBPIXEL_BITS).min(vp.height as i32 - 1);
     if px0 > px1 || py0 > py1 {
-        return Setup::TooSmall;
+        return Outcome::TooSmall;
     }
-    let mut tri = Tri {
+    let tri = Tri {
         x: [a.x, b.x, c.x],
         y: [a.y, b.y, c.y],
         z0: a.z,
@@ -172,16 +201,15 @@ pub fn setup(v: [SnappedVertex; 3], id: u32, cull: bool, vp: &Viewport) -> Setup
     // Tiny boxes: decide coverage now, before the triangle costs a depth plane, binning and
     // a tile visit.
     if (px1 - px0 + 1) * (py1 - py0 + 1) <= 4 && !raster::covers_any(&tri) {
-        return Setup::TooSmall;
+        return Outcome::TooSmall;
     }
     // Depth plane through the snapped vertices, in f64 once per triangle.
     let (dx1, dy1) = ((b.x - a.x) as f64, (b.y - a.y) as f64);
     let (dx2, dy2) = ((c.x - a.x) as f64, (c.y - a.y) as f64);
     let (dz1, dz2) = ((b.z - a.z) as f64, (c.z - a.z) as f64);
     let inv = 1.0 / area as f64;
-    tri.zx = ((dz1 * dy2 - dz2 * dy1) * inv) as f32;
-    tri.zy = ((dx1 * dz2 - dx2 * dz1) * inv) as f32;
-    Setup::Ready(tri)
+    out.push(Tri { zx: ((dz1 * dy2 - dz2 * dy1) * inv) as f32, zy: ((dx1 * dz2 - dx2 * dz1) * inv) as f32, ..tri });
+    Outcome::Ready
 }
 
 #[cfg(test)]
