@@ -178,16 +178,20 @@ pub fn flat_color(inst: &InstanceShading, mesh: &Mesh, tri: usize, eye: Vec3, op
     if opts.mode != ShadingMode::Flat || textured || opts.depth_cue.is_some() || tri >= mesh.triangle_count() {
         return None;
     }
-    let p = mesh.triangle_positions(tri).map(Vec3A::from);
-    let n_local = (p[1] - p[0]).cross(p[2] - p[0]);
-    let mut n = (inst.normal_from_local * n_local).normalize_or_zero();
-    // Facing: the sign of n·(eye − p0) in world space.
-    let p0 = inst.world_from_local.transform_point3a(p[0]);
-    if opts.two_sided && n.dot(Vec3A::from(eye) - p0) < 0.0 {
-        n = -n;
+    let [i0, i1, i2] = mesh.triangle(tri);
+    let pos = mesh.positions();
+    let p0 = Vec3A::from(pos[i0 as usize]);
+    let n_local = (Vec3A::from(pos[i1 as usize]) - p0).cross(Vec3A::from(pos[i2 as usize]) - p0);
+    let n = inst.normal_from_local * n_local;
+    let len2 = n.length_squared();
+    // cos(n, l), with n turned towards the eye when two-sided (sign of n·(eye − p0)).
+    let mut ndl = if len2 > 0.0 && len2.is_finite() { n.dot(opts.light_dir.into()) / len2.sqrt() } else { 0.0 };
+    if opts.two_sided && n.dot(Vec3A::from(eye) - inst.world_from_local.transform_point3a(p0)) < 0.0 {
+        ndl = -ndl;
     }
+    let i = opts.ambient + opts.diffuse * ndl.max(0.0);
     let b = base_color(inst.material, None, opts);
-    Some(to_rgba8((b.truncate() * lambert(n.into(), opts)).extend(b.w)))
+    Some(to_rgba8((b.truncate() * i).extend(b.w)))
 }
 
 /// Everything needed to shade points of one triangle from barycentric weights, prepared
