@@ -112,7 +112,7 @@ fn supersampling_smooths_edges() {
     }
     // Through `render`: edge pixels of the quad get in-between colors only with SSAA.
     let (s, cam) = quad_scene(Material::color("w", [1.0, 1.0, 1.0]));
-    let mut count = |aa| {
+    let count = |aa| {
         let mut fb = Framebuffer::new(40, 40).unwrap();
         let o = RenderOptions {
             antialias: aa,
