@@ -184,19 +184,6 @@ macro_rules! isa_packet {
 isa_packet!(packet_avx512, Avx512, "avx512f,avx512bw,avx512dq,avx512vl,avx2,bmi1,bmi2,lzcnt,popcnt");
 isa_packet!(packet_avx2, Avx2, "avx2,bmi1,bmi2,lzcnt,popcnt");
 
-/// Window depth from clip rows z and w at a point.
-#[inline(always)]
-fn window_depth(zw: &[DVec4; 2], p: DVec3) -> f32 {
-    let z = zw[0].x * p.x + zw[0].y * p.y + zw[0].z * p.z + zw[0].w;
-    let w = zw[1].x * p.x + zw[1].y * p.y + zw[1].z * p.z + zw[1].w;
-    let zw = (z / w + 1.0) * 0.5;
-    if zw.is_finite() {
-        zw.clamp(0.0, 1.0) as f32
-    } else {
-        1.0
-    }
-}
-
 impl<'a> Frame<'a, '_> {
     /// Casts, resolves and writes the packet at (x0, y0) on the resolved SIMD level.
     fn packet(&self, band: &mut Band<'a>, x0: u32, y0: u32, out: &mut Out<'_>) {
@@ -264,30 +251,63 @@ impl<'a> Frame<'a, '_> {
                 hits.t[i / CHUNK][i % CHUNK] = t;
             }
         }
-        // Depth and IDs.
+        // Depth and IDs: clip z and w per hit, then the divisions in one vectorizable loop.
         let w = self.width as usize;
         let mut hit_mask = 0u64;
+        let (mut cz, mut cw) = ([0f64; LANES], [1f64; LANES]);
         let mut bits = mask;
         while bits != 0 {
             let i = bits.trailing_zeros() as usize;
             bits &= bits - 1;
             let (c, j) = (i / CHUNK, i % CHUNK);
             let at = (i / TILE as usize) * w + x0 as usize + i % TILE as usize;
-            let (z, id) = if has_csg && csg_hit[i].0 != u32::MAX {
+            let (zw, p, id) = if has_csg && csg_hit[i].0 != u32::MAX {
                 let t = hits.t[c][j] as f64;
                 let p = Vec3::from(rays.origin(i)).as_dvec3() + Vec3::from(rays.dir(i)).as_dvec3() * t;
-                (window_depth(&self.world_zw, p), caster.csg_id(csg_hit[i].0 as usize))
+                (&self.world_zw, p, caster.csg_id(csg_hit[i].0 as usize))
             } else if hits.inst[c][j] != NO_HIT {
                 let Some((rec, p, _, _)) = self.local_point(hits, c, j) else { continue };
                 let Some(zw) = self.clip_zw.get(rec) else { continue };
-                (window_depth(zw, p), hits.gid[c][j])
+                (zw, p, hits.gid[c][j])
             } else {
                 continue;
             };
-            if let (Some(dp), Some(dst)) = (out.depth.get_mut(at), out.ids.get_mut(at)) {
-                *dp = z;
+            cz[i] = zw[0].x * p.x + zw[0].y * p.y + zw[0].z * p.z + zw[0].w;
+            cw[i] = zw[1].x * p.x + zw[1].y * p.y + zw[1].z * p.z + zw[1].w;
+            if let Some(dst) = out.ids.get_mut(at) {
                 *dst = id;
                 hit_mask |= 1 << i;
+            }
+        }
+        let mut zs = [1f32; LANES];
+        for i in 0..LANES {
+            let z = (cz[i] / cw[i] + 1.0) * 0.5;
+            // Clamped to [0, 1]; NaN (a degenerate w) reads as the far plane.
+            zs[i] = if z >= 0.0 {
+                if z <= 1.0 {
+                    z as f32
+                } else {
+                    1.0
+                }
+            } else if z < 0.0 {
+                0.0
+            } else {
+                1.0
+            };
+        }
+        for ly in 0..TILE as usize {
+            let row = (hit_mask >> (ly * TILE as usize)) & 0xFF;
+            if row == 0 {
+                continue;
+            }
+            let at = ly * w + x0 as usize;
+            let n = (TILE as usize).min(w.saturating_sub(x0 as usize));
+            if let Some(dst) = out.depth.get_mut(at..at + n) {
+                for (lx, d) in dst.iter_mut().enumerate() {
+                    if row >> lx & 1 != 0 {
+                        *d = zs[ly * TILE as usize + lx];
+                    }
+                }
             }
         }
         band.hit_count += hit_mask.count_ones() as u64;
