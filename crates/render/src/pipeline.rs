@@ -86,7 +86,9 @@ impl Renderer {
             fb.clear(opts.background);
             if fill {
                 self.fresh = true;
-                stats = self.draw(scene, instances, items, camera, fb, opts)?;
+                let r = self.draw(scene, instances, items, camera, fb, opts);
+                self.fresh = false; // also when `draw` failed before using it
+                stats = r?;
                 let t = Instant::now();
                 deferred::shade_pass(scene, instances, camera, fb, &opts.shading);
                 stats.ms_shading = ms_since(t);
@@ -104,7 +106,9 @@ impl Renderer {
             ss.clear(opts.background);
             let r = if fill {
                 self.fresh = true;
-                self.draw(scene, instances, items, camera, &mut ss, opts)
+                let r = self.draw(scene, instances, items, camera, &mut ss, opts);
+                self.fresh = false;
+                r
             } else {
                 Ok(FrameStats::default())
             };

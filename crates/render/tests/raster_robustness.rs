@@ -112,3 +112,35 @@ fn invalid_draw_items_are_errors() {
     }
     assert!(r.render(&s, &inst, &[], &cam, &mut fb, &opts).is_ok());
 }
+
+/// A failed `render` must not leave the renderer believing the next target is freshly
+/// cleared: a later `draw` batch keeps what the framebuffer already holds.
+#[test]
+fn a_failed_render_does_not_spoil_later_batches() {
+    let mut s = Scene::new();
+    let cube = s.add_mesh(shapes::cube("c").unwrap());
+    s.add_node(None, NodeDesc::new("near").mesh(cube)).unwrap();
+    let far = Affine3A::from_translation(Vec3::new(0.3, 0.0, -4.0)) * Affine3A::from_scale(Vec3::splat(3.0));
+    s.add_node(None, NodeDesc::new("far").matrix(far).mesh(cube)).unwrap();
+    s.update_transforms();
+    let inst = s.instances();
+    let cam =
+        Camera::perspective_look_at(Vec3::new(0.5, 0.7, 3.0), Vec3::ZERO, Vec3::Y, 60.0, 1.0, 0.1, 100.0).unwrap();
+    let opts = RenderOptions::ids_only();
+    let mut r = Renderer::new();
+    let near = [DrawItem::whole(0, &inst[0])];
+    let far = [DrawItem::whole(1, &inst[1])];
+    // Reference: both batches through one renderer, no failure in between.
+    let mut want = Framebuffer::new(32, 32).unwrap();
+    r.render(&s, &inst, &near, &cam, &mut want, &opts).unwrap();
+    r.draw(&s, &inst, &far, &cam, &mut want, &opts).unwrap();
+    // The same with a failed render in between.
+    let mut fb = Framebuffer::new(32, 32).unwrap();
+    r.render(&s, &inst, &near, &cam, &mut fb, &opts).unwrap();
+    let mut scratch = Framebuffer::new(32, 32).unwrap();
+    let bad = [DrawItem { instance: 9, first: 0, count: 1 }];
+    assert!(r.render(&s, &inst, &bad, &cam, &mut scratch, &opts).is_err());
+    r.draw(&s, &inst, &far, &cam, &mut fb, &opts).unwrap();
+    assert!(fb.ids.iter().any(|&i| i >= 1 && i <= 12), "the near cube is still there");
+    assert_eq!(fb.ids, want.ids);
+}
