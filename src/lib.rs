@@ -17,6 +17,8 @@
 
 use std::path::PathBuf;
 
+pub mod boxfield;
+
 pub use sightline_render as render;
 pub use sightline_scene as scene;
 pub use sightline_spatial as spatial;

@@ -53,11 +53,17 @@ struct TileStats {
     tested: u64,
     written: u64,
     empty: u64,
+    coarse: u64,
 }
 
 impl TileStats {
     fn sum(a: Self, b: Self) -> Self {
-        Self { tested: a.tested + b.tested, written: a.written + b.written, empty: a.empty + b.empty }
+        Self {
+            tested: a.tested + b.tested,
+            written: a.written + b.written,
+            empty: a.empty + b.empty,
+            coarse: a.coarse + b.coarse,
+        }
     }
 }
 
@@ -354,6 +360,7 @@ impl Renderer {
         st.rasterized = binned - empty;
         st.fragments_tested = ts.tested;
         st.fragments_written = ts.written;
+        st.coarse_rejected = ts.coarse;
         st.update_overdraw();
         st
     }
@@ -440,7 +447,7 @@ fn raster_tile<const F: u8, const C: bool>(
         if !tile.touched {
             tile.clear_for_session(fmt.key(1.0));
         }
-        raster_bins::<F, C>(tile, index, chunks, &mut st);
+        raster_bins::<F, C, true>(tile, index, chunks, &mut st);
         tile.compute_mips(fmt);
         return st;
     }
@@ -464,15 +471,31 @@ fn raster_tile<const F: u8, const C: bool>(
             tile.counts[dst..dst + w].copy_from_slice(&c[src..src + w]);
         }
     }
-    raster_bins::<F, C>(tile, index, chunks, &mut st);
+    raster_bins::<F, C, false>(tile, index, chunks, &mut st);
     st
 }
 
 /// Rasterizes the tile's binned triangles, chunk after chunk, in submission order.
-fn raster_bins<const F: u8, const C: bool>(tile: &mut TileBuf, index: usize, chunks: &[Chunk], st: &mut TileStats) {
+/// With `COARSE` (frame sessions), triangles behind the tile's pyramid are skipped whole.
+fn raster_bins<const F: u8, const C: bool, const COARSE: bool>(
+    tile: &mut TileBuf,
+    index: usize,
+    chunks: &[Chunk],
+    st: &mut TileStats,
+) {
+    // Depth-test counting wants every test made, so it turns coarse rejection off.
+    let coarse = COARSE && !C && tile.touched;
+    tile.coarse = coarse;
     for c in chunks {
         for &i in &c.bins[index] {
             let t = &c.tris[i as usize];
+            if coarse && tile.occludes(t) {
+                st.coarse += 1;
+                if t.multi == u32::MAX {
+                    st.empty += 1;
+                }
+                continue;
+            }
             let r = raster_tri::<F, C>(t, tile);
             st.tested += r.covered as u64;
             st.written += r.written as u64;

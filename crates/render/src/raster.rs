@@ -29,6 +29,10 @@ const BLOCK: i32 = 8;
 /// 2·2^14·(2^14 + 256) < 2^31 even one step past the box.
 const SMALL_EXTENT: i32 = 1 << 14;
 
+/// Padding after a tile's last row: row loops work in groups of four pixels and may read
+/// and rewrite (unchanged) entries past a row's end.
+const PAD: usize = 4;
+
 /// One tile's depth keys, IDs and depth-test counts (row stride [`TILE`]).
 #[derive(Debug, Clone)]
 pub struct TileBuf {
@@ -50,6 +54,8 @@ pub struct TileBuf {
     pub dirty: bool,
     /// In a frame session: whether the tile has been drawn into (else it is still clear).
     pub touched: bool,
+    /// Whether the rasterizer may skip 8×8 blocks behind the tile's pyramid (set per pass).
+    pub coarse: bool,
     /// In a frame session: the tile's z-pyramid levels 1..=6 (32², 16², …, 1² texels, each
     /// the max window depth of the 2×2 texels below), see [`MIP_OFFSETS`].
     pub mips: Vec<f32>,
@@ -62,7 +68,7 @@ impl TileBuf {
     /// An empty tile at pixel (x0, y0) of size w × h.
     pub fn new(x0: u32, y0: u32, w: u32, h: u32) -> Self {
         // +4: the small-triangle path works in groups of four pixels (see raster_small).
-        let n = (TILE * TILE) as usize + 4;
+        let n = (TILE * TILE) as usize + PAD;
         Self {
             x0,
             y0,
@@ -73,6 +79,7 @@ impl TileBuf {
             counts: vec![0; n],
             dirty: false,
             touched: false,
+            coarse: false,
             mips: vec![1.0; MIP_OFFSETS[6]],
         }
     }
@@ -92,7 +99,61 @@ impl TileBuf {
         }
         self.ids.fill(0);
         self.counts.fill(0);
+        self.mips.fill(1.0);
         self.touched = true;
+    }
+
+    /// Coarse depth (the seeds' per-tile Z_max, "HyperZ"; Greene's pyramid test per
+    /// triangle): true when triangle `t` cannot pass the depth test anywhere in this tile,
+    /// judged from the tile's pyramid levels. The levels may lag behind the pixels (they are
+    /// refreshed after each draw batch), but depths only decrease, so a stale max is a safe
+    /// bound. Only meaningful inside a frame session.
+    #[inline]
+    pub fn occludes(&self, t: &Tri) -> bool {
+        // The triangle's nearest depth: its plane at the three vertices, minus the rounding
+        // that evaluating the plane at a pixel center may add.
+        let d = |k: usize| ((t.x[k] - t.x[0]) as f32, (t.y[k] - t.y[0]) as f32);
+        let ((x1, y1), (x2, y2)) = (d(1), d(2));
+        let (a1, b1, a2, b2) = (t.zx * x1, t.zy * y1, t.zx * x2, t.zy * y2);
+        let z1 = t.z0 + a1 + b1;
+        let z2 = t.z0 + a2 + b2;
+        let err = 8.0 * f32::EPSILON * (t.z0.abs() + a1.abs() + b1.abs() + a2.abs() + b2.abs()) + 1e-7;
+        // The triangle's pixels in this tile, in tile coordinates.
+        let x0 = (t.bbox[0] as u32).max(self.x0) - self.x0;
+        let y0 = (t.bbox[1] as u32).max(self.y0) - self.y0;
+        let x1 = (t.bbox[2] as u32).min(self.x0 + self.w - 1).saturating_sub(self.x0);
+        let y1 = (t.bbox[3] as u32).min(self.y0 + self.h - 1).saturating_sub(self.y0);
+        if x0 > x1 || y0 > y1 {
+            return false;
+        }
+        // Depth is affine in the window: over the pixel centers of this rectangle it is at
+        // least its value at the nearest corner. For a big triangle reaching far behind
+        // this tile, that bound is much tighter than its nearest vertex.
+        let cx = |px: u32| (((px + self.x0) as i32) << SUBPIXEL_BITS) + ONE / 2 - t.x[0];
+        let cy = |py: u32| (((py + self.y0) as i32) << SUBPIXEL_BITS) + ONE / 2 - t.y[0];
+        let (ax0, ax1) = (t.zx * cx(x0) as f32, t.zx * cx(x1) as f32);
+        let (by0, by1) = (t.zy * cy(y0) as f32, t.zy * cy(y1) as f32);
+        let rect_min = t.z0 + ax0.min(ax1) + by0.min(by1);
+        let rect_err = 8.0 * f32::EPSILON * (t.z0.abs() + ax0.abs().max(ax1.abs()) + by0.abs().max(by1.abs())) + 1e-7;
+        let near = (t.z0.min(z1).min(z2) - err).max(rect_min - rect_err);
+        if !(near > 0.0) {
+            return false;
+        }
+        let span = (x1 - x0).max(y1 - y0) + 1;
+        let mut level = 1usize;
+        while (span >> level) > 1 && level < 6 {
+            level += 1;
+        }
+        let s = (TILE >> level) as usize;
+        let off = MIP_OFFSETS[level - 1];
+        for y in (y0 >> level) as usize..=(y1 >> level) as usize {
+            for x in (x0 >> level) as usize..=(x1 >> level) as usize {
+                if near <= self.mips[off + y * s + x] {
+                    return false;
+                }
+            }
+        }
+        true
     }
 
     /// Recomputes [`TileBuf::mips`] from the depth keys (max of 2×2 per level).
@@ -421,6 +482,23 @@ fn raster_small<const FMT: u8, const COUNT: bool>(
     out
 }
 
+/// Coarse depth per 8×8 block: true when the triangle's plane over the block's pixel
+/// centers `[x0, y0, x1, y1]` (screen) lies behind the farthest depth drawn in the block
+/// (the tile's pyramid level 3; `[bx, by]` is the block's corner in the tile).
+#[inline]
+fn block_hidden(t: &Tri, tile: &TileBuf, [x0, y0, x1, y1]: [i32; 4], [bx, by]: [i32; 2]) -> bool {
+    let max = tile.mips[MIP_OFFSETS[2] + ((by >> 3) * 8 + (bx >> 3)) as usize];
+    if max >= 1.0 {
+        return false; // something is still clear here
+    }
+    let cx = |px: i32| t.zx * ((px << SUBPIXEL_BITS) + ONE / 2 - t.x[0]) as f32;
+    let cy = |py: i32| t.zy * ((py << SUBPIXEL_BITS) + ONE / 2 - t.y[0]) as f32;
+    let (a0, a1, b0, b1) = (cx(x0), cx(x1), cy(y0), cy(y1));
+    let near = t.z0 + a0.min(a1) + b0.min(b1);
+    let err = 8.0 * f32::EPSILON * (t.z0.abs() + a0.abs().max(a1.abs()) + b0.abs().max(b1.abs())) + 1e-7;
+    near - err > max
+}
+
 fn raster_blocks<const FMT: u8, const COUNT: bool>(
     t: &Tri,
     tile: &mut TileBuf,
@@ -446,6 +524,10 @@ fn raster_blocks<const FMT: u8, const COUNT: bool>(
                 let hi = v + e[k].a.max(0) * w + e[k].b.max(0) * h;
                 outside |= hi < 0;
                 inside &= lo >= 0;
+            }
+            if !outside && tile.coarse && block_hidden(t, tile, [rx0, ry0, rx1, ry1], [bx - tx, by - ty]) {
+                bx += BLOCK;
+                continue;
             }
             if inside {
                 // Inside all three edges: only the depth test is left, four pixels at a

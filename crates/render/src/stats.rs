@@ -31,6 +31,9 @@ pub struct FrameStats {
     pub fragments_tested: u64,
     /// Fragments that passed the depth test and were written.
     pub fragments_written: u64,
+    /// Triangle–tile pairs skipped by coarse depth: the triangle's nearest depth lies behind
+    /// the farthest depth drawn under its bounding box in the tile (frame sessions only).
+    pub coarse_rejected: u64,
     /// Pixels (or samples) holding a triangle at the end of the frame.
     pub covered_pixels: u64,
     /// `fragments_written / covered_pixels`.
@@ -62,6 +65,7 @@ impl FrameStats {
         self.rasterized += o.rasterized;
         self.fragments_tested += o.fragments_tested;
         self.fragments_written += o.fragments_written;
+        self.coarse_rejected += o.coarse_rejected;
         self.covered_pixels += o.covered_pixels;
         self.ms_geometry += o.ms_geometry;
         self.ms_binning += o.ms_binning;

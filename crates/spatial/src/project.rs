@@ -141,10 +141,12 @@ impl BoxProjector {
                 v as u32
             }
         };
-        let x0 = clamp(px0.floor(), w);
-        let x1 = clamp(px1.floor() + 1.0, w);
-        let y0 = clamp(py0.floor(), h);
-        let y1 = clamp(py1.floor() + 1.0, h);
+        // `clamp` sends everything ≤ 0 to 0, so truncation stands in for floor (for values in
+        // (−1, 0) the end bound grows by one pixel: still conservative).
+        let x0 = clamp(px0, w);
+        let x1 = clamp(px1 + 1.0, w);
+        let y0 = clamp(py0, h);
+        let y1 = clamp(py1 + 1.0, h);
         if x0 >= x1 || y0 >= y1 {
             return ScreenRect::EMPTY;
         }

@@ -253,8 +253,9 @@ impl Culler {
         camera: &Camera,
         fb: &mut Framebuffer,
         opts: &RenderOptions,
-    ) -> Result<(CullStats, OcclusionQueries<'_>)> {
+    ) -> Result<(CullStats, FrameStats, OcclusionQueries<'_>)> {
         let t0 = Instant::now();
+        let mut fs = FrameStats::default();
         let mut cs = CullStats { clusters: self.clustered.item_count() as u64, ..Default::default() };
         fb.clear(opts.background);
         let frustum = Frustum::from_camera(camera);
@@ -263,14 +264,38 @@ impl Culler {
         cs.clusters_in_frustum = self.visible.len() as u64;
         cs.culled_by_frustum = cs.clusters - cs.clusters_in_frustum;
         self.renderer.begin_session(fb, opts.depth_format);
-        let visible = std::mem::take(&mut self.visible);
-        let r = self.draw_items(visible.iter().map(|v| v.index), scene, camera, fb, opts, &mut cs);
-        self.visible = visible;
-        r?;
+        // Every occluder is drawn, front to back in growing batches, so that the coarse
+        // depth test of the rasterizer rejects whole triangles hidden behind earlier ones.
+        let mut cursor = self.clustered.cursor(Some(&frustum), camera.view.eye);
+        let mut batch = self.first_batch.max(1);
+        let mut out = Vec::new();
+        loop {
+            out.clear();
+            let more = cursor.next_batch(self.clustered.bvh(), |_| true, batch, &mut out);
+            if opts.backface_culling {
+                let before = out.len();
+                out.retain(|v| !self.cones[v.index as usize].backfacing(camera.view.eye));
+                cs.culled_by_backface += (before - out.len()) as u64;
+            }
+            if !out.is_empty() {
+                match self.draw_items(out.iter().map(|v| v.index), scene, camera, fb, opts, &mut cs) {
+                    Ok(st) => fs.add(&st),
+                    Err(e) => {
+                        self.renderer.end_session(fb);
+                        return Err(e);
+                    }
+                }
+                cs.batches += 1;
+            }
+            if !more {
+                break;
+            }
+            batch = (batch * 2).min(self.max_batch.max(1));
+        }
         cs.ms_draw = ms_since(t0);
         cs.ms_total = cs.ms_draw;
         let pyramid = self.renderer.session_pyramid().expect("a session was just begun");
-        Ok((cs, OcclusionQueries::new(camera, pyramid)))
+        Ok((cs, fs, OcclusionQueries::new(camera, pyramid)))
     }
 
     /// The pyramid of the open frame session, if any (between [`Culler::occluder_pass`] and

@@ -228,10 +228,8 @@ impl<'a> TilePyramid<'a> {
         }
         let top = 5 + self.upper.len() as u32;
         let span = (r.x1 - r.x0).max(r.y1 - r.y0) + 1;
-        let mut level = 1;
-        while (span >> level) > 3 && level < top {
-            level += 1;
-        }
+        // The finest level ≥ 1 where the span covers at most 4 texels: span >> level ≤ 3.
+        let level = (32 - (span >> 2).leading_zeros()).clamp(1, top);
         let (x0, y0, x1, y1) = (r.x0 >> level, r.y0 >> level, r.x1 >> level, r.y1 >> level);
         for y in y0..=y1 {
             for x in x0..=x1 {
