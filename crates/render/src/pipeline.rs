@@ -483,8 +483,9 @@ fn raster_bins<const F: u8, const C: bool, const COARSE: bool>(
     chunks: &[Chunk],
     st: &mut TileStats,
 ) {
-    // Depth-test counting wants every test made, so it turns coarse rejection off.
-    let coarse = COARSE && !C && tile.touched;
+    // With depth-test counting on, coarse rejection stays on: the heat map then counts
+    // the tests actually made.
+    let coarse = COARSE && tile.touched;
     tile.coarse = coarse;
     for c in chunks {
         for &i in &c.bins[index] {

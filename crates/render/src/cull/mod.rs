@@ -24,6 +24,7 @@
 
 pub mod cone;
 pub mod meshlets;
+pub mod order;
 pub mod pyramid;
 pub mod query;
 mod verify;
@@ -37,6 +38,7 @@ use sightline_scene::{Aabb, Camera, Instance, Scene};
 use sightline_spatial::{BoxProjector, ClusteredScene, CullOptions, Frustum, LooseOctree, ScreenRect, Visible, Visit};
 
 pub use meshlets::{Meshlets, SceneMeshlets};
+pub use order::DrawOrder;
 pub use pyramid::{DepthPyramid, Rect, TilePyramid};
 pub use query::{BoxVisibility, OcclusionQueries};
 pub use verify::{compare_ids, Mismatch};

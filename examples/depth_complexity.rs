@@ -1,0 +1,61 @@
+//! Depth complexity heat maps, plain z-buffer beside HZB (the seeds' "Depth complexity mit
+//! einfachem Z-Buffer / mit HZB"): one street frame of the 10^6-triangle city, every depth
+//! test counted per pixel, brute force on the left, occlusion culling on the right, on one
+//! color scale. Writes `depth_complexity.png` (and the two halves) into the directory given.
+//!
+//! `cargo run --release --example depth_complexity [-- OUT_DIR [FRAME]]`
+
+use std::path::PathBuf;
+
+use sightline::render::output::heat_color;
+use sightline::render::{Culler, Framebuffer, Method, RenderOptions};
+use sightline::scene::builders::{city, CityParams};
+
+fn main() {
+    let out = PathBuf::from(std::env::args().nth(1).unwrap_or_else(|| "out".into()));
+    let frame: usize = std::env::args().nth(2).and_then(|a| a.parse().ok()).unwrap_or(40);
+    std::fs::create_dir_all(&out).expect("output directory");
+    let c = city(&CityParams::for_triangles(1_000_000)).expect("city");
+    let key = c.layout.street_path(120, 11)[frame.min(119)];
+    let (w, h) = (1280u32, 720u32);
+    let cam = key.camera(w as f32 / h as f32).expect("camera");
+    let mut culler = Culler::new(&c.scene);
+    let opts = RenderOptions::ids_only();
+    let mut counts = Vec::new();
+    for method in [Method::Brute, Method::Hzb] {
+        let mut fb = Framebuffer::new(w, h).expect("framebuffer");
+        fb.count_depth_tests(true);
+        let (cs, fs) = culler.render(&c.scene, &cam, method, &mut fb, &opts).expect("frame");
+        let tests = fb.depth_tests.take().expect("counting was on");
+        let total: u64 = tests.iter().map(|&t| t as u64).sum();
+        println!(
+            "{:<6} triangles drawn {:>8}, depth tests {:>9} ({:.2} per pixel), max {} at one pixel",
+            method.name(),
+            cs.triangles_drawn,
+            fs.fragments_tested,
+            total as f64 / (w * h) as f64,
+            tests.iter().max().unwrap_or(&0)
+        );
+        counts.push(tests);
+    }
+    // One scale for both: the brute-force maximum.
+    let max = counts.iter().flat_map(|c| c.iter()).copied().max().unwrap_or(1).max(1) as f32;
+    let gap = 16;
+    let mut both = image::RgbaImage::from_pixel(2 * w + gap, h, image::Rgba([255, 255, 255, 255]));
+    for (k, c) in counts.iter().enumerate() {
+        let mut one = image::RgbaImage::new(w, h);
+        for (i, &n) in c.iter().enumerate() {
+            let px = image::Rgba(heat_color((n as f32 / max).sqrt()));
+            let (x, y) = (i as u32 % w, i as u32 / w);
+            one.put_pixel(x, y, px);
+            both.put_pixel(x + k as u32 * (w + gap), y, px);
+        }
+        one.save(out.join(if k == 0 { "depth_complexity_zbuffer.png" } else { "depth_complexity_hzb.png" }))
+            .expect("png");
+    }
+    both.save(out.join("depth_complexity.png")).expect("png");
+    println!(
+        "wrote {} (left: plain z-buffer, right: HZB; color = sqrt(tests / {max}))",
+        out.join("depth_complexity.png").display()
+    );
+}
