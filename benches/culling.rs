@@ -1,5 +1,63 @@
-//! Placeholder: replaced by the real benchmark.
+//! Culling benchmarks on 10^6-triangle scenes.
+//!
+//! * `city_street/METHOD`: one street frame of the default city at 1280×720 per iteration
+//!   (cycling through 12 frames of the street path), flat shading, all threads.
+//! * `boxfield_1thread/occluders` and `/queries`: the occlusion benchmark of record on one
+//!   thread: (a) depth-only rasterization of the frustum- and back-face-culled occluders into
+//!   the z-buffer and pyramid, (b) 100,000 box queries against it.
+
+use std::time::Duration;
+
 use criterion::{criterion_group, criterion_main, Criterion};
-fn placeholder(_c: &mut Criterion) {}
-criterion_group!(benches, placeholder);
+use sightline::boxfield::{Boxfield, QUERIES, SIZE};
+use sightline::render::{Culler, Framebuffer, Method, RenderOptions};
+use sightline::scene::builders::{city, CityParams};
+
+fn city_street(c: &mut Criterion) {
+    let city = city(&CityParams::for_triangles(1_000_000)).unwrap();
+    let keys = city.layout.street_path(120, 11);
+    let cams: Vec<_> = keys.iter().step_by(10).map(|k| k.camera(1280.0 / 720.0).unwrap()).collect();
+    let mut culler = Culler::new(&city.scene);
+    let mut fb = Framebuffer::new(1280, 720).unwrap();
+    let opts = RenderOptions::default();
+    let mut g = c.benchmark_group("city_street");
+    g.sample_size(20).measurement_time(Duration::from_secs(4)).warm_up_time(Duration::from_secs(1));
+    for m in Method::ALL {
+        let mut k = 0;
+        g.bench_function(m.name(), |b| {
+            b.iter(|| {
+                k = (k + 1) % cams.len();
+                culler.render(&city.scene, &cams[k], m, &mut fb, &opts).unwrap()
+            })
+        });
+    }
+    g.finish();
+}
+
+fn boxfield_1thread(c: &mut Criterion) {
+    let bf = Boxfield::new(QUERIES);
+    let pool = rayon::ThreadPoolBuilder::new().num_threads(1).build().unwrap();
+    let mut culler = Culler::new(&bf.scene);
+    let mut fb = Framebuffer::new(SIZE.0, SIZE.1).unwrap();
+    let opts = RenderOptions::ids_only();
+    let mut g = c.benchmark_group("boxfield_1thread");
+    g.sample_size(20).measurement_time(Duration::from_secs(4)).warm_up_time(Duration::from_secs(1));
+    g.bench_function("occluders", |b| {
+        b.iter(|| {
+            pool.install(|| {
+                let _ = culler.occluder_pass(&bf.scene, &bf.camera, &mut fb, &opts).unwrap();
+                culler.end_occluder_pass(&mut fb);
+            })
+        })
+    });
+    // The queries run on the calling thread; only the occluder pass uses the pool.
+    let (_, _, q) = pool.install(|| culler.occluder_pass(&bf.scene, &bf.camera, &mut fb, &opts)).unwrap();
+    g.bench_function("queries", |b| {
+        b.iter(|| bf.queries.iter().filter(|x| q.test(x) == sightline::render::BoxVisibility::Visible).count())
+    });
+    culler.end_occluder_pass(&mut fb);
+    g.finish();
+}
+
+criterion_group!(benches, city_street, boxfield_1thread);
 criterion_main!(benches);
