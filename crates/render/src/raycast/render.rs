@@ -381,9 +381,11 @@ impl<'a> Frame<'a, '_> {
                 let Some(m) = self.csg_materials.get(k as usize) else { continue };
                 shade(m, normal, None, -d.normalize_or_zero(), dist, opts)
             } else {
-                let Some((rec, _, b1, b2)) = self.local_point(hits, c, j) else { continue };
+                let rdet = 1.0 / hits.det[c][j];
+                let (b1, b2) = (hits.e1[c][j] * rdet, hits.e2[c][j] * rdet);
+                let rec = hits.inst[c][j] as usize;
                 let Some(sh) = self.shader(&mut band.cache, rec, hits.gid[c][j], shadowed, eye) else { continue };
-                sh.shade(Vec3::new((1.0 - b1 - b2) as f32, b1 as f32, b2 as f32), opts)
+                sh.shade(Vec3::new(1.0 - b1 - b2, b1, b2), opts)
             };
             let at = (i / TILE as usize) * w + x0 as usize + i % TILE as usize;
             if let Some(px) = out.color.get_mut(at) {
@@ -393,29 +395,26 @@ impl<'a> Frame<'a, '_> {
     }
 
     /// The cached shader of the triangle with `id` under TLAS record `rec`.
-    fn shader(
+    fn shader<'c>(
         &self,
-        cache: &mut [Option<(u32, bool, TriangleShader<'a>)>],
+        cache: &'c mut [Option<(u32, bool, TriangleShader<'a>)>],
         rec: usize,
         id: u32,
         shadowed: bool,
         eye: Vec3,
-    ) -> Option<TriangleShader<'a>> {
+    ) -> Option<&'c TriangleShader<'a>> {
         let slot = ((id as usize).wrapping_mul(0x9E37_79B1) >> 8 ^ shadowed as usize) & (CACHE - 1);
-        if let Some((k, s, sh)) = &cache[slot] {
-            if *k == id && *s == shadowed {
-                return Some(*sh);
-            }
+        let entry = cache.get_mut(slot)?;
+        if !matches!(entry, Some((k, s, _)) if *k == id && *s == shadowed) {
+            let caster = self.caster;
+            let r = caster.tlas.instances.get(rec)?;
+            let inst = caster.instances.get(r.scene_index as usize)?;
+            let mesh = caster.scene.mesh(inst.mesh)?;
+            let ish = self.shading.get(r.scene_index as usize)?;
+            let tri = id.checked_sub(1 + inst.first_triangle)? as usize;
+            let opts = if shadowed { &self.dark } else { &self.opts.shading };
+            *entry = Some((id, shadowed, TriangleShader::new(ish, mesh, tri, eye, opts)));
         }
-        let caster = self.caster;
-        let r = caster.tlas.instances.get(rec)?;
-        let inst = caster.instances.get(r.scene_index as usize)?;
-        let mesh = caster.scene.mesh(inst.mesh)?;
-        let ish = self.shading.get(r.scene_index as usize)?;
-        let tri = id.checked_sub(1 + inst.first_triangle)? as usize;
-        let opts = if shadowed { &self.dark } else { &self.opts.shading };
-        let sh = TriangleShader::new(ish, mesh, tri, eye, opts);
-        cache[slot] = Some((id, shadowed, sh));
-        Some(sh)
+        entry.as_ref().map(|e| &e.2)
     }
 }
