@@ -20,6 +20,9 @@ struct Agreement {
     depth_max: f32,
     /// Pixels the ray caster hit.
     hits: usize,
+    /// Fraction of pixels with equal, non-background IDs whose colors differ by at most
+    /// 2 per channel (same shading function, barycentrics exact vs interpolated).
+    color_close: f64,
 }
 
 fn compare(scene: &Scene, camera: &Camera, opts: &RenderOptions) -> Agreement {
@@ -28,7 +31,7 @@ fn compare(scene: &Scene, camera: &Camera, opts: &RenderOptions) -> Agreement {
     let caster = RayCaster::build(scene).unwrap();
     let mut b = Framebuffer::new(W, H).unwrap();
     caster.render(camera, &RaycastOptions::from_render(opts), &mut b).unwrap();
-    let (mut same, mut both, mut close) = (0usize, 0usize, 0usize);
+    let (mut same, mut both, mut close, mut color_close) = (0usize, 0usize, 0usize, 0usize);
     let mut depth_max = 0f32;
     for i in 0..a.len() {
         if a.ids[i] == b.ids[i] {
@@ -37,6 +40,7 @@ fn compare(scene: &Scene, camera: &Camera, opts: &RenderOptions) -> Agreement {
                 both += 1;
                 let err = (a.depth[i] - b.depth[i]).abs();
                 close += (err <= 1e-5) as usize;
+                color_close += a.color[i].iter().zip(&b.color[i]).all(|(x, y)| x.abs_diff(*y) <= 2) as usize;
                 depth_max = depth_max.max(err);
             }
         }
@@ -46,25 +50,28 @@ fn compare(scene: &Scene, camera: &Camera, opts: &RenderOptions) -> Agreement {
         depth_close: close as f64 / both.max(1) as f64,
         depth_max,
         hits: b.ids.iter().filter(|&&i| i != 0).count(),
+        color_close: color_close as f64 / both.max(1) as f64,
     }
 }
 
-/// IDs agree on ≥ 99.5% of the pixels; depths agree within 1e-5 on ≥ 99% of the pixels
-/// where the IDs agree. (The rest are sliver triangles seen edge-on, a pixel or so wide,
+/// IDs agree on ≥ 99.5% of the pixels; depths agree within 1e-5 and colors within 2 levels
+/// on ≥ 99% of the pixels where the IDs agree. (The rest are sliver triangles seen edge-on, a pixel or so wide,
 /// where the rasterizer's 1/256-pixel vertex snapping tilts the depth plane; the ray
 /// caster's depth matches an exact f64 reference there, see `raycast_reference.rs`.)
 fn check(name: &str, scene: &Scene, camera: &Camera, opts: &RenderOptions) {
     let r = compare(scene, camera, opts);
     eprintln!(
-        "{name}: IDs agree on {:.3}% of pixels; depth within 1e-5 on {:.3}% of them (max diff {:e}); {} hit pixels",
+        "{name}: IDs agree on {:.3}% of pixels; depth within 1e-5 on {:.3}% of them (max diff {:e}), color within 2 on {:.3}%; {} hit pixels",
         r.ids * 100.0,
         r.depth_close * 100.0,
         r.depth_max,
+        r.color_close * 100.0,
         r.hits
     );
     assert!(r.hits > 0, "{name}: nothing visible, the test proves nothing");
     assert!(r.ids >= 0.995, "{name}: only {:.3}% of the IDs agree", r.ids * 100.0);
     assert!(r.depth_close >= 0.99, "{name}: depth within 1e-5 on only {:.3}%", r.depth_close * 100.0);
+    assert!(r.color_close >= 0.99, "{name}: colors agree on only {:.3}%", r.color_close * 100.0);
 }
 
 fn small_city() -> sightline_scene::builders::City {
@@ -125,7 +132,13 @@ fn raycast_gltf_asset() {
     let m = scene.node(sc.node).unwrap().world_matrix();
     let eye = Vec3::from(m.translation);
     let view = View::look_along(eye, -Vec3::from(m.matrix3.z_axis), Vec3::from(m.matrix3.y_axis)).unwrap();
-    check("nested.gltf's own camera", &scene, &Camera::new(view, sc.projection).unwrap(), &both_sides);
+    let own = Camera::new(view, sc.projection).unwrap();
+    check("nested.gltf's own camera", &scene, &own, &both_sides);
+    // Per-pixel lighting with the textured quad: colors from exact vs interpolated
+    // barycentrics stay within 2 levels.
+    let mut per_pixel = both_sides;
+    per_pixel.shading.mode = sightline_render::ShadingMode::PerPixel;
+    check("nested.gltf's own camera, per-pixel shading", &scene, &own, &per_pixel);
 }
 
 #[test]
