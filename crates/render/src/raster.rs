@@ -29,9 +29,9 @@ const BLOCK: i32 = 8;
 /// 2·2^14·(2^14 + 256) < 2^31 even one step past the box.
 const SMALL_EXTENT: i32 = 1 << 14;
 
-/// Padding after a tile's last row: row loops work in groups of four pixels and may read
-/// and rewrite (unchanged) entries past a row's end.
-const PAD: usize = 4;
+/// Padding after a tile's last row: row loops work in groups of four or eight pixels and
+/// may read and rewrite (unchanged) entries past a row's end.
+const PAD: usize = 8;
 
 /// One tile's depth keys, IDs and depth-test counts (row stride [`TILE`]).
 #[derive(Debug, Clone)]
@@ -353,6 +353,15 @@ fn row_scalar<const FMT: u8, const COUNT: bool>(
     }
 }
 
+/// The value unchanged, but opaque to the optimizer (an empty inline-asm barrier).
+#[cfg(target_arch = "x86_64")]
+#[inline(always)]
+fn opaque(mut v: std::arch::x86_64::__m128i) -> std::arch::x86_64::__m128i {
+    // SAFETY: the assembly is empty; it only pins `v` to a register.
+    unsafe { std::arch::asm!("/* {0} */", inout(xmm_reg) v, options(pure, nomem, nostack, preserves_flags)) };
+    v
+}
+
 /// A row in groups of four pixels with SSE2, branch-free (coverage and the depth test are
 /// unpredictable for small triangles). Same arithmetic as [`row_scalar`], so the same
 /// result bit for bit. Lanes past the row are masked; they read and rewrite unchanged
@@ -412,8 +421,11 @@ fn row_sse2<const FMT: u8, const COUNT: bool>(
             // the smaller ID (see `wins`).
             let tie = _mm_and_si128(_mm_cmpeq_epi32(key, d), _mm_cmplt_epi32(id, old));
             let pass = _mm_and_si128(inside, _mm_or_si128(_mm_cmplt_epi32(key, d), tie));
-            _mm_storeu_si128(dp, _mm_or_si128(_mm_and_si128(pass, key), _mm_andnot_si128(pass, d)));
-            _mm_storeu_si128(ip, _mm_or_si128(_mm_and_si128(pass, id), _mm_andnot_si128(pass, old)));
+            // Plain stores of the blended vectors. `opaque` hides that they are selects of
+            // the loaded values: with AVX enabled LLVM would otherwise emit masked stores
+            // (vpmaskmovd), several times slower on AMD Zen.
+            _mm_storeu_si128(dp, opaque(_mm_or_si128(_mm_and_si128(pass, key), _mm_andnot_si128(pass, d))));
+            _mm_storeu_si128(ip, opaque(_mm_or_si128(_mm_and_si128(pass, id), _mm_andnot_si128(pass, old))));
             if COUNT {
                 let cp = cq.as_mut_ptr() as *mut __m128i;
                 _mm_storeu_si128(cp, _mm_sub_epi32(_mm_loadu_si128(cp), inside));
@@ -435,10 +447,113 @@ fn row_sse2<const FMT: u8, const COUNT: bool>(
     }
 }
 
-/// Runs one row starting at tile buffer index `base`, `n4` (the row length rounded up to a
-/// multiple of four) entries wide.
+/// The value unchanged, but opaque to the optimizer (see [`opaque`]).
+#[cfg(all(target_arch = "x86_64", target_feature = "avx2"))]
 #[inline(always)]
-fn run_row<const FMT: u8, const COUNT: bool>(r: &Row, tile: &mut TileBuf, base: usize, n4: usize, out: &mut TriRaster) {
+fn opaque256(mut v: std::arch::x86_64::__m256i) -> std::arch::x86_64::__m256i {
+    // SAFETY: the assembly is empty; it only pins `v` to a register.
+    unsafe { std::arch::asm!("/* {0} */", inout(ymm_reg) v, options(pure, nomem, nostack, preserves_flags)) };
+    v
+}
+
+/// [`row_sse2`] eight pixels at a time with AVX2 (same arithmetic, same result).
+#[cfg(all(target_arch = "x86_64", target_feature = "avx2"))]
+#[inline(always)]
+fn row_avx2<const FMT: u8, const COUNT: bool>(
+    r: &Row,
+    depth: &mut [u32],
+    ids: &mut [u32],
+    counts: &mut [u32],
+    out: &mut TriRaster,
+) {
+    use std::arch::x86_64::*;
+    // SAFETY: this function exists only when the whole build enables AVX2 (cfg above), so
+    // the intrinsics are available; memory is only touched through 8-element chunks of the
+    // slices (unaligned loads and stores).
+    unsafe {
+        let lanes = |a: i32| {
+            let m = |k: i32| a.wrapping_mul(k);
+            _mm256_setr_epi32(0, a, m(2), m(3), m(4), m(5), m(6), m(7))
+        };
+        let mut e0 = _mm256_add_epi32(_mm256_set1_epi32(r.e[0]), lanes(r.a[0]));
+        let mut e1 = _mm256_add_epi32(_mm256_set1_epi32(r.e[1]), lanes(r.a[1]));
+        let mut e2 = _mm256_add_epi32(_mm256_set1_epi32(r.e[2]), lanes(r.a[2]));
+        let s0 = _mm256_set1_epi32(r.a[0].wrapping_mul(8));
+        let s1 = _mm256_set1_epi32(r.a[1].wrapping_mul(8));
+        let s2 = _mm256_set1_epi32(r.a[2].wrapping_mul(8));
+        let mut k = _mm256_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7);
+        let eight = _mm256_set1_epi32(8);
+        let n = _mm256_set1_epi32(r.n);
+        let minus1 = _mm256_set1_epi32(-1);
+        let dx0 = _mm256_set1_epi32(r.dx0);
+        let (zrow, zx) = (_mm256_set1_ps(r.zrow), _mm256_set1_ps(r.zx));
+        let id = _mm256_set1_epi32(r.id as i32);
+        let (mut cov, mut wr) = (_mm256_setzero_si256(), _mm256_setzero_si256());
+        for ((dq, iq), cq) in depth.chunks_exact_mut(8).zip(ids.chunks_exact_mut(8)).zip(counts.chunks_exact_mut(8)) {
+            let inside = _mm256_and_si256(
+                _mm256_cmpgt_epi32(_mm256_or_si256(_mm256_or_si256(e0, e1), e2), minus1),
+                _mm256_cmpgt_epi32(n, k),
+            );
+            let dx = _mm256_add_epi32(dx0, _mm256_slli_epi32(k, SUBPIXEL_BITS as i32));
+            // Multiply, then add: no fused multiply-add, so depths equal the SSE2 and scalar rows.
+            let z = _mm256_add_ps(zrow, _mm256_mul_ps(zx, _mm256_cvtepi32_ps(dx)));
+            let key = match FMT {
+                16 | 24 => {
+                    let m = if FMT == 16 { 65535.0 } else { 16_777_215.0 };
+                    let c = _mm256_min_ps(_mm256_max_ps(z, _mm256_setzero_ps()), _mm256_set1_ps(1.0));
+                    _mm256_cvttps_epi32(_mm256_add_ps(_mm256_mul_ps(c, _mm256_set1_ps(m)), _mm256_set1_ps(0.5)))
+                }
+                _ => {
+                    let bits = _mm256_castps_si256(z);
+                    _mm256_andnot_si256(_mm256_srai_epi32(bits, 31), bits)
+                }
+            };
+            let dp = dq.as_mut_ptr() as *mut __m256i;
+            let ip = iq.as_mut_ptr() as *mut __m256i;
+            let (d, old) = (_mm256_loadu_si256(dp), _mm256_loadu_si256(ip));
+            // Keys and IDs are below 2^31, so signed compares order them; depth ties go to the
+            // smaller ID (see `wins`).
+            let tie = _mm256_and_si256(_mm256_cmpeq_epi32(key, d), _mm256_cmpgt_epi32(old, id));
+            let pass = _mm256_and_si256(inside, _mm256_or_si256(_mm256_cmpgt_epi32(d, key), tie));
+            let nd = opaque256(_mm256_or_si256(_mm256_and_si256(pass, key), _mm256_andnot_si256(pass, d)));
+            let ni = opaque256(_mm256_or_si256(_mm256_and_si256(pass, id), _mm256_andnot_si256(pass, old)));
+            _mm256_storeu_si256(dp, nd);
+            _mm256_storeu_si256(ip, ni);
+            if COUNT {
+                let cp = cq.as_mut_ptr() as *mut __m256i;
+                _mm256_storeu_si256(cp, opaque256(_mm256_sub_epi32(_mm256_loadu_si256(cp), inside)));
+            }
+            cov = _mm256_sub_epi32(cov, inside);
+            wr = _mm256_sub_epi32(wr, pass);
+            e0 = _mm256_add_epi32(e0, s0);
+            e1 = _mm256_add_epi32(e1, s1);
+            e2 = _mm256_add_epi32(e2, s2);
+            k = _mm256_add_epi32(k, eight);
+        }
+        let sum = |v: __m256i| {
+            let mut a = [0u32; 8];
+            _mm256_storeu_si256(a.as_mut_ptr() as *mut __m256i, v);
+            a.iter().sum::<u32>()
+        };
+        out.covered += sum(cov);
+        out.written += sum(wr);
+    }
+}
+
+/// Runs one row starting at tile buffer index `base`: eight pixels per step with AVX2
+/// (x86-64-v3 builds) when the row is longer than four, else four with SSE2.
+#[inline(always)]
+fn run_row<const FMT: u8, const COUNT: bool>(r: &Row, tile: &mut TileBuf, base: usize, out: &mut TriRaster) {
+    #[cfg(all(target_arch = "x86_64", target_feature = "avx2"))]
+    if r.n > 4 {
+        let n8 = ((r.n + 7) & !7) as usize;
+        let depth = &mut tile.depth[base..base + n8];
+        let ids = &mut tile.ids[base..base + n8];
+        let counts = &mut tile.counts[base..base + n8];
+        row_avx2::<FMT, COUNT>(r, depth, ids, counts, out);
+        return;
+    }
+    let n4 = ((r.n + 3) & !3) as usize;
     let depth = &mut tile.depth[base..base + n4];
     let ids = &mut tile.ids[base..base + n4];
     let counts = &mut tile.counts[base..base + n4];
@@ -468,13 +583,12 @@ fn raster_small<const FMT: u8, const COUNT: bool>(
     };
     let b = [e[0].b as i32, e[1].b as i32, e[2].b as i32];
     let (tx, ty) = (tile.x0 as i32, tile.y0 as i32);
-    let n4 = ((r.n + 3) & !3) as usize;
     let first = (x0 - tx) as usize;
     let mut out = TriRaster::default();
     for py in y0..=y1 {
         r.zrow = depth_row(t, py);
         let base = (((py - ty) as usize) << TILE_SHIFT) + first;
-        run_row::<FMT, COUNT>(&r, tile, base, n4, &mut out);
+        run_row::<FMT, COUNT>(&r, tile, base, &mut out);
         for (e, b) in r.e.iter_mut().zip(b) {
             *e = e.wrapping_add(b);
         }
@@ -545,7 +659,7 @@ fn raster_blocks<const FMT: u8, const COUNT: bool>(
                 for py in ry0..=ry1 {
                     r.zrow = depth_row(t, py);
                     let base = (((py - ty) as usize) << TILE_SHIFT) + (rx0 - tx) as usize;
-                    run_row::<FMT, COUNT>(&r, tile, base, ((n + 3) & !3) as usize, &mut out);
+                    run_row::<FMT, COUNT>(&r, tile, base, &mut out);
                 }
             } else if !outside {
                 for py in ry0..=ry1 {
@@ -637,7 +751,7 @@ mod tests {
                 dx0: rng.below(512) as i32 - 256,
                 id: 1 + rng.below(100),
             };
-            let len = ((n + 3) & !3) as usize + 4;
+            let len = ((n + 7) & !7) as usize + 4;
             let init: Vec<u32> = (0..len).map(|_| key::<0>(rng.f32())).collect();
             for fmt in [0u8, 16, 24] {
                 let (mut d1, mut i1, mut c1) = (init.clone(), vec![7u32; len], vec![0u32; len]);
@@ -657,6 +771,19 @@ mod tests {
                         row_scalar::<0, true>(&r, &mut d1, &mut i1, &mut c1, &mut o1);
                         row_sse2::<0, true>(&r, &mut d2[..n4], &mut i2[..n4], &mut c2[..n4], &mut o2);
                     }
+                }
+                #[cfg(target_feature = "avx2")]
+                {
+                    let (mut d3, mut i3, mut c3) = (init.clone(), vec![7u32; len], vec![0u32; len]);
+                    let mut o3 = TriRaster::default();
+                    let n8 = ((n + 7) & !7) as usize;
+                    match fmt {
+                        16 => row_avx2::<16, true>(&r, &mut d3[..n8], &mut i3[..n8], &mut c3[..n8], &mut o3),
+                        24 => row_avx2::<24, true>(&r, &mut d3[..n8], &mut i3[..n8], &mut c3[..n8], &mut o3),
+                        _ => row_avx2::<0, true>(&r, &mut d3[..n8], &mut i3[..n8], &mut c3[..n8], &mut o3),
+                    }
+                    assert_eq!((&d1, &i1, &c1), (&d3, &i3, &c3));
+                    assert_eq!((o1.covered, o1.written), (o3.covered, o3.written));
                 }
                 assert_eq!((d1, i1, c1), (d2, i2, c2));
                 assert_eq!((o1.covered, o1.written), (o2.covered, o2.written));
