@@ -6,6 +6,8 @@
 //! write the same [`Framebuffer`]: color, window depth and triangle IDs.
 
 #![warn(missing_docs)]
+// `!(x > 0.0)` is how this code says "not positive, or NaN": the negated comparison is the point.
+#![allow(clippy::neg_cmp_op_on_partial_ord)]
 
 pub mod aa;
 mod bin;

@@ -94,13 +94,13 @@ fn fan_of_64_triangles_covers_every_pixel_exactly_once() {
         Renderer::new().draw_clip_triangles(&tris, 1, &mut fb, &opts());
         let counts = fb.depth_tests.as_ref().unwrap();
         assert!(counts.iter().all(|&c| c == 1), "{center}: {:?}", {
-            let mut v: Vec<_> = counts.iter().copied().collect();
+            let mut v: Vec<_> = counts.to_vec();
             v.sort();
             v.dedup();
             v
         });
         // Every spoke got some pixels.
-        let mut seen = vec![false; 65];
+        let mut seen = [false; 65];
         for &id in &fb.ids {
             seen[id as usize] = true;
         }

@@ -141,6 +141,6 @@ fn a_failed_render_does_not_spoil_later_batches() {
     let bad = [DrawItem { instance: 9, first: 0, count: 1 }];
     assert!(r.render(&s, &inst, &bad, &cam, &mut scratch, &opts).is_err());
     r.draw(&s, &inst, &far, &cam, &mut fb, &opts).unwrap();
-    assert!(fb.ids.iter().any(|&i| i >= 1 && i <= 12), "the near cube is still there");
+    assert!(fb.ids.iter().any(|&i| (1..=12).contains(&i)), "the near cube is still there");
     assert_eq!(fb.ids, want.ids);
 }

@@ -79,9 +79,12 @@ impl Cone {
     }
 }
 
-/// Cones of many clusters, computed in parallel: `clusters[i]` = (positions, indices,
-/// triangles, world_from_local).
-pub fn cones<'a>(clusters: &[(&'a [Vec3], &'a [u32], &'a [u32], Affine3A)]) -> Vec<Cone> {
+/// One cluster to make a cone of: mesh positions, mesh indices, the cluster's triangles, and
+/// the instance's `world_from_local`.
+pub type ClusterRef<'a> = (&'a [Vec3], &'a [u32], &'a [u32], Affine3A);
+
+/// Cones of many clusters, computed in parallel.
+pub fn cones(clusters: &[ClusterRef]) -> Vec<Cone> {
     clusters.par_iter().map(|(p, i, t, m)| Cone::of_cluster(p, i, t, m)).collect()
 }
 

@@ -154,10 +154,10 @@ fn reduce(src: &[f32], sw: u32, sh: u32, dst: &mut [f32], dw: u32, r: Rect) {
         let s1 = (2 * y + 1).min(sh - 1);
         let (row0, row1) = (&src[s0 * sw..(s0 + 1) * sw], &src[s1 * sw..(s1 + 1) * sw]);
         let out = &mut dst[y * dw..(y + 1) * dw];
-        for x in r.x0 as usize..=r.x1 as usize {
+        for (x, o) in out.iter_mut().enumerate().take(r.x1 as usize + 1).skip(r.x0 as usize) {
             let a = 2 * x;
             let b = (2 * x + 1).min(sw - 1);
-            out[x] = row0[a].max(row0[b]).max(row1[a]).max(row1[b]);
+            *o = row0[a].max(row0[b]).max(row1[a]).max(row1[b]);
         }
     }
 }
