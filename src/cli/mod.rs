@@ -69,6 +69,15 @@ enum Command {
     Walk(Box<walk::WalkArgs>),
     /// Every method over a path, verified, as a Markdown table and charts
     Bench(Box<bench::BenchArgs>),
+    /// Render the built-in CSG demo (box ∩ sphere − three cylinders) by ray casting, to PNG
+    Csg {
+        /// Output PNG
+        #[arg(long, value_name = "FILE.png", default_value = "csg.png")]
+        out: PathBuf,
+        /// Image size
+        #[arg(long, default_value = "1024x768")]
+        size: common::Size,
+    },
 }
 
 /// Runs one command.
@@ -80,6 +89,11 @@ pub fn run(cli: Cli) -> Result<()> {
         Command::Render(a) => render::run(&a),
         Command::Walk(a) => walk::run(&a),
         Command::Bench(a) => bench::run(&a),
+        Command::Csg { out, size } => {
+            sightline::render::csg::write_classic_demo_png(&out, size.width, size.height)?;
+            println!("wrote {}", out.display());
+            Ok(())
+        }
     }
 }
 
