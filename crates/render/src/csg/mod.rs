@@ -11,6 +11,18 @@
 //! ray caster ([`crate::raycast::RayCaster::with_csg`]), which draws it in the same image as
 //! the triangle meshes. Its pixels get IDs *above* the triangle range: object `k` writes
 //! `scene_triangle_count + 1 + k`. The rasterizer does not draw CSG solids.
+//!
+//! ```
+//! use glam::{Affine3A, Vec3};
+//! use sightline_render::csg::{Csg, CsgObject};
+//!
+//! // A hollow ball: the ray from outside meets the outer shell at t = 5 − 2.
+//! let hollow = Csg::sphere(Vec3::ZERO, 2.0).subtract(Csg::sphere(Vec3::ZERO, 1.0));
+//! let object = CsgObject::new("hollow", &hollow, Affine3A::IDENTITY, [1.0; 4])?;
+//! let hit = object.intersect(Vec3::new(0.0, 0.0, 5.0), Vec3::NEG_Z, 0.0, f32::INFINITY).unwrap();
+//! assert!((hit.t - 3.0).abs() < 1e-6 && hit.normal.z > 0.99);
+//! # Ok::<(), sightline_render::Error>(())
+//! ```
 
 pub mod interval;
 pub mod primitive;
