@@ -88,12 +88,23 @@ pub struct SnappedVertex {
 /// Rounds `v · 256` to the nearest integer, ties to even (llvmpipe's `lrintf`).
 #[inline]
 pub fn snap(v: f32) -> i32 {
-    // Adding and removing 1.5·2^52 leaves an f64 with no fraction bits, rounded by the FPU
-    // in its default round-to-nearest-even mode: exact for |v·256| < 2^51, branch-free and
-    // portable. Callers keep |v| far below 2^22.
-    const MAGIC: f64 = 6_755_399_441_055_744.0;
-    let s = (v * ONE as f32) as f64;
-    ((s + MAGIC) - MAGIC) as i32
+    let s = v * ONE as f32;
+    #[cfg(target_arch = "x86_64")]
+    {
+        // cvtss2si rounds with the current mode, round-to-nearest-even unless changed: one
+        // instruction, exactly lrintf. Out-of-range input (callers keep |s| far below 2^31)
+        // gives i32::MIN, never undefined behavior.
+        use std::arch::x86_64::{_mm_cvtss_si32, _mm_set_ss};
+        // SAFETY: SSE is part of the x86_64 baseline.
+        unsafe { _mm_cvtss_si32(_mm_set_ss(s)) }
+    }
+    #[cfg(not(target_arch = "x86_64"))]
+    {
+        // Adding and removing 1.5·2^52 leaves an f64 without fraction bits, rounded to
+        // nearest even: exact for |s| < 2^51.
+        const MAGIC: f64 = 6_755_399_441_055_744.0;
+        ((s as f64 + MAGIC) - MAGIC) as i32
+    }
 }
 
 /// A set-up triangle, ready for binning and rasterization.
