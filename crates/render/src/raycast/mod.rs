@@ -361,7 +361,8 @@ impl<'s> RayCaster<'s> {
         rays.set(0, origin.into(), dir.into());
         hits.open(0, t_min, t_max);
         let mut s = Scratch::new(self.tlas.bvh.depth, 64);
-        trace::<isa::Portable, ANY>(&self.blases, &self.tlas, &rays, None, false, &mut hits, 1, &mut s);
+        let off = packet::Frustum::OFF;
+        trace::<isa::Portable, ANY>(&self.blases, &self.tlas, &rays, &off, false, &mut hits, 1, &mut s);
         let mut best = None;
         if hits.inst[0][0] != NO_HIT {
             let rec = &self.tlas.instances[hits.inst[0][0] as usize];

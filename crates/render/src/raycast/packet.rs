@@ -217,6 +217,7 @@ pub(crate) struct Beam {
 
 impl Beam {
     /// The beam mapped by `local_from_world`.
+    #[cfg(test)]
     pub fn transformed(&self, m: &Affine3A) -> Beam {
         Beam { o: self.o.map(|p| m.transform_point3a(p)), d: self.d.map(|v| m.transform_vector3a(v)) }
     }
@@ -285,6 +286,62 @@ impl Frustum {
 }
 
 impl Frustum {
+    /// The planes in the space `world_from_local` maps from: `n·(M y + t) + c` becomes
+    /// `(Mᵀ n)·y + (n·t + c)`.
+    pub fn transformed(&self, world_from_local: &Affine3A) -> Frustum {
+        if !self.on {
+            return *self;
+        }
+        let m = world_from_local.matrix3;
+        let t = world_from_local.translation;
+        let mut out = *self;
+        for k in 0..4 {
+            let n = Vec3A::new(self.n[0][k], self.n[1][k], self.n[2][k]);
+            let nl = m.transpose() * n;
+            out.c[k] = n.dot(t) + self.c[k];
+            for a in 0..3 {
+                out.n[a][k] = nl[a];
+            }
+            out.on &= nl.is_finite() && out.c[k].is_finite();
+        }
+        out
+    }
+
+    /// The beam of rays that all run along `dir` from the `origins`: the four planes
+    /// parallel to `dir` around the origins' footprint on a plane across `dir`, padded by
+    /// `pad` (for shadow rays towards a directional light).
+    pub fn parallel(dir: Vec3A, origins: impl Iterator<Item = Vec3A>, pad: f32) -> Frustum {
+        let d = dir.normalize_or_zero();
+        if d == Vec3A::ZERO {
+            return Frustum::OFF;
+        }
+        let helper = if d.x.abs() < 0.9 { Vec3A::X } else { Vec3A::Y };
+        let u = helper.cross(d).normalize();
+        let v = d.cross(u);
+        let (mut lo, mut hi) = ([f32::INFINITY; 2], [f32::NEG_INFINITY; 2]);
+        for o in origins {
+            for (k, axis) in [u, v].iter().enumerate() {
+                let p = o.dot(*axis);
+                lo[k] = lo[k].min(p);
+                hi[k] = hi[k].max(p);
+            }
+        }
+        if !(lo[0] <= hi[0] && lo[1] <= hi[1]) {
+            return Frustum::OFF;
+        }
+        // n·x + c ≥ 0 inside: x·u ≥ lo, −x·u ≥ −hi, and the same for v.
+        let planes = [(u, -(lo[0] - pad)), (-u, hi[0] + pad), (v, -(lo[1] - pad)), (-v, hi[1] + pad)];
+        let mut f = Frustum { on: true, n: [[0.0; 4]; 3], c: [0.0; 4] };
+        for (k, (n, c)) in planes.into_iter().enumerate() {
+            for a in 0..3 {
+                f.n[a][k] = n[a];
+            }
+            f.c[k] = c;
+            f.on &= c.is_finite();
+        }
+        f
+    }
+
     /// [`Frustum::culls`] for the four boxes of a node at once (`[axis][child]` layout),
     /// as a 4-bit mask: the center–extent form of the plane test, `n·c + |n|·e + d < 0`,
     /// on four boxes per SIMD operation.
@@ -354,5 +411,27 @@ mod tests {
         assert!(!p.culls(&lo, &hi));
         let (lo, hi) = at(Vec3A::new(1.5, 0.5, -100.0));
         assert!(p.culls(&lo, &hi));
+        // Planes mapped into a local space cull the same boxes.
+        let w = Affine3A::from_scale_rotation_translation(
+            glam::Vec3::new(2.0, 0.5, 1.0),
+            glam::Quat::from_rotation_y(0.4),
+            glam::Vec3::new(3.0, -1.0, 2.0),
+        );
+        let local = f.transformed(&w);
+        for q in [o + d[2] * 5.0, o + Vec3A::new(0.0, 0.0, -5.0), o + Vec3A::new(6.0, 0.0, -5.0)] {
+            let l = w.inverse().transform_point3a(q);
+            let (lo, hi) = at(q);
+            let (llo, lhi) = ((l - 0.002).to_array(), (l + 0.002).to_array());
+            assert_eq!(f.culls(&lo, &hi), local.culls(&llo, &lhi), "{q}");
+        }
+        // Shadow beams: parallel rays from scattered origins.
+        let origins = [Vec3A::new(0.0, 0.0, 0.0), Vec3A::new(2.0, 1.0, 0.0), Vec3A::new(1.0, 3.0, 1.0)];
+        let s = Frustum::parallel(Vec3A::new(0.2, 1.0, 0.1), origins.into_iter(), 1e-3);
+        for q in origins {
+            let (lo, hi) = at(q + Vec3A::new(0.2, 1.0, 0.1) * 7.0);
+            assert!(!s.culls(&lo, &hi));
+        }
+        let (lo, hi) = at(Vec3A::new(10.0, 0.0, 0.0));
+        assert!(s.culls(&lo, &hi));
     }
 }

@@ -19,7 +19,7 @@ use sightline_scene::{Camera, Material};
 
 use super::camera::CameraRays;
 use super::isa::{Avx2, Avx512, Isa, Portable};
-use super::packet::{Hits, Rays, CHUNK, LANES, NO_HIT, TILE};
+use super::packet::{Frustum, Hits, Rays, CHUNK, LANES, NO_HIT, TILE};
 use super::trace::{trace, Scratch};
 use super::{RayCaster, RaycastOptions, RaycastStats, SimdLevel};
 use crate::csg::CsgScratch;
@@ -221,12 +221,12 @@ impl<'a> Frame<'a, '_> {
         if mask == 0 {
             return;
         }
-        let beam = self.gen.beam(x0, y0, x0 + TILE, y0 + TILE, self.camera);
+        let frustum = self.gen.beam(x0, y0, x0 + TILE, y0 + TILE, self.camera).frustum();
         trace::<I, false>(
             &caster.blases,
             &caster.tlas,
             rays,
-            Some(&beam),
+            &frustum,
             self.opts.backface_culling,
             hits,
             mask,
@@ -353,7 +353,9 @@ impl<'a> Frame<'a, '_> {
             srays.shared = None;
             band.shadow_rays += smask.count_ones() as u64;
             if smask != 0 {
-                dark = trace::<I, true>(&caster.blases, &caster.tlas, srays, None, false, shits, smask, scratch);
+                let lanes = (0..LANES).filter(|&i| smask >> i & 1 != 0).map(|i| srays.origin(i));
+                let beam = Frustum::parallel(Vec3A::from(light.as_vec3()), lanes, 1e-3);
+                dark = trace::<I, true>(&caster.blases, &caster.tlas, srays, &beam, false, shits, smask, scratch);
                 let mut open = smask & !dark;
                 while open != 0 {
                     let i = open.trailing_zeros() as usize;

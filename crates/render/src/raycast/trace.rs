@@ -6,7 +6,7 @@
 
 use super::blas::Blas;
 use super::isa::Isa;
-use super::packet::{chunk_bits, Beam, Frustum, Hits, Rays, CHUNK, CHUNKS};
+use super::packet::{chunk_bits, Frustum, Hits, Rays, CHUNK, CHUNKS};
 use super::tlas::Tlas;
 use super::traverse::{traverse, Entry};
 use super::triangle::{intersect_general, intersect_shared, shared_setup, Job};
@@ -84,8 +84,8 @@ fn leaf<const ANY: bool>(
     done
 }
 
-/// Traces the lanes of `mask` through the scene. `beam` (the packet's corner rays) enables
-/// frustum culling; `backface` drops triangles seen from behind. Returns the lanes closed by
+/// Traces the lanes of `mask` through the scene. `frustum` (world space; planes bounding
+/// the packet's rays) enables frustum culling; `backface` drops triangles seen from behind. Returns the lanes closed by
 /// any-hit queries.
 #[inline(always)]
 #[allow(clippy::too_many_arguments)]
@@ -93,13 +93,13 @@ pub(crate) fn trace<I: Isa, const ANY: bool>(
     blases: &[Blas],
     tlas: &Tlas,
     rays: &Rays,
-    beam: Option<&Beam>,
+    frustum: &Frustum,
     backface: bool,
     hits: &mut Hits,
     mask: u64,
     s: &mut Scratch,
 ) -> u64 {
-    let world = beam.map_or(Frustum::OFF, |b| b.frustum());
+    let world = *frustum;
     let Scratch { local, tlas_stack, blas_stack } = s;
     traverse::<I, _>(
         &tlas.bvh,
@@ -128,7 +128,7 @@ pub(crate) fn trace<I: Isa, const ANY: bool>(
                     (rays, world)
                 } else {
                     rays.transform_into(&inst.local_from_world, m, local);
-                    let fr = beam.map_or(Frustum::OFF, |b| b.transformed(&inst.local_from_world).frustum());
+                    let fr = world.transformed(&inst.world_from_blas);
                     (&*local, fr)
                 };
                 let cull = match (backface, inst.mirror) {
