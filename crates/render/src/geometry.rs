@@ -116,7 +116,20 @@ impl Chunk {
         vc.clip.extend(positions.iter().map(|p| *m * p.extend(1.0)));
         vc.code.resize(positions.len(), 0);
         vc.snapped.resize(positions.len(), NONE);
-        for ((c, code), s) in vc.clip.iter().zip(vc.code.iter_mut()).zip(vc.snapped.iter_mut()) {
+        #[cfg(not(all(target_arch = "x86_64", target_feature = "avx2")))]
+        let done = 0;
+        #[cfg(all(target_arch = "x86_64", target_feature = "avx2"))]
+        let done = {
+            let n8 = positions.len() / 8 * 8;
+            let groups =
+                vc.clip[..n8].chunks_exact(8).zip(vc.code.chunks_exact_mut(8)).zip(vc.snapped.chunks_exact_mut(8));
+            for ((c, code), s) in groups {
+                classify8(c, vp, code, s);
+            }
+            n8
+        };
+        let rest = vc.clip[done..].iter().zip(vc.code[done..].iter_mut()).zip(vc.snapped[done..].iter_mut());
+        for ((c, code), s) in rest {
             (*code, *s) = Self::classify(*c, vp);
         }
     }
@@ -216,6 +229,92 @@ impl Chunk {
     }
 }
 
+/// [`Chunk::classify`] for eight vertices at once with AVX2: the same operations in the same
+/// order (IEEE division, multiply then add, round-to-nearest-even conversion), so the same
+/// codes and snapped positions bit for bit.
+#[cfg(all(target_arch = "x86_64", target_feature = "avx2"))]
+#[inline(always)]
+fn classify8(c: &[Vec4], vp: &Viewport, code: &mut [u8], snapped: &mut [SnappedVertex]) {
+    use crate::clip::{BOTTOM, FAR, LEFT, NEAR, RIGHT, TOP};
+    use std::arch::x86_64::*;
+    let (hw, hh, h_fixed) = vp.scale();
+    let (mut ci, mut xi, mut yi, mut zf) = ([0i32; 8], [0i32; 8], [0i32; 8], [0f32; 8]);
+    // SAFETY: this function exists only when the whole build enables AVX2; loads read eight
+    // Vec4 of the slice (asserted length), stores go to local arrays.
+    unsafe {
+        assert!(c.len() >= 8);
+        let row = |i: usize| _mm_loadu_ps(&c[i] as *const Vec4 as *const f32);
+        // Transpose eight (x, y, z, w) rows into x, y, z and w vectors.
+        let t0 = _mm256_set_m128(row(4), row(0));
+        let t1 = _mm256_set_m128(row(5), row(1));
+        let t2 = _mm256_set_m128(row(6), row(2));
+        let t3 = _mm256_set_m128(row(7), row(3));
+        let (u0, u1) = (_mm256_unpacklo_ps(t0, t1), _mm256_unpackhi_ps(t0, t1));
+        let (u2, u3) = (_mm256_unpacklo_ps(t2, t3), _mm256_unpackhi_ps(t2, t3));
+        let x = _mm256_shuffle_ps(u0, u2, 0x44);
+        let y = _mm256_shuffle_ps(u0, u2, 0xEE);
+        let z = _mm256_shuffle_ps(u1, u3, 0x44);
+        let w = _mm256_shuffle_ps(u1, u3, 0xEE);
+        let zero = _mm256_setzero_ps();
+        let sign = _mm256_set1_ps(-0.0);
+        let finite = |v: __m256| _mm256_cmp_ps(_mm256_sub_ps(v, v), zero, _CMP_EQ_OQ);
+        let ok = _mm256_and_ps(_mm256_and_ps(finite(x), finite(y)), _mm256_and_ps(finite(z), finite(w)));
+        let nw = _mm256_xor_ps(w, sign);
+        let bit = |m: __m256, b: u8| _mm256_and_si256(_mm256_castps_si256(m), _mm256_set1_epi32(b as i32));
+        let near = _mm256_cmp_ps(z, nw, _CMP_LT_OQ);
+        let far = _mm256_cmp_ps(z, w, _CMP_GT_OQ);
+        let mut codes = _mm256_or_si256(
+            _mm256_or_si256(bit(_mm256_cmp_ps(x, nw, _CMP_LT_OQ), LEFT), bit(_mm256_cmp_ps(x, w, _CMP_GT_OQ), RIGHT)),
+            _mm256_or_si256(bit(_mm256_cmp_ps(y, nw, _CMP_LT_OQ), BOTTOM), bit(_mm256_cmp_ps(y, w, _CMP_GT_OQ), TOP)),
+        );
+        codes = _mm256_or_si256(codes, _mm256_or_si256(bit(near, NEAR), bit(far, FAR)));
+        let gx = _mm256_mul_ps(_mm256_set1_ps(vp.gx), w);
+        let gy = _mm256_mul_ps(_mm256_set1_ps(vp.gy), w);
+        let guard = _mm256_or_ps(
+            _mm256_or_ps(
+                _mm256_cmp_ps(_mm256_andnot_ps(sign, x), gx, _CMP_GT_OQ),
+                _mm256_cmp_ps(_mm256_andnot_ps(sign, y), gy, _CMP_GT_OQ),
+            ),
+            _mm256_or_ps(_mm256_cmp_ps(w, zero, _CMP_LE_OQ), _mm256_or_ps(near, far)),
+        );
+        // Divide and viewport transform, in the order of `Viewport::project`.
+        let inv = _mm256_div_ps(_mm256_set1_ps(1.0), w);
+        let (vhw, vhh, half) = (_mm256_set1_ps(hw), _mm256_set1_ps(hh), _mm256_set1_ps(0.5));
+        let xw = _mm256_add_ps(_mm256_mul_ps(_mm256_mul_ps(x, inv), vhw), vhw);
+        let yw = _mm256_add_ps(_mm256_mul_ps(_mm256_mul_ps(y, inv), vhh), vhh);
+        let zw = _mm256_add_ps(_mm256_mul_ps(_mm256_mul_ps(z, inv), half), half);
+        let lim = _mm256_set1_ps(crate::setup::PROJECT_LIMIT);
+        let in_range = _mm256_and_ps(
+            _mm256_and_ps(
+                _mm256_cmp_ps(_mm256_andnot_ps(sign, xw), lim, _CMP_LE_OQ),
+                _mm256_cmp_ps(_mm256_andnot_ps(sign, yw), lim, _CMP_LE_OQ),
+            ),
+            finite(zw),
+        );
+        // Projection failures count as outside the guard band.
+        let guard = _mm256_or_ps(guard, _mm256_andnot_ps(in_range, _mm256_set1_ps(f32::from_bits(!0))));
+        codes = _mm256_or_si256(codes, bit(guard, GUARD));
+        // Non-finite input: exactly BAD | GUARD, as `clip::outcode`.
+        let bad = _mm256_castps_si256(ok);
+        codes = _mm256_or_si256(
+            _mm256_and_si256(bad, codes),
+            _mm256_andnot_si256(bad, _mm256_set1_epi32((BAD | GUARD) as i32)),
+        );
+        let keep = _mm256_castps_si256(_mm256_andnot_ps(guard, ok));
+        let one = _mm256_set1_ps(crate::setup::ONE as f32);
+        let sx = _mm256_cvtps_epi32(_mm256_mul_ps(xw, one));
+        let sy = _mm256_sub_epi32(_mm256_set1_epi32(h_fixed), _mm256_cvtps_epi32(_mm256_mul_ps(yw, one)));
+        _mm256_storeu_si256(ci.as_mut_ptr() as *mut __m256i, codes);
+        _mm256_storeu_si256(xi.as_mut_ptr() as *mut __m256i, _mm256_and_si256(keep, sx));
+        _mm256_storeu_si256(yi.as_mut_ptr() as *mut __m256i, _mm256_and_si256(keep, sy));
+        _mm256_storeu_ps(zf.as_mut_ptr(), _mm256_and_ps(_mm256_castsi256_ps(keep), zw));
+    }
+    for k in 0..8 {
+        code[k] = ci[k] as u8;
+        snapped[k] = SnappedVertex { x: xi[k], y: yi[k], z: zf[k] };
+    }
+}
+
 /// Splits the items into `n` chunks of about equal triangle counts, in order.
 pub(crate) fn split(items: &[(u32, u32, u32)], n: usize, out: &mut Vec<Vec<Piece>>) {
     let n = n.max(1);
@@ -246,6 +345,39 @@ pub(crate) fn split(items: &[(u32, u32, u32)], n: usize, out: &mut Vec<Vec<Piece
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[cfg(all(target_arch = "x86_64", target_feature = "avx2"))]
+    #[test]
+    fn eight_wide_classification_equals_scalar() {
+        let mut rng = sightline_scene::rng::Rng::new(3);
+        let specials = [f32::NAN, f32::INFINITY, -f32::INFINITY, 0.0, -0.0, 1e30, -1e30, 1e-30];
+        for vp in [Viewport::new(1280, 720, true), Viewport::new(7, 3, false)] {
+            for _ in 0..5000 {
+                let c: Vec<Vec4> = (0..8)
+                    .map(|_| {
+                        let mut v = [0f32; 4].map(|_| rng.range(-3.0, 3.0));
+                        v[3] = rng.range(-0.5, 3.0);
+                        if rng.below(8) == 0 {
+                            v[rng.below(4) as usize] = specials[rng.below(8) as usize];
+                        }
+                        if rng.below(8) == 0 {
+                            v[0] = v[3]; // exactly on a plane
+                        }
+                        Vec4::from(v)
+                    })
+                    .collect();
+                let (mut code, mut snapped) = ([0u8; 8], [NONE; 8]);
+                classify8(&c, &vp, &mut code, &mut snapped);
+                for k in 0..8 {
+                    let (want_code, want) = Chunk::classify(c[k], &vp);
+                    assert_eq!(code[k], want_code, "{:?}", c[k]);
+                    if want_code & GUARD == 0 {
+                        assert_eq!(snapped[k], want, "{:?}", c[k]);
+                    }
+                }
+            }
+        }
+    }
 
     #[test]
     fn split_keeps_order_and_balances() {

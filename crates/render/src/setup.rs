@@ -24,6 +24,9 @@ pub const ONE: i32 = 1 << SUBPIXEL_BITS;
 /// f32 window coordinates finer than 1/256 px before snapping.
 pub const GUARD_BAND_PX: f32 = 16384.0;
 
+/// Largest window coordinate magnitude [`Viewport::project`] accepts (pixels).
+pub(crate) const PROJECT_LIMIT: f32 = GUARD_BAND_PX * 2.0 + 8192.0;
+
 /// The viewport transform of one framebuffer size.
 #[derive(Debug, Clone, Copy)]
 pub struct Viewport {
@@ -50,6 +53,12 @@ impl Viewport {
         Self { width, height, hw: w * 0.5, hh: h * 0.5, h_fixed: height as i32 * ONE, gx, gy }
     }
 
+    /// Half width, half height and the height in fixed point (for vectorized projection).
+    #[inline]
+    pub(crate) fn scale(&self) -> (f32, f32, i32) {
+        (self.hw, self.hh, self.h_fixed)
+    }
+
     /// The outcode of a clip-space vertex for this viewport's guard band.
     #[inline]
     pub fn outcode(&self, c: glam::Vec4) -> u8 {
@@ -66,7 +75,7 @@ impl Viewport {
         let xw = c.x * inv_w * self.hw + self.hw;
         let yw = c.y * inv_w * self.hh + self.hh; // GL window y, up
         let zw = c.z * inv_w * 0.5 + 0.5;
-        let lim = GUARD_BAND_PX * 2.0 + 8192.0;
+        let lim = PROJECT_LIMIT;
         if !(xw.abs() <= lim && yw.abs() <= lim && zw.is_finite()) {
             return None;
         }
