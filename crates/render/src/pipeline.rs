@@ -457,7 +457,9 @@ fn raster_tile<const F: u8, const C: bool>(
     if fresh {
         tile.depth.fill(fmt.key(1.0));
         tile.ids.fill(0);
-        tile.counts.fill(0);
+        if C {
+            tile.counts.fill(0); // only read and written when counting
+        }
     }
     for r in (0..tile.h as usize).filter(|_| !fresh) {
         let src = (tile.y0 as usize + r) * width + tile.x0 as usize;
