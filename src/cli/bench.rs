@@ -45,7 +45,7 @@ pub fn run(a: &BenchArgs) -> Result<()> {
         out: Some(a.out.clone()),
         png_every: 0,
         json: Some(json.clone()),
-        first_batch: 32,
+        first_batch: 8,
         look: super::common::Look {
             shading: super::common::ShadingArg::Flat,
             aa: super::common::AaArg::Off,

@@ -65,7 +65,7 @@ pub struct WalkArgs {
     #[arg(long, value_name = "FILE")]
     pub json: Option<PathBuf>,
     /// Occlusion culling: clusters in the first front-to-back batch (later batches double)
-    #[arg(long, default_value_t = 32)]
+    #[arg(long, default_value_t = 8)]
     pub first_batch: usize,
     #[command(flatten)]
     pub look: Look,

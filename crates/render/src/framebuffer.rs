@@ -69,11 +69,14 @@ impl Framebuffer {
     }
     /// Clears color to `background`, depth to 1.0, IDs to 0 and the counters to 0.
     pub fn clear(&mut self, background: [u8; 4]) {
-        self.color.fill(background);
-        self.depth.fill(1.0);
-        self.ids.fill(0);
+        use rayon::prelude::*;
+        // 12 bytes a pixel: worth both cores at 1280×720 and up.
+        const ROWS: usize = 64 * 1024;
+        self.color.par_chunks_mut(ROWS).for_each(|c| c.fill(background));
+        self.depth.par_chunks_mut(ROWS).for_each(|c| c.fill(1.0));
+        self.ids.par_chunks_mut(ROWS).for_each(|c| c.fill(0));
         if let Some(c) = &mut self.depth_tests {
-            c.fill(0);
+            c.par_chunks_mut(ROWS).for_each(|c| c.fill(0));
         }
     }
 }

@@ -30,6 +30,8 @@ pub mod query;
 mod verify;
 
 use std::cell::RefCell;
+
+use rayon::prelude::*;
 use std::time::Instant;
 
 use glam::Affine3A;
@@ -160,7 +162,7 @@ impl Culler {
             octree: Some(octree),
             renderer: Renderer::new(),
             visible: Vec::new(),
-            first_batch: 32,
+            first_batch: 8,
             max_batch: 2048,
         }
     }
@@ -239,7 +241,7 @@ impl Culler {
             cs.ms_shading = ms_since(t);
             fs.ms_shading = cs.ms_shading;
         }
-        fs.covered_pixels = fb.ids.iter().filter(|&&i| i != 0).count() as u64;
+        fs.covered_pixels = fb.ids.par_iter().filter(|&&i| i != 0).count() as u64;
         fs.update_overdraw();
         cs.ms_total = ms_since(t0);
         fs.ms_total = cs.ms_total;
