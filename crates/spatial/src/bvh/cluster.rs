@@ -89,7 +89,7 @@ impl MeshClusters {
             let g = groups.get(permutation[start] as usize).copied().unwrap_or(0);
             let len =
                 permutation[start..].iter().take_while(|&&t| groups.get(t as usize).copied().unwrap_or(0) == g).count();
-            ranges.extend(median_split(&centers, &mut permutation[start..start + len], start as u32));
+            ranges.extend(median_split(boxes, &centers, &mut permutation[start..start + len], start as u32));
             start += len;
         }
         let mut clusters: Vec<Cluster> = ranges
@@ -153,10 +153,58 @@ fn facing([a, b, c]: [Vec3; 3]) -> u8 {
     2 * axis + (n[axis as usize] < 0.0) as u8
 }
 
+/// Looks for an empty stretch of the axis — a street between two buildings, the space
+/// between two parts of a model — that no item's box crosses (32 bins over the centers'
+/// range), leaving between a quarter and three quarters of the items on each side; splits
+/// there, so that no cluster straddles empty space. Returns the left count after
+/// partitioning `perm`, or `None` when there is no such gap.
+fn gap_split(boxes: &[Aabb], perm: &mut [u32], axis: usize, a0: f32, a1: f32) -> Option<usize> {
+    const BINS: usize = 32;
+    let n = perm.len();
+    let extent = a1 - a0;
+    if !(extent > 0.0) || !extent.is_finite() {
+        return None;
+    }
+    let bin_of = |v: f32| ((v - a0) / extent * BINS as f32).clamp(0.0, (BINS - 1) as f32) as usize;
+    let center = |t: u32| bin_of(boxes[t as usize].center()[axis]);
+    // How many boxes cross each bin (difference array), and how many centers fall in it.
+    let mut cross = [0i64; BINS + 1];
+    let mut counts = [0usize; BINS];
+    for &t in perm.iter() {
+        let b = &boxes[t as usize];
+        cross[bin_of(b.min[axis])] += 1;
+        cross[bin_of(b.max[axis]) + 1] -= 1;
+        counts[center(t)] += 1;
+    }
+    let mut best: Option<(usize, usize)> = None; // (empty bin, items left of it)
+    let (mut covered, mut left) = (0i64, 0usize);
+    for k in 0..BINS {
+        covered += cross[k];
+        if covered == 0
+            && left >= n / 4
+            && left <= 3 * n / 4
+            && best.is_none_or(|(_, l)| left.abs_diff(n / 2) < l.abs_diff(n / 2))
+        {
+            best = Some((k, left));
+        }
+        left += counts[k];
+    }
+    let (k, count) = best?;
+    let mut i = 0;
+    for j in 0..n {
+        if center(perm[j]) < k {
+            perm.swap(i, j);
+            i += 1;
+        }
+    }
+    debug_assert_eq!(i, count);
+    Some(i)
+}
+
 /// Splits `perm` (item ids, whose centers are `centers[id]`) at the median of the longest
 /// axis until parts have at most `CLUSTER_MAX` items; returns `(first, count)` ranges (offset
 /// by `base`) in order. Recursion depth is log2(n / CLUSTER_MAX).
-fn median_split(centers: &[Vec3], perm: &mut [u32], base: u32) -> Vec<(u32, u32)> {
+fn median_split(boxes: &[Aabb], centers: &[Vec3], perm: &mut [u32], base: u32) -> Vec<(u32, u32)> {
     let n = perm.len();
     if n == 0 {
         return Vec::new();
@@ -170,15 +218,24 @@ fn median_split(centers: &[Vec3], perm: &mut [u32], base: u32) -> Vec<(u32, u32)
         hi = hi.max(centers[t as usize]);
     }
     let axis = Aabb::new(lo, hi).longest_axis();
-    let mid = n / 2;
-    perm.select_nth_unstable_by(mid, |&a, &b| {
-        centers[a as usize][axis].total_cmp(&centers[b as usize][axis]).then(a.cmp(&b))
-    });
+    let mid = match gap_split(boxes, perm, axis, lo[axis], hi[axis]) {
+        Some(mid) => mid,
+        None => {
+            let mid = n / 2;
+            perm.select_nth_unstable_by(mid, |&a, &b| {
+                centers[a as usize][axis].total_cmp(&centers[b as usize][axis]).then(a.cmp(&b))
+            });
+            mid
+        }
+    };
     let (left, right) = perm.split_at_mut(mid);
     let (mut l, r) = if n > 1 << 14 {
-        rayon::join(|| median_split(centers, left, base), || median_split(centers, right, base + mid as u32))
+        rayon::join(
+            || median_split(boxes, centers, left, base),
+            || median_split(boxes, centers, right, base + mid as u32),
+        )
     } else {
-        (median_split(centers, left, base), median_split(centers, right, base + mid as u32))
+        (median_split(boxes, centers, left, base), median_split(boxes, centers, right, base + mid as u32))
     };
     l.extend(r);
     l
