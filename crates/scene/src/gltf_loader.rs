@@ -416,7 +416,7 @@ impl Loader<'_> {
                         .and_then(|x| x.checked_add(off))
                         .and_then(|x| x.checked_add(elem as u64)),
                 };
-                if end.map_or(true, |e| e > bytes.len() as u64) {
+                if end.is_none_or(|e| e > bytes.len() as u64) {
                     return Err(format!(
                         "{what} accessor {i} reads past the end of buffer view {v} ({count} elements of {elem} bytes, stride {stride}, offset {off}, view length {})",
                         bytes.len()

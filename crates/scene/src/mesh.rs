@@ -37,7 +37,7 @@ impl Mesh {
     ) -> Result<Self> {
         let name = name.into();
         let bad = |why: String| Error::InvalidMesh { name: name.clone(), why };
-        if indices.len() % 3 != 0 {
+        if !indices.len().is_multiple_of(3) {
             return Err(bad(format!("{} indices is not a multiple of 3", indices.len())));
         }
         if let Some(i) = positions.iter().position(|p| !p.is_finite()) {

@@ -58,7 +58,7 @@ fn reference_hits(scene: &Scene, instances: &[Instance], cam: &Camera) -> Vec<Op
             for (v, inst, t) in &tris {
                 if let Some((th, _, _)) = ray.intersect_triangle(v[0], v[1], v[2]) {
                     let depth = (ray.at(th) - cam.view.eye).dot(fwd);
-                    if depth >= near && depth <= far && best.map_or(true, |b| th < b.0) {
+                    if depth >= near && depth <= far && best.is_none_or(|b| th < b.0) {
                         best = Some((th, *inst, *t));
                     }
                 }

@@ -74,7 +74,7 @@ impl Op {
 #[inline]
 fn boundary(list: &[Span], k: usize) -> Option<Crossing> {
     let s = list.get(k / 2)?;
-    Some(if k % 2 == 0 { s.enter } else { s.exit })
+    Some(if k.is_multiple_of(2) { s.enter } else { s.exit })
 }
 
 /// Appends `op(a, b)` to `out`. Both inputs must be sorted, disjoint span lists; so is the

@@ -162,7 +162,7 @@ impl Shape {
                     };
                     // The slab can still leave a piece at the apex's height or above it
                     // numerically: keep the longer piece.
-                    if best.map_or(true, |b| b.exit.t - b.enter.t < t1 - t0) {
+                    if best.is_none_or(|b| b.exit.t - b.enter.t < t1 - t0) {
                         best = Some(Span::new(enter, exit));
                     }
                 }

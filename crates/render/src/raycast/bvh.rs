@@ -203,7 +203,7 @@ impl Bvh {
                 let mut best: Option<(usize, f32)> = None;
                 for (k, &i) in kids[..nk].iter().enumerate() {
                     let a = b.nodes[i].aabb().half_area();
-                    if inner(i) && best.map_or(true, |(_, ba)| a > ba) {
+                    if inner(i) && best.is_none_or(|(_, ba)| a > ba) {
                         best = Some((k, a));
                     }
                 }

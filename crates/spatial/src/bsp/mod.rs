@@ -261,7 +261,7 @@ fn choose_plane(pool: &[BspTriangle], list: &[u32], params: &BspParams, eps: f32
             }
         }
         let cost = params.split_weight * s as f32 + (f - b).abs() as f32;
-        if best.map_or(true, |(bc, _)| cost < bc) {
+        if best.is_none_or(|(bc, _)| cost < bc) {
             best = Some((cost, plane));
         }
     }
