@@ -213,12 +213,8 @@ impl Culler {
             return Ok((cs, fs));
         }
         fb.clear(opts.background);
-        let frustum = Frustum::from_camera(camera);
         let t = Instant::now();
-        self.visible.clear();
-        self.clustered.cull_with(&frustum, CullOptions::default(), &mut self.visible);
-        cs.clusters_in_frustum = self.visible.len() as u64;
-        cs.culled_by_frustum = cs.clusters - cs.clusters_in_frustum;
+        let frustum = self.frustum_cull(camera, &mut cs);
         cs.ms_cull = ms_since(t);
         let mut fs = FrameStats::default();
         match method {
@@ -262,11 +258,7 @@ impl Culler {
         let mut fs = FrameStats::default();
         let mut cs = CullStats { clusters: self.clustered.item_count() as u64, ..Default::default() };
         fb.clear(opts.background);
-        let frustum = Frustum::from_camera(camera);
-        self.visible.clear();
-        self.clustered.cull_with(&frustum, CullOptions::default(), &mut self.visible);
-        cs.clusters_in_frustum = self.visible.len() as u64;
-        cs.culled_by_frustum = cs.clusters - cs.clusters_in_frustum;
+        let frustum = self.frustum_cull(camera, &mut cs);
         self.renderer.begin_session(fb, opts.depth_format);
         // Every occluder is drawn, front to back in growing batches, so that the coarse
         // depth test of the rasterizer rejects whole triangles hidden behind earlier ones.
@@ -277,9 +269,7 @@ impl Culler {
             out.clear();
             let more = cursor.next_batch(self.clustered.bvh(), |_| true, batch, &mut out);
             if opts.backface_culling {
-                let before = out.len();
-                out.retain(|v| !self.cones[v.index as usize].backfacing(camera.view.eye));
-                cs.culled_by_backface += (before - out.len()) as u64;
+                self.drop_backfacing(&mut out, camera.view.eye, &mut cs);
             }
             if !out.is_empty() {
                 match self.draw_items(out.iter().map(|v| v.index), scene, camera, fb, opts, &mut cs) {
@@ -311,6 +301,24 @@ impl Culler {
     /// Ends the pass begun by [`Culler::occluder_pass`]: the frame's depth and IDs go to `fb`.
     pub fn end_occluder_pass(&mut self, fb: &mut Framebuffer) {
         self.renderer.end_session(fb);
+    }
+
+    /// Starts a culled frame: the clusters in the view frustum go to `self.visible` (BVH
+    /// order) and their counts to `cs`; returns the frustum.
+    fn frustum_cull(&mut self, camera: &Camera, cs: &mut CullStats) -> Frustum {
+        let frustum = Frustum::from_camera(camera);
+        self.visible.clear();
+        self.clustered.cull_with(&frustum, CullOptions::default(), &mut self.visible);
+        cs.clusters_in_frustum = self.visible.len() as u64;
+        cs.culled_by_frustum = cs.clusters - cs.clusters_in_frustum;
+        frustum
+    }
+
+    /// Drops clusters whose triangles all face away from the eye (normal cones), counting them.
+    fn drop_backfacing(&self, items: &mut Vec<Visible>, eye: glam::Vec3, cs: &mut CullStats) {
+        let before = items.len();
+        items.retain(|v| !self.cones[v.index as usize].backfacing(eye));
+        cs.culled_by_backface += (before - items.len()) as u64;
     }
 
     /// Draws the given items (cluster indices) in order.
@@ -381,9 +389,7 @@ impl Culler {
             };
             // Clusters facing away would only be dropped triangle by triangle.
             if opts.backface_culling {
-                let before = out.len();
-                out.retain(|v| !self.cones[v.index as usize].backfacing(camera.view.eye));
-                cs.culled_by_backface += (before - out.len()) as u64;
+                self.drop_backfacing(&mut out, camera.view.eye, cs);
             }
             cs.ms_cull += ms_since(t);
             if !out.is_empty() {

@@ -8,7 +8,6 @@ use std::time::Instant;
 use serde::Serialize;
 use sightline_scene::rng::Rng;
 use sightline_scene::{Camera, Scene};
-use sightline_spatial::{CullOptions, Frustum};
 
 use super::{CullStats, Culler};
 use crate::stats::ms_since;
@@ -57,11 +56,7 @@ impl Culler {
         let t0 = Instant::now();
         let mut cs = CullStats { clusters: self.clustered.item_count() as u64, ..Default::default() };
         fb.clear(opts.background);
-        let frustum = Frustum::from_camera(camera);
-        self.visible.clear();
-        self.clustered.cull_with(&frustum, CullOptions::default(), &mut self.visible);
-        cs.clusters_in_frustum = self.visible.len() as u64;
-        cs.culled_by_frustum = cs.clusters - cs.clusters_in_frustum;
+        self.frustum_cull(camera, &mut cs);
         let eye = camera.view.eye;
         let mut items: Vec<(f32, u32)> = self
             .visible
