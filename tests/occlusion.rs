@@ -124,3 +124,31 @@ fn session_pyramid_is_conservative_against_the_depth_buffer() {
         culler.end_occluder_pass(&mut fb);
     }
 }
+
+/// A small boxfield: no box reported occluded has a pixel that passes the depth test against
+/// the occluders (checked by drawing all of them onto the occluder frame), and the queries
+/// do occlude most boxes at eye height.
+#[test]
+fn boxfield_queries_are_exact() {
+    use sightline::boxfield::{check_occluded, count, run_queries, Boxfield};
+    use sightline::scene::builders::{boxfield, boxfield_queries, BoxfieldParams};
+    let scene = boxfield(&BoxfieldParams { boxes: 8000, half_size: 40.0, seed: 3 }).unwrap();
+    let camera = CameraKey {
+        eye: [0.0, 1.7, 0.0],
+        target: [0.0, 1.7, 1.0],
+        up: [0.0, 1.0, 0.0],
+        fovy_deg: 60.0,
+        near: 0.1,
+        far: 200.0,
+    }
+    .camera(16.0 / 9.0)
+    .unwrap();
+    let queries = boxfield_queries(6000, 60f32.to_radians(), 16.0 / 9.0, 9);
+    let bf = Boxfield { scene, camera, queries };
+    let mut culler = Culler::new(&bf.scene);
+    let mut fb = Framebuffer::new(320, 180).unwrap();
+    let answers = run_queries(&mut culler, &bf, &mut fb);
+    let c = count(&answers);
+    assert!(c.occluded > 1000 && c.visible > 10, "{c:?}");
+    assert_eq!(check_occluded(&bf, &answers, &fb), 0, "a box reported occluded has a visible pixel");
+}
