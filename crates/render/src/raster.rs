@@ -129,13 +129,9 @@ impl TileBuf {
         // Depth is affine in the window: over the pixel centers of this rectangle it is at
         // least its value at the nearest corner. For a big triangle reaching far behind
         // this tile, that bound is much tighter than its nearest vertex.
-        let cx = |px: u32| (((px + self.x0) as i32) << SUBPIXEL_BITS) + ONE / 2 - t.x[0];
-        let cy = |py: u32| (((py + self.y0) as i32) << SUBPIXEL_BITS) + ONE / 2 - t.y[0];
-        let (ax0, ax1) = (t.zx * cx(x0) as f32, t.zx * cx(x1) as f32);
-        let (by0, by1) = (t.zy * cy(y0) as f32, t.zy * cy(y1) as f32);
-        let rect_min = t.z0 + ax0.min(ax1) + by0.min(by1);
-        let rect_err = 8.0 * f32::EPSILON * (t.z0.abs() + ax0.abs().max(ax1.abs()) + by0.abs().max(by1.abs())) + 1e-7;
-        let near = (t.z0.min(z1).min(z2) - err).max(rect_min - rect_err);
+        let (sx, sy) = (self.x0 as i32, self.y0 as i32);
+        let rect = [x0 as i32 + sx, y0 as i32 + sy, x1 as i32 + sx, y1 as i32 + sy];
+        let near = (t.z0.min(z1).min(z2) - err).max(plane_min(t, rect));
         if !(near > 0.0) {
             return false;
         }
@@ -615,12 +611,19 @@ fn block_hidden(t: &Tri, tile: &TileBuf, [x0, y0, x1, y1]: [i32; 4], [bx, by]: [
     if max >= 1.0 {
         return false; // something is still clear here
     }
+    plane_min(t, [x0, y0, x1, y1]) > max
+}
+
+/// A lower bound of the triangle's depth plane over the pixel centers of the screen
+/// rectangle `[x0, y0, x1, y1]` (inclusive): the plane is affine, so its minimum is at a
+/// corner; the rounding that evaluating it at a pixel may add is subtracted.
+#[inline]
+fn plane_min(t: &Tri, [x0, y0, x1, y1]: [i32; 4]) -> f32 {
     let cx = |px: i32| t.zx * ((px << SUBPIXEL_BITS) + ONE / 2 - t.x[0]) as f32;
     let cy = |py: i32| t.zy * ((py << SUBPIXEL_BITS) + ONE / 2 - t.y[0]) as f32;
     let (a0, a1, b0, b1) = (cx(x0), cx(x1), cy(y0), cy(y1));
-    let near = t.z0 + a0.min(a1) + b0.min(b1);
     let err = 8.0 * f32::EPSILON * (t.z0.abs() + a0.abs().max(a1.abs()) + b0.abs().max(b1.abs())) + 1e-7;
-    near - err > max
+    t.z0 + a0.min(a1) + b0.min(b1) - err
 }
 
 fn raster_blocks<const FMT: u8, const COUNT: bool>(
