@@ -60,7 +60,7 @@ pub use frustum::{Containment, Frustum, PlaneMask, ALL_PLANES};
 pub use octree::occupancy::{occupancy_string, occupancy_voxels, Occupancy};
 pub use octree::{octant_order, LooseOctree};
 pub use plane::Plane;
-pub use project::{project_box, BoxProjector, ScreenRect};
+pub use project::{project_box, BoxImage, BoxProjector, ScreenRect};
 pub use ray::Ray;
 pub use sightline_scene::Aabb;
 pub use sphere::Sphere;

@@ -11,7 +11,7 @@
 //! smallest corner window z minus a small margin. Since the view depth is linear over a box
 //! and window z is monotonic in it, the box's nearest point is one of its corners.
 
-use glam::{Mat4, Vec4};
+use glam::Mat4;
 use sightline_scene::Aabb;
 
 use crate::{AabbExt, BoxKind};
@@ -66,6 +66,17 @@ impl ScreenRect {
     }
 }
 
+/// Where a box lands on the screen ([`BoxProjector::classify`]).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum BoxImage {
+    /// Outside the view frustum (or covering no pixel): nothing of it can be drawn.
+    Outside,
+    /// At or behind the near plane (or unbounded): it may cover any pixel at any depth.
+    CrossesNear,
+    /// In front of the near plane: a conservative rectangle and its nearest depth.
+    Rect(ScreenRect),
+}
+
 /// Projects boxes with one `clip_from_world` onto a `width × height` viewport.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct BoxProjector {
@@ -81,57 +92,74 @@ impl BoxProjector {
     }
 
     /// The box's conservative screen rectangle and nearest depth (see the module docs).
-    /// Empty boxes give [`ScreenRect::EMPTY`]; NaN/infinite boxes give the full screen.
+    /// Empty boxes and boxes outside the view give [`ScreenRect::EMPTY`]; NaN/infinite boxes
+    /// and boxes crossing the near plane give the full screen.
+    #[inline]
     pub fn project(&self, b: &Aabb) -> ScreenRect {
-        let (w, h) = (self.width, self.height);
+        match self.classify(b) {
+            BoxImage::Outside => ScreenRect::EMPTY,
+            BoxImage::CrossesNear => ScreenRect::full(self.width, self.height),
+            BoxImage::Rect(r) => r,
+        }
+    }
+
+    /// Where the box lands: outside the view (all eight corners beyond one clip plane, or no
+    /// pixel covered), across the near plane (a corner at or behind it: it may cover
+    /// anything), or a conservative rectangle with its nearest depth.
+    ///
+    /// The corners are formed once in clip space (one corner plus multiples of the matrix
+    /// columns) as eight-wide arrays that the compiler vectorizes.
+    #[inline]
+    pub fn classify(&self, b: &Aabb) -> BoxImage {
         match b.kind() {
-            BoxKind::Empty => return ScreenRect::EMPTY,
-            BoxKind::Unbounded => return ScreenRect::full(w, h),
+            BoxKind::Empty => return BoxImage::Outside,
+            BoxKind::Unbounded => return BoxImage::CrossesNear,
             BoxKind::Finite => {}
         }
         let m = &self.clip_from_world;
-        // Corner i = base + (bit0 ? dx) + (bit1 ? dy) + (bit2 ? dz), all in clip space.
         let base = *m * b.min.extend(1.0);
         let e = b.max - b.min;
-        let dx = m.x_axis * e.x;
-        let dy = m.y_axis * e.y;
-        let dz = m.z_axis * e.z;
-        let (mut xmin, mut xmax) = (f32::INFINITY, f32::NEG_INFINITY);
-        let (mut ymin, mut ymax) = (f32::INFINITY, f32::NEG_INFINITY);
-        let mut zmin = f32::INFINITY;
+        let (dx, dy, dz) = (m.x_axis * e.x, m.y_axis * e.y, m.z_axis * e.z);
+        let (mut cx, mut cy, mut cz, mut cw) = ([0f32; 8], [0f32; 8], [0f32; 8], [0f32; 8]);
         for i in 0..8 {
-            let mut c: Vec4 = base;
-            if i & 1 != 0 {
-                c += dx;
-            }
-            if i & 2 != 0 {
-                c += dy;
-            }
-            if i & 4 != 0 {
-                c += dz;
-            }
-            // NaN-safe: a NaN w or z fails these tests and takes the "crosses" path.
-            if !(c.w.is_finite() && c.z.is_finite()) || c.w <= W_EPS || c.z < -c.w {
-                return ScreenRect::full(w, h);
-            }
-            let inv = 1.0 / c.w;
-            let (x, y, z) = (c.x * inv, c.y * inv, c.z * inv);
-            xmin = xmin.min(x);
-            xmax = xmax.max(x);
-            ymin = ymin.min(y);
-            ymax = ymax.max(y);
-            zmin = zmin.min(z);
+            let (fx, fy, fz) = ((i & 1) as f32, ((i >> 1) & 1) as f32, ((i >> 2) & 1) as f32);
+            cx[i] = base.x + dx.x * fx + dy.x * fy + dz.x * fz;
+            cy[i] = base.y + dx.y * fx + dy.y * fy + dz.y * fz;
+            cz[i] = base.z + dx.z * fx + dy.z * fy + dz.z * fz;
+            cw[i] = base.w + dx.w * fx + dy.w * fy + dz.w * fz;
         }
-        if !(xmin.is_finite() && xmax.is_finite() && ymin.is_finite() && ymax.is_finite()) {
-            return ScreenRect::full(w, h);
+        let all = |f: &dyn Fn(usize) -> bool| (0..8).all(f);
+        if all(&|i| cx[i] > cw[i])
+            || all(&|i| cx[i] < -cw[i])
+            || all(&|i| cy[i] > cw[i])
+            || all(&|i| cy[i] < -cw[i])
+            || all(&|i| cz[i] > cw[i])
+            || all(&|i| cz[i] < -cw[i])
+        {
+            return BoxImage::Outside;
         }
+        // NaN-safe: a NaN w or z fails this test and takes the "crosses" path.
+        if !all(&|i| cw[i] > W_EPS && cz[i] >= -cw[i]) {
+            return BoxImage::CrossesNear;
+        }
+        let (mut x0, mut x1, mut y0, mut y1, mut z0) = (f32::MAX, f32::MIN, f32::MAX, f32::MIN, f32::MAX);
+        for i in 0..8 {
+            let inv = 1.0 / cw[i];
+            let (x, y, z) = (cx[i] * inv, cy[i] * inv, cz[i] * inv);
+            x0 = x0.min(x);
+            x1 = x1.max(x);
+            y0 = y0.min(y);
+            y1 = y1.max(y);
+            z0 = z0.min(z);
+        }
+        if !(x0.is_finite() && x1.is_finite() && y0.is_finite() && y1.is_finite()) {
+            return BoxImage::CrossesNear;
+        }
+        let (w, h) = (self.width, self.height);
         let (wf, hf) = (w as f32, h as f32);
-        // Pixel space; y flips (row 0 at the top).
-        let px0 = (xmin + 1.0) * 0.5 * wf - PIXEL_MARGIN;
-        let px1 = (xmax + 1.0) * 0.5 * wf + PIXEL_MARGIN;
-        let py0 = (1.0 - ymax) * 0.5 * hf - PIXEL_MARGIN;
-        let py1 = (1.0 - ymin) * 0.5 * hf + PIXEL_MARGIN;
-        // Pixel i spans [i, i + 1): covered columns are floor(px0) ..= floor(px1).
+        // Pixel space, y down; pixel i spans [i, i + 1): covered columns are floor(px0) ..=
+        // floor(px1). `clamp` sends everything ≤ 0 to 0, so truncation stands in for floor
+        // (for values in (−1, 0) the end bound grows by one pixel: still conservative).
         let clamp = |v: f32, hi: u32| -> u32 {
             if v <= 0.0 {
                 0
@@ -141,16 +169,15 @@ impl BoxProjector {
                 v as u32
             }
         };
-        // `clamp` sends everything ≤ 0 to 0, so truncation stands in for floor (for values in
-        // (−1, 0) the end bound grows by one pixel: still conservative).
-        let x0 = clamp(px0, w);
-        let x1 = clamp(px1 + 1.0, w);
-        let y0 = clamp(py0, h);
-        let y1 = clamp(py1 + 1.0, h);
-        if x0 >= x1 || y0 >= y1 {
-            return ScreenRect::EMPTY;
+        let rx0 = clamp((x0 + 1.0) * 0.5 * wf - PIXEL_MARGIN, w);
+        let rx1 = clamp((x1 + 1.0) * 0.5 * wf + PIXEL_MARGIN + 1.0, w);
+        let ry0 = clamp((1.0 - y1) * 0.5 * hf - PIXEL_MARGIN, h);
+        let ry1 = clamp((1.0 - y0) * 0.5 * hf + PIXEL_MARGIN + 1.0, h);
+        if rx0 >= rx1 || ry0 >= ry1 {
+            return BoxImage::Outside;
         }
-        ScreenRect { x0, y0, x1, y1, depth: ((zmin + 1.0) * 0.5 - DEPTH_MARGIN).clamp(0.0, 1.0), crosses_near: false }
+        let depth = ((z0 + 1.0) * 0.5 - DEPTH_MARGIN).clamp(0.0, 1.0);
+        BoxImage::Rect(ScreenRect { x0: rx0, y0: ry0, x1: rx1, y1: ry1, depth, crosses_near: false })
     }
 }
 
@@ -178,9 +205,10 @@ mod tests {
         let r = project_box(&b, &m, 96, 64);
         assert!(r.crosses_near);
         assert_eq!((r.x0, r.y0, r.x1, r.y1, r.depth), (0, 0, 96, 64, 0.0));
-        // Entirely behind the eye: also "crosses" (conservative).
+        // Entirely behind the eye: all corners lie beyond the near plane, so nothing of it
+        // can be drawn.
         let b = Aabb::new(Vec3::new(-1.0, -1.0, 6.0), Vec3::new(1.0, 1.0, 7.0));
-        assert!(project_box(&b, &m, 96, 64).crosses_near);
+        assert!(project_box(&b, &m, 96, 64).is_empty());
         // NaN box: full screen.
         assert!(project_box(&Aabb::new(Vec3::NAN, Vec3::ONE), &m, 96, 64).crosses_near);
         assert!(project_box(&Aabb::EMPTY, &m, 96, 64).is_empty());
