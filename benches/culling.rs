@@ -45,13 +45,13 @@ fn boxfield_1thread(c: &mut Criterion) {
     g.bench_function("occluders", |b| {
         b.iter(|| {
             pool.install(|| {
-                let _ = culler.occluder_pass(&bf.scene, &bf.camera, &mut fb, &opts).unwrap();
+                let _ = culler.occluder_pass(&bf.camera, &mut fb, &opts).unwrap();
                 culler.end_occluder_pass(&mut fb);
             })
         })
     });
     // The queries run on the calling thread; only the occluder pass uses the pool.
-    let (_, _, q) = pool.install(|| culler.occluder_pass(&bf.scene, &bf.camera, &mut fb, &opts)).unwrap();
+    let (_, _, q) = pool.install(|| culler.occluder_pass(&bf.camera, &mut fb, &opts)).unwrap();
     g.bench_function("queries", |b| {
         b.iter(|| bf.queries.iter().filter(|x| q.test(x) == sightline::render::BoxVisibility::Visible).count())
     });

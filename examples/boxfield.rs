@@ -28,7 +28,7 @@ fn main() {
         let mut stats = None;
         for _ in 0..15 {
             let t = Instant::now();
-            let (cs, fs, q) = culler.occluder_pass(&bf.scene, &bf.camera, &mut fb, &opts).expect("occluders");
+            let (cs, fs, q) = culler.occluder_pass(&bf.camera, &mut fb, &opts).expect("occluders");
             stats = Some((cs, fs));
             raster.push(t.elapsed().as_secs_f64() * 1e3);
             let t = Instant::now();
@@ -38,7 +38,7 @@ fn main() {
         }
         if std::env::var("QUERY_PROFILE").is_ok() {
             // Profiling aid: the queries alone, many times.
-            let (_, _, q) = culler.occluder_pass(&bf.scene, &bf.camera, &mut fb, &opts).expect("occluders");
+            let (_, _, q) = culler.occluder_pass(&bf.camera, &mut fb, &opts).expect("occluders");
             for _ in 0..200 {
                 answers = bf.queries.iter().map(|b| q.test(b)).collect::<Vec<_>>();
             }

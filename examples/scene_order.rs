@@ -31,8 +31,7 @@ fn main() {
         let cam = key.camera(w as f32 / h as f32).expect("camera");
         for (k, &coarse) in [false, true].iter().enumerate() {
             for (o, &order) in orders.iter().enumerate() {
-                let (cs, fs) =
-                    culler.render_ordered(&c.scene, &cam, order, coarse, 256, &mut fb, &opts).expect("frame");
+                let (cs, fs) = culler.render_ordered(&cam, order, coarse, 256, &mut fb, &opts).expect("frame");
                 times[3 * k + o].push(cs.ms_total);
                 fragments[3 * k + o].push(fs.fragments_tested as f64);
                 if k == 0 && o == 0 {

@@ -58,7 +58,7 @@ pub struct QueryCounts {
 /// Draws the occluders and answers every query; returns the answers.
 pub fn run_queries(culler: &mut Culler, bf: &Boxfield, fb: &mut Framebuffer) -> Vec<BoxVisibility> {
     let opts = RenderOptions::ids_only();
-    let (_, _, q) = culler.occluder_pass(&bf.scene, &bf.camera, fb, &opts).expect("drawing the occluders");
+    let (_, _, q) = culler.occluder_pass(&bf.camera, fb, &opts).expect("drawing the occluders");
     let answers = bf.queries.iter().map(|b| q.test(b)).collect();
     culler.end_occluder_pass(fb);
     answers

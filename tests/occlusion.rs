@@ -38,7 +38,7 @@ fn boxes_behind_beside_and_across_the_near_plane() {
     let mut fb = Framebuffer::new(320, 180).unwrap();
     let opts = RenderOptions::ids_only();
     {
-        let (_, _, q) = culler.occluder_pass(&scene, &cam, &mut fb, &opts).unwrap();
+        let (_, _, q) = culler.occluder_pass(&cam, &mut fb, &opts).unwrap();
         assert_eq!(q.test(&cube_at(Vec3::new(0.0, 0.0, -12.0), 0.5)), BoxVisibility::Occluded, "right behind the wall");
         assert_eq!(q.test(&cube_at(Vec3::new(0.0, 0.0, -30.0), 2.0)), BoxVisibility::Occluded, "far behind the wall");
         // Beside the wall: x beyond its edge at x = 10, still in view at z = −12.
@@ -71,7 +71,7 @@ fn a_depth_cleared_buffer_occludes_nothing() {
     }
     .camera(16.0 / 9.0)
     .unwrap();
-    let (_, _, q) = culler.occluder_pass(&scene, &away, &mut fb, &RenderOptions::ids_only()).unwrap();
+    let (_, _, q) = culler.occluder_pass(&away, &mut fb, &RenderOptions::ids_only()).unwrap();
     let mut rng = Rng::new(4);
     let boxes: Vec<Aabb> = (0..2000)
         .map(|_| {
@@ -100,10 +100,10 @@ fn session_pyramid_is_conservative_against_the_depth_buffer() {
     for key in c.layout.street_path(4, 2) {
         let cam = key.camera(w as f32 / h as f32).unwrap();
         // Draw once to get the finished depth buffer, then again to read its pyramid.
-        let _ = culler.occluder_pass(&c.scene, &cam, &mut fb, &RenderOptions::ids_only()).unwrap();
+        let _ = culler.occluder_pass(&cam, &mut fb, &RenderOptions::ids_only()).unwrap();
         culler.end_occluder_pass(&mut fb);
         let depth = fb.depth.clone();
-        let _ = culler.occluder_pass(&c.scene, &cam, &mut fb, &RenderOptions::ids_only()).unwrap();
+        let _ = culler.occluder_pass(&cam, &mut fb, &RenderOptions::ids_only()).unwrap();
         let pyramid = culler.renderer_pyramid().unwrap();
         let mut occluded = 0;
         for _ in 0..3000 {

@@ -222,13 +222,13 @@ impl Culler {
             Method::Frustum => {
                 let t = Instant::now();
                 let visible = std::mem::take(&mut self.visible);
-                fs = self.draw_items(visible.iter().map(|v| v.index), scene, camera, fb, &opts, &mut cs)?;
+                fs = self.draw_items(visible.iter().map(|v| v.index), camera, fb, &opts, &mut cs)?;
                 self.visible = visible;
                 cs.ms_draw = ms_since(t);
                 cs.batches = 1;
             }
-            Method::Hzb => self.hzb_bvh(scene, camera, &frustum, fb, &opts, &mut cs, &mut fs)?,
-            Method::OctreeHzb => self.hzb_octree(scene, camera, &frustum, fb, &opts, &mut cs, &mut fs)?,
+            Method::Hzb => self.hzb_bvh(camera, &frustum, fb, &opts, &mut cs, &mut fs)?,
+            Method::OctreeHzb => self.hzb_octree(camera, &frustum, fb, &opts, &mut cs, &mut fs)?,
         }
         cs.culled_by_occlusion = cs.clusters_in_frustum.saturating_sub(cs.clusters_drawn + cs.culled_by_backface);
         if opts.shading.mode != ShadingMode::None {
@@ -249,7 +249,6 @@ impl Culler {
     /// resulting pyramid. Call [`Culler::end_occluder_pass`] afterwards to write the frame.
     pub fn occluder_pass(
         &mut self,
-        scene: &Scene,
         camera: &Camera,
         fb: &mut Framebuffer,
         opts: &RenderOptions,
@@ -272,7 +271,7 @@ impl Culler {
                 self.drop_backfacing(&mut out, camera.view.eye, &mut cs);
             }
             if !out.is_empty() {
-                match self.draw_items(out.iter().map(|v| v.index), scene, camera, fb, opts, &mut cs) {
+                match self.draw_items(out.iter().map(|v| v.index), camera, fb, opts, &mut cs) {
                     Ok(st) => fs.add(&st),
                     Err(e) => {
                         self.renderer.end_session(fb);
@@ -325,13 +324,11 @@ impl Culler {
     fn draw_items(
         &mut self,
         items: impl Iterator<Item = u32>,
-        scene: &Scene,
         camera: &Camera,
         fb: &mut Framebuffer,
         opts: &RenderOptions,
         cs: &mut CullStats,
     ) -> Result<FrameStats> {
-        let _ = scene;
         let mut sources: Vec<DrawSource> = Vec::new();
         for i in items {
             let it = self.clustered.item(i);
@@ -356,7 +353,6 @@ impl Culler {
     #[allow(clippy::too_many_arguments)] // the frame's whole context, split for borrowing
     fn hzb_bvh(
         &mut self,
-        scene: &Scene,
         camera: &Camera,
         frustum: &Frustum,
         fb: &mut Framebuffer,
@@ -394,7 +390,7 @@ impl Culler {
             cs.ms_cull += ms_since(t);
             if !out.is_empty() {
                 let t = Instant::now();
-                match self.draw_items(out.iter().map(|v| v.index), scene, camera, fb, opts, cs) {
+                match self.draw_items(out.iter().map(|v| v.index), camera, fb, opts, cs) {
                     Ok(st) => fs.add(&st),
                     Err(e) => break Err(e),
                 }
@@ -413,7 +409,6 @@ impl Culler {
     #[allow(clippy::too_many_arguments)] // the frame's whole context, split for borrowing
     fn hzb_octree(
         &mut self,
-        scene: &Scene,
         camera: &Camera,
         frustum: &Frustum,
         fb: &mut Framebuffer,
@@ -456,13 +451,13 @@ impl Culler {
                 }
                 g.pending.push(v);
                 if g.pending.len() >= g.batch {
-                    g.flush(scene, camera, opts);
+                    g.flush(camera, opts);
                 }
                 Visit::Continue
             },
         );
         let mut w = walk.into_inner();
-        w.flush(scene, camera, opts);
+        w.flush(camera, opts);
         w.culler.octree = Some(octree);
         w.culler.renderer.end_session(w.fb);
         // Traversal time excludes the drawing done inside it.
@@ -487,13 +482,13 @@ struct OctreeWalk<'a> {
 
 impl OctreeWalk<'_> {
     /// Draws the pending clusters (the tiles refresh their pyramid levels as they draw).
-    fn flush(&mut self, scene: &Scene, camera: &Camera, opts: &RenderOptions) {
+    fn flush(&mut self, camera: &Camera, opts: &RenderOptions) {
         if self.pending.is_empty() || self.err.is_some() {
             return;
         }
         let t = Instant::now();
         let items = std::mem::take(&mut self.pending);
-        match self.culler.draw_items(items.iter().map(|v| v.index), scene, camera, self.fb, opts, self.cs) {
+        match self.culler.draw_items(items.iter().map(|v| v.index), camera, self.fb, opts, self.cs) {
             Ok(st) => self.fs.add(&st),
             Err(e) => self.err = Some(e),
         }

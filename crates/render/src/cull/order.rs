@@ -7,7 +7,7 @@ use std::time::Instant;
 
 use serde::Serialize;
 use sightline_scene::rng::Rng;
-use sightline_scene::{Camera, Scene};
+use sightline_scene::Camera;
 
 use super::{CullStats, Culler};
 use crate::stats::ms_since;
@@ -45,7 +45,6 @@ impl Culler {
     #[allow(clippy::too_many_arguments)] // an experiment's knobs
     pub fn render_ordered(
         &mut self,
-        scene: &Scene,
         camera: &Camera,
         order: DrawOrder,
         coarse: bool,
@@ -82,7 +81,7 @@ impl Culler {
         if coarse {
             self.renderer.begin_session(fb, opts.depth_format);
             for chunk in items.chunks(batch.max(1)) {
-                match self.draw_items(chunk.iter().map(|x| x.1), scene, camera, fb, opts, &mut cs) {
+                match self.draw_items(chunk.iter().map(|x| x.1), camera, fb, opts, &mut cs) {
                     Ok(st) => fs.add(&st),
                     Err(e) => {
                         self.renderer.end_session(fb);
@@ -93,7 +92,7 @@ impl Culler {
             }
             self.renderer.end_session(fb);
         } else {
-            fs = self.draw_items(items.iter().map(|x| x.1), scene, camera, fb, opts, &mut cs)?;
+            fs = self.draw_items(items.iter().map(|x| x.1), camera, fb, opts, &mut cs)?;
             cs.batches = 1;
         }
         cs.ms_draw = ms_since(t);
