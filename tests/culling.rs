@@ -96,3 +96,39 @@ fn culled_gltf_scene_equals_brute_force() {
     let opts = RenderOptions { backface_culling: false, ..Default::default() };
     check_with(&scene, &keys, "gltf", &opts);
 }
+
+/// Frames overwrite every plane, so nothing of the previous contents of the target (here
+/// garbage) shows through, whatever the method: colors, depths, IDs and depth-test counts
+/// equal those of a brand-new framebuffer.
+#[test]
+fn frames_need_no_clear() {
+    let c = city(&CityParams::for_triangles(30_000)).unwrap();
+    let cam = c.layout.street_path(10, 3)[4].camera(W as f32 / H as f32).unwrap();
+    let mut culler = Culler::new(&c.scene);
+    let opts = RenderOptions::default();
+    let garbage = |fb: &mut Framebuffer| {
+        fb.color.fill([1, 2, 3, 4]);
+        fb.depth.fill(0.25);
+        fb.ids.fill(77);
+        if let Some(d) = &mut fb.depth_tests {
+            d.fill(9);
+        }
+    };
+    for method in Method::ALL {
+        for counting in [false, true] {
+            let mut clean = Framebuffer::new(W, H).unwrap();
+            let mut dirty = Framebuffer::new(W, H).unwrap();
+            clean.count_depth_tests(counting);
+            dirty.count_depth_tests(counting);
+            garbage(&mut dirty);
+            culler.render(&c.scene, &cam, method, &mut clean, &opts).unwrap();
+            culler.render(&c.scene, &cam, method, &mut dirty, &opts).unwrap();
+            let what = format!("{}, counting {counting}", method.name());
+            assert!(clean.ids.iter().any(|&i| i == 0) && clean.ids.iter().any(|&i| i != 0), "{what}");
+            assert_eq!(clean.ids, dirty.ids, "{what}");
+            assert_eq!(clean.depth, dirty.depth, "{what}");
+            assert_eq!(clean.color, dirty.color, "{what}");
+            assert_eq!(clean.depth_tests, dirty.depth_tests, "{what}");
+        }
+    }
+}

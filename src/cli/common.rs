@@ -141,15 +141,19 @@ impl Look {
 }
 
 /// Runs `f` on a rayon pool of `threads` threads (all cores when `None`).
+///
+/// `f` itself runs on one of the pool's workers, not on the calling thread: a frame makes
+/// dozens of parallel calls, and from outside the pool each would hand its work over and
+/// sleep until it is done, a context switch per call that cost more than the work itself.
 pub fn with_threads<T: Send>(threads: Option<usize>, f: impl FnOnce() -> T + Send) -> Result<T> {
+    let mut builder = rayon::ThreadPoolBuilder::new();
     match threads {
-        None => Ok(f()),
+        None => {}
         Some(0) => bail!("--threads must be at least 1"),
-        Some(n) => {
-            let pool = rayon::ThreadPoolBuilder::new().num_threads(n).build().context("starting the thread pool")?;
-            Ok(pool.install(f))
-        }
+        Some(n) => builder = builder.num_threads(n),
     }
+    let pool = builder.build().context("starting the thread pool")?;
+    Ok(pool.install(f))
 }
 
 /// Reads a camera path file, or makes the scene's street path when none is given.

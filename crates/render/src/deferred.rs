@@ -20,8 +20,13 @@ use sightline_scene::{Camera, Instance, Material, Mesh, Scene};
 use crate::shading::{InstanceShading, ShadeOptions, ShadingMode, TriangleShader};
 use crate::Framebuffer;
 
+/// Rows per parallel band for plain fills.
 const BAND_ROWS: usize = 16;
-const TRI_CACHE: usize = 1024;
+/// Bands per worker thread when shading: few and tall, because a triangle spanning several
+/// bands is prepared once in each (a measurable cost at street level, where triangles
+/// are large), yet more than one per thread to balance uneven bands.
+const BANDS_PER_THREAD: usize = 3;
+const TRI_CACHE: usize = 4096;
 const INST_CACHE: usize = 64;
 
 /// Finds the instance drawing global triangle `g` (instances ordered by first triangle).
@@ -90,10 +95,20 @@ struct TriEntry<'a> {
     shader: TriangleShader<'a>,
 }
 
-/// Shades every pixel of `fb` whose ID is not 0 (mode `None`: nothing to do). IDs that no
-/// instance claims are left with their current color.
-pub fn shade_pass(scene: &Scene, instances: &[Instance], camera: &Camera, fb: &mut Framebuffer, opts: &ShadeOptions) {
+/// Writes every color of `fb`: pixels with ID 0, IDs that no instance claims and every
+/// pixel in mode `None` get `background`; the others are shaded. So the color plane needs no
+/// clearing before a frame.
+pub fn shade_pass(
+    scene: &Scene,
+    instances: &[Instance],
+    camera: &Camera,
+    fb: &mut Framebuffer,
+    opts: &ShadeOptions,
+    background: [u8; 4],
+) {
     if opts.mode == ShadingMode::None {
+        let chunk = fb.width() as usize * BAND_ROWS;
+        fb.color.par_chunks_mut(chunk).for_each(|c| c.fill(background));
         return;
     }
     let lookup = Lookup::new(instances);
@@ -102,14 +117,15 @@ pub fn shade_pass(scene: &Scene, instances: &[Instance], camera: &Camera, fb: &m
     let eye = camera.view.eye;
     let (sx, sy) = (2.0 / w as f32, 2.0 / h as f32);
     let ids = &fb.ids;
-    fb.color.par_chunks_mut(w * BAND_ROWS).enumerate().for_each(|(band, color)| {
+    let band_rows = h.div_ceil(rayon::current_num_threads().max(1) * BANDS_PER_THREAD).max(1);
+    fb.color.par_chunks_mut(w * band_rows).enumerate().for_each(|(band, color)| {
         let mut insts: Vec<Option<InstEntry>> = (0..INST_CACHE).map(|_| None).collect();
         // Direct-mapped triangle cache: a small slot per entry (flat triangles need nothing
         // but their color), full interpolation data only for the others.
-        let mut slots = vec![Slot { id: 0, color: [0; 4], full: NO_FULL }; TRI_CACHE];
+        let mut slots = vec![Slot { id: 0, color: background, full: NO_FULL }; TRI_CACHE];
         let mut fulls: Vec<TriEntry> = Vec::new();
         let mut hint = 0u32;
-        let y0 = band * BAND_ROWS;
+        let y0 = band * band_rows;
         for (r, crow) in color.chunks_mut(w).enumerate() {
             let y = y0 + r;
             if y >= h {
@@ -117,15 +133,21 @@ pub fn shade_pass(scene: &Scene, instances: &[Instance], camera: &Camera, fb: &m
             }
             let ndc_y = 1.0 - (y as f32 + 0.5) * sy;
             let irow = &ids[y * w..(y + 1) * w];
-            for (x, (c, &id)) in crow.iter_mut().zip(irow).enumerate() {
+            // Runs of one ID along the row: one cache lookup and one fill per run.
+            let mut x = 0;
+            while x < w {
+                let id = irow[x];
+                let end = irow[x + 1..].iter().position(|&v| v != id).map_or(w, |n| x + 1 + n);
                 if id == 0 {
+                    crow[x..end].fill(background);
+                    x = end;
                     continue;
                 }
                 let slot = (id as usize).wrapping_mul(0x9E37_79B1) >> 20 & (TRI_CACHE - 1);
                 if slots[slot].id != id {
                     slots[slot] = match prepare(id, &lookup, &mut insts, scene, camera, eye, &default, opts, &mut hint)
                     {
-                        None => Slot { id, color: *c, full: NO_FULL },
+                        None => Slot { id, color: background, full: NO_FULL },
                         Some(Prepared::Constant(k)) => Slot { id, color: k, full: NO_FULL },
                         Some(Prepared::Full(e)) => {
                             // Reuse the entry this slot pointed at, else append.
@@ -143,17 +165,21 @@ pub fn shade_pass(scene: &Scene, instances: &[Instance], camera: &Camera, fb: &m
                 }
                 let sl = &slots[slot];
                 let Some(entry) = fulls.get(sl.full as usize) else {
-                    *c = sl.color;
+                    crow[x..end].fill(sl.color);
+                    x = end;
                     continue;
                 };
-                let p = Vec3A::new((x as f32 + 0.5) * sx - 1.0, ndc_y, 1.0);
-                let mut b = Vec3::new(entry.rows[0].dot(p), entry.rows[1].dot(p), entry.rows[2].dot(p));
-                if !opts.perspective_correct {
-                    b *= Vec3::from(entry.w);
+                for (px, c) in crow[x..end].iter_mut().enumerate() {
+                    let p = Vec3A::new(((x + px) as f32 + 0.5) * sx - 1.0, ndc_y, 1.0);
+                    let mut b = Vec3::new(entry.rows[0].dot(p), entry.rows[1].dot(p), entry.rows[2].dot(p));
+                    if !opts.perspective_correct {
+                        b *= Vec3::from(entry.w);
+                    }
+                    let s = b.x + b.y + b.z;
+                    let b = if s != 0.0 { b / s } else { Vec3::splat(1.0 / 3.0) };
+                    *c = entry.shader.shade(b, opts);
                 }
-                let s = b.x + b.y + b.z;
-                let b = if s != 0.0 { b / s } else { Vec3::splat(1.0 / 3.0) };
-                *c = entry.shader.shade(b, opts);
+                x = end;
             }
         }
     });

@@ -89,17 +89,19 @@ impl Renderer {
         let fill = opts.wireframe != Wireframe::Only;
         let mut stats = FrameStats::default();
         if s == 1 {
-            fb.clear(opts.background);
             if fill {
+                // A fresh draw writes every pixel's depth and ID and shading every color,
+                // so the target needs no clearing first.
                 self.fresh = true;
                 let r = self.draw(scene, instances, items, camera, fb, opts);
                 self.fresh = false; // also when `draw` failed before using it
                 stats = r?;
                 let t = Instant::now();
-                deferred::shade_pass(scene, instances, camera, fb, &opts.shading);
+                deferred::shade_pass(scene, instances, camera, fb, &opts.shading, opts.background);
                 stats.ms_shading = ms_since(t);
+            } else {
+                fb.clear(opts.background);
             }
-            stats.covered_pixels = fb.ids.par_iter().filter(|&&i| i != 0).count() as u64;
         } else {
             let (w, h) = (fb.width() * s, fb.height() * s);
             let mut ss = match self.supersampled.take() {
@@ -109,7 +111,9 @@ impl Renderer {
             if ss.depth_tests.is_some() != fb.depth_tests.is_some() {
                 ss.count_depth_tests(fb.depth_tests.is_some());
             }
-            ss.clear(opts.background);
+            if !fill {
+                ss.clear(opts.background);
+            }
             let r = if fill {
                 self.fresh = true;
                 let r = self.draw(scene, instances, items, camera, &mut ss, opts);
@@ -127,9 +131,8 @@ impl Renderer {
             }
             let t = Instant::now();
             if fill {
-                deferred::shade_pass(scene, instances, camera, &mut ss, &opts.shading);
+                deferred::shade_pass(scene, instances, camera, &mut ss, &opts.shading, opts.background);
             }
-            stats.covered_pixels = ss.ids.par_iter().filter(|&&i| i != 0).count() as u64;
             aa::resolve(&ss, s, fb);
             stats.ms_shading = ms_since(t);
             self.supersampled = Some(ss);
@@ -146,7 +149,7 @@ impl Renderer {
 
     /// Draws `items` into the depth and ID planes of `fb` (depth test LESS), in order,
     /// without clearing and without shading. Counters cover this call only
-    /// (`covered_pixels` is left 0).
+    /// (`covered_pixels` is left 0 unless the draw began a fresh frame).
     pub fn draw(
         &mut self,
         scene: &Scene,
@@ -274,14 +277,27 @@ impl Renderer {
         self.fresh = false;
     }
 
-    /// Ends the frame session: the drawn tiles are written to `fb`.
-    pub fn end_session(&mut self, fb: &mut Framebuffer) {
-        let Some(fmt) = self.session.take() else { return };
-        let Some(grid) = self.grid else { return };
+    /// Ends the frame session: the whole frame is written to `fb` (depth, IDs and, when
+    /// counting, depth tests; tiles never drawn into as cleared), so `fb` needs no clearing
+    /// before a session. Returns the pixels covered (ID ≠ 0); 0 outside a session.
+    pub fn end_session(&mut self, fb: &mut Framebuffer) -> u64 {
+        let Some(fmt) = self.session.take() else { return 0 };
+        let Some(grid) = self.grid else { return 0 };
         for t in &mut self.tiles {
             t.dirty = t.touched;
         }
-        store_tiles(&self.tiles, &grid, fb, fmt);
+        store_tiles(&self.tiles, &grid, fb, fmt, true)
+    }
+
+    /// Marks the target of the next draw as to be overwritten whole: tiles start from the
+    /// clear values instead of loading, and the store writes every pixel. Reset by the draw.
+    pub(crate) fn start_fresh(&mut self) {
+        self.fresh = true;
+    }
+
+    /// Forgets a [`Renderer::start_fresh`] that no draw consumed (after an error).
+    pub(crate) fn cancel_fresh(&mut self) {
+        self.fresh = false;
     }
 
     /// The z-pyramid of the frame drawn so far in this session (`None` outside a session).
@@ -345,7 +361,7 @@ impl Renderer {
         if session.is_some() {
             update_upper_levels(&self.tiles, &mut self.upper);
         } else {
-            store_tiles(&self.tiles, &grid, fb, fmt);
+            st.covered_pixels = store_tiles(&self.tiles, &grid, fb, fmt, fresh);
         }
         st.ms_raster = ms_since(t);
 
@@ -445,10 +461,10 @@ fn raster_tile<const F: u8, const C: bool>(
     if session {
         // The tile holds the frame: clear it on first use, never load or store here.
         if !tile.touched {
-            tile.clear_for_session(fmt.key(1.0));
+            tile.clear_for_session(fmt.key(1.0), C);
         }
         raster_bins::<F, C, true>(tile, index, chunks, &mut st);
-        tile.compute_mips(fmt);
+        tile.update_mips(fmt);
         return st;
     }
     // Start from the clear values right after a clear; otherwise load the tile's pixels
@@ -500,6 +516,9 @@ fn raster_bins<const F: u8, const C: bool, const COARSE: bool>(
                 continue;
             }
             let r = raster_tri::<F, C>(t, tile);
+            if COARSE && r.written > 0 {
+                mark_written(tile, t);
+            }
             st.tested += r.covered as u64;
             st.written += r.written as u64;
             if t.multi == u32::MAX {
@@ -511,35 +530,68 @@ fn raster_bins<const F: u8, const C: bool, const COARSE: bool>(
     }
 }
 
-fn store_tiles(tiles: &[TileBuf], grid: &Grid, fb: &mut Framebuffer, fmt: DepthFormat) {
+/// Writes tiles to `fb`: the dirty ones from their buffers and, with `all`, every other
+/// tile as cleared (depth 1, ID 0, no depth tests), so that `fb` needs no clear first.
+/// Returns the covered pixels (ID ≠ 0) of the tiles written.
+/// Marks the blocks of the triangle's bounding box inside the tile as stale in its pyramid.
+#[inline]
+fn mark_written(tile: &mut TileBuf, t: &crate::setup::Tri) {
+    let x0 = (t.bbox[0] as i32).max(tile.x0 as i32);
+    let y0 = (t.bbox[1] as i32).max(tile.y0 as i32);
+    let x1 = (t.bbox[2] as i32).min((tile.x0 + tile.w) as i32 - 1);
+    let y1 = (t.bbox[3] as i32).min((tile.y0 + tile.h) as i32 - 1);
+    tile.mark_written([x0, y0, x1, y1]);
+}
+
+fn store_tiles(tiles: &[TileBuf], grid: &Grid, fb: &mut Framebuffer, fmt: DepthFormat, all: bool) -> u64 {
     let width = fb.width() as usize;
     let tx = grid.tiles_x as usize;
-    let copy_row = |y: usize, depth: &mut [f32], ids: &mut [u32]| {
+    let far = fmt.depth(fmt.key(1.0));
+    let copy_row = |y: usize, depth: &mut [f32], ids: &mut [u32]| -> u64 {
         let row = &tiles[(y >> TILE_SHIFT) * tx..(y >> TILE_SHIFT) * tx + tx];
         let r = (y & (TILE as usize - 1)) << TILE_SHIFT;
-        for t in row.iter().filter(|t| t.dirty) {
+        let mut covered = 0u64;
+        for t in row {
             let (x0, w) = (t.x0 as usize, t.w as usize);
-            for (d, k) in depth[x0..x0 + w].iter_mut().zip(&t.depth[r..r + w]) {
-                *d = fmt.depth(*k);
+            if t.dirty {
+                let keys = depth[x0..x0 + w].iter_mut().zip(&t.depth[r..r + w]);
+                // The format's branch outside the loop, so that the loop vectorizes.
+                match fmt.max_value() {
+                    None => keys.for_each(|(d, k)| *d = f32::from_bits(*k)),
+                    Some(m) => keys.for_each(|(d, k)| *d = *k as f32 / m as f32),
+                }
+                let src = &t.ids[r..r + w];
+                ids[x0..x0 + w].copy_from_slice(src);
+                covered += src.iter().map(|&i| (i != 0) as u32).sum::<u32>() as u64;
+            } else if all {
+                depth[x0..x0 + w].fill(far);
+                ids[x0..x0 + w].fill(0);
             }
-            ids[x0..x0 + w].copy_from_slice(&t.ids[r..r + w]);
         }
+        covered
     };
-    fb.depth
+    let covered = fb
+        .depth
         .par_chunks_mut(width)
         .zip(fb.ids.par_chunks_mut(width))
         .enumerate()
-        .for_each(|(y, (d, i))| copy_row(y, d, i));
+        .map(|(y, (d, i))| copy_row(y, d, i))
+        .sum();
     if let Some(counts) = &mut fb.depth_tests {
         counts.par_chunks_mut(width).enumerate().for_each(|(y, c)| {
             let row = &tiles[(y >> TILE_SHIFT) * tx..(y >> TILE_SHIFT) * tx + tx];
             let r = (y & (TILE as usize - 1)) << TILE_SHIFT;
-            for t in row.iter().filter(|t| t.dirty) {
+            for t in row {
                 let (x0, w) = (t.x0 as usize, t.w as usize);
-                c[x0..x0 + w].copy_from_slice(&t.counts[r..r + w]);
+                if t.dirty {
+                    c[x0..x0 + w].copy_from_slice(&t.counts[r..r + w]);
+                } else if all {
+                    c[x0..x0 + w].fill(0);
+                }
             }
         });
     }
+    covered
 }
 
 /// Renders every instance of `scene` (world transforms must be up to date) with a fresh

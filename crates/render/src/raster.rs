@@ -59,6 +59,9 @@ pub struct TileBuf {
     /// In a frame session: the tile's z-pyramid levels 1..=6 (32², 16², …, 1² texels, each
     /// the max window depth of the 2×2 texels below), see [`MIP_OFFSETS`].
     pub mips: Vec<f32>,
+    /// In a frame session: the 8×8-pixel blocks (bit `8·by + bx`) written since the pyramid
+    /// levels were last brought up to date.
+    pub stale_blocks: u64,
 }
 
 /// Offsets of levels 1..=6 in [`TileBuf::mips`] (index = level − 1), and the total length.
@@ -81,12 +84,13 @@ impl TileBuf {
             touched: false,
             coarse: false,
             mips: vec![1.0; MIP_OFFSETS[6]],
+            stale_blocks: 0,
         }
     }
 
     /// Clears the tile for a frame session: depth keys of `clear` inside the screen and 0
     /// (nearest) outside it, so that the pyramid's max ignores pixels that do not exist.
-    pub fn clear_for_session(&mut self, clear: u32) {
+    pub fn clear_for_session(&mut self, clear: u32, counting: bool) {
         let (w, h) = (self.w as usize, self.h as usize);
         for r in 0..TILE as usize {
             let row = &mut self.depth[r << TILE_SHIFT..(r + 1) << TILE_SHIFT];
@@ -98,9 +102,24 @@ impl TileBuf {
             }
         }
         self.ids.fill(0);
-        self.counts.fill(0);
+        if counting {
+            self.counts.fill(0);
+        }
         self.mips.fill(1.0);
+        self.stale_blocks = 0;
         self.touched = true;
+    }
+
+    /// Notes that pixels inside the screen rectangle `[x0, y0, x1, y1]` (inclusive, clipped
+    /// to the tile by the caller) may have been written: their 8×8 blocks become stale.
+    #[inline]
+    pub fn mark_written(&mut self, [x0, y0, x1, y1]: [i32; 4]) {
+        let (bx0, bx1) = ((x0 - self.x0 as i32) >> 3, (x1 - self.x0 as i32) >> 3);
+        let (by0, by1) = ((y0 - self.y0 as i32) >> 3, (y1 - self.y0 as i32) >> 3);
+        let row = ((1u64 << (bx1 + 1)) - 1) & !((1u64 << bx0) - 1);
+        for by in by0..=by1 {
+            self.stale_blocks |= row << (8 * by);
+        }
     }
 
     /// Coarse depth (the seeds' per-tile Z_max, "HyperZ"; Greene's pyramid test per
@@ -152,6 +171,59 @@ impl TileBuf {
         true
     }
 
+    /// Brings [`TileBuf::mips`] up to date after writes: levels 1–3 only under the stale
+    /// 8×8 blocks (one level-3 texel each), levels 4–6 (21 texels) whole.
+    pub fn update_mips(&mut self, fmt: crate::DepthFormat) {
+        let mut stale = std::mem::take(&mut self.stale_blocks);
+        if stale == 0 {
+            return;
+        }
+        const T: usize = TILE as usize;
+        while stale != 0 {
+            let b = stale.trailing_zeros() as usize;
+            stale &= stale - 1;
+            let (bx, by) = (b & 7, b >> 3);
+            // Level 1 (32×32): the block's 4×4 texels from the keys (the max key, converted once).
+            let l1 = &mut self.mips[..MIP_OFFSETS[1]];
+            for y in 4 * by..4 * by + 4 {
+                let r0 = &self.depth[(2 * y) * T..(2 * y + 1) * T];
+                let r1 = &self.depth[(2 * y + 1) * T..(2 * y + 2) * T];
+                for x in 4 * bx..4 * bx + 4 {
+                    let k = r0[2 * x].max(r0[2 * x + 1]).max(r1[2 * x]).max(r1[2 * x + 1]);
+                    l1[y * 32 + x] = fmt.depth(k);
+                }
+            }
+            // Level 2 (16×16): 2×2 texels; level 3 (8×8): the block's own texel.
+            let (below, above) = self.mips.split_at_mut(MIP_OFFSETS[1]);
+            for y in 2 * by..2 * by + 2 {
+                for x in 2 * bx..2 * bx + 2 {
+                    let i = (2 * y) * 32 + 2 * x;
+                    above[y * 16 + x] = below[i].max(below[i + 1]).max(below[i + 32]).max(below[i + 33]);
+                }
+            }
+            let (below, above) = self.mips.split_at_mut(MIP_OFFSETS[2]);
+            let l2 = &below[MIP_OFFSETS[1]..];
+            let i = (2 * by) * 16 + 2 * bx;
+            above[by * 8 + bx] = l2[i].max(l2[i + 1]).max(l2[i + 16]).max(l2[i + 17]);
+        }
+        for level in 4..=6 {
+            self.reduce_level(level);
+        }
+    }
+
+    /// Level `level` (≥ 2) of [`TileBuf::mips`] from the level below.
+    fn reduce_level(&mut self, level: usize) {
+        let (below, above) = self.mips.split_at_mut(MIP_OFFSETS[level - 1]);
+        let src = &below[MIP_OFFSETS[level - 2]..];
+        let s = TILE as usize >> level; // this level's side
+        for y in 0..s {
+            for x in 0..s {
+                let i = (2 * y) * (2 * s) + 2 * x;
+                above[y * s + x] = src[i].max(src[i + 1]).max(src[i + 2 * s]).max(src[i + 2 * s + 1]);
+            }
+        }
+    }
+
     /// Recomputes [`TileBuf::mips`] from the depth keys (max of 2×2 per level).
     pub fn compute_mips(&mut self, fmt: crate::DepthFormat) {
         let t = TILE as usize;
@@ -166,16 +238,9 @@ impl TileBuf {
         }
         let _ = rest;
         for level in 2..=6 {
-            let (below, above) = self.mips.split_at_mut(MIP_OFFSETS[level - 1]);
-            let src = &below[MIP_OFFSETS[level - 2]..];
-            let s = t >> level; // this level's side
-            for y in 0..s {
-                for x in 0..s {
-                    let i = (2 * y) * (2 * s) + 2 * x;
-                    above[y * s + x] = src[i].max(src[i + 1]).max(src[i + 2 * s]).max(src[i + 2 * s + 1]);
-                }
-            }
+            self.reduce_level(level);
         }
+        self.stale_blocks = 0;
     }
 }
 

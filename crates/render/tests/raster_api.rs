@@ -208,3 +208,24 @@ fn output_writers() {
     assert!(output::write_color_png(&fb, &dir.join("no/such/dir/c.png")).is_err());
     std::fs::remove_dir_all(&dir).ok();
 }
+
+/// The plain renderer overwrites every plane too, with and without supersampling.
+#[test]
+fn render_needs_no_clear() {
+    let (c, cam) = small_city();
+    let inst = c.scene.instances();
+    let items = draw_all(&inst);
+    for antialias in [Antialias::Off, Antialias::Ssaa2x2] {
+        let opts = RenderOptions { antialias, ..Default::default() };
+        let mut r = Renderer::new();
+        let mut clean = Framebuffer::new(160, 120).unwrap();
+        let mut dirty = Framebuffer::new(160, 120).unwrap();
+        dirty.color.fill([9, 9, 9, 9]);
+        dirty.depth.fill(0.0);
+        dirty.ids.fill(5);
+        r.render(&c.scene, &inst, &items, &cam, &mut clean, &opts).unwrap();
+        r.render(&c.scene, &inst, &items, &cam, &mut dirty, &opts).unwrap();
+        assert!(clean.ids.iter().any(|&i| i == 0), "the view shows some background");
+        assert_eq!((&clean.ids, &clean.depth, &clean.color), (&dirty.ids, &dirty.depth, &dirty.color), "{antialias:?}");
+    }
+}

@@ -31,7 +31,6 @@ mod verify;
 
 use std::cell::RefCell;
 
-use rayon::prelude::*;
 use std::time::Instant;
 
 use glam::Affine3A;
@@ -45,7 +44,6 @@ pub use pyramid::{DepthPyramid, Rect, TilePyramid};
 pub use query::{BoxVisibility, OcclusionQueries};
 pub use verify::{compare_ids, Mismatch};
 
-use crate::shading::ShadingMode;
 use crate::stats::ms_since;
 use crate::{draw_all, DrawSource, FrameStats, Framebuffer, RenderOptions, Renderer, Result};
 
@@ -212,7 +210,8 @@ impl Culler {
             cs.ms_total = ms_since(t0);
             return Ok((cs, fs));
         }
-        fb.clear(opts.background);
+        // No clear: a fresh draw or a frame session writes every depth and ID, and shading
+        // every color.
         let t = Instant::now();
         let frustum = self.frustum_cull(camera, &mut cs);
         cs.ms_cull = ms_since(t);
@@ -222,8 +221,11 @@ impl Culler {
             Method::Frustum => {
                 let t = Instant::now();
                 let visible = std::mem::take(&mut self.visible);
-                fs = self.draw_items(visible.iter().map(|v| v.index), camera, fb, &opts, &mut cs)?;
+                self.renderer.start_fresh();
+                let r = self.draw_items(visible.iter().map(|v| v.index), camera, fb, &opts, &mut cs);
+                self.renderer.cancel_fresh();
                 self.visible = visible;
+                fs = r?;
                 cs.ms_draw = ms_since(t);
                 cs.batches = 1;
             }
@@ -231,13 +233,10 @@ impl Culler {
             Method::OctreeHzb => self.hzb_octree(camera, &frustum, fb, &opts, &mut cs, &mut fs)?,
         }
         cs.culled_by_occlusion = cs.clusters_in_frustum.saturating_sub(cs.clusters_drawn + cs.culled_by_backface);
-        if opts.shading.mode != ShadingMode::None {
-            let t = Instant::now();
-            crate::shade_pass(scene, &self.instances, camera, fb, &opts.shading);
-            cs.ms_shading = ms_since(t);
-            fs.ms_shading = cs.ms_shading;
-        }
-        fs.covered_pixels = fb.ids.par_iter().filter(|&&i| i != 0).count() as u64;
+        let t = Instant::now();
+        crate::shade_pass(scene, &self.instances, camera, fb, &opts.shading, opts.background);
+        cs.ms_shading = ms_since(t);
+        fs.ms_shading = cs.ms_shading;
         fs.update_overdraw();
         cs.ms_total = ms_since(t0);
         fs.ms_total = cs.ms_total;
@@ -256,7 +255,6 @@ impl Culler {
         let t0 = Instant::now();
         let mut fs = FrameStats::default();
         let mut cs = CullStats { clusters: self.clustered.item_count() as u64, ..Default::default() };
-        fb.clear(opts.background);
         let frustum = self.frustum_cull(camera, &mut cs);
         self.renderer.begin_session(fb, opts.depth_format);
         // Every occluder is drawn, front to back in growing batches, so that the coarse
@@ -297,7 +295,8 @@ impl Culler {
         self.renderer.session_pyramid()
     }
 
-    /// Ends the pass begun by [`Culler::occluder_pass`]: the frame's depth and IDs go to `fb`.
+    /// Ends the pass begun by [`Culler::occluder_pass`]: the frame's depth and IDs go to `fb`
+    /// (its colors are left as they were).
     pub fn end_occluder_pass(&mut self, fb: &mut Framebuffer) {
         self.renderer.end_session(fb);
     }
@@ -402,7 +401,7 @@ impl Culler {
             }
             batch = (batch * 2).min(self.max_batch.max(1));
         };
-        self.renderer.end_session(fb);
+        fs.covered_pixels = self.renderer.end_session(fb);
         result
     }
 
@@ -459,7 +458,7 @@ impl Culler {
         let mut w = walk.into_inner();
         w.flush(camera, opts);
         w.culler.octree = Some(octree);
-        w.culler.renderer.end_session(w.fb);
+        w.fs.covered_pixels = w.culler.renderer.end_session(w.fb);
         // Traversal time excludes the drawing done inside it.
         w.cs.ms_cull += (ms_since(t) - w.cs.ms_draw).max(0.0);
         match w.err {
