@@ -691,6 +691,19 @@ fn plane_min(t: &Tri, [x0, y0, x1, y1]: [i32; 4]) -> f32 {
     t.z0 + a0.min(a1) + b0.min(b1) - err
 }
 
+/// Whether the edge values at the pixels of a block of `w + 1` × `h + 1` pixels starting at
+/// `e00` fit i32, for every edge that crosses the block (edges the block is entirely inside
+/// of are not evaluated). The row loops step with wrapping i32 arithmetic, which is exact
+/// modulo 2^32, so values that fit come out exact even when a step itself overflows.
+#[inline]
+fn fits_i32(e: &[Edge; 3], e00: &[i64; 3], w: i64, h: i64) -> bool {
+    e.iter().zip(e00).all(|(e, &v)| {
+        let lo = v + e.a.min(0) * w + e.b.min(0) * h;
+        let hi = v + e.a.max(0) * w + e.b.max(0) * h;
+        lo >= 0 || (lo >= i32::MIN as i64 && hi <= i32::MAX as i64)
+    })
+}
+
 fn raster_blocks<const FMT: u8, const COUNT: bool>(
     t: &Tri,
     tile: &mut TileBuf,
@@ -739,7 +752,35 @@ fn raster_blocks<const FMT: u8, const COUNT: bool>(
                     let base = (((py - ty) as usize) << TILE_SHIFT) + (rx0 - tx) as usize;
                     run_row::<FMT, COUNT>(&r, tile, base, &mut out);
                 }
+            } else if !outside && fits_i32(&e, &e00, w, h) {
+                // Partly covered: the row loops on i32 edge values relative to the block
+                // (an edge the whole block is inside of becomes a constant 0 = inside).
+                let mut r = Row {
+                    e: [0; 3],
+                    a: [0; 3],
+                    n: rx1 - rx0 + 1,
+                    zrow: 0.0,
+                    zx: t.zx,
+                    dx0: (rx0 << SUBPIXEL_BITS) + ONE / 2 - t.x[0],
+                    id: t.id,
+                };
+                let mut b = [0i32; 3];
+                for k in 0..3 {
+                    let lo = e00[k] + e[k].a.min(0) * w + e[k].b.min(0) * h;
+                    if lo < 0 {
+                        (r.e[k], r.a[k], b[k]) = (e00[k] as i32, e[k].a as i32, e[k].b as i32);
+                    }
+                }
+                for py in ry0..=ry1 {
+                    r.zrow = depth_row(t, py);
+                    let base = (((py - ty) as usize) << TILE_SHIFT) + (rx0 - tx) as usize;
+                    run_row::<FMT, COUNT>(&r, tile, base, &mut out);
+                    for k in 0..3 {
+                        r.e[k] = r.e[k].wrapping_add(b[k]);
+                    }
+                }
             } else if !outside {
+                // Edges too long for i32 steps: per pixel on i64.
                 for py in ry0..=ry1 {
                     let zrow = depth_row(t, py);
                     let row = ((py - ty) as usize) << TILE_SHIFT;
@@ -883,6 +924,26 @@ mod tests {
                 assert_eq!(ids[(py * 64 + px) as usize] == 1, inside, "{px},{py}");
             }
         }
+        // Huge triangles (vertices thousands of pixels away, as near-plane-hugging geometry
+        // gives): partly covered blocks run on i32 when their edge values fit, else on i64.
+        let mut rng = sightline_scene::rng::Rng::new(11);
+        let (mut checked, mut partly) = (0, 0);
+        while checked < 300 {
+            let mut far = || (rng.range(-16000.0, 16064.0), rng.range(-16000.0, 16064.0));
+            let pts = [far(), far(), (rng.range(-40.0, 104.0), rng.range(-40.0, 104.0))];
+            let Some(t) = tri(pts, 1, &vp) else { continue };
+            let e = edges(&t);
+            let (ids, _) = draw(&[t], 64, 64);
+            partly += (ids.contains(&0) && ids.contains(&1)) as u32;
+            for py in t.bbox[1] as i64..=t.bbox[3] as i64 {
+                for px in t.bbox[0] as i64..=t.bbox[2] as i64 {
+                    let inside = e.iter().all(|e| e.a * px + e.b * py + e.c >= 0);
+                    assert_eq!(ids[(py * 64 + px) as usize] == 1, inside, "{pts:?} at {px},{py}");
+                }
+            }
+            checked += 1;
+        }
+        assert!(partly >= 50, "only {partly} triangles cross the tile");
         let mut big = t;
         big.x = t.x.map(|v| v * 2);
         big.y = t.y.map(|v| v * 2);
