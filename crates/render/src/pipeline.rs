@@ -601,3 +601,39 @@ pub fn render_scene(scene: &Scene, camera: &Camera, fb: &mut Framebuffer, opts: 
     let items = crate::options::draw_all(&instances);
     Renderer::new().render(scene, &instances, &items, camera, fb, opts)
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use sightline_scene::rng::Rng;
+
+    /// The pyramid levels kept up to date block by block during a session equal levels
+    /// computed from scratch, on tiles cut by the screen edge too.
+    #[test]
+    fn incremental_tile_pyramid_equals_a_full_rebuild() {
+        let (w, h) = (200, 150);
+        let mut fb = Framebuffer::new(w, h).unwrap();
+        let opts = RenderOptions::ids_only();
+        let mut r = Renderer::new();
+        r.begin_session(&fb, opts.depth_format);
+        let mut rng = Rng::new(3);
+        for batch in 0..6 {
+            let tris: Vec<[Vec4; 3]> = (0..40)
+                .map(|_| {
+                    let (cx, cy, s) = (rng.range(-1.0, 1.0), rng.range(-1.0, 1.0), rng.range(0.01, 0.4));
+                    let z = rng.range(-0.9, 0.9);
+                    let mut p =
+                        || Vec4::new(cx + rng.range(-s, s), cy + rng.range(-s, s), z + rng.range(-0.1, 0.1), 1.0);
+                    [p(), p(), p()]
+                })
+                .collect();
+            r.draw_clip_triangles(&tris, 1 + batch * 100, &mut fb, &opts);
+            for t in r.tiles.iter().filter(|t| t.touched) {
+                let mut full = t.clone();
+                full.compute_mips(opts.depth_format);
+                assert_eq!(t.mips, full.mips, "tile at {},{} after batch {batch}", t.x0, t.y0);
+            }
+        }
+        r.end_session(&mut fb);
+    }
+}

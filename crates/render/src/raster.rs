@@ -106,7 +106,10 @@ impl TileBuf {
             self.counts.fill(0);
         }
         self.mips.fill(1.0);
-        self.stale_blocks = 0;
+        // A tile cut by the screen edge: its first update computes every level, so that
+        // texels over pixels that do not exist take their depth 0 (no pixel written there
+        // would ever mark them).
+        self.stale_blocks = if self.w < TILE || self.h < TILE { !0 } else { 0 };
         self.touched = true;
     }
 
