@@ -778,8 +778,8 @@ fn raster_blocks<const FMT: u8, const COUNT: bool>(
                     r.zrow = depth_row(t, py);
                     let base = (((py - ty) as usize) << TILE_SHIFT) + (rx0 - tx) as usize;
                     run_row::<FMT, COUNT>(&r, tile, base, &mut out);
-                    for k in 0..3 {
-                        r.e[k] = r.e[k].wrapping_add(b[k]);
+                    for (e, b) in r.e.iter_mut().zip(b) {
+                        *e = e.wrapping_add(b);
                     }
                 }
             } else if !outside {
