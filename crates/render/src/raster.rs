@@ -608,7 +608,11 @@ fn raster_blocks<const FMT: u8, const COUNT: bool>(
                 continue;
             }
             if fits {
+                let before = out.written;
                 block::<FMT, COUNT>(t, tile, rect, &k32, &mut out);
+                if tile.coarse && out.written != before {
+                    refresh_block_max::<FMT>(tile, corner);
+                }
             } else {
                 // Edges too long for i32 values: per pixel on i64 (rare: vertices thousands
                 // of pixels away).
@@ -635,6 +639,28 @@ fn raster_blocks<const FMT: u8, const COUNT: bool>(
         by += BLOCK;
     }
     out
+}
+
+/// Brings the pyramid texel of one 8×8 block (level 3; `corner` in tile pixels) up to date
+/// right after a triangle wrote into it, so that the next triangles of the same draw batch
+/// are tested against it (Masked Occlusion Culling's sequential updates); levels 1–2 wait
+/// for [`TileBuf::update_mips`], the block staying marked stale.
+#[inline]
+fn refresh_block_max<const FMT: u8>(tile: &mut TileBuf, [bx, by]: [i32; 2]) {
+    let (bx, by) = ((bx & !(BLOCK - 1)) as usize, (by & !(BLOCK - 1)) as usize);
+    let mut m = [0u32; BLOCK as usize];
+    for r in 0..BLOCK as usize {
+        let row = &tile.depth[((by + r) << TILE_SHIFT) + bx..][..BLOCK as usize];
+        for (m, &k) in m.iter_mut().zip(row) {
+            *m = (*m).max(k);
+        }
+    }
+    let k = m.into_iter().max().unwrap_or(0);
+    tile.mips[MIP_OFFSETS[2] + (by / 8) * 8 + bx / 8] = match FMT {
+        16 => k as f32 / 65535.0,
+        24 => k as f32 / 16_777_215.0,
+        _ => f32::from_bits(k),
+    };
 }
 
 /// Edge values at a block's first pixel and their steps along x and y, as i32; an edge the
