@@ -132,7 +132,7 @@ fn session_pyramid_is_conservative_against_the_depth_buffer() {
 fn boxfield_queries_are_exact() {
     use sightline::boxfield::{check_occluded, count, run_queries, Boxfield};
     use sightline::scene::builders::{boxfield, boxfield_queries, BoxfieldParams};
-    let scene = boxfield(&BoxfieldParams { boxes: 8000, half_size: 40.0, seed: 3 }).unwrap();
+    let scene = boxfield(&BoxfieldParams { boxes: 8000, half_size: 40.0, seed: 3, ..Default::default() }).unwrap();
     let camera = CameraKey {
         eye: [0.0, 1.7, 0.0],
         target: [0.0, 1.7, 1.0],

@@ -10,7 +10,7 @@
 use std::sync::atomic::AtomicBool;
 
 use crate::geometry::Chunk;
-use crate::raster::{misses_rect, TILE, TILE_SHIFT};
+use crate::raster::{misses_rect, TileBuf, TILE, TILE_SHIFT};
 
 /// The tile grid of a framebuffer.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -31,8 +31,13 @@ impl Grid {
 }
 
 /// Bins all triangles of a chunk (also assigns their multi-tile flags).
+///
+/// With `session` (the tiles of a frame session), the coarse depth test runs here, while the
+/// triangle is still in cache from setup: a triangle behind a tile's pyramid (as of the last
+/// draw batch) is not sent to that tile (the seeds' per-tile Z_max, "HyperZ"). Tiles not yet
+/// drawn into this session hold a stale pyramid and are not tested.
 #[inline(never)] // a stage of its own in profiles
-pub(crate) fn bin_chunk(chunk: &mut Chunk, grid: &Grid) {
+pub(crate) fn bin_chunk(chunk: &mut Chunk, grid: &Grid, session: Option<&[TileBuf]>) {
     let n = grid.len();
     chunk.bins.resize_with(n, Vec::new);
     chunk.bins.truncate(n);
@@ -40,13 +45,21 @@ pub(crate) fn bin_chunk(chunk: &mut Chunk, grid: &Grid) {
         b.clear();
     }
     chunk.multi.clear();
+    chunk.hidden_at_binning = 0;
     let tx = grid.tiles_x as usize;
+    let hidden = |k: usize, t: &crate::setup::Tri| session.is_some_and(|s| s[k].touched && s[k].occludes(t));
     for (i, t) in chunk.tris.iter_mut().enumerate() {
         let [x0, y0, x1, y1] = t.bbox.map(|v| v as u32);
         let (tx0, ty0) = (x0 >> TILE_SHIFT, y0 >> TILE_SHIFT);
         let (tx1, ty1) = (x1 >> TILE_SHIFT, y1 >> TILE_SHIFT);
         if tx0 == tx1 && ty0 == ty1 {
-            chunk.bins[ty0 as usize * tx + tx0 as usize].push(i as u32);
+            let k = ty0 as usize * tx + tx0 as usize;
+            if hidden(k, t) {
+                chunk.stats.coarse_rejected += 1;
+                chunk.hidden_at_binning += 1;
+            } else {
+                chunk.bins[k].push(i as u32);
+            }
             continue;
         }
         t.multi = chunk.multi.len() as u32;
@@ -59,8 +72,14 @@ pub(crate) fn bin_chunk(chunk: &mut Chunk, grid: &Grid) {
                     (txi * TILE + TILE - 1).min(x1) as i32,
                     (ty * TILE + TILE - 1).min(y1) as i32,
                 ];
-                if !misses_rect(t, r) {
-                    chunk.bins[ty as usize * tx + txi as usize].push(i as u32);
+                let k = ty as usize * tx + txi as usize;
+                if misses_rect(t, r) {
+                    continue;
+                }
+                if hidden(k, t) {
+                    chunk.stats.coarse_rejected += 1;
+                } else {
+                    chunk.bins[k].push(i as u32);
                 }
             }
         }

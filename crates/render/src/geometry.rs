@@ -62,6 +62,8 @@ pub(crate) struct Chunk {
     pub multi: Vec<std::sync::atomic::AtomicBool>,
     /// Counters of this chunk.
     pub stats: FrameStats,
+    /// Single-tile triangles that binning found hidden (set up, but never rasterized).
+    pub hidden_at_binning: u64,
 }
 
 const NONE: SnappedVertex = SnappedVertex { x: 0, y: 0, z: 0.0 };

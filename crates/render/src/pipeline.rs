@@ -53,17 +53,11 @@ struct TileStats {
     tested: u64,
     written: u64,
     empty: u64,
-    coarse: u64,
 }
 
 impl TileStats {
     fn sum(a: Self, b: Self) -> Self {
-        Self {
-            tested: a.tested + b.tested,
-            written: a.written + b.written,
-            empty: a.empty + b.empty,
-            coarse: a.coarse + b.coarse,
-        }
+        Self { tested: a.tested + b.tested, written: a.written + b.written, empty: a.empty + b.empty }
     }
 }
 
@@ -348,7 +342,8 @@ impl Renderer {
 
         // 2. Binning.
         let t = Instant::now();
-        chunks.par_iter_mut().for_each(|c| bin_chunk(c, &grid));
+        let session_tiles = self.session.is_some().then_some(&self.tiles[..]);
+        chunks.par_iter_mut().for_each(|c| bin_chunk(c, &grid, session_tiles));
         st.ms_binning = ms_since(t);
 
         // 3. Rasterization.
@@ -371,12 +366,11 @@ impl Renderer {
             multi_empty += c.multi.iter().filter(|f| !f.load(Ordering::Relaxed)).count() as u64;
         }
         let binned: u64 = chunks.iter().map(|c| c.tris.len() as u64).sum();
-        let empty = ts.empty + multi_empty;
+        let empty = ts.empty + multi_empty + chunks.iter().map(|c| c.hidden_at_binning).sum::<u64>();
         st.too_small += empty;
         st.rasterized = binned - empty;
         st.fragments_tested = ts.tested;
         st.fragments_written = ts.written;
-        st.coarse_rejected = ts.coarse;
         st.update_overdraw();
         st
     }
@@ -502,19 +496,12 @@ fn raster_bins<const F: u8, const C: bool, const COARSE: bool>(
     st: &mut TileStats,
 ) {
     // With depth-test counting on, coarse rejection stays on: the heat map then counts
-    // the tests actually made.
-    let coarse = COARSE && tile.touched;
-    tile.coarse = coarse;
+    // the tests actually made. Whole triangles were tested against the tile at binning;
+    // here 8×8 blocks are.
+    tile.coarse = COARSE && tile.touched;
     for c in chunks {
         for &i in &c.bins[index] {
             let t = &c.tris[i as usize];
-            if coarse && tile.occludes(t) {
-                st.coarse += 1;
-                if t.multi == u32::MAX {
-                    st.empty += 1;
-                }
-                continue;
-            }
             let r = raster_tri::<F, C>(t, tile);
             if COARSE && r.written > 0 {
                 mark_written(tile, t);

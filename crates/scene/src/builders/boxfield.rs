@@ -9,7 +9,7 @@ use glam::Vec3;
 
 use crate::rng::Rng;
 use crate::shapes::cube;
-use crate::{Aabb, Error, Material, NodeDesc, Result, Scene, Transform};
+use crate::{Aabb, Error, Material, Mesh, NodeDesc, Result, Scene, Transform};
 
 /// Parameters of [`boxfield`].
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -20,11 +20,25 @@ pub struct BoxfieldParams {
     pub half_size: f32,
     /// Random seed.
     pub seed: u64,
+    /// How the boxes are stored; the boxes, triangle order and IDs are the same either way.
+    pub layout: BoxfieldLayout,
+}
+
+/// How [`boxfield`] stores its boxes.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum BoxfieldLayout {
+    /// One node per box, all instancing one unit cube (the scene-graph way).
+    #[default]
+    Instanced,
+    /// One node with one mesh of every box in world space: the flat triangle list an
+    /// occlusion-culling library like Masked Occlusion Culling takes. Culling then works on
+    /// clusters of nearby faces of one facing instead of on single boxes.
+    OneMesh,
 }
 
 impl Default for BoxfieldParams {
     fn default() -> Self {
-        Self { boxes: 83_334, half_size: 100.0, seed: 1993 }
+        Self { boxes: 83_334, half_size: 100.0, seed: 1993, layout: BoxfieldLayout::Instanced }
     }
 }
 
@@ -42,16 +56,38 @@ pub fn boxfield(params: &BoxfieldParams) -> Result<Scene> {
         return Err(Error::InvalidParams(format!("boxfield needs boxes > 0 and a positive size, got {params:?}")));
     }
     let mut scene = Scene::new();
-    let unit = scene.add_mesh(cube("box")?);
+    let cube = cube("box")?;
     let mat = scene.add_material(Material::color("box", [0.75, 0.7, 0.62]));
     let root = scene.add_node(None, NodeDesc::new("boxfield").material(mat))?;
     let mut rng = Rng::new(params.seed);
     let s = params.half_size;
-    for i in 0..params.boxes {
+    let boxes = (0..params.boxes).map(|_| {
         let (x, z) = (rng.range(-s, s), rng.range(-s, s));
-        let b = random_box(&mut rng, x, z);
-        let t = Transform::from_translation(b.center()).with_scale(b.extent());
-        scene.add_node(Some(root), NodeDesc::new(format!("box {i}")).transform(t).mesh(unit))?;
+        random_box(&mut rng, x, z)
+    });
+    match params.layout {
+        BoxfieldLayout::Instanced => {
+            let unit = scene.add_mesh(cube);
+            for (i, b) in boxes.enumerate() {
+                let t = Transform::from_translation(b.center()).with_scale(b.extent());
+                scene.add_node(Some(root), NodeDesc::new(format!("box {i}")).transform(t).mesh(unit))?;
+            }
+        }
+        BoxfieldLayout::OneMesh => {
+            let n = params.boxes as usize;
+            let (cp, ci) = (cube.positions(), cube.indices());
+            let mut positions = Vec::with_capacity(n * cp.len());
+            let mut indices = Vec::with_capacity(n * ci.len());
+            for b in boxes {
+                let first = positions.len() as u32;
+                // The instanced layout's transform, applied here: the same world positions.
+                let t = Transform::from_translation(b.center()).with_scale(b.extent()).to_affine("box")?;
+                positions.extend(cp.iter().map(|&p| t.transform_point3(p)));
+                indices.extend(ci.iter().map(|&i| first + i));
+            }
+            let mesh = scene.add_mesh(Mesh::new("boxes", positions, None, None, indices)?);
+            scene.add_node(Some(root), NodeDesc::new("boxes").mesh(mesh))?;
+        }
     }
     scene.update_transforms();
     Ok(scene)
@@ -88,6 +124,28 @@ mod tests {
             assert!((0.2..=1.0).contains(&e.x) && (0.2..=1.0).contains(&e.z), "{b:?}");
             assert!(b.center().x.abs() <= 100.0 && b.center().z.abs() <= 100.0);
         }
+    }
+
+    #[test]
+    fn both_layouts_hold_the_same_triangles() {
+        let p = BoxfieldParams { boxes: 300, ..Default::default() };
+        let a = boxfield(&p).unwrap();
+        let b = boxfield(&BoxfieldParams { layout: BoxfieldLayout::OneMesh, ..p }).unwrap();
+        let flat = |s: &Scene| -> Vec<[Vec3; 3]> {
+            s.instances()
+                .iter()
+                .flat_map(|i| {
+                    let m = s.mesh(i.mesh).unwrap();
+                    (0..m.triangle_count()).map(move |t| {
+                        m.triangle(t).map(|v| i.world_from_local.transform_point3(m.positions()[v as usize]))
+                    })
+                })
+                .collect()
+        };
+        let (ta, tb) = (flat(&a), flat(&b));
+        assert_eq!(ta.len(), 3600);
+        assert_eq!(ta, tb);
+        assert_eq!(b.stats().instances, 1);
     }
 
     #[test]

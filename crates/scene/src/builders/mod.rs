@@ -9,6 +9,6 @@ mod boxfield;
 mod city;
 mod scatter;
 
-pub use boxfield::{boxfield, boxfield_queries, BoxfieldParams};
+pub use boxfield::{boxfield, boxfield_queries, BoxfieldLayout, BoxfieldParams};
 pub use city::{city, City, CityLayout, CityParams};
 pub use scatter::{scatter, ScatterParams};
