@@ -12,16 +12,16 @@ const H: u32 = 180;
 
 /// Renders every camera with every method and checks the IDs against brute force.
 /// Returns per-method triangles drawn, summed over the street cameras.
-fn check(scene: &Scene, keys: &[CameraKey], what: &str) -> [u64; 4] {
+fn check(scene: &Scene, keys: &[CameraKey], what: &str) -> [u64; Method::ALL.len()] {
     check_with(scene, keys, what, &RenderOptions::ids_only())
 }
 
-fn check_with(scene: &Scene, keys: &[CameraKey], what: &str, opts: &RenderOptions) -> [u64; 4] {
+fn check_with(scene: &Scene, keys: &[CameraKey], what: &str, opts: &RenderOptions) -> [u64; Method::ALL.len()] {
     let mut culler = Culler::new(scene);
     let opts = *opts;
     let mut reference = Framebuffer::new(W, H).unwrap();
     let mut fb = Framebuffer::new(W, H).unwrap();
-    let mut drawn = [0u64; 4];
+    let mut drawn = [0u64; Method::ALL.len()];
     let mut seeing = 0;
     for (k, key) in keys.iter().enumerate() {
         let cam = key.camera(W as f32 / H as f32).unwrap();
@@ -52,6 +52,7 @@ fn culled_city_equals_brute_force_on_street_and_aerial_cameras() {
     // Occlusion culling pays off at street level.
     assert!(drawn[2] * 4 < drawn[1], "hzb drew {} triangles, frustum {}", drawn[2], drawn[1]);
     assert!(drawn[3] < drawn[1], "octree-hzb drew {} triangles, frustum {}", drawn[3], drawn[1]);
+    assert!(drawn[4] * 4 < drawn[1], "hzb-one-pass drew {} triangles, frustum {}", drawn[4], drawn[1]);
     let aerial = c.layout.aerial_path(8);
     check(&c.scene, &aerial, "aerial");
 }
@@ -129,6 +130,29 @@ fn frames_need_no_clear() {
             assert_eq!(clean.depth, dirty.depth, "{what}");
             assert_eq!(clean.color, dirty.color, "{what}");
             assert_eq!(clean.depth_tests, dirty.depth_tests, "{what}");
+        }
+    }
+}
+
+/// `hzb` starts from the last frame's visible set; camera cuts (street and aerial views
+/// alternating, the path walked backwards) must not cost exactness.
+#[test]
+fn hzb_after_camera_cuts_equals_brute_force() {
+    let c = city(&CityParams::for_triangles(100_000)).unwrap();
+    let mut keys: Vec<CameraKey> = Vec::new();
+    for (s, a) in c.layout.street_path(10, 3).into_iter().rev().zip(c.layout.aerial_path(10)) {
+        keys.push(s);
+        keys.push(a);
+    }
+    let mut culler = Culler::new(&c.scene);
+    let opts = RenderOptions::ids_only();
+    let (mut reference, mut fb) = (Framebuffer::new(W, H).unwrap(), Framebuffer::new(W, H).unwrap());
+    for (k, key) in keys.iter().enumerate() {
+        let cam = key.camera(W as f32 / H as f32).unwrap();
+        culler.render(&c.scene, &cam, Method::Brute, &mut reference, &opts).unwrap();
+        culler.render(&c.scene, &cam, Method::Hzb, &mut fb, &opts).unwrap();
+        if let Some(mm) = compare_ids(&reference.ids, &fb.ids, W) {
+            panic!("camera {k}: {mm:?}");
         }
     }
 }

@@ -20,10 +20,12 @@ pub enum WalkMethod {
     Brute,
     /// View-frustum culling of instances and clusters (BVH)
     Frustum,
-    /// Frustum culling plus front-to-back occlusion culling with a z-pyramid
+    /// Frustum culling plus occlusion culling with a z-pyramid: last frame's visible clusters first, then a front-to-back walk over the rest
     Hzb,
     /// Greene's octree walk with z-pyramid tests on octants
     OctreeHzb,
+    /// The hzb walk in one pass, front to back, without using the last frame
+    HzbOnePass,
     /// Ray casting through the two-level BVH
     Raycast,
     /// All of the above, interleaved frame by frame
@@ -110,6 +112,7 @@ fn methods(m: WalkMethod) -> Vec<(&'static str, Option<Method>)> {
         WalkMethod::Frustum => vec![one(Method::Frustum)],
         WalkMethod::Hzb => vec![one(Method::Hzb)],
         WalkMethod::OctreeHzb => vec![one(Method::OctreeHzb)],
+        WalkMethod::HzbOnePass => vec![one(Method::HzbOnePass)],
         WalkMethod::Raycast => vec![("raycast", None)],
         WalkMethod::All => {
             let mut v: Vec<_> = Method::ALL.iter().map(|&x| one(x)).collect();
@@ -260,7 +263,7 @@ fn summarize(records: &[FrameRecord], a: &WalkArgs) -> Vec<MethodSummary> {
 fn print_table(s: &[MethodSummary]) {
     let brute = s.iter().find(|m| m.method == "brute").map(|m| m.median_ms);
     println!(
-        "{:<11} {:>6} {:>10} {:>10} {:>9} {:>14} {:>9} {:>9} {:>9}",
+        "{:<13} {:>6} {:>10} {:>10} {:>9} {:>14} {:>9} {:>9} {:>9}",
         "method", "frames", "median ms", "p95 ms", "vs brute", "tris drawn", "frustum%", "occl%", "verified"
     );
     for m in s {
@@ -273,7 +276,7 @@ fn print_table(s: &[MethodSummary]) {
             format!("{}/{}", m.verified_frames - m.mismatched_frames, m.verified_frames)
         };
         println!(
-            "{:<11} {:>6} {:>10.2} {:>10.2} {:>9} {:>14} {:>8.1}% {:>8.1}% {:>9}",
+            "{:<13} {:>6} {:>10.2} {:>10.2} {:>9} {:>14} {:>8.1}% {:>8.1}% {:>9}",
             m.method,
             m.frames,
             m.median_ms,

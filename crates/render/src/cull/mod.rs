@@ -5,12 +5,19 @@
 //! * [`Method::Brute`]: every triangle through the pipeline (the reference).
 //! * [`Method::Frustum`]: the (instance, cluster) BVH of `sightline_spatial::ClusteredScene`
 //!   culled against the view frustum; the surviving clusters are drawn.
-//! * [`Method::Hzb`]: frustum culling plus occlusion culling with Greene's z-pyramid
+//! * [`Method::HzbOnePass`]: frustum culling plus occlusion culling with Greene's z-pyramid
 //!   ([`pyramid`]): the BVH is walked front to back in batches; before anything (node or
 //!   cluster) is drawn, its box is projected to a screen rectangle and nearest depth and tested
 //!   against the pyramid of what is already drawn; a batch is drawn, the pyramid refreshed over
 //!   the drawn rectangles, and the walk resumes. Batches start small (the nearest occluders go
 //!   in first) and double.
+//! * [`Method::Hzb`]: the same walk in the two-pass form GPU engines use to exploit
+//!   temporal coherence: last frame's visible clusters (still in the frustum) are drawn
+//!   first, in one batch, as occluders; the walk then tests everything else against that
+//!   pyramid, in big batches; at the end last frame's clusters are tested again, and those
+//!   still visible join this frame's newly drawn ones as the next frame's set. Without a
+//!   last frame (or after a cut) it is the one-pass walk. On the street path it needs two
+//!   draw batches instead of six and is the faster of the two, so it is `hzb`.
 //! * [`Method::OctreeHzb`]: Greene's original: a loose octree over the same clusters, walked
 //!   front to back, skipping a whole octant when its loose cube is occluded.
 //!
@@ -55,15 +62,19 @@ pub enum Method {
     Brute,
     /// View-frustum culling of instances and clusters.
     Frustum,
-    /// Frustum culling, then front-to-back occlusion culling against a z-pyramid.
+    /// Frustum culling, then occlusion culling against a z-pyramid: last frame's visible
+    /// clusters first, then a front-to-back walk over the rest.
     Hzb,
     /// Greene's octree walk with z-pyramid tests on octants.
     OctreeHzb,
+    /// Frustum culling, then front-to-back occlusion culling against a z-pyramid, without
+    /// using the last frame.
+    HzbOnePass,
 }
 
 impl Method {
     /// All methods, in the order reports list them.
-    pub const ALL: [Method; 4] = [Method::Brute, Method::Frustum, Method::Hzb, Method::OctreeHzb];
+    pub const ALL: [Method; 5] = [Method::Brute, Method::Frustum, Method::Hzb, Method::OctreeHzb, Method::HzbOnePass];
 
     /// The name used on the command line and in reports.
     pub fn name(self) -> &'static str {
@@ -72,6 +83,7 @@ impl Method {
             Method::Frustum => "frustum",
             Method::Hzb => "hzb",
             Method::OctreeHzb => "octree-hzb",
+            Method::HzbOnePass => "hzb-one-pass",
         }
     }
 }
@@ -122,6 +134,12 @@ pub struct Culler {
     octree: Option<LooseOctree>,
     renderer: Renderer,
     visible: Vec<Visible>,
+    /// Two-pass state: the clusters found visible in the last frame drawn with it.
+    last_visible: Vec<u32>,
+    /// Two-pass state: per cluster, the number of the frame that last drew it.
+    drawn_in: Vec<u32>,
+    /// Two-pass state: frames drawn with it so far (never 0 once started).
+    frame: u32,
     /// First batch size of the front-to-back walk.
     pub first_batch: usize,
     /// Largest batch size.
@@ -160,6 +178,9 @@ impl Culler {
             octree: Some(octree),
             renderer: Renderer::new(),
             visible: Vec::new(),
+            last_visible: Vec::new(),
+            drawn_in: Vec::new(),
+            frame: 0,
             first_batch: 8,
             max_batch: 2048,
         }
@@ -229,7 +250,13 @@ impl Culler {
                 cs.ms_draw = ms_since(t);
                 cs.batches = 1;
             }
-            Method::Hzb => self.hzb_bvh(camera, &frustum, fb, &opts, &mut cs, &mut fs)?,
+            Method::HzbOnePass => {
+                self.renderer.begin_session(fb, opts.depth_format);
+                let r = self.hzb_bvh(camera, &frustum, fb, &opts, &mut cs, &mut fs, self.first_batch, None);
+                fs.covered_pixels = self.renderer.end_session(fb);
+                r?
+            }
+            Method::Hzb => self.hzb_two_pass(camera, &frustum, fb, &opts, &mut cs, &mut fs)?,
             Method::OctreeHzb => self.hzb_octree(camera, &frustum, fb, &opts, &mut cs, &mut fs)?,
         }
         cs.culled_by_occlusion = cs.clusters_in_frustum.saturating_sub(cs.clusters_drawn + cs.culled_by_backface);
@@ -349,6 +376,9 @@ impl Culler {
         self.renderer.draw_sources(&sources, camera, fb, opts)
     }
 
+    /// The front-to-back walk of [`Method::HzbOnePass`] inside an open frame session, batches
+    /// starting at `first_batch` clusters. With `skip = Some(frame)`, clusters already drawn
+    /// in that frame (see `drawn_in`) are passed over, and the ones drawn get marked.
     #[allow(clippy::too_many_arguments)] // the frame's whole context, split for borrowing
     fn hzb_bvh(
         &mut self,
@@ -358,14 +388,15 @@ impl Culler {
         opts: &RenderOptions,
         cs: &mut CullStats,
         fs: &mut FrameStats,
+        first_batch: usize,
+        skip: Option<u32>,
     ) -> Result<()> {
         let (w, h) = (fb.width(), fb.height());
         let projector = BoxProjector::new(camera.clip_from_world(), w, h);
         let mut cursor = self.clustered.cursor(Some(frustum), camera.view.eye);
-        let mut batch = self.first_batch.max(1);
+        let mut batch = first_batch.max(1);
         let mut out: Vec<Visible> = Vec::new();
-        self.renderer.begin_session(fb, opts.depth_format);
-        let result = loop {
+        loop {
             let t = Instant::now();
             out.clear();
             let more = {
@@ -382,6 +413,9 @@ impl Culler {
                     &mut out,
                 )
             };
+            if let Some(frame) = skip {
+                out.retain(|v| self.drawn_in[v.index as usize] != frame);
+            }
             // Clusters facing away would only be dropped triangle by triangle.
             if opts.backface_culling {
                 self.drop_backfacing(&mut out, camera.view.eye, cs);
@@ -389,19 +423,99 @@ impl Culler {
             cs.ms_cull += ms_since(t);
             if !out.is_empty() {
                 let t = Instant::now();
-                match self.draw_items(out.iter().map(|v| v.index), camera, fb, opts, cs) {
-                    Ok(st) => fs.add(&st),
-                    Err(e) => break Err(e),
+                fs.add(&self.draw_items(out.iter().map(|v| v.index), camera, fb, opts, cs)?);
+                if let Some(frame) = skip {
+                    for v in &out {
+                        self.drawn_in[v.index as usize] = frame;
+                    }
+                    self.last_visible.extend(out.iter().map(|v| v.index));
                 }
                 cs.ms_draw += ms_since(t);
                 cs.batches += 1;
             }
             if !more {
-                break Ok(());
+                return Ok(());
             }
             batch = (batch * 2).min(self.max_batch.max(1));
-        };
+        }
+    }
+
+    /// [`Method::Hzb`]: last frame's visible clusters (those still in the frustum and
+    /// not facing away) are drawn first, in one batch; the front-to-back walk then tests the
+    /// rest against their pyramid, starting with big batches; finally last frame's clusters
+    /// are tested against the finished pyramid, and the ones not occluded join this frame's
+    /// newly drawn ones as the next frame's set.
+    #[allow(clippy::too_many_arguments)] // the frame's whole context, split for borrowing
+    fn hzb_two_pass(
+        &mut self,
+        camera: &Camera,
+        frustum: &Frustum,
+        fb: &mut Framebuffer,
+        opts: &RenderOptions,
+        cs: &mut CullStats,
+        fs: &mut FrameStats,
+    ) -> Result<()> {
+        let n = self.clustered.item_count();
+        self.frame = self.frame.wrapping_add(1);
+        if self.frame == 0 || self.drawn_in.len() != n {
+            self.drawn_in.clear();
+            self.drawn_in.resize(n, 0);
+            self.frame = 1;
+        }
+        let frame = self.frame;
+        let t = Instant::now();
+        // Last frame's set, kept where still in the frustum (self.visible) and facing us.
+        for v in &self.visible {
+            self.drawn_in[v.index as usize] = frame;
+        }
+        let eye = camera.view.eye;
+        let mut first: Vec<u32> = std::mem::take(&mut self.last_visible);
+        first.retain(|&i| self.drawn_in.get(i as usize) == Some(&frame));
+        for v in &self.visible {
+            self.drawn_in[v.index as usize] = 0;
+        }
+        if opts.backface_culling {
+            let before = first.len();
+            first.retain(|&i| !self.cones[i as usize].backfacing(eye));
+            cs.culled_by_backface += (before - first.len()) as u64;
+        }
+        for &i in &first {
+            self.drawn_in[i as usize] = frame;
+        }
+        cs.ms_cull += ms_since(t);
+        self.renderer.begin_session(fb, opts.depth_format);
+        let result = (|| {
+            if !first.is_empty() {
+                let t = Instant::now();
+                fs.add(&self.draw_items(first.iter().copied(), camera, fb, opts, cs)?);
+                cs.ms_draw += ms_since(t);
+                cs.batches += 1;
+            }
+            // With last frame's occluders in place the pyramid is mostly complete: big batches.
+            let first_batch = if first.is_empty() { self.first_batch } else { self.max_batch / 4 };
+            self.hzb_bvh(camera, frustum, fb, opts, cs, fs, first_batch, Some(frame))
+        })();
+        // Re-test last frame's clusters against the finished pyramid: the occluded ones leave
+        // the set (their pixels went to nearer clusters).
+        let t = Instant::now();
+        if let Some(pyramid) = self.renderer.session_pyramid() {
+            let projector = BoxProjector::new(camera.clip_from_world(), fb.width(), fb.height());
+            let boxes = &self.item_boxes;
+            let still: Vec<u32> = first
+                .iter()
+                .copied()
+                .filter(|&i| {
+                    cs.occlusion_tests += 1;
+                    possibly_visible(&pyramid, &projector.project(&boxes[i as usize]))
+                })
+                .collect();
+            self.last_visible.extend(still);
+        }
+        cs.ms_cull += ms_since(t);
         fs.covered_pixels = self.renderer.end_session(fb);
+        if result.is_err() {
+            self.last_visible.clear();
+        }
         result
     }
 
