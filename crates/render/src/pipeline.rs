@@ -2,16 +2,19 @@
 //!
 //! The core primitive is [`Renderer::draw`]: draw a list of (instance, triangle range)
 //! items, in the order given, into the depth and ID planes of a framebuffer, without
-//! clearing it. An occlusion culler calls it batch after batch and reads `fb.depth` in
-//! between. [`Renderer::render`] clears, draws, shades (deferred: only the final visible
-//! pixel of each position is shaded, from its triangle ID), resolves supersampling and
-//! draws the wireframe.
+//! clearing it. [`Renderer::render`] draws a whole frame, shades it (deferred: only the
+//! final visible pixel of each position is shaded, from its triangle ID), resolves
+//! supersampling and draws the wireframe; it writes every plane, so the target needs no
+//! clear. An occlusion culler draws batch after batch inside a frame session
+//! ([`Renderer::begin_session`]): the tiles then hold the frame and keep their part of the
+//! z-pyramid up to date, and the frame is written out once at the end.
 //!
 //! Stages and their parallelism (rayon; the image is bit-identical for any thread count):
 //! 1. geometry over chunks of the draw list (contiguous, so submission order is kept);
-//! 2. binning of each chunk's triangles to 64×64 tiles;
+//! 2. binning of each chunk's triangles to 64×64 tiles (in a session, a triangle behind a
+//!    tile's pyramid is not sent to it);
 //! 3. rasterization over tiles, each tile walking the chunks' lists in order, into a
-//!    tile-local buffer copied back to the framebuffer afterwards (tiles own their pixels).
+//!    tile-local buffer copied to the framebuffer afterwards (tiles own their pixels).
 //!
 //! All big buffers live in the `Renderer` and are reused from frame to frame.
 

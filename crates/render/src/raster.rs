@@ -13,10 +13,16 @@
 //! dx < 0) has the triangle above it: a bottom edge. Other edges get a bias of −1, which
 //! turns `E ≥ 0` into `E > 0` on integers.
 //!
-//! Small triangles (extent ≤ 64 px, nearly all of a big scene) run on i32 over their
-//! bounding box; larger ones walk 8×8 blocks with i64 edges, skipping blocks outside an
-//! edge and filling blocks inside all edges without edge tests (the block-level trivial
-//! reject/accept of Greene 1996 and Intel's Masked Occlusion Culling).
+//! Every triangle walks the 8×8 blocks of its bounding box (clipped to the tile), with the
+//! block-level trivial reject/accept of Greene 1996 and Intel's Masked Occlusion Culling:
+//! blocks outside an edge are skipped, and an edge the whole block is inside of is dropped
+//! from the per-pixel test. In a frame session a block whose pyramid texel lies nearer than
+//! the triangle's plane over it is skipped too (coarse depth). The rest go through one
+//! kernel: eight pixels of a row per AVX2 step, everything that is constant down a column
+//! set up once per block. Edge values run on i32 (exact with wrapping steps while the values
+//! fit), per pixel on i64 in the rare blocks where they do not (vertices thousands of pixels
+//! away). After a triangle writes into a block, the block's pyramid texel is refreshed at
+//! once, so the next triangles of the same batch are tested against it.
 
 use crate::setup::{Tri, ONE, SUBPIXEL_BITS};
 
@@ -126,7 +132,8 @@ impl TileBuf {
     /// triangle): true when triangle `t` cannot pass the depth test anywhere in this tile,
     /// judged from the tile's pyramid levels. The levels may lag behind the pixels (they are
     /// refreshed after each draw batch), but depths only decrease, so a stale max is a safe
-    /// bound. Only meaningful inside a frame session.
+    /// bound. Only meaningful inside a frame session, on a tile drawn into in it (binning
+    /// asks before sending a triangle to the tile).
     #[inline]
     pub fn occludes(&self, t: &Tri) -> bool {
         // The triangle's nearest depth: its plane at the three vertices, minus the rounding
