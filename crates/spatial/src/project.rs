@@ -11,7 +11,7 @@
 //! smallest corner window z minus a small margin. Since the view depth is linear over a box
 //! and window z is monotonic in it, the box's nearest point is one of its corners.
 
-use glam::{Mat4, Vec4};
+use glam::{Mat4, Vec3A, Vec4};
 use sightline_scene::Aabb;
 
 use crate::{AabbExt, BoxKind};
@@ -114,11 +114,19 @@ impl BoxProjector {
     /// on every corner, so they give the same answer bit for bit, on every input.
     #[inline]
     pub fn classify(&self, b: &Aabb) -> BoxImage {
+        self.classify_with(b, |image| image)
+    }
+
+    /// `then(self.classify(b))`, with `then` inlined into each path, so that a caller that
+    /// only needs a small answer (a query's three-way verdict) gets it without the
+    /// [`BoxImage`] passing through memory.
+    #[inline(always)]
+    pub fn classify_with<R>(&self, b: &Aabb, then: impl FnOnce(BoxImage) -> R) -> R {
         #[cfg(all(target_arch = "x86_64", target_feature = "avx2"))]
         if self.width <= SIMD_MAX_SIZE && self.height <= SIMD_MAX_SIZE {
-            return self.classify_avx2(b);
+            return then(self.classify_avx2(b));
         }
-        self.classify_portable(b)
+        then(self.classify_portable(b))
     }
 
     /// [`BoxProjector::classify`] in plain scalar code: the reference the SIMD path is tested
@@ -198,7 +206,10 @@ impl BoxProjector {
     /// a finite box; `None` for empty and unbounded boxes.
     #[inline(always)]
     fn corner_terms(&self, b: &Aabb) -> Option<(Vec4, Vec4, Vec4, Vec4)> {
-        if b.kind() != BoxKind::Finite {
+        // `b.kind() == BoxKind::Finite` as three lane-wise compares: min ≤ max, min > −∞ and
+        // max < +∞ on every axis (any NaN fails the first).
+        let (lo, hi) = (Vec3A::from(b.min), Vec3A::from(b.max));
+        if !(lo.cmple(hi) & lo.cmpgt(Vec3A::NEG_INFINITY) & hi.cmplt(Vec3A::INFINITY)).all() {
             return None;
         }
         let m = &self.clip_from_world;

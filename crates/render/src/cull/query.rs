@@ -42,17 +42,26 @@ impl<'a> OcclusionQueries<'a> {
     /// Tests one world-space box. Empty boxes are outside; NaN boxes are visible.
     ///
     /// [`BoxProjector::classify`] decides outside / across the near plane / a screen
-    /// rectangle with nearest depth; only rectangles are tested against the pyramid.
+    /// rectangle with nearest depth; only rectangles are tested against the pyramid
+    /// ([`TilePyramid::is_occluded`]).
+    #[inline]
     pub fn test(&self, b: &Aabb) -> BoxVisibility {
-        match self.projector.classify(b) {
-            BoxImage::Outside => BoxVisibility::OutsideView,
-            BoxImage::CrossesNear => BoxVisibility::Visible,
+        self.projector.classify_with(b, |image| match image {
             BoxImage::Rect(r) => match to_rect(&r) {
                 Some(rect) if self.pyramid.is_occluded(rect, r.depth) => BoxVisibility::Occluded,
                 Some(_) => BoxVisibility::Visible,
                 None => BoxVisibility::OutsideView,
             },
-        }
+            BoxImage::Outside => BoxVisibility::OutsideView,
+            BoxImage::CrossesNear => BoxVisibility::Visible,
+        })
+    }
+
+    /// Tests many boxes on the calling thread; `out[i]` answers `boxes[i]` (`out` is cleared
+    /// first). One tight loop, with the camera matrix and the pyramid's fields in registers.
+    pub fn test_many(&self, boxes: &[Aabb], out: &mut Vec<BoxVisibility>) {
+        out.clear();
+        out.extend(boxes.iter().map(|b| self.test(b)));
     }
 
     /// Tests many boxes, in parallel; `out[i]` answers `boxes[i]`.
