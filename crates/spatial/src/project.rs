@@ -73,7 +73,8 @@ pub enum BoxImage {
     Outside,
     /// At or behind the near plane (or unbounded): it may cover any pixel at any depth.
     CrossesNear,
-    /// In front of the near plane: a conservative rectangle and its nearest depth.
+    /// In front of the near plane: a conservative rectangle (never empty: a box covering no
+    /// pixel is [`BoxImage::Outside`]) and its nearest depth.
     Rect(ScreenRect),
 }
 
@@ -127,6 +128,42 @@ impl BoxProjector {
             return then(self.classify_avx2(b));
         }
         then(self.classify_portable(b))
+    }
+
+    /// Classifies every box of `boxes`: calls `f(i, self.classify(&boxes[i]))` for each `i`,
+    /// in increasing order.
+    ///
+    /// With AVX2 this projects eight boxes at a time, one box per lane
+    /// ([`BoxProjector::classify_portable`]'s operations, lane by lane, so the answers are the
+    /// same bit for bit): the corners' clip coordinates, the clip-plane and near-plane tests,
+    /// the reciprocals of w and the min/max over the corners are each a few 256-bit
+    /// operations for eight boxes, and the boxes run side by side instead of one long chain
+    /// of dependent operations each. Boxes that need care (empty, unbounded, or with clip
+    /// terms that are not finite) are handed to the scalar path.
+    #[inline]
+    pub fn classify_many(&self, boxes: &[Aabb], mut f: impl FnMut(usize, BoxImage)) {
+        #[cfg(all(target_arch = "x86_64", target_feature = "avx2"))]
+        if self.width <= SIMD_MAX_SIZE && self.height <= SIMD_MAX_SIZE {
+            let lanes = Lanes::new(self);
+            let mut chunks = boxes.chunks_exact(8);
+            let mut out = Batch::default();
+            let mut i = 0;
+            for chunk in &mut chunks {
+                let chunk: &[Aabb; 8] = chunk.try_into().expect("chunks of eight");
+                lanes.classify8(chunk, &mut out);
+                for (k, b) in chunk.iter().enumerate() {
+                    f(i + k, out.image(k, || self.classify_portable(b)));
+                }
+                i += 8;
+            }
+            for (k, b) in chunks.remainder().iter().enumerate() {
+                f(i + k, self.classify(b));
+            }
+            return;
+        }
+        for (i, b) in boxes.iter().enumerate() {
+            f(i, self.classify(b));
+        }
     }
 
     /// [`BoxProjector::classify`] in plain scalar code: the reference the SIMD path is tested
@@ -213,7 +250,8 @@ impl BoxProjector {
             return None;
         }
         let m = &self.clip_from_world;
-        let base = *m * b.min.extend(1.0);
+        // m · (min, 1), spelled out in the order of the eight-box path.
+        let base = ((m.x_axis * b.min.x + m.y_axis * b.min.y) + m.z_axis * b.min.z) + m.w_axis;
         let e = b.max - b.min;
         Some((base, m.x_axis * e.x, m.y_axis * e.y, m.z_axis * e.z))
     }
@@ -343,6 +381,236 @@ impl BoxProjector {
     }
 }
 
+/// The answers of eight boxes ([`Lanes::classify8`]), lane k for box k.
+#[cfg(all(target_arch = "x86_64", target_feature = "avx2"))]
+#[derive(Debug, Default)]
+#[repr(C, align(32))]
+struct Batch {
+    /// [`Batch::RECT`], [`Batch::OUTSIDE`], [`Batch::CROSSES`] or [`Batch::SCALAR`].
+    kind: [i32; 8],
+    x0: [i32; 8],
+    y0: [i32; 8],
+    x1: [i32; 8],
+    y1: [i32; 8],
+    depth: [f32; 8],
+}
+
+#[cfg(all(target_arch = "x86_64", target_feature = "avx2"))]
+impl Batch {
+    const RECT: i32 = 0;
+    const OUTSIDE: i32 = 1;
+    const CROSSES: i32 = 2;
+    /// The box needs the scalar path.
+    const SCALAR: i32 = 3;
+
+    /// Lane `k` as a [`BoxImage`]; `scalar` answers a lane the SIMD path left out.
+    #[inline(always)]
+    fn image(&self, k: usize, scalar: impl FnOnce() -> BoxImage) -> BoxImage {
+        match self.kind[k] {
+            Batch::RECT => BoxImage::Rect(ScreenRect {
+                x0: self.x0[k] as u32,
+                y0: self.y0[k] as u32,
+                x1: self.x1[k] as u32,
+                y1: self.y1[k] as u32,
+                depth: self.depth[k],
+                crosses_near: false,
+            }),
+            Batch::OUTSIDE => BoxImage::Outside,
+            Batch::CROSSES => BoxImage::CrossesNear,
+            _ => scalar(),
+        }
+    }
+}
+
+/// A projector's constants broadcast to eight lanes.
+#[cfg(all(target_arch = "x86_64", target_feature = "avx2"))]
+struct Lanes {
+    /// Matrix entry (column c, row r) at `4c + r`.
+    m: [std::arch::x86_64::__m256; 16],
+    /// Viewport width and height as floats.
+    size: [std::arch::x86_64::__m256; 2],
+}
+
+// The eight-box path reads each box as floats: min at 0..3, max at 3..6.
+#[cfg(all(target_arch = "x86_64", target_feature = "avx2"))]
+const _: () = assert!(
+    std::mem::size_of::<Aabb>() == 24
+        && std::mem::size_of::<glam::Vec3>() == 12
+        && std::mem::offset_of!(Aabb, min) == 0
+        && std::mem::offset_of!(Aabb, max) == 12
+        && std::mem::offset_of!(glam::Vec3, x) == 0
+        && std::mem::offset_of!(glam::Vec3, y) == 4
+        && std::mem::offset_of!(glam::Vec3, z) == 8
+);
+
+#[cfg(all(target_arch = "x86_64", target_feature = "avx2"))]
+impl Lanes {
+    #[inline(always)]
+    fn new(p: &BoxProjector) -> Lanes {
+        use std::arch::x86_64::*;
+        let cols = p.clip_from_world.to_cols_array();
+        // SAFETY: value-only intrinsics; the build enables AVX2.
+        unsafe {
+            Lanes {
+                m: std::array::from_fn(|i| _mm256_set1_ps(cols[i])),
+                size: [_mm256_set1_ps(p.width as f32), _mm256_set1_ps(p.height as f32)],
+            }
+        }
+    }
+
+    /// [`BoxProjector::classify_portable`] for eight boxes, one per lane, into `out`. Lanes
+    /// whose box is not finite, or whose clip terms (`base`, `dx`, `dy`, `dz`) are not all
+    /// finite, are marked [`Batch::SCALAR`]. For the others no corner coordinate is NaN
+    /// (sums of finite terms are finite or ±∞ of one sign), so the comparisons, and the
+    /// min/max over the corners, are those of the portable path; a non-finite projection
+    /// shows up in the min or max over the corners (or, for w = +∞, in the max of w).
+    #[inline(always)]
+    fn classify8(&self, boxes: &[Aabb; 8], out: &mut Batch) {
+        use std::arch::x86_64::*;
+        // SAFETY: the build enables AVX2. Box k is read as floats at its address: 16 bytes
+        // at offsets 0 and 8 of its 24 (layout asserted above). The stores go to `out`'s
+        // 32-byte-aligned arrays of eight 4-byte lanes.
+        unsafe {
+            let p = |k: usize| &boxes[k] as *const Aabb as *const f32;
+            // Rows (min.x, min.y, min.z, max.x) and (min.z, max.x, max.y, max.z) of boxes k
+            // and k + 4 in the two halves, then 4 × 4 transposes within each half.
+            let lo = |k: usize| _mm256_loadu2_m128(p(k + 4), p(k));
+            let hi = |k: usize| _mm256_loadu2_m128(p(k + 4).add(2), p(k).add(2));
+            let (l0, l1, l2, l3) = (lo(0), lo(1), lo(2), lo(3));
+            let (t0, t1) = (_mm256_unpacklo_ps(l0, l1), _mm256_unpackhi_ps(l0, l1));
+            let (t2, t3) = (_mm256_unpacklo_ps(l2, l3), _mm256_unpackhi_ps(l2, l3));
+            let min_x = _mm256_shuffle_ps::<0x44>(t0, t2);
+            let min_y = _mm256_shuffle_ps::<0xEE>(t0, t2);
+            let min_z = _mm256_shuffle_ps::<0x44>(t1, t3);
+            let max_x = _mm256_shuffle_ps::<0xEE>(t1, t3);
+            let u1 = _mm256_unpackhi_ps(hi(0), hi(1));
+            let u3 = _mm256_unpackhi_ps(hi(2), hi(3));
+            let max_y = _mm256_shuffle_ps::<0x44>(u1, u3);
+            let max_z = _mm256_shuffle_ps::<0xEE>(u1, u3);
+
+            let (inf, ninf) = (_mm256_set1_ps(f32::INFINITY), _mm256_set1_ps(f32::NEG_INFINITY));
+            let and = |a: __m256, b: __m256| _mm256_and_ps(a, b);
+            let finite_box = and(
+                and(
+                    and(_mm256_cmp_ps::<_CMP_LE_OQ>(min_x, max_x), _mm256_cmp_ps::<_CMP_LE_OQ>(min_y, max_y)),
+                    and(_mm256_cmp_ps::<_CMP_LE_OQ>(min_z, max_z), _mm256_cmp_ps::<_CMP_GT_OQ>(min_x, ninf)),
+                ),
+                and(
+                    and(_mm256_cmp_ps::<_CMP_GT_OQ>(min_y, ninf), _mm256_cmp_ps::<_CMP_GT_OQ>(min_z, ninf)),
+                    and(
+                        _mm256_cmp_ps::<_CMP_LT_OQ>(max_x, inf),
+                        and(_mm256_cmp_ps::<_CMP_LT_OQ>(max_y, inf), _mm256_cmp_ps::<_CMP_LT_OQ>(max_z, inf)),
+                    ),
+                ),
+            );
+
+            let m = &self.m;
+            let (add, mul) = (|a, b| _mm256_add_ps(a, b), |a, b| _mm256_mul_ps(a, b));
+            // Component r of base = ((x_axis·min.x + y_axis·min.y) + z_axis·min.z) + w_axis.
+            let base = |r: usize| add(add(add(mul(m[r], min_x), mul(m[4 + r], min_y)), mul(m[8 + r], min_z)), m[12 + r]);
+            let (ex, ey, ez) = (_mm256_sub_ps(max_x, min_x), _mm256_sub_ps(max_y, min_y), _mm256_sub_ps(max_z, min_z));
+            let b = [base(0), base(1), base(2), base(3)];
+            let dx = [mul(m[0], ex), mul(m[1], ex), mul(m[2], ex), mul(m[3], ex)];
+            let dy = [mul(m[4], ey), mul(m[5], ey), mul(m[6], ey), mul(m[7], ey)];
+            let dz = [mul(m[8], ez), mul(m[9], ez), mul(m[10], ez), mul(m[11], ez)];
+            // All sixteen terms finite: v − v is 0 for finite v and NaN otherwise.
+            let z = |v: [__m256; 4]| {
+                add(add(_mm256_sub_ps(v[0], v[0]), _mm256_sub_ps(v[1], v[1])), add(_mm256_sub_ps(v[2], v[2]), _mm256_sub_ps(v[3], v[3])))
+            };
+            let zs = add(add(z(b), z(dx)), add(z(dy), z(dz)));
+            let simd = and(finite_box, _mm256_cmp_ps::<_CMP_ORD_Q>(zs, zs));
+
+            let v4 = |a: [__m256; 4], d: [__m256; 4]| [add(a[0], d[0]), add(a[1], d[1]), add(a[2], d[2]), add(a[3], d[3])];
+            let sign = _mm256_set1_ps(-0.0);
+            let eps = _mm256_set1_ps(W_EPS);
+            let one = _mm256_set1_ps(1.0);
+            // Corner 0 starts every accumulator.
+            let nw = _mm256_xor_ps(b[3], sign);
+            let mut beyond = [
+                _mm256_cmp_ps::<_CMP_GT_OQ>(b[0], b[3]),
+                _mm256_cmp_ps::<_CMP_LT_OQ>(b[0], nw),
+                _mm256_cmp_ps::<_CMP_GT_OQ>(b[1], b[3]),
+                _mm256_cmp_ps::<_CMP_LT_OQ>(b[1], nw),
+                _mm256_cmp_ps::<_CMP_GT_OQ>(b[2], b[3]),
+                _mm256_cmp_ps::<_CMP_LT_OQ>(b[2], nw),
+            ];
+            let mut front = and(_mm256_cmp_ps::<_CMP_GT_OQ>(b[3], eps), _mm256_cmp_ps::<_CMP_GE_OQ>(b[2], nw));
+            let mut max_w = b[3];
+            let inv = _mm256_div_ps(one, b[3]);
+            let (px, py, pz) = (mul(b[0], inv), mul(b[1], inv), mul(b[2], inv));
+            let (mut x0, mut x1, mut y0, mut y1, mut z0, mut z1) = (px, px, py, py, pz, pz);
+            let mut corner = |c: [__m256; 4]| {
+                let nw = _mm256_xor_ps(c[3], sign);
+                beyond[0] = and(beyond[0], _mm256_cmp_ps::<_CMP_GT_OQ>(c[0], c[3]));
+                beyond[1] = and(beyond[1], _mm256_cmp_ps::<_CMP_LT_OQ>(c[0], nw));
+                beyond[2] = and(beyond[2], _mm256_cmp_ps::<_CMP_GT_OQ>(c[1], c[3]));
+                beyond[3] = and(beyond[3], _mm256_cmp_ps::<_CMP_LT_OQ>(c[1], nw));
+                beyond[4] = and(beyond[4], _mm256_cmp_ps::<_CMP_GT_OQ>(c[2], c[3]));
+                beyond[5] = and(beyond[5], _mm256_cmp_ps::<_CMP_LT_OQ>(c[2], nw));
+                front = and(front, and(_mm256_cmp_ps::<_CMP_GT_OQ>(c[3], eps), _mm256_cmp_ps::<_CMP_GE_OQ>(c[2], nw)));
+                max_w = _mm256_max_ps(max_w, c[3]);
+                let inv = _mm256_div_ps(one, c[3]);
+                let (px, py, pz) = (mul(c[0], inv), mul(c[1], inv), mul(c[2], inv));
+                x0 = _mm256_min_ps(x0, px);
+                x1 = _mm256_max_ps(x1, px);
+                y0 = _mm256_min_ps(y0, py);
+                y1 = _mm256_max_ps(y1, py);
+                z0 = _mm256_min_ps(z0, pz);
+                z1 = _mm256_max_ps(z1, pz);
+            };
+            // Corners 1..8 in the order of the portable path's additions.
+            let c1 = v4(b, dx);
+            corner(c1);
+            let c2 = v4(b, dy);
+            corner(c2);
+            let c3 = v4(c1, dy);
+            corner(c3);
+            corner(v4(b, dz));
+            corner(v4(c1, dz));
+            corner(v4(c2, dz));
+            corner(v4(c3, dz));
+
+            let or = |a: __m256, b: __m256| _mm256_or_ps(a, b);
+            let outside_planes = or(or(beyond[0], beyond[1]), or(or(beyond[2], beyond[3]), or(beyond[4], beyond[5])));
+            // A non-finite min or max (no NaN can be among them here), or w = +∞.
+            let fz = |v: __m256| _mm256_sub_ps(v, v);
+            let f = add(add(add(fz(x0), fz(x1)), add(fz(y0), fz(y1))), add(add(fz(z0), fz(z1)), fz(max_w)));
+            let crosses = or(_mm256_xor_ps(front, _mm256_castsi256_ps(_mm256_set1_epi32(-1))), _mm256_cmp_ps::<_CMP_UNORD_Q>(f, f));
+
+            // Pixel bounds: the portable path's formulas, lane-wise.
+            let (wf, hf) = (self.size[0], self.size[1]);
+            let (half, margin, zero) = (_mm256_set1_ps(0.5), _mm256_set1_ps(PIXEL_MARGIN), _mm256_setzero_ps());
+            let clamp = |v: __m256, hi: __m256| _mm256_cvttps_epi32(_mm256_min_ps(_mm256_max_ps(v, zero), hi));
+            let rx0 = clamp(_mm256_sub_ps(mul(mul(add(x0, one), half), wf), margin), wf);
+            let rx1 = clamp(add(add(mul(mul(add(x1, one), half), wf), margin), one), wf);
+            let ry0 = clamp(_mm256_sub_ps(mul(mul(_mm256_sub_ps(one, y1), half), hf), margin), hf);
+            let ry1 = clamp(add(add(mul(mul(_mm256_sub_ps(one, y0), half), hf), margin), one), hf);
+            let depth = _mm256_min_ps(
+                _mm256_max_ps(_mm256_sub_ps(mul(add(z0, one), half), _mm256_set1_ps(DEPTH_MARGIN)), zero),
+                one,
+            );
+            // x0 ≥ x1 or y0 ≥ y1 (values in 0 ..= 2^24, so signed compares do).
+            let empty = _mm256_castsi256_ps(_mm256_xor_si256(
+                _mm256_and_si256(_mm256_cmpgt_epi32(rx1, rx0), _mm256_cmpgt_epi32(ry1, ry0)),
+                _mm256_set1_epi32(-1),
+            ));
+
+            // The portable path's order: planes, then near plane / non-finite, then empty.
+            let k = |v: i32| _mm256_castsi256_ps(_mm256_set1_epi32(v));
+            let mut kind = _mm256_blendv_ps(k(Batch::RECT), k(Batch::OUTSIDE), empty);
+            kind = _mm256_blendv_ps(kind, k(Batch::CROSSES), crosses);
+            kind = _mm256_blendv_ps(kind, k(Batch::OUTSIDE), outside_planes);
+            kind = _mm256_blendv_ps(k(Batch::SCALAR), kind, simd);
+            _mm256_store_si256(out.kind.as_mut_ptr() as *mut __m256i, _mm256_castps_si256(kind));
+            _mm256_store_si256(out.x0.as_mut_ptr() as *mut __m256i, rx0);
+            _mm256_store_si256(out.y0.as_mut_ptr() as *mut __m256i, ry0);
+            _mm256_store_si256(out.x1.as_mut_ptr() as *mut __m256i, rx1);
+            _mm256_store_si256(out.y1.as_mut_ptr() as *mut __m256i, ry1);
+            _mm256_store_ps(out.depth.as_mut_ptr(), depth);
+        }
+    }
+}
+
 /// Largest viewport side for which the SIMD path's float clamp and truncation are exact.
 #[cfg(all(target_arch = "x86_64", target_feature = "avx2"))]
 const SIMD_MAX_SIZE: u32 = 1 << 24;
@@ -465,13 +733,7 @@ mod tests {
                 let reach = [1.0, 10.0, 100.0][rng.below(3) as usize];
                 let b = random_box(&mut rng, reach);
                 let (fast, portable) = (p.classify(&b), p.classify_portable(&b));
-                // Compared through the bits of the depth, so NaN would show as a mismatch.
-                let key = |i: &BoxImage| match i {
-                    BoxImage::Rect(r) => Some((r.x0, r.y0, r.x1, r.y1, r.depth.to_bits(), r.crosses_near)),
-                    _ => None,
-                };
-                assert_eq!(std::mem::discriminant(&fast), std::mem::discriminant(&portable), "{b:?} {m:?} {w}x{h}");
-                assert_eq!(key(&fast), key(&portable), "{b:?} {m:?} {w}x{h}");
+                assert_eq!(bits(&fast), bits(&portable), "{b:?} {m:?} {w}x{h}");
                 kinds[match fast {
                     BoxImage::Outside => 0,
                     BoxImage::CrossesNear => 1,
@@ -480,6 +742,57 @@ mod tests {
             }
         }
         assert!(kinds.iter().all(|&k| k > 2000), "{kinds:?}");
+    }
+
+    /// A [`BoxImage`] with its depth as bits, so that NaN would show as a mismatch.
+    fn bits(i: &BoxImage) -> (u8, Option<(u32, u32, u32, u32, u32, bool)>) {
+        match i {
+            BoxImage::Outside => (0, None),
+            BoxImage::CrossesNear => (1, None),
+            BoxImage::Rect(r) => (2, Some((r.x0, r.y0, r.x1, r.y1, r.depth.to_bits(), r.crosses_near))),
+        }
+    }
+
+    /// `classify_many` (eight boxes per SIMD batch, the rest one by one) answers every box
+    /// exactly like the portable path, in order, whatever lane an unusual box lands in.
+    #[test]
+    fn classify_many_equals_the_portable_path() {
+        let mut rng = sightline_scene::rng::Rng::new(78);
+        let mut kinds = [0usize; 3];
+        for cam_i in 0..200 {
+            let m = match cam_i % 4 {
+                3 => Mat4::from_cols_array(&std::array::from_fn(|_| match rng.below(60) {
+                    0 => f32::NAN,
+                    1 => 1e30,
+                    2 => f32::INFINITY,
+                    _ => rng.range(-2.0, 2.0),
+                })),
+                _ => {
+                    let eye = Vec3::new(rng.range(-5.0, 5.0), rng.range(-5.0, 5.0), rng.range(-5.0, 5.0));
+                    let target = eye + Vec3::new(rng.range(-1.0, 1.0), rng.range(-1.0, 1.0), rng.range(-1.0, 1.0));
+                    let near = [1e-4, 0.1, 1.0][rng.below(3) as usize];
+                    match Camera::perspective_look_at(eye, target, Vec3::Y, rng.range(10.0, 120.0), 1.7, near, 500.0) {
+                        Ok(c) => c.clip_from_world(),
+                        Err(_) => continue,
+                    }
+                }
+            };
+            let (w, h) = [(1280, 720), (97, 33), (1, 1), (0, 0), (4096, 3000), (1 << 25, 8)][rng.below(6) as usize];
+            let p = BoxProjector::new(m, w, h);
+            let reach = [1.0, 10.0, 100.0][rng.below(3) as usize];
+            let n = rng.below(300) as usize;
+            let boxes: Vec<Aabb> = (0..n).map(|_| random_box(&mut rng, reach)).collect();
+            let mut next = 0;
+            p.classify_many(&boxes, |i, image| {
+                assert_eq!(i, next, "in order");
+                next += 1;
+                let portable = p.classify_portable(&boxes[i]);
+                assert_eq!(bits(&image), bits(&portable), "box {i} {:?} {m:?} {w}x{h}", boxes[i]);
+                kinds[bits(&image).0 as usize] += 1;
+            });
+            assert_eq!(next, n);
+        }
+        assert!(kinds.iter().all(|&k| k > 1000), "{kinds:?}");
     }
 
     #[test]
@@ -503,6 +816,38 @@ mod tests {
             // A point box in view is a rectangle of at least one pixel.
             let BoxImage::Rect(r) = classify(&p, &Aabb::new(Vec3::ZERO, Vec3::ZERO)) else { panic!() };
             assert!(r.x1 > r.x0 && r.y1 > r.y0 && r.depth > 0.0 && r.depth < 1.0, "{r:?}");
+        }
+    }
+
+    /// Finite clip terms whose projection overflows (x/w or z/w) or whose w sums to +∞ at
+    /// some corners, while the box stays in front of the near plane: no rectangle
+    /// (crossing), on every path and in every lane of a batch.
+    #[test]
+    fn overflowing_projections_cross_near() {
+        let m = |x: Vec4, z: Vec4, w: Vec4| Mat4::from_cols(x, Vec4::Y, z, w);
+        let tiny_w = Vec4::new(0.0, 0.0, 0.0, 1e-5);
+        let unit = Aabb::new(Vec3::ZERO, Vec3::ONE);
+        let cases = [
+            // x/w = 1e38 / 1e-5 at the corners with x = 1.
+            m(Vec4::new(1e38, 0.0, 0.0, 0.0), Vec4::ZERO, tiny_w),
+            // z/w = 1e38 / 1e-5 at the corners with z = 1.
+            m(Vec4::X, Vec4::new(0.0, 0.0, 1e38, 0.0), tiny_w),
+            // w = 3e38 + 3e38 at the corners with z = 1.
+            m(Vec4::X, Vec4::new(0.0, 0.0, 0.0, 3e38), Vec4::new(0.0, 0.0, 0.0, 3e38)),
+        ];
+        for m in cases {
+            let p = BoxProjector::new(m, 64, 48);
+            assert_eq!(p.classify_portable(&unit), BoxImage::CrossesNear, "{m:?}");
+            assert_eq!(p.classify(&unit), BoxImage::CrossesNear, "{m:?}");
+            let ordinary = Aabb::new(Vec3::ZERO, Vec3::new(0.0, 0.2, 0.0));
+            assert!(matches!(p.classify_portable(&ordinary), BoxImage::Rect(_)), "{m:?}");
+            for lane in 0..8 {
+                let mut boxes = [ordinary; 8];
+                boxes[lane] = unit;
+                p.classify_many(&boxes, |i, image| {
+                    assert_eq!(image, p.classify_portable(&boxes[i]), "lane {lane}, box {i}, {m:?}");
+                });
+            }
         }
     }
 

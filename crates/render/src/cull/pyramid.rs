@@ -251,7 +251,7 @@ impl<'a> TilePyramid<'a> {
     /// 2. Otherwise the finer level itself, texel by texel.
     ///
     /// A texel t occludes when `nearest > t + margin`; a NaN texel does not.
-    #[inline]
+    #[inline(always)]
     pub fn is_occluded(&self, r: Rect, nearest: f32) -> bool {
         if !(nearest <= 1.0) {
             return nearest > 1.0; // NaN: not occluded
