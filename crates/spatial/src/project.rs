@@ -143,26 +143,26 @@ impl BoxProjector {
     #[inline]
     pub fn classify_many(&self, boxes: &[Aabb], mut f: impl FnMut(usize, BoxImage)) {
         #[cfg(all(target_arch = "x86_64", target_feature = "avx2"))]
-        if self.width <= SIMD_MAX_SIZE && self.height <= SIMD_MAX_SIZE {
-            let lanes = Lanes::new(self);
-            let mut chunks = boxes.chunks_exact(8);
-            let mut out = Batch::default();
-            let mut i = 0;
-            for chunk in &mut chunks {
-                let chunk: &[Aabb; 8] = chunk.try_into().expect("chunks of eight");
-                lanes.classify8(chunk, &mut out);
-                for (k, b) in chunk.iter().enumerate() {
-                    f(i + k, out.image(k, || self.classify_portable(b)));
+        let lanes = (self.width <= SIMD_MAX_SIZE && self.height <= SIMD_MAX_SIZE).then(|| Lanes::new(self));
+        let mut batch = Batch::default();
+        for (c, chunk) in boxes.chunks(8).enumerate() {
+            #[cfg(all(target_arch = "x86_64", target_feature = "avx2"))]
+            let simd = match (&lanes, <&[Aabb; 8]>::try_from(chunk)) {
+                (Some(lanes), Ok(chunk)) => {
+                    lanes.classify8(chunk, &mut batch);
+                    true
                 }
-                i += 8;
+                _ => false,
+            };
+            #[cfg(not(all(target_arch = "x86_64", target_feature = "avx2")))]
+            let simd = false;
+            if !simd {
+                batch.kind = [Batch::SCALAR; 8];
             }
-            for (k, b) in chunks.remainder().iter().enumerate() {
-                f(i + k, self.classify(b));
+            // One call site for `f`, so that it is inlined.
+            for (k, b) in chunk.iter().enumerate() {
+                f(8 * c + k, batch.image(k, || self.classify(b)));
             }
-            return;
-        }
-        for (i, b) in boxes.iter().enumerate() {
-            f(i, self.classify(b));
         }
     }
 
@@ -381,8 +381,7 @@ impl BoxProjector {
     }
 }
 
-/// The answers of eight boxes ([`Lanes::classify8`]), lane k for box k.
-#[cfg(all(target_arch = "x86_64", target_feature = "avx2"))]
+/// The answers of eight boxes (`Lanes::classify8`), lane k for box k.
 #[derive(Debug, Default)]
 #[repr(C, align(32))]
 struct Batch {
@@ -395,7 +394,6 @@ struct Batch {
     depth: [f32; 8],
 }
 
-#[cfg(all(target_arch = "x86_64", target_feature = "avx2"))]
 impl Batch {
     const RECT: i32 = 0;
     const OUTSIDE: i32 = 1;
