@@ -147,21 +147,21 @@ impl BoxProjector {
         let mut batch = Batch::default();
         for (c, chunk) in boxes.chunks(8).enumerate() {
             #[cfg(all(target_arch = "x86_64", target_feature = "avx2"))]
-            let simd = match (&lanes, <&[Aabb; 8]>::try_from(chunk)) {
-                (Some(lanes), Ok(chunk)) => {
-                    lanes.classify8(chunk, &mut batch);
-                    true
-                }
-                _ => false,
+            let mut scalar = match (&lanes, <&[Aabb; 8]>::try_from(chunk)) {
+                (Some(lanes), Ok(chunk)) => lanes.classify8(chunk, &mut batch),
+                _ => (1 << chunk.len()) - 1,
             };
             #[cfg(not(all(target_arch = "x86_64", target_feature = "avx2")))]
-            let simd = false;
-            if !simd {
-                batch.kind = [Batch::SCALAR; 8];
+            let mut scalar: u32 = (1 << chunk.len()) - 1;
+            // The lanes the batch left out (the tail, unusual boxes), one box at a time.
+            while scalar != 0 {
+                let k = scalar.trailing_zeros() as usize;
+                scalar &= scalar - 1;
+                batch.set(k, self.classify(&chunk[k]));
             }
             // One call site for `f`, so that it is inlined.
-            for (k, b) in chunk.iter().enumerate() {
-                f(8 * c + k, batch.image(k, || self.classify(b)));
+            for k in 0..chunk.len() {
+                f(8 * c + k, batch.image(k));
             }
         }
     }
@@ -401,9 +401,9 @@ impl Batch {
     /// The box needs the scalar path.
     const SCALAR: i32 = 3;
 
-    /// Lane `k` as a [`BoxImage`]; `scalar` answers a lane the SIMD path left out.
+    /// Lane `k` as a [`BoxImage`] (not for [`Batch::SCALAR`] lanes).
     #[inline(always)]
-    fn image(&self, k: usize, scalar: impl FnOnce() -> BoxImage) -> BoxImage {
+    fn image(&self, k: usize) -> BoxImage {
         match self.kind[k] {
             Batch::RECT => BoxImage::Rect(ScreenRect {
                 x0: self.x0[k] as u32,
@@ -414,8 +414,21 @@ impl Batch {
                 crosses_near: false,
             }),
             Batch::OUTSIDE => BoxImage::Outside,
-            Batch::CROSSES => BoxImage::CrossesNear,
-            _ => scalar(),
+            _ => BoxImage::CrossesNear,
+        }
+    }
+
+    /// Stores `image` in lane `k`.
+    #[inline]
+    fn set(&mut self, k: usize, image: BoxImage) {
+        self.kind[k] = match image {
+            BoxImage::Rect(r) => {
+                (self.x0[k], self.y0[k], self.x1[k], self.y1[k]) = (r.x0 as i32, r.y0 as i32, r.x1 as i32, r.y1 as i32);
+                self.depth[k] = r.depth;
+                Batch::RECT
+            }
+            BoxImage::Outside => Batch::OUTSIDE,
+            BoxImage::CrossesNear => Batch::CROSSES,
         }
     }
 }
@@ -462,8 +475,9 @@ impl Lanes {
     /// (sums of finite terms are finite or ±∞ of one sign), so the comparisons, and the
     /// min/max over the corners, are those of the portable path; a non-finite projection
     /// shows up in the min or max over the corners (or, for w = +∞, in the max of w).
+    /// Returns the mask of the [`Batch::SCALAR`] lanes (bit k for lane k).
     #[inline(always)]
-    fn classify8(&self, boxes: &[Aabb; 8], out: &mut Batch) {
+    fn classify8(&self, boxes: &[Aabb; 8], out: &mut Batch) -> u32 {
         use std::arch::x86_64::*;
         // SAFETY: the build enables AVX2. Box k is read as floats at its address: 16 bytes
         // at offsets 0 and 8 of its 24 (layout asserted above). The stores go to `out`'s
@@ -605,6 +619,7 @@ impl Lanes {
             _mm256_store_si256(out.x1.as_mut_ptr() as *mut __m256i, rx1);
             _mm256_store_si256(out.y1.as_mut_ptr() as *mut __m256i, ry1);
             _mm256_store_ps(out.depth.as_mut_ptr(), depth);
+            (_mm256_movemask_ps(simd) ^ 0xFF) as u32
         }
     }
 }
