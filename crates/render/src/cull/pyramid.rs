@@ -345,6 +345,64 @@ mod tests {
         assert!(!p.is_occluded(&depth, Rect { x0: 10, y0: 10, x1: 40, y1: 15 }, 0.5));
     }
 
+    /// The session pyramid's two-step test gives exactly the answers of its finer level alone
+    /// (the grid test only ever settles queries the finer level would call occluded too), and
+    /// never calls occluded a rectangle with a pixel at or behind the query depth; on every
+    /// depth format, with tiles never drawn into, and on a screen that is not a multiple of
+    /// the tile size.
+    #[test]
+    fn tile_pyramid_grid_test_keeps_the_fine_answers() {
+        use crate::{DepthFormat, Framebuffer, RenderOptions, Renderer};
+        use glam::Vec4;
+        let (w, h) = (300u32, 170u32);
+        let opts = RenderOptions { backface_culling: false, ..RenderOptions::ids_only() };
+        let mut rng = sightline_scene::rng::Rng::new(11);
+        for fmt in [DepthFormat::F32, DepthFormat::Unorm16, DepthFormat::Unorm24] {
+            let mut fb = Framebuffer::new(w, h).unwrap();
+            let mut renderer = Renderer::new();
+            renderer.begin_session(&fb, fmt);
+            // Triangles of all sizes at all depths, over the left 80% of the screen only, so
+            // that some tiles are never drawn into.
+            let tris: Vec<[Vec4; 3]> = (0..400)
+                .map(|_| {
+                    let (cx, cy, size) = (rng.range(-1.2, 0.5), rng.range(-1.2, 1.2), rng.range(0.01, 0.6));
+                    let (z, dz) = (rng.range(-0.95, 0.95), [rng.range(-0.05, 0.05), rng.range(-0.05, 0.05)]);
+                    let (s1, s2) = (rng.range(-1.0, 1.0), rng.range(-1.0, 1.0));
+                    let v = |dx: f32, dy: f32, dz: f32| Vec4::new(cx + dx * size, cy + dy * size, z + dz, 1.0);
+                    [v(0.0, 0.0, 0.0), v(1.0, s1, dz[0]), v(s2, 1.0, dz[1])]
+                })
+                .collect();
+            renderer.draw_clip_triangles(&tris, 1, &mut fb, &opts);
+            let pyramid = renderer.session_pyramid().unwrap();
+            let top = pyramid.top();
+            let mut queries = Vec::new();
+            let mut occluded = 0;
+            for _ in 0..20_000 {
+                // Sizes from one pixel to the whole screen, roughly log-uniform.
+                let side = |n: u32, rng: &mut sightline_scene::rng::Rng| {
+                    let len = (2f32.powf(rng.range(0.0, (n as f32).log2())) as u32).clamp(1, n);
+                    let a = rng.below(n - len + 1);
+                    (a, a + len - 1)
+                };
+                let ((x0, x1), (y0, y1)) = (side(w, &mut rng), side(h, &mut rng));
+                let r = Rect { x0, y0, x1, y1 };
+                let z = rng.range(0.0, 1.0);
+                let occ = pyramid.is_occluded(r, z);
+                assert_eq!(occ, pyramid.is_occluded_fine(r, z, top), "{fmt:?} {r:?} at {z}");
+                occluded += occ as u32;
+                queries.push((r, z, occ));
+            }
+            assert!(occluded > 1000 && occluded < 19_000, "{fmt:?}: {occluded}");
+            renderer.end_session(&mut fb);
+            for (r, z, occ) in queries {
+                if occ {
+                    let m = brute_max(&fb.depth, w, r);
+                    assert!(z > m, "{fmt:?}: {r:?} at {z} called occluded, but a pixel has depth {m}");
+                }
+            }
+        }
+    }
+
     #[test]
     fn cleared_buffer_occludes_nothing() {
         let depth = vec![1.0f32; 100];
