@@ -10,6 +10,26 @@
 //! and float error), rounded outwards and clamped to the viewport, and the depth is the
 //! smallest corner window z minus a small margin. Since the view depth is linear over a box
 //! and window z is monotonic in it, the box's nearest point is one of its corners.
+//!
+//! ## One computation, three implementations
+//!
+//! The corners are formed in clip space from four terms: `base = M·(min, 1)` and the matrix
+//! columns scaled by the box extent, `dx`, `dy`, `dz`; corner `i` adds `dx`, `dy`, `dz` to
+//! `base` (in that order) for the bits of `i` that are set. Each corner's x, y and z are
+//! multiplied by `1/w`, and the rectangle comes from the min and max over the corners.
+//! [`BoxProjector::classify_portable`] does this in scalar code. With AVX2 (the workspace
+//! builds for x86-64-v3):
+//! * [`BoxProjector::classify`] keeps two corners per 256-bit register (four registers per
+//!   box; one division gives the eight reciprocals);
+//! * [`BoxProjector::classify_many`] runs eight boxes side by side, one per lane, so that the
+//!   long chain of dependent operations of one box overlaps with seven others. A box whose
+//!   clip terms are all finite has no NaN corner (a sum of finite terms is finite or an
+//!   infinity of one sign), so its answer needs no per-corner NaN checks; other boxes (empty,
+//!   unbounded, or overflowing terms) take the one-box path.
+//!
+//! All three perform the same IEEE operations on the same operands (min and max see no NaN,
+//! so their order does not matter), so they agree bit for bit on every input; the tests check
+//! it on random cameras, matrices and boxes.
 
 use glam::{Mat4, Vec3A, Vec4};
 use sightline_scene::Aabb;
@@ -385,7 +405,7 @@ impl BoxProjector {
 #[derive(Debug, Default)]
 #[repr(C, align(32))]
 struct Batch {
-    /// [`Batch::RECT`], [`Batch::OUTSIDE`], [`Batch::CROSSES`] or [`Batch::SCALAR`].
+    /// [`Batch::RECT`], [`Batch::OUTSIDE`] or [`Batch::CROSSES`].
     kind: [i32; 8],
     x0: [i32; 8],
     y0: [i32; 8],
@@ -398,10 +418,8 @@ impl Batch {
     const RECT: i32 = 0;
     const OUTSIDE: i32 = 1;
     const CROSSES: i32 = 2;
-    /// The box needs the scalar path.
-    const SCALAR: i32 = 3;
 
-    /// Lane `k` as a [`BoxImage`] (not for [`Batch::SCALAR`] lanes).
+    /// Lane `k` as a [`BoxImage`].
     #[inline(always)]
     fn image(&self, k: usize) -> BoxImage {
         match self.kind[k] {
@@ -471,11 +489,11 @@ impl Lanes {
 
     /// [`BoxProjector::classify_portable`] for eight boxes, one per lane, into `out`. Lanes
     /// whose box is not finite, or whose clip terms (`base`, `dx`, `dy`, `dz`) are not all
-    /// finite, are marked [`Batch::SCALAR`]. For the others no corner coordinate is NaN
-    /// (sums of finite terms are finite or ±∞ of one sign), so the comparisons, and the
-    /// min/max over the corners, are those of the portable path; a non-finite projection
-    /// shows up in the min or max over the corners (or, for w = +∞, in the max of w).
-    /// Returns the mask of the [`Batch::SCALAR`] lanes (bit k for lane k).
+    /// finite, are left for the one-box path (their lanes hold anything); the returned mask
+    /// has bit k set for such a lane k. For the others no corner coordinate is NaN (sums of
+    /// finite terms are finite or ±∞ of one sign), so the comparisons, and the min/max over
+    /// the corners, are those of the portable path; a non-finite projection shows up in the
+    /// min or max over the corners (or, for w = +∞, in the max of w).
     #[inline(always)]
     fn classify8(&self, boxes: &[Aabb; 8], out: &mut Batch) -> u32 {
         use std::arch::x86_64::*;
@@ -519,7 +537,8 @@ impl Lanes {
             let m = &self.m;
             let (add, mul) = (|a, b| _mm256_add_ps(a, b), |a, b| _mm256_mul_ps(a, b));
             // Component r of base = ((x_axis·min.x + y_axis·min.y) + z_axis·min.z) + w_axis.
-            let base = |r: usize| add(add(add(mul(m[r], min_x), mul(m[4 + r], min_y)), mul(m[8 + r], min_z)), m[12 + r]);
+            let base =
+                |r: usize| add(add(add(mul(m[r], min_x), mul(m[4 + r], min_y)), mul(m[8 + r], min_z)), m[12 + r]);
             let (ex, ey, ez) = (_mm256_sub_ps(max_x, min_x), _mm256_sub_ps(max_y, min_y), _mm256_sub_ps(max_z, min_z));
             let b = [base(0), base(1), base(2), base(3)];
             let dx = [mul(m[0], ex), mul(m[1], ex), mul(m[2], ex), mul(m[3], ex)];
@@ -527,12 +546,16 @@ impl Lanes {
             let dz = [mul(m[8], ez), mul(m[9], ez), mul(m[10], ez), mul(m[11], ez)];
             // All sixteen terms finite: v − v is 0 for finite v and NaN otherwise.
             let z = |v: [__m256; 4]| {
-                add(add(_mm256_sub_ps(v[0], v[0]), _mm256_sub_ps(v[1], v[1])), add(_mm256_sub_ps(v[2], v[2]), _mm256_sub_ps(v[3], v[3])))
+                add(
+                    add(_mm256_sub_ps(v[0], v[0]), _mm256_sub_ps(v[1], v[1])),
+                    add(_mm256_sub_ps(v[2], v[2]), _mm256_sub_ps(v[3], v[3])),
+                )
             };
             let zs = add(add(z(b), z(dx)), add(z(dy), z(dz)));
             let simd = and(finite_box, _mm256_cmp_ps::<_CMP_ORD_Q>(zs, zs));
 
-            let v4 = |a: [__m256; 4], d: [__m256; 4]| [add(a[0], d[0]), add(a[1], d[1]), add(a[2], d[2]), add(a[3], d[3])];
+            let v4 =
+                |a: [__m256; 4], d: [__m256; 4]| [add(a[0], d[0]), add(a[1], d[1]), add(a[2], d[2]), add(a[3], d[3])];
             let sign = _mm256_set1_ps(-0.0);
             let eps = _mm256_set1_ps(W_EPS);
             let one = _mm256_set1_ps(1.0);
@@ -587,7 +610,10 @@ impl Lanes {
             // A non-finite min or max (no NaN can be among them here), or w = +∞.
             let fz = |v: __m256| _mm256_sub_ps(v, v);
             let f = add(add(add(fz(x0), fz(x1)), add(fz(y0), fz(y1))), add(add(fz(z0), fz(z1)), fz(max_w)));
-            let crosses = or(_mm256_xor_ps(front, _mm256_castsi256_ps(_mm256_set1_epi32(-1))), _mm256_cmp_ps::<_CMP_UNORD_Q>(f, f));
+            let crosses = or(
+                _mm256_xor_ps(front, _mm256_castsi256_ps(_mm256_set1_epi32(-1))),
+                _mm256_cmp_ps::<_CMP_UNORD_Q>(f, f),
+            );
 
             // Pixel bounds: the portable path's formulas, lane-wise.
             let (wf, hf) = (self.size[0], self.size[1]);
@@ -612,7 +638,6 @@ impl Lanes {
             let mut kind = _mm256_blendv_ps(k(Batch::RECT), k(Batch::OUTSIDE), empty);
             kind = _mm256_blendv_ps(kind, k(Batch::CROSSES), crosses);
             kind = _mm256_blendv_ps(kind, k(Batch::OUTSIDE), outside_planes);
-            kind = _mm256_blendv_ps(k(Batch::SCALAR), kind, simd);
             _mm256_store_si256(out.kind.as_mut_ptr() as *mut __m256i, _mm256_castps_si256(kind));
             _mm256_store_si256(out.x0.as_mut_ptr() as *mut __m256i, rx0);
             _mm256_store_si256(out.y0.as_mut_ptr() as *mut __m256i, ry0);
@@ -757,12 +782,13 @@ mod tests {
         assert!(kinds.iter().all(|&k| k > 2000), "{kinds:?}");
     }
 
-    /// A [`BoxImage`] with its depth as bits, so that NaN would show as a mismatch.
-    fn bits(i: &BoxImage) -> (u8, Option<(u32, u32, u32, u32, u32, bool)>) {
+    /// A [`BoxImage`] as its kind (0 outside, 1 crossing, 2 rectangle) and the rectangle's
+    /// x0, y0, x1, y1, depth bits (so that NaN would show as a mismatch) and crossing flag.
+    fn bits(i: &BoxImage) -> (u8, [u32; 6]) {
         match i {
-            BoxImage::Outside => (0, None),
-            BoxImage::CrossesNear => (1, None),
-            BoxImage::Rect(r) => (2, Some((r.x0, r.y0, r.x1, r.y1, r.depth.to_bits(), r.crosses_near))),
+            BoxImage::Outside => (0, [0; 6]),
+            BoxImage::CrossesNear => (1, [0; 6]),
+            BoxImage::Rect(r) => (2, [r.x0, r.y0, r.x1, r.y1, r.depth.to_bits(), r.crosses_near as u32]),
         }
     }
 

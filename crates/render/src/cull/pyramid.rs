@@ -11,6 +11,12 @@
 //! pick the level where the rectangle touches at most 4 × 4 texels (a finer level than
 //! Greene's 2 × 2, which rejects more for a few more reads). After drawing, only the
 //! rectangle that changed is propagated up ([`DepthPyramid::update`]).
+//!
+//! The frame session's pyramid ([`TilePyramid`]) gives the answers of the same rule (from
+//! level 1 up) but first tries Greene's 2 × 2 test on the small grid of levels ≥ 6 over the
+//! tiles: a coarser texel is the max of the finer ones below it, so when that test says
+//! occluded the finer one would too, and it settles nearly every query of a dense scene
+//! with four reads.
 
 /// A pixel rectangle, inclusive bounds, inside the screen.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]

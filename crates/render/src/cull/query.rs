@@ -4,8 +4,16 @@
 //!
 //! Use: [`Culler::occluder_pass`](super::Culler::occluder_pass) draws the occluders
 //! (frustum- and back-face-culled, depth and IDs only) and leaves the frame session open;
-//! [`OcclusionQueries::test`] or [`OcclusionQueries::test_batch`] answer box queries; then
+//! [`OcclusionQueries::test`], [`OcclusionQueries::test_many`] (one thread) or
+//! [`OcclusionQueries::test_batch`] (all threads) answer box queries; then
 //! [`Culler::end_occluder_pass`](super::Culler::end_occluder_pass) writes the frame out.
+//!
+//! A query is two steps: [`BoxProjector`] turns the box into a conservative pixel rectangle
+//! and nearest depth (or "outside", or "crosses the near plane": visible), then
+//! [`TilePyramid::is_occluded`] compares that depth with the farthest depth stored over the
+//! rectangle. `test_many` projects eight boxes at a time
+//! ([`BoxProjector::classify_many`]) and tests each rectangle in the same loop; all three
+//! entry points give the same answers.
 
 use rayon::prelude::*;
 use serde::Serialize;
