@@ -56,8 +56,12 @@ fn boxfield_1thread(c: &mut Criterion) {
     });
     // The queries run on the calling thread; only the occluder pass uses the pool.
     let (_, _, q) = pool.install(|| culler.occluder_pass(&bf.camera, &mut fb, &opts)).unwrap();
+    let mut answers = Vec::with_capacity(bf.queries.len());
     g.bench_function("queries", |b| {
-        b.iter(|| bf.queries.iter().filter(|x| q.test(x) == sightline::render::BoxVisibility::Visible).count())
+        b.iter(|| {
+            q.test_many(&bf.queries, &mut answers);
+            answers.len()
+        })
     });
     culler.end_occluder_pass(&mut fb);
     g.finish();

@@ -32,7 +32,7 @@ fn main() {
             stats = Some((cs, fs));
             raster.push(t.elapsed().as_secs_f64() * 1e3);
             let t = Instant::now();
-            answers = bf.queries.iter().map(|b| q.test(b)).collect::<Vec<_>>();
+            q.test_many(&bf.queries, &mut answers);
             query.push(t.elapsed().as_secs_f64() * 1e3);
             culler.end_occluder_pass(&mut fb);
         }
@@ -40,7 +40,7 @@ fn main() {
             // Profiling aid: the queries alone, many times.
             let (_, _, q) = culler.occluder_pass(&bf.camera, &mut fb, &opts).expect("occluders");
             for _ in 0..200 {
-                answers = bf.queries.iter().map(|b| q.test(b)).collect::<Vec<_>>();
+                q.test_many(&bf.queries, &mut answers);
             }
             culler.end_occluder_pass(&mut fb);
         }

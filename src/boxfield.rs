@@ -59,7 +59,8 @@ pub struct QueryCounts {
 pub fn run_queries(culler: &mut Culler, bf: &Boxfield, fb: &mut Framebuffer) -> Vec<BoxVisibility> {
     let opts = RenderOptions::ids_only();
     let (_, _, q) = culler.occluder_pass(&bf.camera, fb, &opts).expect("drawing the occluders");
-    let answers = bf.queries.iter().map(|b| q.test(b)).collect();
+    let mut answers = Vec::new();
+    q.test_many(&bf.queries, &mut answers);
     culler.end_occluder_pass(fb);
     answers
 }

@@ -152,3 +152,47 @@ fn boxfield_queries_are_exact() {
     assert!(c.occluded > 1000 && c.visible > 10, "{c:?}");
     assert_eq!(check_occluded(&bf, &answers, &fb), 0, "a box reported occluded has a visible pixel");
 }
+
+/// `test_many` (eight boxes per SIMD batch) and `test_batch` (parallel) answer every box
+/// like `test`, in order, on ordinary boxes mixed with empty, NaN, infinite, flat, huge and
+/// eye-crossing ones, for slices of every length modulo 8.
+#[test]
+fn many_and_batch_answer_like_test() {
+    let (scene, cam) = wall();
+    let mut culler = Culler::new(&scene);
+    let mut fb = Framebuffer::new(320, 180).unwrap();
+    let (_, _, q) = culler.occluder_pass(&cam, &mut fb, &RenderOptions::ids_only()).unwrap();
+    let mut rng = Rng::new(21);
+    let boxes: Vec<Aabb> = (0..5000)
+        .map(|_| {
+            let c = Vec3::new(rng.range(-20.0, 20.0), rng.range(-10.0, 10.0), rng.range(-40.0, 5.0));
+            let half = Vec3::new(rng.range(0.0, 2.0), rng.range(0.0, 2.0), rng.range(0.0, 2.0));
+            match rng.below(30) {
+                0 => Aabb::EMPTY,
+                1 => Aabb::new(Vec3::NAN, c),
+                2 => Aabb::new(c, Vec3::new(c.x, f32::INFINITY, c.z)),
+                3 => Aabb::new(c, c),
+                4 => Aabb::new(Vec3::splat(-3e38), Vec3::splat(3e38)),
+                5 => cube_at(Vec3::ZERO, rng.range(0.05, 1.0)),
+                _ => Aabb::new(c - half, c + half),
+            }
+        })
+        .collect();
+    let (mut many, mut batch) = (Vec::new(), Vec::new());
+    let mut counts = [0usize; 3];
+    for len in [0, 1, 7, 8, 9, 4999, 5000] {
+        let boxes = &boxes[..len];
+        let one: Vec<BoxVisibility> = boxes.iter().map(|b| q.test(b)).collect();
+        q.test_many(boxes, &mut many);
+        q.test_batch(boxes, &mut batch);
+        assert_eq!(many, one, "test_many, {len} boxes");
+        assert_eq!(batch, one, "test_batch, {len} boxes");
+        if len == 5000 {
+            for v in one {
+                counts[v as usize] += 1;
+            }
+        }
+    }
+    assert!(counts.iter().all(|&c| c > 300), "visible / occluded / outside: {counts:?}");
+    culler.end_occluder_pass(&mut fb);
+}
