@@ -20,7 +20,11 @@ use sightline_scene::{Camera, Instance, Material, Mesh, Scene};
 use crate::shading::{InstanceShading, ShadeOptions, ShadingMode, TriangleShader};
 use crate::Framebuffer;
 
-/// Bands of rows per worker thread (see [`Shader::band_rows`]).
+/// Rows per parallel band for plain fills.
+const BAND_ROWS: usize = 16;
+/// Bands per worker thread when shading: few and tall, because a triangle spanning several
+/// bands is prepared once in each (a measurable cost at street level, where triangles
+/// are large), yet more than one per thread to balance uneven bands.
 const BANDS_PER_THREAD: usize = 3;
 const TRI_CACHE: usize = 4096;
 const INST_CACHE: usize = 64;
@@ -102,158 +106,83 @@ pub fn shade_pass(
     opts: &ShadeOptions,
     background: [u8; 4],
 ) {
-    let shader = Shader::new(scene, instances, camera, opts, background, fb.width(), fb.height());
-    let w = fb.width() as usize;
-    let rows = shader.band_rows();
+    if opts.mode == ShadingMode::None {
+        let chunk = fb.width() as usize * BAND_ROWS;
+        fb.color.par_chunks_mut(chunk).for_each(|c| c.fill(background));
+        return;
+    }
+    let lookup = Lookup::new(instances);
+    let default = Material::default();
+    let (w, h) = (fb.width() as usize, fb.height() as usize);
+    let eye = camera.view.eye;
+    let (sx, sy) = (2.0 / w as f32, 2.0 / h as f32);
     let ids = &fb.ids;
-    fb.color.par_chunks_mut(w * rows).enumerate().for_each(|(band, color)| {
-        let mut b = shader.band();
+    let band_rows = h.div_ceil(rayon::current_num_threads().max(1) * BANDS_PER_THREAD).max(1);
+    fb.color.par_chunks_mut(w * band_rows).enumerate().for_each(|(band, color)| {
+        let mut insts: Vec<Option<InstEntry>> = (0..INST_CACHE).map(|_| None).collect();
+        // Direct-mapped triangle cache: a small slot per entry (flat triangles need nothing
+        // but their color), full interpolation data only for the others.
+        let mut slots = vec![Slot { id: 0, color: background, full: NO_FULL }; TRI_CACHE];
+        let mut fulls: Vec<TriEntry> = Vec::new();
+        let mut hint = 0u32;
+        let y0 = band * band_rows;
         for (r, crow) in color.chunks_mut(w).enumerate() {
-            let y = band * rows + r;
-            b.shade_row(y, &ids[y * w..(y + 1) * w], crow);
+            let y = y0 + r;
+            if y >= h {
+                break;
+            }
+            let ndc_y = 1.0 - (y as f32 + 0.5) * sy;
+            let irow = &ids[y * w..(y + 1) * w];
+            // Runs of one ID along the row: one cache lookup and one fill per run.
+            let mut x = 0;
+            while x < w {
+                let id = irow[x];
+                let end = irow[x + 1..].iter().position(|&v| v != id).map_or(w, |n| x + 1 + n);
+                if id == 0 {
+                    crow[x..end].fill(background);
+                    x = end;
+                    continue;
+                }
+                let slot = (id as usize).wrapping_mul(0x9E37_79B1) >> 20 & (TRI_CACHE - 1);
+                if slots[slot].id != id {
+                    slots[slot] = match prepare(id, &lookup, &mut insts, scene, camera, eye, &default, opts, &mut hint)
+                    {
+                        None => Slot { id, color: background, full: NO_FULL },
+                        Some(Prepared::Constant(k)) => Slot { id, color: k, full: NO_FULL },
+                        Some(Prepared::Full(e)) => {
+                            // Reuse the entry this slot pointed at, else append.
+                            let old = slots[slot].full;
+                            let at = if (old as usize) < fulls.len() {
+                                fulls[old as usize] = e;
+                                old
+                            } else {
+                                fulls.push(e);
+                                fulls.len() as u32 - 1
+                            };
+                            Slot { id, color: [0; 4], full: at }
+                        }
+                    };
+                }
+                let sl = &slots[slot];
+                let Some(entry) = fulls.get(sl.full as usize) else {
+                    crow[x..end].fill(sl.color);
+                    x = end;
+                    continue;
+                };
+                for (px, c) in crow[x..end].iter_mut().enumerate() {
+                    let p = Vec3A::new(((x + px) as f32 + 0.5) * sx - 1.0, ndc_y, 1.0);
+                    let mut b = Vec3::new(entry.rows[0].dot(p), entry.rows[1].dot(p), entry.rows[2].dot(p));
+                    if !opts.perspective_correct {
+                        b *= Vec3::from(entry.w);
+                    }
+                    let s = b.x + b.y + b.z;
+                    let b = if s != 0.0 { b / s } else { Vec3::splat(1.0 / 3.0) };
+                    *c = entry.shader.shade(b, opts);
+                }
+                x = end;
+            }
         }
     });
-}
-
-/// A frame's shading, prepared once: [`Shader::band`] gives the state of one band of rows
-/// (its caches), which shades rows one at a time. The renderer uses it to shade rows right
-/// as it writes them out, while their IDs are in cache; [`shade_pass`] over a finished
-/// framebuffer.
-pub struct Shader<'a> {
-    scene: &'a Scene,
-    lookup: Lookup<'a>,
-    camera: &'a Camera,
-    opts: &'a ShadeOptions,
-    background: [u8; 4],
-    default: Material,
-    width: usize,
-    height: usize,
-}
-
-impl std::fmt::Debug for Shader<'_> {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        f.debug_struct("Shader").field("mode", &self.opts.mode).field("size", &(self.width, self.height)).finish()
-    }
-}
-
-impl<'a> Shader<'a> {
-    /// Shading of a `width × height` frame of `instances` seen by `camera`.
-    pub fn new(
-        scene: &'a Scene,
-        instances: &'a [Instance],
-        camera: &'a Camera,
-        opts: &'a ShadeOptions,
-        background: [u8; 4],
-        width: u32,
-        height: u32,
-    ) -> Self {
-        Self {
-            scene,
-            lookup: Lookup::new(instances),
-            camera,
-            opts,
-            background,
-            default: Material::default(),
-            width: width as usize,
-            height: height as usize,
-        }
-    }
-
-    /// Rows per parallel band: few and tall, because a triangle spanning several bands is
-    /// prepared once in each (a measurable cost at street level, where triangles are large),
-    /// yet more than one per thread to balance uneven bands.
-    pub fn band_rows(&self) -> usize {
-        self.height.div_ceil(rayon::current_num_threads().max(1) * BANDS_PER_THREAD).max(1)
-    }
-
-    /// Fresh state (caches) for one band of rows.
-    pub fn band(&self) -> BandShader<'_> {
-        BandShader {
-            shader: self,
-            insts: (0..INST_CACHE).map(|_| None).collect(),
-            slots: vec![Slot { id: 0, color: self.background, full: NO_FULL }; TRI_CACHE],
-            fulls: Vec::new(),
-            hint: 0,
-        }
-    }
-}
-
-/// The shading state of one band of rows: direct-mapped caches of instances and triangles
-/// (a small slot per triangle, since flat triangles need nothing but their color; full
-/// interpolation data only for the others).
-pub struct BandShader<'s> {
-    shader: &'s Shader<'s>,
-    insts: Vec<Option<InstEntry<'s>>>,
-    slots: Vec<Slot>,
-    fulls: Vec<TriEntry<'s>>,
-    hint: u32,
-}
-
-impl std::fmt::Debug for BandShader<'_> {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        f.debug_struct("BandShader").field("shader", self.shader).finish_non_exhaustive()
-    }
-}
-
-impl BandShader<'_> {
-    /// Colors row `y` from its IDs.
-    pub fn shade_row(&mut self, y: usize, ids: &[u32], colors: &mut [[u8; 4]]) {
-        let sh = self.shader;
-        let (opts, background, w) = (sh.opts, sh.background, ids.len().min(colors.len()));
-        if opts.mode == ShadingMode::None {
-            colors.fill(background);
-            return;
-        }
-        let (sx, sy) = (2.0 / sh.width as f32, 2.0 / sh.height as f32);
-        let ndc_y = 1.0 - (y as f32 + 0.5) * sy;
-        // Runs of one ID along the row: one cache lookup and one fill per run.
-        let mut x = 0;
-        while x < w {
-            let id = ids[x];
-            let end = ids[x + 1..w].iter().position(|&v| v != id).map_or(w, |n| x + 1 + n);
-            if id == 0 {
-                colors[x..end].fill(background);
-                x = end;
-                continue;
-            }
-            let slot = (id as usize).wrapping_mul(0x9E37_79B1) >> 20 & (TRI_CACHE - 1);
-            if self.slots[slot].id != id {
-                self.slots[slot] = match prepare(id, sh, &mut self.insts, &mut self.hint) {
-                    None => Slot { id, color: background, full: NO_FULL },
-                    Some(Prepared::Constant(k)) => Slot { id, color: k, full: NO_FULL },
-                    Some(Prepared::Full(e)) => {
-                        // Reuse the entry this slot pointed at, else append.
-                        let old = self.slots[slot].full;
-                        let at = if (old as usize) < self.fulls.len() {
-                            self.fulls[old as usize] = e;
-                            old
-                        } else {
-                            self.fulls.push(e);
-                            self.fulls.len() as u32 - 1
-                        };
-                        Slot { id, color: [0; 4], full: at }
-                    }
-                };
-            }
-            let sl = &self.slots[slot];
-            let Some(entry) = self.fulls.get(sl.full as usize) else {
-                colors[x..end].fill(sl.color);
-                x = end;
-                continue;
-            };
-            for (px, c) in colors[x..end].iter_mut().enumerate() {
-                let p = Vec3A::new(((x + px) as f32 + 0.5) * sx - 1.0, ndc_y, 1.0);
-                let mut b = Vec3::new(entry.rows[0].dot(p), entry.rows[1].dot(p), entry.rows[2].dot(p));
-                if !opts.perspective_correct {
-                    b *= Vec3::from(entry.w);
-                }
-                let s = b.x + b.y + b.z;
-                let b = if s != 0.0 { b / s } else { Vec3::splat(1.0 / 3.0) };
-                *c = entry.shader.shade(b, opts);
-            }
-            x = end;
-        }
-    }
 }
 
 const NO_FULL: u32 = u32::MAX;
@@ -272,9 +201,18 @@ enum Prepared<'a> {
     Full(TriEntry<'a>),
 }
 
-fn prepare<'a>(id: u32, sh: &'a Shader, insts: &mut [Option<InstEntry<'a>>], hint: &mut u32) -> Option<Prepared<'a>> {
-    let (lookup, scene, camera, opts) = (&sh.lookup, sh.scene, sh.camera, sh.opts);
-    let (eye, default) = (camera.view.eye, &sh.default);
+#[allow(clippy::too_many_arguments)]
+fn prepare<'a>(
+    id: u32,
+    lookup: &Lookup,
+    insts: &mut [Option<InstEntry<'a>>],
+    scene: &'a Scene,
+    camera: &Camera,
+    eye: Vec3,
+    default: &'a Material,
+    opts: &ShadeOptions,
+    hint: &mut u32,
+) -> Option<Prepared<'a>> {
     let g = id - 1;
     // Neighboring pixels mostly show the same instance: try the last one before searching.
     let index = match lookup.instances.get(*hint as usize) {

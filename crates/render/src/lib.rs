@@ -34,7 +34,7 @@ pub use error::{Error, Result};
 pub use framebuffer::{triangle_id, Framebuffer, MAX_SIZE};
 
 pub use cull::{compare_ids, BoxVisibility, CullStats, Culler, Method, Mismatch, OcclusionQueries};
-pub use deferred::{shade_pass, BandShader, Shader};
+pub use deferred::shade_pass;
 pub use depth::DepthFormat;
 pub use options::{draw_all, Antialias, DrawItem, DrawSource, RenderOptions, Wireframe};
 pub use pipeline::{render_scene, Renderer};

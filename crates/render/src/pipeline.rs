@@ -26,7 +26,6 @@ use rayon::prelude::*;
 use sightline_scene::{Camera, Instance, Scene};
 
 use crate::bin::{bin_chunk, Grid};
-use crate::deferred::Shader;
 use crate::depth::DepthFormat;
 use crate::geometry::{split, Chunk, Item, Source};
 use crate::options::{DrawItem, DrawSource, RenderOptions, Wireframe};
@@ -88,14 +87,15 @@ impl Renderer {
         let mut stats = FrameStats::default();
         if s == 1 {
             if fill {
-                // A fresh draw writes every pixel's depth and ID, and shades each row as it
-                // writes it out, so the target needs no clearing first.
-                let shader =
-                    Shader::new(scene, instances, camera, &opts.shading, opts.background, fb.width(), fb.height());
+                // A fresh draw writes every pixel's depth and ID and shading every color,
+                // so the target needs no clearing first.
                 self.fresh = true;
-                let r = self.draw_impl(scene, instances, items, camera, fb, opts, Some(&shader));
+                let r = self.draw(scene, instances, items, camera, fb, opts);
                 self.fresh = false; // also when `draw` failed before using it
                 stats = r?;
+                let t = Instant::now();
+                deferred::shade_pass(scene, instances, camera, fb, &opts.shading, opts.background);
+                stats.ms_shading = ms_since(t);
             } else {
                 fb.clear(opts.background);
             }
@@ -156,21 +156,6 @@ impl Renderer {
         fb: &mut Framebuffer,
         opts: &RenderOptions,
     ) -> Result<FrameStats> {
-        self.draw_impl(scene, instances, items, camera, fb, opts, None)
-    }
-
-    /// [`Renderer::draw`], shading the rows it writes out when given a shader (fresh frames).
-    #[allow(clippy::too_many_arguments)]
-    fn draw_impl(
-        &mut self,
-        scene: &Scene,
-        instances: &[Instance],
-        items: &[DrawItem],
-        camera: &Camera,
-        fb: &mut Framebuffer,
-        opts: &RenderOptions,
-        shade: Option<&Shader>,
-    ) -> Result<FrameStats> {
         let t0 = Instant::now();
         let mut resolved: Vec<Item> = Vec::with_capacity(items.len());
         self.ranges.clear();
@@ -207,7 +192,7 @@ impl Renderer {
             });
             self.ranges.push((k as u32, d.first, d.count));
         }
-        let mut st = self.run(&resolved, fb, opts, shade);
+        let mut st = self.run(&resolved, fb, opts);
         st.ms_total = ms_since(t0);
         Ok(st)
     }
@@ -258,7 +243,7 @@ impl Renderer {
             });
             self.ranges.push((k as u32, d.first, d.count));
         }
-        let mut st = self.run(&resolved, fb, opts, None);
+        let mut st = self.run(&resolved, fb, opts);
         st.ms_total = ms_since(t0);
         Ok(st)
     }
@@ -293,18 +278,23 @@ impl Renderer {
     /// counting, depth tests; tiles never drawn into as cleared), so `fb` needs no clearing
     /// before a session. Returns the pixels covered (ID ≠ 0); 0 outside a session.
     pub fn end_session(&mut self, fb: &mut Framebuffer) -> u64 {
-        self.end_session_shaded(fb, None)
-    }
-
-    /// [`Renderer::end_session`], also coloring every row with `shade` as it is written out
-    /// (its IDs still in cache): the color plane needs no clear or separate shading pass.
-    pub fn end_session_shaded(&mut self, fb: &mut Framebuffer, shade: Option<&Shader>) -> u64 {
         let Some(fmt) = self.session.take() else { return 0 };
         let Some(grid) = self.grid else { return 0 };
         for t in &mut self.tiles {
             t.dirty = t.touched;
         }
-        store_tiles(&self.tiles, &grid, fb, fmt, true, shade)
+        store_tiles(&self.tiles, &grid, fb, fmt, true)
+    }
+
+    /// Marks the target of the next draw as to be overwritten whole: tiles start from the
+    /// clear values instead of loading, and the store writes every pixel. Reset by the draw.
+    pub(crate) fn start_fresh(&mut self) {
+        self.fresh = true;
+    }
+
+    /// Forgets a [`Renderer::start_fresh`] that no draw consumed (after an error).
+    pub(crate) fn cancel_fresh(&mut self) {
+        self.fresh = false;
     }
 
     /// The z-pyramid of the frame drawn so far in this session (`None` outside a session).
@@ -328,18 +318,12 @@ impl Renderer {
         let items = [Item { src: Source::Clip(&triangles[..n as usize]), first_id, source_triangles: n }];
         self.ranges.clear();
         self.ranges.push((0, 0, n));
-        let mut st = self.run(&items, fb, opts, None);
+        let mut st = self.run(&items, fb, opts);
         st.ms_total = ms_since(t0);
         st
     }
 
-    fn run(
-        &mut self,
-        items: &[Item],
-        fb: &mut Framebuffer,
-        opts: &RenderOptions,
-        shade: Option<&Shader>,
-    ) -> FrameStats {
+    fn run(&mut self, items: &[Item], fb: &mut Framebuffer, opts: &RenderOptions) -> FrameStats {
         let mut st = FrameStats::default();
         let vp = Viewport::new(fb.width(), fb.height(), opts.guard_band);
         let grid = Grid::new(fb.width(), fb.height());
@@ -374,18 +358,10 @@ impl Renderer {
         let ts = raster_tiles(&mut self.tiles, chunks, fb, fmt, fresh, session.is_some());
         if session.is_some() {
             update_upper_levels(&self.tiles, &mut self.upper);
+        } else {
+            st.covered_pixels = store_tiles(&self.tiles, &grid, fb, fmt, fresh);
         }
         st.ms_raster = ms_since(t);
-        if session.is_none() {
-            let t = Instant::now();
-            let shade = shade.filter(|_| fresh);
-            st.covered_pixels = store_tiles(&self.tiles, &grid, fb, fmt, fresh, shade);
-            if shade.is_some() {
-                st.ms_shading = ms_since(t);
-            } else {
-                st.ms_raster += ms_since(t);
-            }
-        }
 
         let mut multi_empty = 0;
         for c in chunks {
@@ -544,6 +520,9 @@ fn raster_bins<const F: u8, const C: bool, const COARSE: bool>(
     }
 }
 
+/// Writes tiles to `fb`: the dirty ones from their buffers and, with `all`, every other
+/// tile as cleared (depth 1, ID 0, no depth tests), so that `fb` needs no clear first.
+/// Returns the covered pixels (ID ≠ 0) of the tiles written.
 /// Marks the blocks of the triangle's bounding box inside the tile as stale in its pyramid.
 #[inline]
 fn mark_written(tile: &mut TileBuf, t: &crate::setup::Tri) {
@@ -554,18 +533,7 @@ fn mark_written(tile: &mut TileBuf, t: &crate::setup::Tri) {
     tile.mark_written([x0, y0, x1, y1]);
 }
 
-/// Writes tiles to `fb`: the dirty ones from their buffers and, with `all`, every other
-/// tile as cleared (depth 1, ID 0, no depth tests), so that `fb` needs no clear first. With
-/// `shade`, each row is colored right after its IDs are written. Returns the covered pixels
-/// (ID ≠ 0) of the tiles written.
-fn store_tiles(
-    tiles: &[TileBuf],
-    grid: &Grid,
-    fb: &mut Framebuffer,
-    fmt: DepthFormat,
-    all: bool,
-    shade: Option<&Shader>,
-) -> u64 {
+fn store_tiles(tiles: &[TileBuf], grid: &Grid, fb: &mut Framebuffer, fmt: DepthFormat, all: bool) -> u64 {
     let width = fb.width() as usize;
     let tx = grid.tiles_x as usize;
     let far = fmt.depth(fmt.key(1.0));
@@ -592,27 +560,12 @@ fn store_tiles(
         }
         covered
     };
-    // Bands of rows: the shader's (one cache per band), else a tile row.
-    let band_rows = shade.map_or(TILE as usize, Shader::band_rows);
     let covered = fb
         .depth
-        .par_chunks_mut(width * band_rows)
-        .zip(fb.ids.par_chunks_mut(width * band_rows))
-        .zip(fb.color.par_chunks_mut(width * band_rows))
+        .par_chunks_mut(width)
+        .zip(fb.ids.par_chunks_mut(width))
         .enumerate()
-        .map(|(band, ((depth, ids), color))| {
-            let mut shader = shade.map(Shader::band);
-            let mut covered = 0;
-            let rows = depth.chunks_mut(width).zip(ids.chunks_mut(width)).zip(color.chunks_mut(width));
-            for (r, ((d, i), c)) in rows.enumerate() {
-                let y = band * band_rows + r;
-                covered += copy_row(y, d, i);
-                if let Some(s) = &mut shader {
-                    s.shade_row(y, i, c);
-                }
-            }
-            covered
-        })
+        .map(|(y, (d, i))| copy_row(y, d, i))
         .sum();
     if let Some(counts) = &mut fb.depth_tests {
         counts.par_chunks_mut(width).enumerate().for_each(|(y, c)| {

@@ -51,7 +51,6 @@ pub use pyramid::{DepthPyramid, Rect, TilePyramid};
 pub use query::{BoxVisibility, OcclusionQueries};
 pub use verify::{compare_ids, Mismatch};
 
-use crate::deferred::Shader;
 use crate::stats::ms_since;
 use crate::{draw_all, DrawSource, FrameStats, Framebuffer, RenderOptions, Renderer, Result};
 
@@ -116,7 +115,7 @@ pub struct CullStats {
     pub ms_cull: f64,
     /// Milliseconds drawing.
     pub ms_draw: f64,
-    /// Milliseconds writing the frame out of the tiles and shading it (one pass).
+    /// Milliseconds shading.
     pub ms_shading: f64,
     /// Milliseconds for the whole frame.
     pub ms_total: f64,
@@ -206,9 +205,8 @@ impl Culler {
             + self.octree.as_ref().map_or(0, LooseOctree::memory_bytes)
     }
 
-    /// Renders one frame with `method` into `fb` (every plane written, no clear needed;
-    /// shaded as `opts` says; antialiasing and wireframe are the plain renderer's business
-    /// and ignored here).
+    /// Renders one frame with `method` into `fb` (cleared first; shaded as `opts` says;
+    /// antialiasing and wireframe are the plain renderer's business and ignored here).
     pub fn render(
         &mut self,
         scene: &Scene,
@@ -233,35 +231,38 @@ impl Culler {
             cs.ms_total = ms_since(t0);
             return Ok((cs, fs));
         }
-        // No clear: the frame session writes every depth and ID, and shades every color as
-        // it writes the rows out.
+        // No clear: a fresh draw or a frame session writes every depth and ID, and shading
+        // every color.
         let t = Instant::now();
         let frustum = self.frustum_cull(camera, &mut cs);
         cs.ms_cull = ms_since(t);
         let mut fs = FrameStats::default();
-        self.renderer.begin_session(fb, opts.depth_format);
-        let result = match method {
+        match method {
             Method::Brute => unreachable!("handled above"),
             Method::Frustum => {
                 let t = Instant::now();
                 let visible = std::mem::take(&mut self.visible);
+                self.renderer.start_fresh();
                 let r = self.draw_items(visible.iter().map(|v| v.index), camera, fb, &opts, &mut cs);
+                self.renderer.cancel_fresh();
                 self.visible = visible;
+                fs = r?;
                 cs.ms_draw = ms_since(t);
                 cs.batches = 1;
-                r.map(|st| fs = st)
             }
-            Method::HzbOnePass => self.hzb_bvh(camera, &frustum, fb, &opts, &mut cs, &mut fs, self.first_batch, None),
-            Method::Hzb => self.hzb_two_pass(camera, &frustum, fb, &opts, &mut cs, &mut fs),
-            Method::OctreeHzb => self.hzb_octree(camera, &frustum, fb, &opts, &mut cs, &mut fs),
-        };
-        let t = Instant::now();
-        let shader =
-            Shader::new(scene, &self.instances, camera, &opts.shading, opts.background, fb.width(), fb.height());
-        fs.covered_pixels = self.renderer.end_session_shaded(fb, Some(&shader));
-        cs.ms_shading = ms_since(t);
-        result?;
+            Method::HzbOnePass => {
+                self.renderer.begin_session(fb, opts.depth_format);
+                let r = self.hzb_bvh(camera, &frustum, fb, &opts, &mut cs, &mut fs, self.first_batch, None);
+                fs.covered_pixels = self.renderer.end_session(fb);
+                r?
+            }
+            Method::Hzb => self.hzb_two_pass(camera, &frustum, fb, &opts, &mut cs, &mut fs)?,
+            Method::OctreeHzb => self.hzb_octree(camera, &frustum, fb, &opts, &mut cs, &mut fs)?,
+        }
         cs.culled_by_occlusion = cs.clusters_in_frustum.saturating_sub(cs.clusters_drawn + cs.culled_by_backface);
+        let t = Instant::now();
+        crate::shade_pass(scene, &self.instances, camera, fb, &opts.shading, opts.background);
+        cs.ms_shading = ms_since(t);
         fs.ms_shading = cs.ms_shading;
         fs.update_overdraw();
         cs.ms_total = ms_since(t0);
@@ -482,6 +483,7 @@ impl Culler {
             self.drawn_in[i as usize] = frame;
         }
         cs.ms_cull += ms_since(t);
+        self.renderer.begin_session(fb, opts.depth_format);
         let result = (|| {
             if !first.is_empty() {
                 let t = Instant::now();
@@ -510,6 +512,7 @@ impl Culler {
             self.last_visible.extend(still);
         }
         cs.ms_cull += ms_since(t);
+        fs.covered_pixels = self.renderer.end_session(fb);
         if result.is_err() {
             self.last_visible.clear();
         }
@@ -528,6 +531,7 @@ impl Culler {
     ) -> Result<()> {
         let (w, h) = (fb.width(), fb.height());
         let projector = BoxProjector::new(camera.clip_from_world(), w, h);
+        self.renderer.begin_session(fb, opts.depth_format);
         let Some(octree) = self.octree.take() else { return Ok(()) };
         // The walk's two callbacks both need the framebuffer (one reads depth, the other
         // draws): they never run at the same time, so a RefCell shares it.
@@ -568,6 +572,7 @@ impl Culler {
         let mut w = walk.into_inner();
         w.flush(camera, opts);
         w.culler.octree = Some(octree);
+        w.fs.covered_pixels = w.culler.renderer.end_session(w.fb);
         // Traversal time excludes the drawing done inside it.
         w.cs.ms_cull += (ms_since(t) - w.cs.ms_draw).max(0.0);
         match w.err {
