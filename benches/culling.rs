@@ -5,14 +5,16 @@
 //!   frame is less alike than in a walk), flat shading, all threads.
 //! * `boxfield_1thread/occluders` and `/queries`: the occlusion benchmark of record on one
 //!   thread: (a) depth-only rasterization of the frustum- and back-face-culled occluders into
-//!   the z-buffer and pyramid, (b) 100,000 box queries against it.
+//!   the z-buffer and pyramid, (b) 100,000 box queries against it. `occluders_one_mesh`: (a)
+//!   with the boxes stored as one mesh; `occluders_one_mesh_skip_hidden`: the same with
+//!   occluders hidden by the pyramid as it fills skipped (an identical z-buffer).
 
 use std::time::Duration;
 
 use criterion::{criterion_group, criterion_main, Criterion};
 use sightline::boxfield::{Boxfield, QUERIES, SIZE};
 use sightline::render::{Culler, Framebuffer, Method, RenderOptions};
-use sightline::scene::builders::{city, CityParams};
+use sightline::scene::builders::{boxfield, city, BoxfieldLayout, BoxfieldParams, CityParams};
 
 fn city_street(c: &mut Criterion) {
     let city = city(&CityParams::for_triangles(1_000_000)).unwrap();
@@ -54,6 +56,20 @@ fn boxfield_1thread(c: &mut Criterion) {
             })
         })
     });
+    // The same boxes as one mesh (the flat triangle list MOC takes): every occluder, then
+    // with hidden occluders skipped (the same z-buffer).
+    let one_mesh = boxfield(&BoxfieldParams { layout: BoxfieldLayout::OneMesh, ..Default::default() }).unwrap();
+    let mut flat = Culler::new(&one_mesh);
+    for (name, skip_hidden) in [("occluders_one_mesh", false), ("occluders_one_mesh_skip_hidden", true)] {
+        g.bench_function(name, |b| {
+            b.iter(|| {
+                pool.install(|| {
+                    let _ = flat.occluder_pass_with(&bf.camera, &mut fb, &opts, skip_hidden).unwrap();
+                    flat.end_occluder_pass(&mut fb);
+                })
+            })
+        });
+    }
     // The queries run on the calling thread; only the occluder pass uses the pool.
     let (_, _, q) = pool.install(|| culler.occluder_pass(&bf.camera, &mut fb, &opts)).unwrap();
     let mut answers = Vec::with_capacity(bf.queries.len());

@@ -196,3 +196,40 @@ fn many_and_batch_answer_like_test() {
     assert!(counts.iter().all(|&c| c > 300), "visible / occluded / outside: {counts:?}");
     culler.end_occluder_pass(&mut fb);
 }
+
+/// Skipping occluders hidden by the pyramid as it fills leaves the z-buffer, the IDs and the
+/// query answers exactly as drawing every occluder does, in both boxfield layouts.
+#[test]
+fn skipping_hidden_occluders_changes_nothing() {
+    use sightline::scene::builders::{boxfield, boxfield_queries, BoxfieldLayout, BoxfieldParams};
+    let camera = CameraKey {
+        eye: [0.0, 1.7, 0.0],
+        target: [0.0, 1.7, 1.0],
+        up: [0.0, 1.0, 0.0],
+        fovy_deg: 60.0,
+        near: 0.1,
+        far: 200.0,
+    }
+    .camera(16.0 / 9.0)
+    .unwrap();
+    let queries = boxfield_queries(3000, 60f32.to_radians(), 16.0 / 9.0, 5);
+    for layout in [BoxfieldLayout::Instanced, BoxfieldLayout::OneMesh] {
+        let scene = boxfield(&BoxfieldParams { boxes: 6000, half_size: 40.0, seed: 9, layout }).unwrap();
+        let mut culler = Culler::new(&scene);
+        let opts = RenderOptions::ids_only();
+        let mut results = Vec::new();
+        for skip_hidden in [false, true] {
+            let mut fb = Framebuffer::new(320, 180).unwrap();
+            let (cs, _, q) = culler.occluder_pass_with(&camera, &mut fb, &opts, skip_hidden).unwrap();
+            let answers: Vec<_> = queries.iter().map(|b| q.test(b)).collect();
+            culler.end_occluder_pass(&mut fb);
+            results.push((fb.depth, fb.ids, answers, cs.triangles_drawn));
+        }
+        let (all, skipped) = (&results[0], &results[1]);
+        assert!(skipped.3 * 2 < all.3, "{layout:?}: {} of {} triangles drawn", skipped.3, all.3);
+        assert!(all.1.iter().any(|&i| i != 0));
+        assert_eq!(all.0, skipped.0, "{layout:?}: depth");
+        assert_eq!(all.1, skipped.1, "{layout:?}: IDs");
+        assert_eq!(all.2, skipped.2, "{layout:?}: query answers");
+    }
+}

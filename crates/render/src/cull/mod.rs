@@ -279,19 +279,48 @@ impl Culler {
         fb: &mut Framebuffer,
         opts: &RenderOptions,
     ) -> Result<(CullStats, FrameStats, OcclusionQueries<'_>)> {
+        self.occluder_pass_with(camera, fb, opts, false)
+    }
+
+    /// [`Culler::occluder_pass`]; with `skip_hidden`, occluders are themselves tested against
+    /// the pyramid as it fills (BVH nodes and clusters, as in [`Method::HzbOnePass`]) and the
+    /// hidden ones skipped. Hidden occluders cannot change a depth, so the z-buffer, IDs and
+    /// pyramid are the same bit for bit, for far less work in deep scenes.
+    pub fn occluder_pass_with(
+        &mut self,
+        camera: &Camera,
+        fb: &mut Framebuffer,
+        opts: &RenderOptions,
+        skip_hidden: bool,
+    ) -> Result<(CullStats, FrameStats, OcclusionQueries<'_>)> {
         let t0 = Instant::now();
         let mut fs = FrameStats::default();
         let mut cs = CullStats { clusters: self.clustered.item_count() as u64, ..Default::default() };
         let frustum = self.frustum_cull(camera, &mut cs);
+        let projector = BoxProjector::new(camera.clip_from_world(), fb.width(), fb.height());
         self.renderer.begin_session(fb, opts.depth_format);
-        // Every occluder is drawn, front to back in growing batches, so that the coarse
-        // depth test of the rasterizer rejects whole triangles hidden behind earlier ones.
+        // Front to back in growing batches, so that the coarse depth test of the rasterizer
+        // rejects whole triangles hidden behind earlier ones.
         let mut cursor = self.clustered.cursor(Some(&frustum), camera.view.eye);
         let mut batch = self.first_batch.max(1);
         let mut out = Vec::new();
         loop {
             out.clear();
-            let more = cursor.next_batch(self.clustered.bvh(), |_| true, batch, &mut out);
+            let more = {
+                let pyramid = self.renderer.session_pyramid().filter(|_| skip_hidden);
+                cursor.next_batch(
+                    self.clustered.bvh(),
+                    |b| {
+                        let Some(p) = &pyramid else { return true };
+                        cs.occlusion_tests += 1;
+                        let vis = possibly_visible(p, &projector.project(b));
+                        cs.occluded_boxes += !vis as u64;
+                        vis
+                    },
+                    batch,
+                    &mut out,
+                )
+            };
             if opts.backface_culling {
                 self.drop_backfacing(&mut out, camera.view.eye, &mut cs);
             }
@@ -312,6 +341,7 @@ impl Culler {
         }
         cs.ms_draw = ms_since(t0);
         cs.ms_total = cs.ms_draw;
+        cs.culled_by_occlusion = cs.clusters_in_frustum.saturating_sub(cs.clusters_drawn + cs.culled_by_backface);
         let pyramid = self.renderer.session_pyramid().expect("a session was just begun");
         Ok((cs, fs, OcclusionQueries::new(camera, pyramid)))
     }
