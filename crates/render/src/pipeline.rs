@@ -83,23 +83,10 @@ impl Renderer {
     ) -> Result<FrameStats> {
         let t0 = Instant::now();
         let s = opts.antialias.factor();
-        let fill = opts.wireframe != Wireframe::Only;
-        let mut stats = FrameStats::default();
-        if s == 1 {
-            if fill {
-                // A fresh draw writes every pixel's depth and ID and shading every color,
-                // so the target needs no clearing first.
-                self.fresh = true;
-                let r = self.draw(scene, instances, items, camera, fb, opts);
-                self.fresh = false; // also when `draw` failed before using it
-                stats = r?;
-                let t = Instant::now();
-                deferred::shade_pass(scene, instances, camera, fb, &opts.shading, opts.background);
-                stats.ms_shading = ms_since(t);
-            } else {
-                fb.clear(opts.background);
-            }
+        let mut stats = if s == 1 {
+            self.fill_frame(scene, instances, items, camera, fb, opts)?
         } else {
+            // Supersampling: the same frame at s × s the size, then averaged down.
             let (w, h) = (fb.width() * s, fb.height() * s);
             let mut ss = match self.supersampled.take() {
                 Some(f) if f.width() == w && f.height() == h => f,
@@ -108,32 +95,15 @@ impl Renderer {
             if ss.depth_tests.is_some() != fb.depth_tests.is_some() {
                 ss.count_depth_tests(fb.depth_tests.is_some());
             }
-            if !fill {
-                ss.clear(opts.background);
-            }
-            let r = if fill {
-                self.fresh = true;
-                let r = self.draw(scene, instances, items, camera, &mut ss, opts);
-                self.fresh = false;
-                r
-            } else {
-                Ok(FrameStats::default())
-            };
-            match r {
-                Ok(st) => stats = st,
-                Err(e) => {
-                    self.supersampled = Some(ss);
-                    return Err(e);
-                }
-            }
-            let t = Instant::now();
-            if fill {
-                deferred::shade_pass(scene, instances, camera, &mut ss, &opts.shading, opts.background);
-            }
-            aa::resolve(&ss, s, fb);
-            stats.ms_shading = ms_since(t);
+            let r = self.fill_frame(scene, instances, items, camera, &mut ss, opts).map(|mut st| {
+                let t = Instant::now();
+                aa::resolve(&ss, s, fb);
+                st.ms_shading += ms_since(t);
+                st
+            });
             self.supersampled = Some(ss);
-        }
+            r?
+        };
         if opts.wireframe != Wireframe::Off {
             let t = Instant::now();
             wire::draw_wireframe(scene, instances, items, camera, fb, opts)?;
@@ -141,6 +111,31 @@ impl Renderer {
         }
         stats.update_overdraw();
         stats.ms_total = ms_since(t0);
+        Ok(stats)
+    }
+
+    /// The filled part of a frame into `target`: a fresh draw of `items` (every depth and ID
+    /// written, so no clear first) shaded, or, for a wireframe-only frame, a cleared target.
+    fn fill_frame(
+        &mut self,
+        scene: &Scene,
+        instances: &[Instance],
+        items: &[DrawItem],
+        camera: &Camera,
+        target: &mut Framebuffer,
+        opts: &RenderOptions,
+    ) -> Result<FrameStats> {
+        if opts.wireframe == Wireframe::Only {
+            target.clear(opts.background);
+            return Ok(FrameStats::default());
+        }
+        self.fresh = true;
+        let r = self.draw(scene, instances, items, camera, target, opts);
+        self.fresh = false; // also when `draw` failed before using it
+        let mut stats = r?;
+        let t = Instant::now();
+        deferred::shade_pass(scene, instances, camera, target, &opts.shading, opts.background);
+        stats.ms_shading = ms_since(t);
         Ok(stats)
     }
 
