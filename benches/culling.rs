@@ -1,8 +1,8 @@
 //! Culling benchmarks on 10^6-triangle scenes.
 //!
-//! * `city_street/METHOD`: one street frame of the default city at 1280×720 per iteration
-//!   (cycling through 12 frames of the street path, 10 path steps apart: `hzb`'s last
-//!   frame is less alike than in a walk), flat shading, all threads.
+//! * `city_street/METHOD`: one street frame of the default city at 1280×720 per iteration,
+//!   walking the 120 frames of the street path in order (as `sightline walk` does, so `hzb`
+//!   sees the last frame of a walk), flat shading, all threads.
 //! * `boxfield_1thread/occluders` and `/queries`: the occlusion benchmark of record on one
 //!   thread: (a) depth-only rasterization of the frustum- and back-face-culled occluders into
 //!   the z-buffer and pyramid, (b) 100,000 box queries against it. `occluders_one_mesh`: (a)
@@ -19,7 +19,7 @@ use sightline::scene::builders::{boxfield, city, BoxfieldLayout, BoxfieldParams,
 fn city_street(c: &mut Criterion) {
     let city = city(&CityParams::for_triangles(1_000_000)).unwrap();
     let keys = city.layout.street_path(120, 11);
-    let cams: Vec<_> = keys.iter().step_by(10).map(|k| k.camera(1280.0 / 720.0).unwrap()).collect();
+    let cams: Vec<_> = keys.iter().map(|k| k.camera(1280.0 / 720.0).unwrap()).collect();
     let mut culler = Culler::new(&city.scene);
     let mut fb = Framebuffer::new(1280, 720).unwrap();
     let opts = RenderOptions::default();
