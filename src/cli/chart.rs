@@ -67,6 +67,8 @@ pub fn bar_chart(path: &Path, title: &str, unit: &str, bars: &[Bar]) -> Result<(
         RGBColor(85, 168, 104),
         RGBColor(196, 78, 82),
         RGBColor(129, 114, 179),
+        RGBColor(147, 120, 96),
+        RGBColor(218, 139, 195),
     ];
     chart
         .draw_series(bars.iter().enumerate().map(|(i, b)| {
