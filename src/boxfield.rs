@@ -29,19 +29,25 @@ impl Boxfield {
     /// Builds the benchmark's scene, camera and `queries` query boxes.
     pub fn new(queries: usize) -> Self {
         let scene = boxfield(&BoxfieldParams::default()).expect("the default boxfield is valid");
-        let key = CameraKey {
-            eye: [0.0, 1.7, 0.0],
-            target: [0.0, 1.7, 1.0],
-            up: [0.0, 1.0, 0.0],
-            fovy_deg: 60.0,
-            near: 0.1,
-            far: 400.0,
-        };
         let aspect = SIZE.0 as f32 / SIZE.1 as f32;
-        let camera = key.camera(aspect).expect("the benchmark camera is valid");
+        let camera = camera(aspect, 400.0);
         let queries = boxfield_queries(queries, 60f32.to_radians(), aspect, 7);
         Self { scene, camera, queries }
     }
+}
+
+/// The benchmark's camera for an `aspect` ratio and far plane: eye (0, 1.7, 0) looking along
+/// +z, fovy 60°, near 0.1.
+pub fn camera(aspect: f32, far: f32) -> Camera {
+    let key = CameraKey {
+        eye: [0.0, 1.7, 0.0],
+        target: [0.0, 1.7, 1.0],
+        up: [0.0, 1.0, 0.0],
+        fovy_deg: 60.0,
+        near: 0.1,
+        far,
+    };
+    key.camera(aspect).expect("the benchmark camera is valid for any positive aspect and far > 0.1")
 }
 
 /// Counts of one run of the queries.

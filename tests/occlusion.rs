@@ -133,16 +133,7 @@ fn boxfield_queries_are_exact() {
     use sightline::boxfield::{check_occluded, count, run_queries, Boxfield};
     use sightline::scene::builders::{boxfield, boxfield_queries, BoxfieldParams};
     let scene = boxfield(&BoxfieldParams { boxes: 8000, half_size: 40.0, seed: 3, ..Default::default() }).unwrap();
-    let camera = CameraKey {
-        eye: [0.0, 1.7, 0.0],
-        target: [0.0, 1.7, 1.0],
-        up: [0.0, 1.0, 0.0],
-        fovy_deg: 60.0,
-        near: 0.1,
-        far: 200.0,
-    }
-    .camera(16.0 / 9.0)
-    .unwrap();
+    let camera = sightline::boxfield::camera(16.0 / 9.0, 200.0);
     let queries = boxfield_queries(6000, 60f32.to_radians(), 16.0 / 9.0, 9);
     let bf = Boxfield { scene, camera, queries };
     let mut culler = Culler::new(&bf.scene);
@@ -202,16 +193,7 @@ fn many_and_batch_answer_like_test() {
 #[test]
 fn skipping_hidden_occluders_changes_nothing() {
     use sightline::scene::builders::{boxfield, boxfield_queries, BoxfieldLayout, BoxfieldParams};
-    let camera = CameraKey {
-        eye: [0.0, 1.7, 0.0],
-        target: [0.0, 1.7, 1.0],
-        up: [0.0, 1.0, 0.0],
-        fovy_deg: 60.0,
-        near: 0.1,
-        far: 200.0,
-    }
-    .camera(16.0 / 9.0)
-    .unwrap();
+    let camera = sightline::boxfield::camera(16.0 / 9.0, 200.0);
     let queries = boxfield_queries(3000, 60f32.to_radians(), 16.0 / 9.0, 5);
     for layout in [BoxfieldLayout::Instanced, BoxfieldLayout::OneMesh] {
         let scene = boxfield(&BoxfieldParams { boxes: 6000, half_size: 40.0, seed: 9, layout }).unwrap();
