@@ -190,8 +190,10 @@ fn aerial(bounds: &Aabb, height: f32, frames: usize) -> Vec<CameraKey> {
     })
 }
 
-/// Paths for a scene that is not a built-in city, from its bounds: `street` crosses the box
-/// at 5% of its height looking horizontally; `aerial` circles above it.
+/// Paths for a scene that is not a built-in city, from its bounds: `street` comes in from
+/// half the box's diagonal in front of it and crosses it at 5% of its height looking
+/// horizontally (so the first frames see the whole scene, even a flat one); `aerial` circles
+/// above it.
 pub fn generic_path(bounds: &Aabb, street: bool, frames: usize) -> Result<Vec<CameraKey>> {
     if !bounds.is_finite() {
         return Err(Error::InvalidParams("cannot make a camera path for an empty scene".into()));
@@ -202,7 +204,8 @@ pub fn generic_path(bounds: &Aabb, street: bool, frames: usize) -> Result<Vec<Ca
     }
     let y = bounds.min.y + e.y * 0.05;
     let c = bounds.center();
-    let line = Polyline(vec![Vec3::new(c.x, y, bounds.min.z - e.z * 0.1), Vec3::new(c.x, y, bounds.max.z)]);
+    let start = bounds.min.z - (e.z * 0.1).max(e.length() * 0.5);
+    let line = Polyline(vec![Vec3::new(c.x, y, start), Vec3::new(c.x, y, bounds.max.z)]);
     let far = e.length() * 2.0;
     Ok(sample(&line, frames, e.z * 0.1, |eye, target| CameraKey {
         eye: eye.into(),
@@ -218,6 +221,16 @@ pub fn generic_path(bounds: &Aabb, street: bool, frames: usize) -> Result<Vec<Ca
 mod tests {
     use super::*;
     use crate::builders::{city, CityParams};
+
+    /// A scene's generic street walk starts outside it and sees it, even a flat one.
+    #[test]
+    fn generic_street_walk_starts_in_front_of_the_scene() {
+        let flat = Aabb::new(Vec3::new(-1.0, 0.0, 0.0), Vec3::new(1.0, 2.0, 0.0));
+        let keys = generic_path(&flat, true, 10).unwrap();
+        let first = Vec3::from(keys[0].eye);
+        assert!(first.z < -1.0, "{first}");
+        assert!(Vec3::from(keys[0].target).z > first.z, "looks towards the scene");
+    }
 
     #[test]
     fn street_walk_stays_on_streets_and_looks_horizontally() {
