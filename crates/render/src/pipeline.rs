@@ -155,6 +155,7 @@ impl Renderer {
         let mut resolved: Vec<Item> = Vec::with_capacity(items.len());
         self.ranges.clear();
         let mut last: Option<(u32, glam::Mat4)> = None;
+        let clip_from_world = camera.clip_from_world_f64();
         for (k, d) in items.iter().enumerate() {
             let inst = instances.get(d.instance as usize).ok_or_else(|| {
                 Error::InvalidDraw(format!("item {k} names instance {} of {}", d.instance, instances.len()))
@@ -172,7 +173,7 @@ impl Renderer {
             // Consecutive clusters of one instance share the matrix.
             let m = match last {
                 Some((i, m)) if i == d.instance => m,
-                _ => camera.clip_from_local(&inst.world_from_local),
+                _ => Camera::clip_from_local_with(&clip_from_world, &inst.world_from_local),
             };
             last = Some((d.instance, m));
             resolved.push(Item {
@@ -207,6 +208,7 @@ impl Renderer {
         let mut resolved: Vec<Item> = Vec::with_capacity(sources.len());
         self.ranges.clear();
         let mut last: Option<(glam::Affine3A, glam::Mat4)> = None;
+        let clip_from_world = camera.clip_from_world_f64();
         for (k, d) in sources.iter().enumerate() {
             let n = (d.indices.len() / 3) as u64;
             let bad = |why: String| Err(Error::InvalidDraw(format!("source {k}: {why}")));
@@ -223,7 +225,7 @@ impl Renderer {
             // Consecutive clusters of one instance share the matrix.
             let m = match last {
                 Some((w, m)) if crate::cull::same_matrix(&w, &d.world_from_local) => m,
-                _ => camera.clip_from_local(&d.world_from_local),
+                _ => Camera::clip_from_local_with(&clip_from_world, &d.world_from_local),
             };
             last = Some((d.world_from_local, m));
             resolved.push(Item {

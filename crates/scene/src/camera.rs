@@ -120,7 +120,13 @@ impl Camera {
 
     /// `clip_from_local` for an instance: `P · V · M`, formed in f64.
     pub fn clip_from_local(&self, world_from_local: &Affine3A) -> Mat4 {
-        (self.clip_from_world_f64() * Mat4::from(*world_from_local).as_dmat4()).as_mat4()
+        Self::clip_from_local_with(&self.clip_from_world_f64(), world_from_local)
+    }
+
+    /// [`Camera::clip_from_local`] from a `clip_from_world_f64` computed once for many
+    /// instances (the same result bit for bit).
+    pub fn clip_from_local_with(clip_from_world: &DMat4, world_from_local: &Affine3A) -> Mat4 {
+        (*clip_from_world * Mat4::from(*world_from_local).as_dmat4()).as_mat4()
     }
 
     /// The world-space ray through a point given in NDC (x, y in [−1, 1], y up): origin on the
