@@ -46,6 +46,18 @@ impl DepthFormat {
         }
     }
 
+    /// How much farther than a stored depth a fragment may be and still get the same key
+    /// (and so tie with it, and win with a smaller triangle ID): one step of an integer
+    /// format (rounding moves half a step either way), 0 for f32. Coarse depth tests skip
+    /// only what lies farther than a stored maximum plus this margin.
+    #[inline]
+    pub fn tie_margin(self) -> f32 {
+        match self.max_value() {
+            None => 0.0,
+            Some(m) => 1.0 / m as f32,
+        }
+    }
+
     /// The key of a depth already in the framebuffer (NaN or > 1 count as the far plane).
     #[inline]
     pub fn key_of_stored(self, d: f32) -> u32 {

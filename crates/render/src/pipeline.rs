@@ -70,8 +70,9 @@ impl Renderer {
         Self::default()
     }
 
-    /// Clears `fb`, draws `items` (instances from `instances`), shades, resolves
-    /// antialiasing and draws the wireframe, as `opts` says.
+    /// Renders a frame into `fb`: draws `items` (instances from `instances`), shades,
+    /// resolves antialiasing and draws the wireframe, as `opts` says. Every plane is
+    /// written, so `fb` needs no clear; after an error its contents are unspecified.
     pub fn render(
         &mut self,
         scene: &Scene,
@@ -82,6 +83,9 @@ impl Renderer {
         opts: &RenderOptions,
     ) -> Result<FrameStats> {
         let t0 = Instant::now();
+        // A whole new frame: a frame session left open (its frame never written out) ends
+        // here unwritten, instead of swallowing this frame's draws.
+        self.session = None;
         let s = opts.antialias.factor();
         let mut stats = if s == 1 {
             self.fill_frame(scene, instances, items, camera, fb, opts)?
@@ -245,11 +249,11 @@ impl Renderer {
         Ok(st)
     }
 
-    /// Starts a frame session on `fb` (which the caller has just cleared): until
-    /// [`Renderer::end_session`], the tiles hold the frame, draws neither load nor store
-    /// pixels, and each tile keeps its z-pyramid levels up to date, read through
-    /// [`Renderer::session_pyramid`]. This is what makes many small draw batches cheap for
-    /// the occlusion culler.
+    /// Starts a frame session on `fb` (no clear needed): until [`Renderer::end_session`],
+    /// the tiles hold the frame, draws neither load nor store pixels, and each tile keeps its
+    /// z-pyramid levels up to date, read through [`Renderer::session_pyramid`]. This is what
+    /// makes many small draw batches cheap for the occlusion culler. A session left open is
+    /// dropped, unwritten, by the next [`Renderer::render`] or `begin_session`.
     pub fn begin_session(&mut self, fb: &Framebuffer, format: DepthFormat) {
         let grid = Grid::new(fb.width(), fb.height());
         self.prepare_tiles(grid);
@@ -286,6 +290,7 @@ impl Renderer {
     /// Marks the target of the next draw as to be overwritten whole: tiles start from the
     /// clear values instead of loading, and the store writes every pixel. Reset by the draw.
     pub(crate) fn start_fresh(&mut self) {
+        self.session = None; // as in `render`: a new frame abandons an open session
         self.fresh = true;
     }
 
@@ -356,7 +361,12 @@ impl Renderer {
         if session.is_some() {
             update_upper_levels(&self.tiles, &mut self.upper);
         } else {
-            st.covered_pixels = store_tiles(&self.tiles, &grid, fb, fmt, fresh);
+            let covered = store_tiles(&self.tiles, &grid, fb, fmt, fresh);
+            // Only a fresh draw wrote every pixel; after a plain batch the count would include
+            // earlier batches' pixels.
+            if fresh {
+                st.covered_pixels = covered;
+            }
         }
         st.ms_raster = ms_since(t);
 
@@ -455,7 +465,7 @@ fn raster_tile<const F: u8, const C: bool>(
     if session {
         // The tile holds the frame: clear it on first use, never load or store here.
         if !tile.touched {
-            tile.clear_for_session(fmt.key(1.0), C);
+            tile.clear_for_session(fmt, C);
         }
         raster_bins::<F, C, true>(tile, index, chunks, &mut st);
         tile.update_mips(fmt);
@@ -517,9 +527,6 @@ fn raster_bins<const F: u8, const C: bool, const COARSE: bool>(
     }
 }
 
-/// Writes tiles to `fb`: the dirty ones from their buffers and, with `all`, every other
-/// tile as cleared (depth 1, ID 0, no depth tests), so that `fb` needs no clear first.
-/// Returns the covered pixels (ID ≠ 0) of the tiles written.
 /// Marks the blocks of the triangle's bounding box inside the tile as stale in its pyramid.
 #[inline]
 fn mark_written(tile: &mut TileBuf, t: &crate::setup::Tri) {
@@ -530,6 +537,9 @@ fn mark_written(tile: &mut TileBuf, t: &crate::setup::Tri) {
     tile.mark_written([x0, y0, x1, y1]);
 }
 
+/// Writes tiles to `fb`: the dirty ones from their buffers and, with `all`, every other
+/// tile as cleared (depth 1, ID 0, no depth tests), so that `fb` needs no clear first.
+/// Returns the covered pixels (ID ≠ 0) of the tiles written.
 fn store_tiles(tiles: &[TileBuf], grid: &Grid, fb: &mut Framebuffer, fmt: DepthFormat, all: bool) -> u64 {
     let width = fb.width() as usize;
     let tx = grid.tiles_x as usize;

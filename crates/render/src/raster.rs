@@ -65,6 +65,9 @@ pub struct TileBuf {
     /// In a frame session: the 8×8-pixel blocks (bit `8·by + bx`) written since the pyramid
     /// levels were last brought up to date.
     pub stale_blocks: u64,
+    /// In a frame session: the depth format's [`crate::DepthFormat::tie_margin`], added to
+    /// pyramid texels before a coarse test says "hidden".
+    pub tie_margin: f32,
 }
 
 /// Offsets of levels 1..=6 in [`TileBuf::mips`] (index = level − 1), and the total length.
@@ -73,7 +76,7 @@ pub const MIP_OFFSETS: [usize; 7] = [0, 1024, 1280, 1344, 1360, 1364, 1365];
 impl TileBuf {
     /// An empty tile at pixel (x0, y0) of size w × h.
     pub fn new(x0: u32, y0: u32, w: u32, h: u32) -> Self {
-        // +4: the small-triangle path works in groups of four pixels (see raster_small).
+        // Padding: the block kernel's eight lanes may run 7 entries past the last row.
         let n = (TILE * TILE) as usize + PAD;
         Self {
             x0,
@@ -88,12 +91,16 @@ impl TileBuf {
             coarse: false,
             mips: vec![1.0; MIP_OFFSETS[6]],
             stale_blocks: 0,
+            tie_margin: 0.0,
         }
     }
 
-    /// Clears the tile for a frame session: depth keys of `clear` inside the screen and 0
-    /// (nearest) outside it, so that the pyramid's max ignores pixels that do not exist.
-    pub fn clear_for_session(&mut self, clear: u32, counting: bool) {
+    /// Clears the tile for a frame session in depth format `fmt`: the far plane's key inside
+    /// the screen and 0 (nearest) outside it, so that the pyramid's max ignores pixels that
+    /// do not exist; IDs to 0, depth-test counts too when `counting`.
+    pub fn clear_for_session(&mut self, fmt: crate::DepthFormat, counting: bool) {
+        let clear = fmt.key(1.0);
+        self.tie_margin = fmt.tie_margin();
         let (w, h) = (self.w as usize, self.h as usize);
         for r in 0..TILE as usize {
             let row = &mut self.depth[r << TILE_SHIFT..(r + 1) << TILE_SHIFT];
@@ -170,7 +177,7 @@ impl TileBuf {
         let off = MIP_OFFSETS[level - 1];
         for y in (y0 >> level) as usize..=(y1 >> level) as usize {
             for x in (x0 >> level) as usize..=(x1 >> level) as usize {
-                if near <= self.mips[off + y * s + x] {
+                if near <= self.mips[off + y * s + x] + self.tie_margin {
                     return false;
                 }
             }
@@ -555,7 +562,7 @@ fn block_hidden(t: &Tri, tile: &TileBuf, [x0, y0, x1, y1]: [i32; 4], [bx, by]: [
     if max >= 1.0 {
         return false; // something is still clear here
     }
-    plane_min(t, [x0, y0, x1, y1]) > max
+    plane_min(t, [x0, y0, x1, y1]) > max + tile.tie_margin
 }
 
 /// A lower bound of the triangle's depth plane over the pixel centers of the screen
@@ -694,12 +701,21 @@ fn block<const FMT: u8, const COUNT: bool>(
     use std::arch::x86_64::*;
     let (tx, ty) = (tile.x0 as i32, tile.y0 as i32);
     let mut base = (((ry0 - ty) as usize) << TILE_SHIFT) + (rx0 - tx) as usize;
-    // Eight lanes from `base` stay inside the buffer: a block row starts at most 7 pixels
-    // before its tile row's end... plus the tile's padding after its last row.
-    debug_assert!(base + ((ry1 - ry0) as usize) * TILE as usize + 8 <= tile.depth.len());
+    // Eight lanes from a row's first pixel overrun the row by at most 7 entries, into the
+    // next row or the padding after the last one. Checked for real: tiles can be built by
+    // hand through the public API, and the loads and stores below are unchecked.
+    let end = base + ((ry1 - ry0) as usize) * TILE as usize + 8;
+    assert!(
+        rx0 >= tx
+            && ry0 >= ty
+            && end <= tile.depth.len()
+            && end <= tile.ids.len()
+            && (!COUNT || end <= tile.counts.len()),
+        "block outside the tile buffers"
+    );
     // SAFETY: AVX2 is enabled for the whole build (cfg above); every load and store covers
-    // eight u32 at `base` within the row-major tile buffers (checked above: lanes past the
-    // block rewrite the values they read, masked by `cols`).
+    // eight u32 at `base` for rows ry0..=ry1, all inside the buffers (asserted above); lanes
+    // past the block rewrite the values they read (masked by `cols`).
     unsafe {
         let lanes = _mm256_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7);
         let cols = _mm256_cmpgt_epi32(_mm256_set1_epi32(rx1 - rx0 + 1), lanes);
@@ -934,6 +950,17 @@ mod tests {
             assert_eq!(a.counts, b.counts);
             assert!(a.ids.iter().filter(|&&i| i != 0).count() > 3000, "the tile got drawn");
         }
+    }
+
+    /// A tile built by hand larger than the buffers allow is refused with a panic, never
+    /// written out of bounds.
+    #[test]
+    #[should_panic]
+    fn oversized_hand_built_tile_panics() {
+        let vp = Viewport::new(200, 200, true);
+        let t = tri([(0.5, 0.5), (199.5, 0.5), (0.5, 199.5)], 1, &vp).unwrap();
+        let mut tile = TileBuf::new(0, 0, 200, 200);
+        raster_tri::<0, false>(&t, &mut tile);
     }
 
     #[test]

@@ -23,7 +23,8 @@ pub struct FrameStats {
     pub backface_culled: u64,
     /// Zero area (after snapping).
     pub degenerate: u64,
-    /// Covered no pixel center.
+    /// Covered no pixel center, or was rejected whole by coarse depth (per tile at binning
+    /// or in every 8×8 block it touches).
     pub too_small: u64,
     /// Covered at least one pixel center.
     pub rasterized: u64,

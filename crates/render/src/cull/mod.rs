@@ -205,8 +205,9 @@ impl Culler {
             + self.octree.as_ref().map_or(0, LooseOctree::memory_bytes)
     }
 
-    /// Renders one frame with `method` into `fb` (cleared first; shaded as `opts` says;
-    /// antialiasing and wireframe are the plain renderer's business and ignored here).
+    /// Renders one frame with `method` into `fb` (every plane written, so no clear needed;
+    /// after an error its contents are unspecified), shaded as `opts` says; antialiasing
+    /// and wireframe are the plain renderer's business and ignored here.
     pub fn render(
         &mut self,
         scene: &Scene,
@@ -505,9 +506,8 @@ impl Culler {
             self.drawn_in[v.index as usize] = 0;
         }
         if opts.backface_culling {
-            let before = first.len();
+            // Not counted here: the walk meets them again and counts them once.
             first.retain(|&i| !self.cones[i as usize].backfacing(eye));
-            cs.culled_by_backface += (before - first.len()) as u64;
         }
         for &i in &first {
             self.drawn_in[i as usize] = frame;
@@ -536,7 +536,9 @@ impl Culler {
                 .copied()
                 .filter(|&i| {
                     cs.occlusion_tests += 1;
-                    possibly_visible(&pyramid, &projector.project(&boxes[i as usize]))
+                    let vis = possibly_visible(&pyramid, &projector.project(&boxes[i as usize]));
+                    cs.occluded_boxes += !vis as u64;
+                    vis
                 })
                 .collect();
             self.last_visible.extend(still);
@@ -562,7 +564,12 @@ impl Culler {
         let (w, h) = (fb.width(), fb.height());
         let projector = BoxProjector::new(camera.clip_from_world(), w, h);
         self.renderer.begin_session(fb, opts.depth_format);
-        let Some(octree) = self.octree.take() else { return Ok(()) };
+        let Some(octree) = self.octree.take() else {
+            // Only while a walk holds the octree, which cannot call back in here; still,
+            // leave a written (empty) frame rather than an open session.
+            fs.covered_pixels = self.renderer.end_session(fb);
+            return Ok(());
+        };
         // The walk's two callbacks both need the framebuffer (one reads depth, the other
         // draws): they never run at the same time, so a RefCell shares it.
         let batch = self.first_batch.max(1);

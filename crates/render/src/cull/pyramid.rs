@@ -196,12 +196,7 @@ impl<'a> TilePyramid<'a> {
         upper: &'a [(u32, u32, Vec<f32>)],
         fmt: crate::DepthFormat,
     ) -> Self {
-        let margin = match fmt {
-            crate::DepthFormat::F32 => 0.0,
-            crate::DepthFormat::Unorm16 => 1.0 / 65535.0,
-            crate::DepthFormat::Unorm24 => 1.0 / 16_777_215.0,
-        };
-        Self { tiles, tiles_x, width, height, upper, margin }
+        Self { tiles, tiles_x, width, height, upper, margin: fmt.tie_margin() }
     }
 
     /// Screen width.
