@@ -71,6 +71,9 @@ fn culled_city_from_one_obj_mesh_equals_brute_force() {
     // Clusters carry the culling when there is no instance structure.
     assert!(drawn[2] * 4 < drawn[1], "hzb drew {} triangles, frustum {}", drawn[2], drawn[1]);
     check(&flat, &c.layout.aerial_path(4), "obj aerial");
+    let mut u16_opts = RenderOptions::ids_only();
+    u16_opts.depth_format = sightline::render::DepthFormat::Unorm16;
+    check_with(&flat, &street[..6], "obj street, 16-bit depth", &u16_opts);
     std::fs::remove_dir_all(&dir).ok();
 }
 
@@ -96,6 +99,9 @@ fn culled_gltf_scene_equals_brute_force() {
     // Its triangles are one-sided: look at both sides, shaded, to cover that path too.
     let opts = RenderOptions { backface_culling: false, ..Default::default() };
     check_with(&scene, &keys, "gltf", &opts);
+    for depth_format in [sightline::render::DepthFormat::Unorm16, sightline::render::DepthFormat::Unorm24] {
+        check_with(&scene, &keys, &format!("gltf, {depth_format:?}"), &RenderOptions { depth_format, ..opts });
+    }
 }
 
 /// Frames overwrite every plane, so nothing of the previous contents of the target (here
