@@ -11,6 +11,7 @@
 //! instruction set returns the same bits.
 
 use super::packet::CHUNK;
+use super::{mn, mx};
 
 /// 1 + 2⁻²⁰: above 1 + 2γ₃ (Ize 2013) and the triangle tie window.
 pub(crate) const ROBUST: f32 = 1.0 + 1.0 / (1u32 << 20) as f32;
@@ -34,24 +35,6 @@ pub(crate) trait Isa: Copy {
     /// # Safety
     /// The CPU must support the instruction set (checked once by `SimdLevel::resolve`).
     unsafe fn slab16(s: &Slab<'_>, lo: &[f32; 3], hi: &[f32; 3]) -> u64;
-}
-
-#[inline(always)]
-fn mn(a: f32, b: f32) -> f32 {
-    if a < b {
-        a
-    } else {
-        b
-    }
-}
-
-#[inline(always)]
-fn mx(a: f32, b: f32) -> f32 {
-    if a > b {
-        a
-    } else {
-        b
-    }
 }
 
 /// Scalar code (LLVM may vectorize the arithmetic; the mask is built bit by bit).

@@ -399,3 +399,24 @@ impl<'s> RayCaster<'s> {
         best
     }
 }
+
+/// `min` as one compare-and-select (`minss` order: `b` when the compare fails, NaN included),
+/// shared by the scalar slab and triangle tests so they round and order like the SIMD ones.
+#[inline(always)]
+fn mn(a: f32, b: f32) -> f32 {
+    if a < b {
+        a
+    } else {
+        b
+    }
+}
+
+/// `max` as one compare-and-select (see [`mn`]).
+#[inline(always)]
+fn mx(a: f32, b: f32) -> f32 {
+    if a > b {
+        a
+    } else {
+        b
+    }
+}

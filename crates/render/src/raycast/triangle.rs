@@ -23,6 +23,7 @@
 use glam::Vec3A;
 
 use super::packet::{Hits, Rays, CHUNK, NO_GID};
+use super::{mn, mx};
 
 /// The cross product written out, so that `cross(a, b)` and `cross(b, a)` are exact
 /// negations of each other.
@@ -34,24 +35,6 @@ fn cross(a: [f32; 3], b: [f32; 3]) -> [f32; 3] {
 #[inline(always)]
 fn sub(a: Vec3A, o: Vec3A) -> [f32; 3] {
     (a - o).to_array()
-}
-
-#[inline(always)]
-fn mn(a: f32, b: f32) -> f32 {
-    if a < b {
-        a
-    } else {
-        b
-    }
-}
-
-#[inline(always)]
-fn mx(a: f32, b: f32) -> f32 {
-    if a > b {
-        a
-    } else {
-        b
-    }
 }
 
 /// A triangle prepared for rays from one shared origin.
