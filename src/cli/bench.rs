@@ -12,13 +12,7 @@ use super::walk::{self, WalkArgs, WalkMethod};
 #[derive(Debug, clap::Args)]
 pub struct BenchArgs {
     #[command(flatten)]
-    pub scene: super::SceneArg,
-    /// Camera path JSON (default: the scene's street path)
-    #[arg(long, value_name = "FILE")]
-    pub path: Option<PathBuf>,
-    /// Frames to render (default: the whole path)
-    #[arg(long)]
-    pub frames: Option<usize>,
+    pub walk: super::PathArgs,
     /// Output directory for bench.md, bench.json, frames.csv and the charts
     #[arg(long, value_name = "DIR", default_value = "bench-out")]
     pub out: PathBuf,
@@ -34,9 +28,7 @@ pub fn run(a: &BenchArgs) -> Result<()> {
     std::fs::create_dir_all(&a.out).with_context(|| format!("creating {}", a.out.display()))?;
     let json = a.out.join("bench.json");
     let w = WalkArgs {
-        scene: a.scene.clone(),
-        path: a.path.clone(),
-        frames: a.frames,
+        walk: a.walk.clone(),
         method: WalkMethod::All,
         verify: true,
         size: a.size,
@@ -45,7 +37,7 @@ pub fn run(a: &BenchArgs) -> Result<()> {
         out: Some(a.out.clone()),
         png_every: 0,
         json: Some(json.clone()),
-        first_batch: 8,
+        first_batch: sightline::render::Culler::DEFAULT_FIRST_BATCH,
         look: super::common::Look {
             shading: super::common::ShadingArg::Flat,
             aa: super::common::AaArg::Off,

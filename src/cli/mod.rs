@@ -31,6 +31,19 @@ pub struct SceneArg {
     pub scene: SceneSpec,
 }
 
+/// A scene and the camera path through it, shared by `walk` and `bench`.
+#[derive(Debug, Clone, clap::Args)]
+pub struct PathArgs {
+    #[command(flatten)]
+    pub scene: SceneArg,
+    /// Camera path JSON (default: the scene's street path)
+    #[arg(long, value_name = "FILE")]
+    pub path: Option<std::path::PathBuf>,
+    /// Frames to render (default: the whole path; 120 for the built-in path)
+    #[arg(long)]
+    pub frames: Option<usize>,
+}
+
 #[derive(Debug, Subcommand)]
 enum Command {
     /// Print scene statistics

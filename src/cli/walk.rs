@@ -35,13 +35,7 @@ pub enum WalkMethod {
 #[derive(Debug, clap::Args)]
 pub struct WalkArgs {
     #[command(flatten)]
-    pub scene: super::SceneArg,
-    /// Camera path JSON (default: the scene's street path)
-    #[arg(long, value_name = "FILE")]
-    pub path: Option<PathBuf>,
-    /// Frames to render (default: the whole path; 120 for the built-in path)
-    #[arg(long)]
-    pub frames: Option<usize>,
+    pub walk: super::PathArgs,
     /// Visibility method
     #[arg(long, value_enum, default_value = "hzb")]
     pub method: WalkMethod,
@@ -67,7 +61,7 @@ pub struct WalkArgs {
     #[arg(long, value_name = "FILE")]
     pub json: Option<PathBuf>,
     /// Occlusion culling: clusters in the first front-to-back batch (later batches double)
-    #[arg(long, default_value_t = 8)]
+    #[arg(long, default_value_t = Culler::DEFAULT_FIRST_BATCH)]
     pub first_batch: usize,
     #[command(flatten)]
     pub look: Look,
@@ -123,8 +117,8 @@ fn methods(m: WalkMethod) -> Vec<(&'static str, Option<Method>)> {
 }
 
 pub fn run(a: &WalkArgs) -> Result<()> {
-    let loaded = super::load_scene(&a.scene.scene)?;
-    let keys = common::path_keys(&loaded, a.path.as_deref(), a.frames)?;
+    let loaded = super::load_scene(&a.walk.scene.scene)?;
+    let keys = common::path_keys(&loaded, a.walk.path.as_deref(), a.walk.frames)?;
     let opts = a.look.options(a.backface_culling);
     let records = common::with_threads(a.threads, || walk(&loaded, &keys, a, &opts))??;
     let summaries = summarize(&records, a);
@@ -133,7 +127,7 @@ pub fn run(a: &WalkArgs) -> Result<()> {
         write_frames(dir, &records)?;
     }
     if let Some(p) = &a.json {
-        let v = serde_json::json!({ "scene": format!("{:?}", a.scene.scene), "size": [a.size.width, a.size.height], "methods": summaries });
+        let v = serde_json::json!({ "scene": format!("{:?}", a.walk.scene.scene), "size": [a.size.width, a.size.height], "methods": summaries });
         std::fs::write(p, serde_json::to_string_pretty(&v)?).with_context(|| format!("writing {}", p.display()))?;
     }
     let bad: usize = summaries.iter().map(|s| s.mismatched_frames).sum();

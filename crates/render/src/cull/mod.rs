@@ -150,6 +150,10 @@ pub struct Culler {
 const OCTREE_DEPTH: u32 = 6;
 
 impl Culler {
+    /// The default [`Culler::first_batch`]: the nearest few clusters go in first, so that
+    /// the pyramid has occluders before the bulk of the walk is tested.
+    pub const DEFAULT_FIRST_BATCH: usize = 8;
+
     /// Builds clusters, meshlets, BVH and octree for the scene's instances (world transforms
     /// must be up to date).
     pub fn new(scene: &Scene) -> Self {
@@ -181,7 +185,7 @@ impl Culler {
             last_visible: Vec::new(),
             drawn_in: Vec::new(),
             frame: 0,
-            first_batch: 8,
+            first_batch: Self::DEFAULT_FIRST_BATCH,
             max_batch: 2048,
         }
     }
