@@ -43,7 +43,7 @@ use std::time::Instant;
 use glam::Affine3A;
 use serde::Serialize;
 use sightline_scene::{Aabb, Camera, Instance, Scene};
-use sightline_spatial::{BoxProjector, ClusteredScene, CullOptions, Frustum, LooseOctree, ScreenRect, Visible, Visit};
+use sightline_spatial::{BoxProjector, ClusteredScene, CullOptions, Frustum, LooseOctree, Visible, Visit};
 
 pub use meshlets::{Meshlets, SceneMeshlets};
 pub use order::DrawOrder;
@@ -313,15 +313,10 @@ impl Culler {
             out.clear();
             let more = {
                 let pyramid = self.renderer.session_pyramid().filter(|_| skip_hidden);
+                let q = pyramid.map(|p| OcclusionQueries::with_projector(projector, p));
                 cursor.next_batch(
                     self.clustered.bvh(),
-                    |b| {
-                        let Some(p) = &pyramid else { return true };
-                        cs.occlusion_tests += 1;
-                        let vis = possibly_visible(p, &projector.project(b));
-                        cs.occluded_boxes += !vis as u64;
-                        vis
-                    },
+                    |b| q.as_ref().is_none_or(|q| q.counted_visible(b, &mut cs)),
                     batch,
                     &mut out,
                 )
@@ -436,17 +431,8 @@ impl Culler {
             out.clear();
             let more = {
                 let Some(pyramid) = self.renderer.session_pyramid() else { break Ok(()) };
-                cursor.next_batch(
-                    self.clustered.bvh(),
-                    |b| {
-                        cs.occlusion_tests += 1;
-                        let vis = possibly_visible(&pyramid, &projector.project(b));
-                        cs.occluded_boxes += !vis as u64;
-                        vis
-                    },
-                    batch,
-                    &mut out,
-                )
+                let q = OcclusionQueries::with_projector(projector, pyramid);
+                cursor.next_batch(self.clustered.bvh(), |b| q.counted_visible(b, cs), batch, &mut out)
             };
             if let Some(frame) = skip {
                 out.retain(|v| self.drawn_in[v.index as usize] != frame);
@@ -533,18 +519,10 @@ impl Culler {
         // the set (their pixels went to nearer clusters).
         let t = Instant::now();
         if let Some(pyramid) = self.renderer.session_pyramid() {
-            let projector = BoxProjector::new(camera.clip_from_world(), fb.width(), fb.height());
+            let q = OcclusionQueries::new(camera, pyramid);
             let boxes = &self.item_boxes;
-            let still: Vec<u32> = first
-                .iter()
-                .copied()
-                .filter(|&i| {
-                    cs.occlusion_tests += 1;
-                    let vis = possibly_visible(&pyramid, &projector.project(&boxes[i as usize]));
-                    cs.occluded_boxes += !vis as u64;
-                    vis
-                })
-                .collect();
+            let still: Vec<u32> =
+                first.iter().copied().filter(|&i| q.counted_visible(&boxes[i as usize], cs)).collect();
             self.last_visible.extend(still);
         }
         cs.ms_cull += ms_since(t);
@@ -585,12 +563,10 @@ impl Culler {
             |b| {
                 let mut g = walk.borrow_mut();
                 let w = &mut *g;
-                w.cs.occlusion_tests += 1;
                 let vis = match w.culler.renderer.session_pyramid() {
-                    Some(p) => possibly_visible(&p, &projector.project(b)),
+                    Some(p) => OcclusionQueries::with_projector(projector, p).counted_visible(b, w.cs),
                     None => true,
                 };
-                w.cs.occluded_boxes += !vis as u64;
                 if vis {
                     Visit::Continue
                 } else {
@@ -652,22 +628,6 @@ impl OctreeWalk<'_> {
         self.pending = items;
         self.pending.clear();
     }
-}
-
-/// The pyramid test of one projected box: false only when it is certainly occluded.
-#[inline]
-fn possibly_visible(pyramid: &TilePyramid, r: &ScreenRect) -> bool {
-    if r.crosses_near {
-        return true;
-    }
-    match to_rect(r) {
-        None => false, // off screen: nothing to draw
-        Some(rect) => !pyramid.is_occluded(rect, r.depth),
-    }
-}
-
-pub(crate) fn to_rect(r: &ScreenRect) -> Option<Rect> {
-    (!r.is_empty()).then(|| Rect { x0: r.x0, y0: r.y0, x1: r.x1 - 1, y1: r.y1 - 1 })
 }
 
 /// `world_from_local` equality used to reuse a clip matrix between consecutive sources.

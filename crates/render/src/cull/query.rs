@@ -44,7 +44,22 @@ pub struct OcclusionQueries<'a> {
 impl<'a> OcclusionQueries<'a> {
     /// Queries for `camera` against `pyramid`.
     pub fn new(camera: &Camera, pyramid: TilePyramid<'a>) -> Self {
-        Self { projector: BoxProjector::new(camera.clip_from_world(), pyramid.width(), pyramid.height()), pyramid }
+        Self::with_projector(BoxProjector::new(camera.clip_from_world(), pyramid.width(), pyramid.height()), pyramid)
+    }
+
+    /// Queries with a projector made once for many pyramids (one per draw batch).
+    pub(crate) fn with_projector(projector: BoxProjector, pyramid: TilePyramid<'a>) -> Self {
+        Self { projector, pyramid }
+    }
+
+    /// One box test of a culling walk, counted in `cs`: false only when the box is certainly
+    /// hidden or off screen, i.e. nothing of it can be drawn.
+    #[inline]
+    pub(crate) fn counted_visible(&self, b: &Aabb, cs: &mut super::CullStats) -> bool {
+        cs.occlusion_tests += 1;
+        let vis = self.test(b) == BoxVisibility::Visible;
+        cs.occluded_boxes += !vis as u64;
+        vis
     }
 
     /// Tests one world-space box. Empty boxes are outside; NaN boxes are visible.
