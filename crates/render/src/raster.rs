@@ -238,8 +238,10 @@ impl TileBuf {
         }
     }
 
-    /// Recomputes [`TileBuf::mips`] from the depth keys (max of 2×2 per level).
-    pub fn compute_mips(&mut self, fmt: crate::DepthFormat) {
+    /// Recomputes [`TileBuf::mips`] from the depth keys (max of 2×2 per level): the reference
+    /// the incremental [`TileBuf::update_mips`] is tested against.
+    #[cfg(test)]
+    pub(crate) fn compute_mips(&mut self, fmt: crate::DepthFormat) {
         let t = TILE as usize;
         let (first, rest) = self.mips.split_at_mut(MIP_OFFSETS[1]);
         // Level 1 from the keys: keys order like depths, so take the max key, convert once.
