@@ -295,6 +295,23 @@ impl BoxProjector {
         BoxImage::Rect(ScreenRect { x0, y0, x1, y1, depth, crosses_near: false })
     }
 
+    /// Lanes k (x, y, z, w) of the corner registers `a` (two corners each) for which the
+    /// compare `P` against `b` holds at all eight corners: bit k of the result.
+    #[cfg(all(target_arch = "x86_64", target_feature = "avx2"))]
+    #[inline(always)]
+    fn all_corners<const P: i32>(a: [std::arch::x86_64::__m256; 4], b: [std::arch::x86_64::__m256; 4]) -> i32 {
+        use std::arch::x86_64::*;
+        // SAFETY: compiled only when the whole build enables AVX; values only, no memory.
+        unsafe {
+            let m = _mm256_and_ps(
+                _mm256_and_ps(_mm256_cmp_ps::<P>(a[0], b[0]), _mm256_cmp_ps::<P>(a[1], b[1])),
+                _mm256_and_ps(_mm256_cmp_ps::<P>(a[2], b[2]), _mm256_cmp_ps::<P>(a[3], b[3])),
+            );
+            let m = _mm256_movemask_ps(m);
+            m & (m >> 4)
+        }
+    }
+
     /// [`BoxProjector::classify_portable`] with AVX2: corners 2k and 2k + 1 share a 256-bit
     /// register as (x, y, z, w, x, y, z, w), so that forming them takes four additions, the
     /// clip tests are lane-wise compares reduced across registers, one division gives the
@@ -327,40 +344,15 @@ impl BoxProjector {
             let w67 = _mm256_permute_ps::<0xFF>(c67);
             let (n01, n23) = (_mm256_xor_ps(w01, sign), _mm256_xor_ps(w23, sign));
             let (n45, n67) = (_mm256_xor_ps(w45, sign), _mm256_xor_ps(w67, sign));
-            // Lane k (x, y, z) of `all4` holds for all eight corners when it holds in both halves.
-            let all4 = |a: __m256, b: __m256, c: __m256, d: __m256| {
-                let m = _mm256_movemask_ps(_mm256_and_ps(_mm256_and_ps(a, b), _mm256_and_ps(c, d)));
-                m & (m >> 4)
-            };
-            let beyond = all4(
-                _mm256_cmp_ps::<_CMP_GT_OQ>(c01, w01),
-                _mm256_cmp_ps::<_CMP_GT_OQ>(c23, w23),
-                _mm256_cmp_ps::<_CMP_GT_OQ>(c45, w45),
-                _mm256_cmp_ps::<_CMP_GT_OQ>(c67, w67),
-            );
-            let below = all4(
-                _mm256_cmp_ps::<_CMP_LT_OQ>(c01, n01),
-                _mm256_cmp_ps::<_CMP_LT_OQ>(c23, n23),
-                _mm256_cmp_ps::<_CMP_LT_OQ>(c45, n45),
-                _mm256_cmp_ps::<_CMP_LT_OQ>(c67, n67),
-            );
+            let (c, w, n) = ([c01, c23, c45, c67], [w01, w23, w45, w67], [n01, n23, n45, n67]);
+            let beyond = Self::all_corners::<_CMP_GT_OQ>(c, w);
+            let below = Self::all_corners::<_CMP_LT_OQ>(c, n);
             if (beyond | below) & 0b0111 != 0 {
                 return BoxImage::Outside;
             }
             // In front of the near plane: z ≥ −w (lane 2) and w > W_EPS (lane 3) at every corner.
-            let eps = _mm256_set1_ps(W_EPS);
-            let front = all4(
-                _mm256_cmp_ps::<_CMP_GE_OQ>(c01, n01),
-                _mm256_cmp_ps::<_CMP_GE_OQ>(c23, n23),
-                _mm256_cmp_ps::<_CMP_GE_OQ>(c45, n45),
-                _mm256_cmp_ps::<_CMP_GE_OQ>(c67, n67),
-            );
-            let ahead = all4(
-                _mm256_cmp_ps::<_CMP_GT_OQ>(w01, eps),
-                _mm256_cmp_ps::<_CMP_GT_OQ>(w23, eps),
-                _mm256_cmp_ps::<_CMP_GT_OQ>(w45, eps),
-                _mm256_cmp_ps::<_CMP_GT_OQ>(w67, eps),
-            );
+            let front = Self::all_corners::<_CMP_GE_OQ>(c, n);
+            let ahead = Self::all_corners::<_CMP_GT_OQ>(w, [_mm256_set1_ps(W_EPS); 4]);
             if front & 0b0100 == 0 || ahead & 0b1000 == 0 {
                 return BoxImage::CrossesNear;
             }
