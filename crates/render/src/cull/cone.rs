@@ -62,10 +62,17 @@ impl Cone {
         Cone { axis, half_angle, center, radius: (hi - lo).length() * 0.5 * (1.0 + 1e-5) + 1e-6 }
     }
 
+    /// False when the cone is wide enough (half-angle ≥ π/2) that no eye position makes it
+    /// cull, e.g. the cone of a closed box.
+    #[inline]
+    pub fn can_cull(&self) -> bool {
+        self.half_angle < std::f32::consts::FRAC_PI_2
+    }
+
     /// True when every triangle of the cluster faces away from `eye` (with margin).
     #[inline]
     pub fn backfacing(&self, eye: Vec3) -> bool {
-        if self.half_angle >= std::f32::consts::FRAC_PI_2 {
+        if !self.can_cull() {
             return false;
         }
         let v = self.center - eye;

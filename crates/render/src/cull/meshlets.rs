@@ -105,6 +105,16 @@ impl SceneMeshlets {
         &self.meshes[self.instance_slot[i as usize] as usize]
     }
 
+    /// The slot of instance `i`'s meshlets (instances of one mesh share it).
+    pub fn slot(&self, i: u32) -> u32 {
+        self.instance_slot[i as usize]
+    }
+
+    /// The meshlets in `slot` (see [`SceneMeshlets::slot`]).
+    pub fn by_slot(&self, slot: u32) -> &Meshlets {
+        &self.meshes[slot as usize]
+    }
+
     /// Bytes held.
     pub fn memory_bytes(&self) -> usize {
         self.meshes.iter().map(Meshlets::memory_bytes).sum::<usize>() + self.instance_slot.capacity() * 4

@@ -81,7 +81,7 @@ impl Culler {
         if coarse {
             self.renderer.begin_session(fb, opts.depth_format);
             for chunk in items.chunks(batch.max(1)) {
-                match self.draw_items(chunk.iter().map(|x| x.1), camera, fb, opts, &mut cs) {
+                match self.draw_items(chunk, |x| x.1, camera, fb, opts, &mut cs) {
                     Ok(st) => fs.add(&st),
                     Err(e) => {
                         self.renderer.end_session(fb);
@@ -92,7 +92,7 @@ impl Culler {
             }
             self.renderer.end_session(fb);
         } else {
-            fs = self.draw_items(items.iter().map(|x| x.1), camera, fb, opts, &mut cs)?;
+            fs = self.draw_items(&items, |x| x.1, camera, fb, opts, &mut cs)?;
             cs.batches = 1;
         }
         cs.ms_draw = ms_since(t);
