@@ -590,6 +590,9 @@ fn raster_blocks<const FMT: u8, const COUNT: bool>(
     [x0, y0, x1, y1]: [i32; 4],
 ) -> TriRaster {
     let e = edges(t);
+    if let Some(f) = FastEdges::new(&e, [x0, y0, x1, y1]) {
+        return raster_blocks_i32::<FMT, COUNT>(t, tile, [x0, y0, x1, y1], &f);
+    }
     let mut out = TriRaster::default();
     let (tx, ty) = (tile.x0 as i32, tile.y0 as i32);
     // Block corners are aligned to the tile (whose corner is a multiple of 8).
@@ -651,6 +654,104 @@ fn raster_blocks<const FMT: u8, const COUNT: bool>(
                     }
                 }
             }
+        }
+        by += BLOCK;
+    }
+    out
+}
+
+/// The edge functions of a triangle whose values fit i32 over every 8×8 block its
+/// bounding box (clipped to the tile) touches: the common case, triangles up to about a
+/// hundred pixels across.
+struct FastEdges {
+    /// Values at the first block's corner.
+    e: [i32; 3],
+    /// Steps per pixel along x and y.
+    a: [i32; 3],
+    b: [i32; 3],
+    /// Lowest and highest offset from a block corner's value over the block's 8×8 pixels.
+    lo: [i32; 3],
+    hi: [i32; 3],
+}
+
+impl FastEdges {
+    /// `None` when some value over the block-aligned box of `[x0, y0, x1, y1]` leaves i32.
+    #[inline]
+    #[allow(clippy::needless_range_loop)] // edge k of several arrays
+    fn new(e: &[Edge; 3], [x0, y0, x1, y1]: [i32; 4]) -> Option<Self> {
+        let (ax0, ay0) = ((x0 & !(BLOCK - 1)) as i64, (y0 & !(BLOCK - 1)) as i64);
+        let (w, h) = ((x1 | (BLOCK - 1)) as i64 - ax0, (y1 | (BLOCK - 1)) as i64 - ay0);
+        let mut f = FastEdges { e: [0; 3], a: [0; 3], b: [0; 3], lo: [0; 3], hi: [0; 3] };
+        let m = (BLOCK - 1) as i64;
+        for k in 0..3 {
+            // Affine: the extremes over the box are at its corners.
+            let v = e[k].a * ax0 + e[k].b * ay0 + e[k].c;
+            let lo = v + e[k].a.min(0) * w + e[k].b.min(0) * h;
+            let hi = v + e[k].a.max(0) * w + e[k].b.max(0) * h;
+            if lo < i32::MIN as i64 || hi > i32::MAX as i64 {
+                return None;
+            }
+            f.e[k] = v as i32;
+            f.a[k] = e[k].a as i32;
+            f.b[k] = e[k].b as i32;
+            f.lo[k] = (e[k].a.min(0) * m + e[k].b.min(0) * m) as i32;
+            f.hi[k] = (e[k].a.max(0) * m + e[k].b.max(0) * m) as i32;
+        }
+        Some(f)
+    }
+}
+
+/// [`raster_blocks`] for triangles whose edge values fit i32 over all their blocks: the
+/// values step from block to block by additions, and whole blocks (not their parts inside
+/// the box) decide "outside" and "inside an edge" — a block skipped or an edge dropped
+/// that way is so for its part inside the box too, so the pixels drawn are the same.
+#[allow(clippy::needless_range_loop)] // edge k of several arrays
+fn raster_blocks_i32<const FMT: u8, const COUNT: bool>(
+    t: &Tri,
+    tile: &mut TileBuf,
+    [x0, y0, x1, y1]: [i32; 4],
+    f: &FastEdges,
+) -> TriRaster {
+    let mut out = TriRaster::default();
+    let (tx, ty) = (tile.x0 as i32, tile.y0 as i32);
+    let (ax0, ay0) = (x0 & !(BLOCK - 1), y0 & !(BLOCK - 1));
+    let mut row = f.e;
+    let mut by = ay0;
+    while by <= y1 {
+        let (ry0, ry1) = (by.max(y0), (by + BLOCK - 1).min(y1));
+        let mut v = row;
+        let mut bx = ax0;
+        while bx <= x1 {
+            let (rx0, rx1) = (bx.max(x0), (bx + BLOCK - 1).min(x1));
+            let corner = [bx - tx, by - ty];
+            let at = v;
+            bx += BLOCK;
+            for k in 0..3 {
+                v[k] = v[k].wrapping_add(f.a[k].wrapping_mul(BLOCK));
+            }
+            let mut outside = false;
+            let mut k32 = BlockEdges { e: [0; 3], a: [0; 3], b: [0; 3] };
+            for k in 0..3 {
+                outside |= at[k] + f.hi[k] < 0;
+                if at[k] + f.lo[k] < 0 {
+                    // The edge crosses the block: tested per pixel, from the rectangle's
+                    // first pixel.
+                    let e = at[k] + f.a[k] * (rx0 - (corner[0] + tx)) + f.b[k] * (ry0 - (corner[1] + ty));
+                    (k32.e[k], k32.a[k], k32.b[k]) = (e, f.a[k], f.b[k]);
+                }
+            }
+            let rect = [rx0, ry0, rx1, ry1];
+            if outside || (tile.coarse && block_hidden(t, tile, rect, corner)) {
+                continue;
+            }
+            let before = out.written;
+            block::<FMT, COUNT>(t, tile, rect, &k32, &mut out);
+            if tile.coarse && out.written != before {
+                refresh_block_max::<FMT>(tile, corner);
+            }
+        }
+        for k in 0..3 {
+            row[k] = row[k].wrapping_add(f.b[k].wrapping_mul(BLOCK));
         }
         by += BLOCK;
     }
