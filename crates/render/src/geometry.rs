@@ -42,12 +42,35 @@ pub(crate) struct Piece {
     pub count: u32,
 }
 
-/// Reused per-vertex arrays.
+/// Reused per-vertex arrays (structure of arrays: eight vertices are classified and stored
+/// at once).
 #[derive(Debug, Default)]
 struct VertexCache {
-    clip: Vec<Vec4>,
     code: Vec<u8>,
-    snapped: Vec<SnappedVertex>,
+    /// Snapped window x, y (fixed point) and depth.
+    sx: Vec<i32>,
+    sy: Vec<i32>,
+    sz: Vec<f32>,
+}
+
+impl VertexCache {
+    fn resize(&mut self, n: usize) {
+        self.code.resize(n, 0);
+        self.sx.resize(n, 0);
+        self.sy.resize(n, 0);
+        self.sz.resize(n, 0.0);
+    }
+
+    #[inline(always)]
+    fn set(&mut self, i: usize, code: u8, s: SnappedVertex) {
+        self.code[i] = code;
+        (self.sx[i], self.sy[i], self.sz[i]) = (s.x, s.y, s.z);
+    }
+
+    #[inline(always)]
+    fn snapped(&self, i: usize) -> SnappedVertex {
+        SnappedVertex { x: self.sx[i], y: self.sy[i], z: self.sz[i] }
+    }
 }
 
 /// Output of the geometry stage for one chunk of the draw list.
@@ -77,7 +100,7 @@ impl Chunk {
         for p in pieces {
             let item = &items[p.item as usize];
             match item.src {
-                Source::Mesh { positions, indices, clip_from_local, ids } => {
+                Source::Mesh { positions, indices, ref clip_from_local, ids } => {
                     let idx = &indices[3 * p.start as usize..3 * (p.start + p.count) as usize];
                     let (lo, hi) = if p.count == item.source_triangles {
                         (0, positions.len())
@@ -86,25 +109,30 @@ impl Chunk {
                         let hi = idx.iter().copied().max().map_or(0, |m| m as usize + 1);
                         (lo, hi)
                     };
-                    self.transform(&positions[lo..hi], &clip_from_local, vp);
+                    let span = &positions[lo..hi];
+                    self.transform(span, clip_from_local, vp);
                     let first_id = item.first_id.wrapping_add(p.start);
                     let ids = ids.map(|m| &m[p.start as usize..(p.start + p.count) as usize]);
+                    // The clipper's input, recomputed for the few triangles that need it
+                    // (the same product as the transform's, so the same bits).
+                    let clip = |i: usize| *clip_from_local * span[i].extend(1.0);
                     for (k, t) in idx.chunks_exact(3).enumerate() {
                         let v = [t[0] as usize - lo, t[1] as usize - lo, t[2] as usize - lo];
                         let id = match ids {
                             Some(m) => item.first_id.wrapping_add(m[k]),
                             None => first_id.wrapping_add(k as u32),
                         };
-                        self.triangle(v, id, vp, cull);
+                        self.triangle(v, id, vp, cull, clip);
                     }
                 }
                 Source::Clip(tris) => {
                     let tris = &tris[p.start as usize..(p.start + p.count) as usize];
                     self.load_clip(tris, vp);
                     let first_id = item.first_id.wrapping_add(p.start);
+                    let clip = |i: usize| tris[i / 3][i % 3];
                     for k in 0..tris.len() {
                         let v = [3 * k, 3 * k + 1, 3 * k + 2];
-                        self.triangle(v, first_id.wrapping_add(k as u32), vp, cull);
+                        self.triangle(v, first_id.wrapping_add(k as u32), vp, cull, clip);
                     }
                 }
             }
@@ -114,38 +142,30 @@ impl Chunk {
     #[inline(never)] // per-vertex work, separate in profiles
     fn transform(&mut self, positions: &[Vec3], m: &Mat4, vp: &Viewport) {
         let vc = &mut self.verts;
-        vc.clip.clear();
-        vc.clip.extend(positions.iter().map(|p| *m * p.extend(1.0)));
-        vc.code.resize(positions.len(), 0);
-        vc.snapped.resize(positions.len(), NONE);
+        vc.resize(positions.len());
         #[cfg(not(all(target_arch = "x86_64", target_feature = "avx2")))]
         let done = 0;
         #[cfg(all(target_arch = "x86_64", target_feature = "avx2"))]
         let done = {
             let n8 = positions.len() / 8 * 8;
-            let groups =
-                vc.clip[..n8].chunks_exact(8).zip(vc.code.chunks_exact_mut(8)).zip(vc.snapped.chunks_exact_mut(8));
-            for ((c, code), s) in groups {
-                classify8(c, vp, code, s);
+            for g in (0..n8).step_by(8) {
+                let [x, y, z, w] = transform8(&positions[g..g + 8], m);
+                classify8([x, y, z, w], vp, vc, g);
             }
             n8
         };
-        let rest = vc.clip[done..].iter().zip(vc.code[done..].iter_mut()).zip(vc.snapped[done..].iter_mut());
-        for ((c, code), s) in rest {
-            (*code, *s) = Self::classify(*c, vp);
+        for (i, p) in positions.iter().enumerate().skip(done) {
+            let (code, s) = Self::classify(*m * p.extend(1.0), vp);
+            vc.set(i, code, s);
         }
     }
 
     fn load_clip(&mut self, tris: &[[Vec4; 3]], vp: &Viewport) {
         let vc = &mut self.verts;
-        vc.clip.clear();
-        vc.clip.extend(tris.iter().flatten());
-        vc.code.clear();
-        vc.snapped.clear();
-        for c in &vc.clip {
+        vc.resize(3 * tris.len());
+        for (i, c) in tris.iter().flatten().enumerate() {
             let (code, s) = Self::classify(*c, vp);
-            vc.code.push(code);
-            vc.snapped.push(s);
+            vc.set(i, code, s);
         }
     }
 
@@ -162,8 +182,10 @@ impl Chunk {
         }
     }
 
+    /// One triangle of vertex-cache indices `v`; `clip(i)` gives vertex `i`'s clip-space
+    /// position for the clipper.
     #[inline(always)]
-    fn triangle(&mut self, v: [usize; 3], id: u32, vp: &Viewport, cull: bool) {
+    fn triangle(&mut self, v: [usize; 3], id: u32, vp: &Viewport, cull: bool, clip: impl Fn(usize) -> Vec4) {
         let st = &mut self.stats;
         st.triangles_in += 1;
         let c = [self.verts.code[v[0]], self.verts.code[v[1]], self.verts.code[v[2]]];
@@ -174,10 +196,10 @@ impl Chunk {
             return;
         }
         if or & GUARD != 0 {
-            self.clipped(v, id, vp, cull);
+            self.clipped([clip(v[0]), clip(v[1]), clip(v[2])], id, vp, cull);
             return;
         }
-        let s = [self.verts.snapped[v[0]], self.verts.snapped[v[1]], self.verts.snapped[v[2]]];
+        let s = [self.verts.snapped(v[0]), self.verts.snapped(v[1]), self.verts.snapped(v[2])];
         let o = setup_into(s, id, cull, vp, &mut self.tris);
         self.count(o);
     }
@@ -193,8 +215,7 @@ impl Chunk {
     }
 
     #[cold]
-    fn clipped(&mut self, v: [usize; 3], id: u32, vp: &Viewport, cull: bool) {
-        let c = [self.verts.clip[v[0]], self.verts.clip[v[1]], self.verts.clip[v[2]]];
+    fn clipped(&mut self, c: [Vec4; 3], id: u32, vp: &Viewport, cull: bool) {
         // Facing from the homogeneous determinant: valid before clipping, whatever the w's.
         let det = clip::facing_det(c);
         if !det.is_finite() {
@@ -231,32 +252,52 @@ impl Chunk {
     }
 }
 
-/// [`Chunk::classify`] for eight vertices at once with AVX2: the same operations in the same
-/// order (IEEE division, multiply then add, round-to-nearest-even conversion), so the same
-/// codes and snapped positions bit for bit.
+/// `m · (p, 1)` for eight positions at once with AVX2, as x, y, z and w vectors: the
+/// three-component rows are transposed with Intel's AoS-to-SoA shuffles, and each component
+/// is summed in glam's order (`((m0·x + m1·y) + m2·z) + m3`, no fused multiply-add), so the
+/// results equal `Mat4 * Vec4` bit for bit.
 #[cfg(all(target_arch = "x86_64", target_feature = "avx2"))]
 #[inline(always)]
-fn classify8(c: &[Vec4], vp: &Viewport, code: &mut [u8], snapped: &mut [SnappedVertex]) {
+fn transform8(p: &[Vec3], m: &Mat4) -> [std::arch::x86_64::__m256; 4] {
+    use std::arch::x86_64::*;
+    assert!(p.len() >= 8);
+    // SAFETY: AVX2 is enabled for the whole build (cfg above); the six 16-byte loads read
+    // floats 0..24 of eight packed Vec3 (96 bytes, asserted length).
+    unsafe {
+        let f = p.as_ptr() as *const f32;
+        let half = |i: usize| _mm_loadu_ps(f.add(4 * i));
+        let m03 = _mm256_insertf128_ps(_mm256_castps128_ps256(half(0)), half(3), 1); // x0y0z0x1 x4y4z4x5
+        let m14 = _mm256_insertf128_ps(_mm256_castps128_ps256(half(1)), half(4), 1); // y1z1x2y2 y5z5x6y6
+        let m25 = _mm256_insertf128_ps(_mm256_castps128_ps256(half(2)), half(5), 1); // z2x3y3z3 z6x7y7z7
+        let xy = _mm256_shuffle_ps::<0b10_01_11_10>(m14, m25); // x2y2x3y3
+        let yz = _mm256_shuffle_ps::<0b01_00_10_01>(m03, m14); // y0z0y1z1
+        let x = _mm256_shuffle_ps::<0b10_00_11_00>(m03, xy);
+        let y = _mm256_shuffle_ps::<0b11_01_10_00>(yz, xy);
+        let z = _mm256_shuffle_ps::<0b11_00_11_01>(yz, m25);
+        let c = m.to_cols_array_2d();
+        std::array::from_fn(|j| {
+            let s = |k: usize| _mm256_set1_ps(c[k][j]);
+            let r = _mm256_add_ps(_mm256_mul_ps(s(0), x), _mm256_mul_ps(s(1), y));
+            _mm256_add_ps(_mm256_add_ps(r, _mm256_mul_ps(s(2), z)), s(3))
+        })
+    }
+}
+
+/// [`Chunk::classify`] for eight vertices at once with AVX2 (clip x, y, z, w vectors),
+/// stored at `at..at + 8` of `vc`: the same operations in the same order (IEEE division,
+/// multiply then add, round-to-nearest-even conversion), so the same codes and snapped
+/// positions bit for bit.
+#[cfg(all(target_arch = "x86_64", target_feature = "avx2"))]
+#[inline(always)]
+fn classify8([x, y, z, w]: [std::arch::x86_64::__m256; 4], vp: &Viewport, vc: &mut VertexCache, at: usize) {
     use crate::clip::{BOTTOM, FAR, LEFT, NEAR, RIGHT, TOP};
     use std::arch::x86_64::*;
     let (hw, hh, h_fixed) = vp.scale();
-    let (mut ci, mut xi, mut yi, mut zf) = ([0i32; 8], [0i32; 8], [0i32; 8], [0f32; 8]);
-    // SAFETY: this function exists only when the whole build enables AVX2; loads read eight
-    // Vec4 of the slice (asserted length), stores go to local arrays.
+    let (code, sx, sy, sz) =
+        (&mut vc.code[at..at + 8], &mut vc.sx[at..at + 8], &mut vc.sy[at..at + 8], &mut vc.sz[at..at + 8]);
+    // SAFETY: AVX2 is enabled for the whole build (cfg above); stores write eight elements
+    // of slices of length eight (bounds-checked just above).
     unsafe {
-        assert!(c.len() >= 8);
-        let row = |i: usize| _mm_loadu_ps(&c[i] as *const Vec4 as *const f32);
-        // Transpose eight (x, y, z, w) rows into x, y, z and w vectors.
-        let t0 = _mm256_set_m128(row(4), row(0));
-        let t1 = _mm256_set_m128(row(5), row(1));
-        let t2 = _mm256_set_m128(row(6), row(2));
-        let t3 = _mm256_set_m128(row(7), row(3));
-        let (u0, u1) = (_mm256_unpacklo_ps(t0, t1), _mm256_unpackhi_ps(t0, t1));
-        let (u2, u3) = (_mm256_unpacklo_ps(t2, t3), _mm256_unpackhi_ps(t2, t3));
-        let x = _mm256_shuffle_ps(u0, u2, 0x44);
-        let y = _mm256_shuffle_ps(u0, u2, 0xEE);
-        let z = _mm256_shuffle_ps(u1, u3, 0x44);
-        let w = _mm256_shuffle_ps(u1, u3, 0xEE);
         let zero = _mm256_setzero_ps();
         let sign = _mm256_set1_ps(-0.0);
         let finite = |v: __m256| _mm256_cmp_ps(_mm256_sub_ps(v, v), zero, _CMP_EQ_OQ);
@@ -304,16 +345,40 @@ fn classify8(c: &[Vec4], vp: &Viewport, code: &mut [u8], snapped: &mut [SnappedV
         );
         let keep = _mm256_castps_si256(_mm256_andnot_ps(guard, ok));
         let one = _mm256_set1_ps(crate::setup::ONE as f32);
-        let sx = _mm256_cvtps_epi32(_mm256_mul_ps(xw, one));
-        let sy = _mm256_sub_epi32(_mm256_set1_epi32(h_fixed), _mm256_cvtps_epi32(_mm256_mul_ps(yw, one)));
-        _mm256_storeu_si256(ci.as_mut_ptr() as *mut __m256i, codes);
-        _mm256_storeu_si256(xi.as_mut_ptr() as *mut __m256i, _mm256_and_si256(keep, sx));
-        _mm256_storeu_si256(yi.as_mut_ptr() as *mut __m256i, _mm256_and_si256(keep, sy));
-        _mm256_storeu_ps(zf.as_mut_ptr(), _mm256_and_ps(_mm256_castsi256_ps(keep), zw));
+        let sx_v = _mm256_cvtps_epi32(_mm256_mul_ps(xw, one));
+        let sy_v = _mm256_sub_epi32(_mm256_set1_epi32(h_fixed), _mm256_cvtps_epi32(_mm256_mul_ps(yw, one)));
+        _mm256_storeu_si256(sx.as_mut_ptr() as *mut __m256i, _mm256_and_si256(keep, sx_v));
+        _mm256_storeu_si256(sy.as_mut_ptr() as *mut __m256i, _mm256_and_si256(keep, sy_v));
+        _mm256_storeu_ps(sz.as_mut_ptr(), _mm256_and_ps(_mm256_castsi256_ps(keep), zw));
+        // Codes fit a byte: pack the eight i32 lanes to eight bytes.
+        let p16 = _mm256_packs_epi32(codes, codes);
+        let (lo, hi) = (_mm256_castsi256_si128(p16), _mm256_extracti128_si256::<1>(p16));
+        let p8 = _mm_packus_epi16(_mm_unpacklo_epi64(lo, hi), _mm_setzero_si128());
+        _mm_storel_epi64(code.as_mut_ptr() as *mut __m128i, p8);
     }
-    for k in 0..8 {
-        code[k] = ci[k] as u8;
-        snapped[k] = SnappedVertex { x: xi[k], y: yi[k], z: zf[k] };
+}
+
+/// Loads eight clip-space positions as x, y, z and w vectors (a 4×8 transpose).
+#[cfg(all(target_arch = "x86_64", target_feature = "avx2"))]
+#[cfg(test)]
+fn load8(c: &[Vec4]) -> [std::arch::x86_64::__m256; 4] {
+    use std::arch::x86_64::*;
+    assert!(c.len() >= 8);
+    // SAFETY: AVX2 is enabled for the whole build; the loads read eight Vec4 of the slice.
+    unsafe {
+        let row = |i: usize| _mm_loadu_ps(&c[i] as *const Vec4 as *const f32);
+        let t0 = _mm256_set_m128(row(4), row(0));
+        let t1 = _mm256_set_m128(row(5), row(1));
+        let t2 = _mm256_set_m128(row(6), row(2));
+        let t3 = _mm256_set_m128(row(7), row(3));
+        let (u0, u1) = (_mm256_unpacklo_ps(t0, t1), _mm256_unpackhi_ps(t0, t1));
+        let (u2, u3) = (_mm256_unpacklo_ps(t2, t3), _mm256_unpackhi_ps(t2, t3));
+        [
+            _mm256_shuffle_ps(u0, u2, 0x44),
+            _mm256_shuffle_ps(u0, u2, 0xEE),
+            _mm256_shuffle_ps(u1, u3, 0x44),
+            _mm256_shuffle_ps(u1, u3, 0xEE),
+        ]
     }
 }
 
@@ -368,15 +433,40 @@ mod tests {
                         Vec4::from(v)
                     })
                     .collect();
-                let (mut code, mut snapped) = ([0u8; 8], [NONE; 8]);
-                classify8(&c, &vp, &mut code, &mut snapped);
-                for k in 0..8 {
-                    let (want_code, want) = Chunk::classify(c[k], &vp);
-                    assert_eq!(code[k], want_code, "{:?}", c[k]);
+                let mut vc = VertexCache::default();
+                vc.resize(8);
+                classify8(load8(&c), &vp, &mut vc, 0);
+                for (k, ck) in c.iter().enumerate() {
+                    let (want_code, want) = Chunk::classify(*ck, &vp);
+                    assert_eq!(vc.code[k], want_code, "{ck:?}");
                     if want_code & GUARD == 0 {
-                        assert_eq!(snapped[k], want, "{:?}", c[k]);
+                        assert_eq!(vc.snapped(k), want, "{ck:?}");
                     }
                 }
+            }
+        }
+    }
+
+    #[cfg(all(target_arch = "x86_64", target_feature = "avx2"))]
+    #[test]
+    fn eight_wide_transform_equals_glam() {
+        let mut rng = sightline_scene::rng::Rng::new(5);
+        let mut vc = VertexCache::default();
+        vc.resize(8);
+        for _ in 0..2000 {
+            let m = Mat4::from_cols_array(&[0.0; 16].map(|_| rng.range(-4.0, 4.0)));
+            let p: Vec<Vec3> =
+                (0..8).map(|_| Vec3::new(rng.range(-9.0, 9.0), rng.range(-9.0, 9.0), rng.range(-9.0, 9.0))).collect();
+            let [x, y, z, w] = transform8(&p, &m).map(|v| {
+                let mut a = [0f32; 8];
+                // SAFETY: AVX2 is enabled for the build; stores eight floats into `a`.
+                unsafe { std::arch::x86_64::_mm256_storeu_ps(a.as_mut_ptr(), v) };
+                a
+            });
+            for k in 0..8 {
+                let want = m * p[k].extend(1.0);
+                let got = Vec4::new(x[k], y[k], z[k], w[k]);
+                assert_eq!(got.to_array().map(f32::to_bits), want.to_array().map(f32::to_bits), "{m:?} {:?}", p[k]);
             }
         }
     }

@@ -178,7 +178,7 @@ pub fn setup(v: [SnappedVertex; 3], id: u32, cull: bool, vp: &Viewport) -> Setup
 /// rasterized (written in place: no copy of the record per triangle). Front faces are
 /// counter-clockwise in NDC, so in y-down window coordinates their signed area is
 /// negative; `cull` drops the others.
-#[inline]
+#[inline(always)] // into the geometry loop: its vertices then stay in registers
 pub fn setup_into(v: [SnappedVertex; 3], id: u32, cull: bool, vp: &Viewport, out: &mut Vec<Tri>) -> Outcome {
     let [a, b0, c0] = v;
     let area = (b0.x as i64 - a.x as i64) * (c0.y as i64 - a.y as i64)
