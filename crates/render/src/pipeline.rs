@@ -208,6 +208,30 @@ impl Renderer {
         fb: &mut Framebuffer,
         opts: &RenderOptions,
     ) -> Result<FrameStats> {
+        self.draw_sources_checked(sources, camera, fb, opts, true)
+    }
+
+    /// [`Renderer::draw_sources`] for sources whose indices are in range by construction
+    /// (the culler's meshlets): the per-index scan, a pass over every index of every draw,
+    /// is left out; the other checks stay.
+    pub(crate) fn draw_meshlet_sources(
+        &mut self,
+        sources: &[DrawSource],
+        camera: &Camera,
+        fb: &mut Framebuffer,
+        opts: &RenderOptions,
+    ) -> Result<FrameStats> {
+        self.draw_sources_checked(sources, camera, fb, opts, false)
+    }
+
+    fn draw_sources_checked(
+        &mut self,
+        sources: &[DrawSource],
+        camera: &Camera,
+        fb: &mut Framebuffer,
+        opts: &RenderOptions,
+        check_indices: bool,
+    ) -> Result<FrameStats> {
         let t0 = Instant::now();
         let mut resolved: Vec<Item> = Vec::with_capacity(sources.len());
         self.ranges.clear();
@@ -223,7 +247,7 @@ impl Renderer {
                 return bad("the triangle ID map is shorter than the index list".into());
             }
             let range = &d.indices[3 * d.first as usize..3 * (d.first + d.count) as usize];
-            if range.iter().any(|&i| i as usize >= d.positions.len()) {
+            if check_indices && range.iter().any(|&i| i as usize >= d.positions.len()) {
                 return bad("an index is out of range".into());
             }
             // Consecutive clusters of one instance share the matrix.

@@ -493,7 +493,8 @@ impl Culler {
             cs.clusters_drawn += 1;
             cs.triangles_drawn += d.count as u64;
         }
-        self.renderer.draw_sources(&sources, camera, fb, opts)
+        // Meshlet indices point into their own positions by construction.
+        self.renderer.draw_meshlet_sources(&sources, camera, fb, opts)
     }
 
     /// The front-to-back walk of [`Method::HzbOnePass`] inside an open frame session, batches
