@@ -54,11 +54,15 @@ struct VertexCache {
 }
 
 impl VertexCache {
+    /// Makes room for `n` vertices. Entries past the current piece's are stale and never
+    /// read, so the arrays only grow (no refill per piece).
     fn resize(&mut self, n: usize) {
-        self.code.resize(n, 0);
-        self.sx.resize(n, 0);
-        self.sy.resize(n, 0);
-        self.sz.resize(n, 0.0);
+        if self.code.len() < n {
+            self.code.resize(n, 0);
+            self.sx.resize(n, 0);
+            self.sy.resize(n, 0);
+            self.sz.resize(n, 0.0);
+        }
     }
 
     #[inline(always)]

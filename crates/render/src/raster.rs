@@ -102,13 +102,17 @@ impl TileBuf {
         let clear = fmt.key(1.0);
         self.tie_margin = fmt.tie_margin();
         let (w, h) = (self.w as usize, self.h as usize);
-        for r in 0..TILE as usize {
-            let row = &mut self.depth[r << TILE_SHIFT..(r + 1) << TILE_SHIFT];
-            if r < h {
-                row[..w].fill(clear);
-                row[w..].fill(0);
-            } else {
-                row.fill(0);
+        if w == TILE as usize && h == TILE as usize {
+            self.depth[..(TILE * TILE) as usize].fill(clear);
+        } else {
+            for r in 0..TILE as usize {
+                let row = &mut self.depth[r << TILE_SHIFT..(r + 1) << TILE_SHIFT];
+                if r < h {
+                    row[..w].fill(clear);
+                    row[w..].fill(0);
+                } else {
+                    row.fill(0);
+                }
             }
         }
         self.ids.fill(0);
@@ -162,9 +166,14 @@ impl TileBuf {
         // Depth is affine in the window: over the pixel centers of this rectangle it is at
         // least its value at the nearest corner. For a big triangle reaching far behind
         // this tile, that bound is much tighter than its nearest vertex.
-        let (sx, sy) = (self.x0 as i32, self.y0 as i32);
-        let rect = [x0 as i32 + sx, y0 as i32 + sy, x1 as i32 + sx, y1 as i32 + sy];
-        let near = (t.z0.min(z1).min(z2) - err).max(plane_min(t, rect));
+        // Small rectangles (most triangles) are not worth the second bound.
+        let near = t.z0.min(z1).min(z2) - err;
+        let near = if x1 - x0 < 8 && y1 - y0 < 8 {
+            near
+        } else {
+            let (sx, sy) = (self.x0 as i32, self.y0 as i32);
+            near.max(plane_min(t, [x0 as i32 + sx, y0 as i32 + sy, x1 as i32 + sx, y1 as i32 + sy]))
+        };
         if !(near > 0.0) {
             return false;
         }
