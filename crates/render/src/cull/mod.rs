@@ -308,29 +308,30 @@ impl Culler {
         let t = Instant::now();
         let frustum = self.frustum_cull(camera, &mut cs);
         cs.ms_cull = ms_since(t);
-        let mut fs = FrameStats::default();
+        let mut f = Frame { camera, fb: &mut *fb, opts: &opts, cs, fs: FrameStats::default() };
         match method {
             Method::Brute => unreachable!("handled above"),
             Method::Frustum => {
                 let t = Instant::now();
                 let visible = std::mem::take(&mut self.visible);
                 self.renderer.start_fresh();
-                let r = self.draw_items(&visible, |v| v.index, camera, fb, &opts, &mut cs);
+                let r = self.draw_items(&visible, |v| v.index, &mut f);
                 self.renderer.cancel_fresh();
                 self.visible = visible;
-                fs = r?;
-                cs.ms_draw = ms_since(t);
-                cs.batches = 1;
+                r?;
+                f.cs.ms_draw = ms_since(t);
+                f.cs.batches = 1;
             }
             Method::HzbOnePass => {
-                self.renderer.begin_session(fb, opts.depth_format);
-                let r = self.hzb_bvh(camera, &frustum, fb, &opts, &mut cs, &mut fs, self.first_batch, None);
-                fs.covered_pixels = self.renderer.end_session(fb);
+                self.renderer.begin_session(f.fb, opts.depth_format);
+                let r = self.hzb_bvh(&mut f, &frustum, Walk { first_batch: self.first_batch, skip: None, test: true });
+                f.fs.covered_pixels = self.renderer.end_session(f.fb);
                 r?
             }
-            Method::Hzb => self.hzb_two_pass(camera, &frustum, fb, &opts, &mut cs, &mut fs)?,
-            Method::OctreeHzb => self.hzb_octree(camera, &frustum, fb, &opts, &mut cs, &mut fs)?,
+            Method::Hzb => self.hzb_two_pass(&mut f, &frustum)?,
+            Method::OctreeHzb => self.hzb_octree(&mut f, &frustum)?,
         }
+        let Frame { mut cs, mut fs, .. } = f;
         cs.culled_by_occlusion = cs.clusters_in_frustum.saturating_sub(cs.clusters_drawn + cs.culled_by_backface);
         let t = Instant::now();
         crate::shade_pass(scene, &self.instances, camera, fb, &opts.shading, opts.background);
@@ -366,46 +367,20 @@ impl Culler {
         skip_hidden: bool,
     ) -> Result<(CullStats, FrameStats, OcclusionQueries<'_>)> {
         let t0 = Instant::now();
-        let mut fs = FrameStats::default();
         let mut cs = CullStats { clusters: self.clustered.item_count() as u64, ..Default::default() };
         let frustum = self.frustum_cull(camera, &mut cs);
-        let projector = BoxProjector::new(camera.clip_from_world(), fb.width(), fb.height());
         self.renderer.begin_session(fb, opts.depth_format);
         // Front to back in growing batches, so that the coarse depth test of the rasterizer
         // rejects whole triangles hidden behind earlier ones.
-        let mut cursor = self.clustered.cursor(Some(&frustum), camera.view.eye);
-        let mut batch = self.first_batch.max(1);
-        let mut out = Vec::new();
-        loop {
-            out.clear();
-            let more = {
-                let pyramid = self.renderer.session_pyramid().filter(|_| skip_hidden);
-                let q = pyramid.map(|p| OcclusionQueries::with_projector(projector, p));
-                cursor.next_batch(
-                    self.clustered.bvh(),
-                    |b| q.as_ref().is_none_or(|q| q.counted_visible(b, &mut cs)),
-                    batch,
-                    &mut out,
-                )
-            };
-            if opts.backface_culling {
-                self.drop_backfacing(&mut out, camera.view.eye, &mut cs);
-            }
-            if !out.is_empty() {
-                match self.draw_items(&out, |v| v.index, camera, fb, opts, &mut cs) {
-                    Ok(st) => fs.add(&st),
-                    Err(e) => {
-                        self.renderer.end_session(fb);
-                        return Err(e);
-                    }
-                }
-                cs.batches += 1;
-            }
-            if !more {
-                break;
-            }
-            batch = (batch * 2).min(self.max_batch.max(1));
+        let mut f = Frame { camera, fb: &mut *fb, opts, cs, fs: FrameStats::default() };
+        let walk = Walk { first_batch: self.first_batch, skip: None, test: skip_hidden };
+        if let Err(e) = self.hzb_bvh(&mut f, &frustum, walk) {
+            self.renderer.end_session(fb);
+            return Err(e);
         }
+        let Frame { mut cs, fs, .. } = f;
+        // The walk's split into culling and drawing is not reported for the pass.
+        cs.ms_cull = 0.0;
         cs.ms_draw = ms_since(t0);
         cs.ms_total = cs.ms_draw;
         cs.culled_by_occlusion = cs.clusters_in_frustum.saturating_sub(cs.clusters_drawn + cs.culled_by_backface);
@@ -461,16 +436,9 @@ impl Culler {
         cs.culled_by_backface += (n - kept) as u64;
     }
 
-    /// Draws the given items (cluster indices, `index` of each element) in order.
-    fn draw_items<T>(
-        &mut self,
-        items: &[T],
-        index: impl Fn(&T) -> u32,
-        camera: &Camera,
-        fb: &mut Framebuffer,
-        opts: &RenderOptions,
-        cs: &mut CullStats,
-    ) -> Result<FrameStats> {
+    /// Draws the given items (cluster indices, `index` of each element) in order, counting
+    /// into `f`.
+    fn draw_items<T>(&mut self, items: &[T], index: impl Fn(&T) -> u32, f: &mut Frame) -> Result<()> {
         let mut sources: Vec<DrawSource> = Vec::with_capacity(items.len());
         for (k, v) in items.iter().enumerate() {
             if let Some(a) = items.get(k + PREFETCH_AHEAD) {
@@ -490,60 +458,55 @@ impl Culler {
                 first: d.first,
                 count: d.count,
             });
-            cs.clusters_drawn += 1;
-            cs.triangles_drawn += d.count as u64;
+            f.cs.clusters_drawn += 1;
+            f.cs.triangles_drawn += d.count as u64;
         }
         // Meshlet indices point into their own positions by construction.
-        self.renderer.draw_meshlet_sources(&sources, camera, fb, opts)
+        f.fs.add(&self.renderer.draw_meshlet_sources(&sources, f.camera, f.fb, f.opts)?);
+        Ok(())
     }
 
-    /// The front-to-back walk of [`Method::HzbOnePass`] inside an open frame session, batches
-    /// starting at `first_batch` clusters. With `skip = Some(frame)`, clusters already drawn
-    /// in that frame (see `drawn_in`) are passed over, and the ones drawn get marked.
-    #[allow(clippy::too_many_arguments)] // the frame's whole context, split for borrowing
-    fn hzb_bvh(
-        &mut self,
-        camera: &Camera,
-        frustum: &Frustum,
-        fb: &mut Framebuffer,
-        opts: &RenderOptions,
-        cs: &mut CullStats,
-        fs: &mut FrameStats,
-        first_batch: usize,
-        skip: Option<u32>,
-    ) -> Result<()> {
-        let (w, h) = (fb.width(), fb.height());
-        let projector = BoxProjector::new(camera.clip_from_world(), w, h);
-        let mut cursor = self.clustered.cursor(Some(frustum), camera.view.eye);
-        let mut batch = first_batch.max(1);
+    /// The front-to-back walk of [`Method::HzbOnePass`] inside an open frame session, in
+    /// batches growing from `walk.first_batch` clusters; see [`Walk`] for the rest.
+    fn hzb_bvh(&mut self, f: &mut Frame, frustum: &Frustum, walk: Walk) -> Result<()> {
+        let projector = BoxProjector::new(f.camera.clip_from_world(), f.fb.width(), f.fb.height());
+        let eye = f.camera.view.eye;
+        let mut cursor = self.clustered.cursor(Some(frustum), eye);
+        let mut batch = walk.first_batch.max(1);
         let mut out: Vec<Visible> = Vec::new();
         loop {
             let t = Instant::now();
             out.clear();
             let more = {
                 let Some(pyramid) = self.renderer.session_pyramid() else { break Ok(()) };
-                let q = OcclusionQueries::with_projector(projector, pyramid);
-                cursor.next_batch(self.clustered.bvh(), |b| q.counted_visible(b, cs), batch, &mut out)
+                let q = walk.test.then(|| OcclusionQueries::with_projector(projector, pyramid));
+                let cs = &mut f.cs;
+                cursor.next_batch(
+                    self.clustered.bvh(),
+                    |b| q.as_ref().is_none_or(|q| q.counted_visible(b, cs)),
+                    batch,
+                    &mut out,
+                )
             };
-            if let Some(frame) = skip {
+            if let Some(frame) = walk.skip {
                 out.retain(|v| self.drawn_in[v.index as usize] != frame);
             }
             // Clusters facing away would only be dropped triangle by triangle.
-            if opts.backface_culling {
-                self.drop_backfacing(&mut out, camera.view.eye, cs);
+            if f.opts.backface_culling {
+                self.drop_backfacing(&mut out, eye, &mut f.cs);
             }
-            cs.ms_cull += ms_since(t);
+            f.cs.ms_cull += ms_since(t);
             if !out.is_empty() {
                 let t = Instant::now();
-                fs.add(&self.draw_items(&out, |v| v.index, camera, fb, opts, cs)?);
-                if let Some(frame) = skip {
+                self.draw_items(&out, |v| v.index, f)?;
+                if let Some(frame) = walk.skip {
                     for v in &out {
                         self.drawn_in[v.index as usize] = frame;
                     }
                     self.last_visible.extend(out.iter().map(|v| v.index));
                 }
-                cs.ms_draw += ms_since(t);
-                cs.batches += 1;
+                f.cs.ms_draw += ms_since(t);
+                f.cs.batches += 1;
             }
             if !more {
                 return Ok(());
@@ -557,16 +520,7 @@ impl Culler {
     /// rest against their pyramid, starting with big batches; finally last frame's clusters
     /// are tested against the finished pyramid, and the ones not occluded join this frame's
     /// newly drawn ones as the next frame's set.
-    #[allow(clippy::too_many_arguments)] // the frame's whole context, split for borrowing
-    fn hzb_two_pass(
-        &mut self,
-        camera: &Camera,
-        frustum: &Frustum,
-        fb: &mut Framebuffer,
-        opts: &RenderOptions,
-        cs: &mut CullStats,
-        fs: &mut FrameStats,
-    ) -> Result<()> {
+    fn hzb_two_pass(&mut self, f: &mut Frame, frustum: &Frustum) -> Result<()> {
         let n = self.clustered.item_count();
         self.frame = self.frame.wrapping_add(1);
         if self.frame == 0 || self.drawn_in.len() != n {
@@ -580,82 +534,73 @@ impl Culler {
         for v in &self.visible {
             self.drawn_in[v.index as usize] = frame;
         }
-        let eye = camera.view.eye;
+        let eye = f.camera.view.eye;
         let mut first: Vec<u32> = std::mem::take(&mut self.last_visible);
         first.retain(|&i| self.drawn_in.get(i as usize) == Some(&frame));
         for v in &self.visible {
             self.drawn_in[v.index as usize] = 0;
         }
-        if opts.backface_culling {
+        if f.opts.backface_culling {
             // Not counted here: the walk meets them again and counts them once.
             first.retain(|&i| !self.cones[i as usize].backfacing(eye));
         }
         for &i in &first {
             self.drawn_in[i as usize] = frame;
         }
-        cs.ms_cull += ms_since(t);
-        self.renderer.begin_session(fb, opts.depth_format);
+        f.cs.ms_cull += ms_since(t);
+        self.renderer.begin_session(f.fb, f.opts.depth_format);
         let result = (|| {
             if !first.is_empty() {
                 let t = Instant::now();
-                fs.add(&self.draw_items(&first, |&i| i, camera, fb, opts, cs)?);
-                cs.ms_draw += ms_since(t);
-                cs.batches += 1;
+                self.draw_items(&first, |&i| i, f)?;
+                f.cs.ms_draw += ms_since(t);
+                f.cs.batches += 1;
             }
             // With last frame's occluders in place the pyramid is mostly complete: big batches.
             let first_batch = if first.is_empty() { self.first_batch } else { self.max_batch / 4 };
-            self.hzb_bvh(camera, frustum, fb, opts, cs, fs, first_batch, Some(frame))
+            self.hzb_bvh(f, frustum, Walk { first_batch, skip: Some(frame), test: true })
         })();
         // Re-test last frame's clusters against the finished pyramid: the occluded ones leave
         // the set (their pixels went to nearer clusters).
         let t = Instant::now();
         if let Some(pyramid) = self.renderer.session_pyramid() {
-            let q = OcclusionQueries::new(camera, pyramid);
+            let q = OcclusionQueries::new(f.camera, pyramid);
             let boxes = &self.item_boxes;
             let still: Vec<u32> =
-                first.iter().copied().filter(|&i| q.counted_visible(&boxes[i as usize], cs)).collect();
+                first.iter().copied().filter(|&i| q.counted_visible(&boxes[i as usize], &mut f.cs)).collect();
             self.last_visible.extend(still);
         }
-        cs.ms_cull += ms_since(t);
-        fs.covered_pixels = self.renderer.end_session(fb);
+        f.cs.ms_cull += ms_since(t);
+        f.fs.covered_pixels = self.renderer.end_session(f.fb);
         if result.is_err() {
             self.last_visible.clear();
         }
         result
     }
 
-    #[allow(clippy::too_many_arguments)] // the frame's whole context, split for borrowing
-    fn hzb_octree(
-        &mut self,
-        camera: &Camera,
-        frustum: &Frustum,
-        fb: &mut Framebuffer,
-        opts: &RenderOptions,
-        cs: &mut CullStats,
-        fs: &mut FrameStats,
-    ) -> Result<()> {
-        let (w, h) = (fb.width(), fb.height());
-        let projector = BoxProjector::new(camera.clip_from_world(), w, h);
-        self.renderer.begin_session(fb, opts.depth_format);
+    fn hzb_octree(&mut self, f: &mut Frame, frustum: &Frustum) -> Result<()> {
+        let projector = BoxProjector::new(f.camera.clip_from_world(), f.fb.width(), f.fb.height());
+        let (eye, backface_culling) = (f.camera.view.eye, f.opts.backface_culling);
+        self.renderer.begin_session(f.fb, f.opts.depth_format);
         let Some(octree) = self.octree.take() else {
             // Only while a walk holds the octree, which cannot call back in here; still,
             // leave a written (empty) frame rather than an open session.
-            fs.covered_pixels = self.renderer.end_session(fb);
+            f.fs.covered_pixels = self.renderer.end_session(f.fb);
             return Ok(());
         };
-        // The walk's two callbacks both need the framebuffer (one reads depth, the other
-        // draws): they never run at the same time, so a RefCell shares it.
+        // The walk's two callbacks both need the frame (one reads depth, the other draws):
+        // they never run at the same time, so a RefCell shares it.
         let batch = self.first_batch.max(1);
-        let walk = RefCell::new(OctreeWalk { culler: self, fb, pending: Vec::new(), batch, cs, fs, err: None });
+        let walk = RefCell::new(OctreeWalk { culler: self, f, pending: Vec::new(), batch, err: None });
         let t = Instant::now();
         octree.traverse_front_to_back(
             Some(frustum),
-            camera.view.eye,
+            eye,
             |b| {
                 let mut g = walk.borrow_mut();
                 let w = &mut *g;
                 let vis = match w.culler.renderer.session_pyramid() {
-                    Some(p) => OcclusionQueries::with_projector(projector, p).counted_visible(b, w.cs),
+                    Some(p) => OcclusionQueries::with_projector(projector, p).counted_visible(b, &mut w.f.cs),
                     None => true,
                 };
                 if vis {
@@ -666,23 +611,23 @@ impl Culler {
             },
             |v| {
                 let mut g = walk.borrow_mut();
-                if opts.backface_culling && g.culler.cones[v.index as usize].backfacing(camera.view.eye) {
-                    g.cs.culled_by_backface += 1;
+                if backface_culling && g.culler.cones[v.index as usize].backfacing(eye) {
+                    g.f.cs.culled_by_backface += 1;
                     return Visit::Continue;
                 }
                 g.pending.push(v);
                 if g.pending.len() >= g.batch {
-                    g.flush(camera, opts);
+                    g.flush();
                 }
                 Visit::Continue
             },
         );
         let mut w = walk.into_inner();
-        w.flush(camera, opts);
+        w.flush();
         w.culler.octree = Some(octree);
-        w.fs.covered_pixels = w.culler.renderer.end_session(w.fb);
+        w.f.fs.covered_pixels = w.culler.renderer.end_session(w.f.fb);
         // Traversal time excludes the drawing done inside it.
-        w.cs.ms_cull += (ms_since(t) - w.cs.ms_draw).max(0.0);
+        w.f.cs.ms_cull += (ms_since(t) - w.f.cs.ms_draw).max(0.0);
         match w.err {
             Some(e) => Err(e),
             None => Ok(()),
@@ -690,39 +635,57 @@ impl Culler {
     }
 }
 
-/// State of the octree walk shared by its callbacks.
-struct OctreeWalk<'a> {
-    culler: &'a mut Culler,
+/// One culled frame in progress: the camera and options it draws with, the framebuffer it
+/// draws into, and its counters. The walks take it whole.
+struct Frame<'a> {
+    camera: &'a Camera,
     fb: &'a mut Framebuffer,
+    opts: &'a RenderOptions,
+    cs: CullStats,
+    fs: FrameStats,
+}
+
+/// How [`Culler::hzb_bvh`] walks.
+#[derive(Debug, Clone, Copy)]
+struct Walk {
+    /// Clusters in the first draw batch (batches then double up to `Culler::max_batch`).
+    first_batch: usize,
+    /// `Some(frame)`: clusters already drawn in that frame (see `drawn_in`) are passed
+    /// over, and the ones drawn get marked and join `last_visible`.
+    skip: Option<u32>,
+    /// Test nodes and clusters against the pyramid before drawing them (false: draw every
+    /// cluster in the frustum, front to back).
+    test: bool,
+}
+
+/// State of the octree walk shared by its callbacks.
+struct OctreeWalk<'a, 'f> {
+    culler: &'a mut Culler,
+    f: &'a mut Frame<'f>,
     pending: Vec<Visible>,
     batch: usize,
-    cs: &'a mut CullStats,
-    fs: &'a mut FrameStats,
     err: Option<crate::Error>,
 }
 
-impl OctreeWalk<'_> {
+impl OctreeWalk<'_, '_> {
     /// Draws the pending clusters (the tiles refresh their pyramid levels as they draw).
-    fn flush(&mut self, camera: &Camera, opts: &RenderOptions) {
+    fn flush(&mut self) {
         if self.pending.is_empty() || self.err.is_some() {
             return;
         }
         let t = Instant::now();
         let items = std::mem::take(&mut self.pending);
-        match self.culler.draw_items(&items, |v| v.index, camera, self.fb, opts, self.cs) {
-            Ok(st) => self.fs.add(&st),
-            Err(e) => self.err = Some(e),
+        if let Err(e) = self.culler.draw_items(&items, |v| v.index, self.f) {
+            self.err = Some(e);
         }
-        self.cs.ms_draw += ms_since(t);
-        self.cs.batches += 1;
+        self.f.cs.ms_draw += ms_since(t);
+        self.f.cs.batches += 1;
         self.batch = (self.batch * 2).min(self.culler.max_batch.max(1));
         self.pending = items;
         self.pending.clear();
     }
 }
 
-/// `world_from_local` equality used to reuse a clip matrix between consecutive sources.
-#[inline]
 pub(crate) fn same_matrix(a: &Affine3A, b: &Affine3A) -> bool {
     a.matrix3 == b.matrix3 && a.translation == b.translation
 }

@@ -9,7 +9,7 @@ use serde::Serialize;
 use sightline_scene::rng::Rng;
 use sightline_scene::Camera;
 
-use super::{CullStats, Culler};
+use super::{CullStats, Culler, Frame};
 use crate::stats::ms_since;
 use crate::{FrameStats, Framebuffer, RenderOptions, Result};
 
@@ -76,25 +76,23 @@ impl Culler {
             }
         }
         cs.ms_cull = ms_since(t0);
-        let mut fs = FrameStats::default();
         let t = Instant::now();
+        let mut f = Frame { camera, fb: &mut *fb, opts, cs, fs: FrameStats::default() };
         if coarse {
-            self.renderer.begin_session(fb, opts.depth_format);
+            self.renderer.begin_session(f.fb, opts.depth_format);
             for chunk in items.chunks(batch.max(1)) {
-                match self.draw_items(chunk, |x| x.1, camera, fb, opts, &mut cs) {
-                    Ok(st) => fs.add(&st),
-                    Err(e) => {
-                        self.renderer.end_session(fb);
-                        return Err(e);
-                    }
+                if let Err(e) = self.draw_items(chunk, |x| x.1, &mut f) {
+                    self.renderer.end_session(f.fb);
+                    return Err(e);
                 }
-                cs.batches += 1;
+                f.cs.batches += 1;
             }
-            self.renderer.end_session(fb);
+            self.renderer.end_session(f.fb);
         } else {
-            fs = self.draw_items(&items, |x| x.1, camera, fb, opts, &mut cs)?;
-            cs.batches = 1;
+            self.draw_items(&items, |x| x.1, &mut f)?;
+            f.cs.batches = 1;
         }
+        let Frame { mut cs, mut fs, .. } = f;
         cs.ms_draw = ms_since(t);
         cs.ms_total = ms_since(t0);
         fs.ms_total = cs.ms_total;
