@@ -1,12 +1,16 @@
 //! Depth complexity heat maps, plain z-buffer beside HZB (the seeds' "Depth complexity mit
 //! einfachem Z-Buffer / mit HZB"): one street frame of the 10^6-triangle city, every depth
 //! test counted per pixel, brute force on the left, occlusion culling on the right, on one
-//! color scale. Writes `depth_complexity.png` (and the two halves) into the directory given.
+//! color scale. Writes `depth_complexity.png` (and the two halves) into the directory given,
+//! and `z_pyramid.png`: Greene's z-pyramid over the HZB frame's depth buffer, levels 1–8,
+//! each texel the farthest depth of the pixels below it (near dark, far light, nothing
+//! drawn white): what occlusion tests compare a box's nearest depth against.
 //!
 //! `cargo run --release --example depth_complexity [-- OUT_DIR [FRAME]]`
 
 use std::path::PathBuf;
 
+use sightline::render::cull::DepthPyramid;
 use sightline::render::output::heat_color;
 use sightline::render::{Culler, Framebuffer, Method, RenderOptions};
 use sightline::scene::builders::{city, CityParams};
@@ -22,6 +26,7 @@ fn main() {
     let mut culler = Culler::new(&c.scene);
     let opts = RenderOptions::ids_only();
     let mut counts = Vec::new();
+    let mut depth = Vec::new();
     for method in [Method::Brute, Method::Hzb] {
         let mut fb = Framebuffer::new(w, h).expect("framebuffer");
         fb.count_depth_tests(true);
@@ -37,6 +42,7 @@ fn main() {
             tests.iter().max().unwrap_or(&0)
         );
         counts.push(tests);
+        depth = fb.depth;
     }
     // One scale for both: the brute-force maximum.
     let max = counts.iter().flat_map(|c| c.iter()).copied().max().unwrap_or(1).max(1) as f32;
@@ -58,4 +64,31 @@ fn main() {
         "wrote {} (left: plain z-buffer, right: HZB; color = sqrt(tests / {max}))",
         out.join("depth_complexity.png").display()
     );
+    write_pyramid(&depth, w, h, &out.join("z_pyramid.png"));
+}
+
+/// Levels 1–8 of the z-pyramid over `depth` in a 4 × 2 grid, each level scaled (nearest
+/// texel) to half the frame's size; gray stretched over the depths drawn, as in depth PNGs.
+fn write_pyramid(depth: &[f32], w: u32, h: u32, path: &std::path::Path) {
+    let mut pyramid = DepthPyramid::new(w, h);
+    pyramid.build(depth);
+    let drawn = || depth.iter().copied().filter(|d| *d < 1.0);
+    let lo = drawn().fold(f32::INFINITY, f32::min);
+    let span = (drawn().fold(f32::NEG_INFINITY, f32::max) - lo).max(f32::MIN_POSITIVE);
+    let gray = |d: f32| if d < 1.0 { ((d - lo) / span * 254.0).clamp(0.0, 254.0) as u8 } else { 255 };
+    let (cw, ch, gap) = (w / 2, h / 2, 8);
+    let mut img = image::RgbaImage::from_pixel(4 * cw + 3 * gap, 2 * ch + gap, image::Rgba([255, 255, 255, 255]));
+    for k in 1..=8 {
+        let Some((lw, lh, texels)) = pyramid.level(k) else { break };
+        let (ox, oy) = (((k - 1) % 4) as u32 * (cw + gap), ((k - 1) / 4) as u32 * (ch + gap));
+        for y in 0..ch {
+            for x in 0..cw {
+                let (tx, ty) = ((x * lw / cw).min(lw - 1), (y * lh / ch).min(lh - 1));
+                let g = gray(texels[(ty * lw + tx) as usize]);
+                img.put_pixel(ox + x, oy + y, image::Rgba([g, g, g, 255]));
+            }
+        }
+    }
+    img.save(path).expect("png");
+    println!("wrote {} (z-pyramid levels 1-8, left to right, top to bottom)", path.display());
 }

@@ -38,7 +38,10 @@ impl Rect {
     }
 }
 
-/// The max-depth pyramid above a depth buffer.
+/// The max-depth pyramid above a whole-screen depth buffer, e.g. a finished
+/// [`Framebuffer`](crate::Framebuffer)'s: to test boxes against a frame after the fact, or
+/// to look at (`examples/depth_complexity.rs` draws its levels). Culled frames use the
+/// per-tile [`TilePyramid`] instead, which is built while the tiles are drawn.
 #[derive(Debug, Clone, Default)]
 pub struct DepthPyramid {
     width: u32,
@@ -73,6 +76,13 @@ impl DepthPyramid {
     pub fn level_count(&self) -> usize {
         self.levels.len() + 1
     }
+    /// Level `k` ≥ 1 as (width, height, texels, row-major); `None` past the top (level 0
+    /// is the depth buffer itself).
+    pub fn level(&self, k: usize) -> Option<(u32, u32, &[f32])> {
+        let (w, h, t) = self.levels.get(k.checked_sub(1)?)?;
+        Some((*w, *h, t))
+    }
+
     /// Bytes held (levels ≥ 1).
     pub fn memory_bytes(&self) -> usize {
         self.levels.iter().map(|l| l.2.len() * 4).sum()
