@@ -728,6 +728,31 @@ mod tests {
         }
     }
 
+    /// A clip-from-world matrix of kind `k`: 3 arbitrary (some entries NaN, huge or
+    /// infinite), 4 orthographic (w = 1 everywhere; view volume [−5, 5] × [−3, 3] ×
+    /// [−25, 25]), otherwise a random perspective camera (`None` when it is invalid).
+    fn random_matrix(rng: &mut sightline_scene::rng::Rng, k: u32) -> Option<Mat4> {
+        match k {
+            3 => Some(Mat4::from_cols_array(&std::array::from_fn(|_| match rng.below(60) {
+                0 => f32::NAN,
+                1 => 1e30,
+                2 => f32::INFINITY,
+                _ => rng.range(-2.0, 2.0),
+            }))),
+            4 => Some(
+                Mat4::from_scale(Vec3::new(0.2, 1.0 / 3.0, -0.04))
+                    * Mat4::from_translation(Vec3::new(rng.range(-5.0, 5.0), rng.range(-1.0, 1.0), 0.0)),
+            ),
+            _ => {
+                let eye = Vec3::new(rng.range(-5.0, 5.0), rng.range(-5.0, 5.0), rng.range(-5.0, 5.0));
+                let target = eye + Vec3::new(rng.range(-1.0, 1.0), rng.range(-1.0, 1.0), rng.range(-1.0, 1.0));
+                let near = [1e-4, 0.1, 1.0][rng.below(3) as usize];
+                let c = Camera::perspective_look_at(eye, target, Vec3::Y, rng.range(10.0, 120.0), 1.7, near, 500.0);
+                c.ok().map(|c| c.clip_from_world())
+            }
+        }
+    }
+
     /// The SIMD path of `classify` gives exactly the answers of the portable path, on
     /// perspective and orthographic cameras, arbitrary matrices and every kind of box.
     #[test]
@@ -735,28 +760,7 @@ mod tests {
         let mut rng = sightline_scene::rng::Rng::new(77);
         let mut kinds = [0usize; 3];
         for cam_i in 0..300 {
-            let m = match cam_i % 5 {
-                // Arbitrary matrices, some with NaN or huge entries.
-                3 => Mat4::from_cols_array(&std::array::from_fn(|_| match rng.below(50) {
-                    0 => f32::NAN,
-                    1 => 1e30,
-                    _ => rng.range(-2.0, 2.0),
-                })),
-                // Orthographic (w = 1 everywhere): view volume [−5, 5] × [−3, 3] × [−25, 25].
-                4 => {
-                    Mat4::from_scale(Vec3::new(0.2, 1.0 / 3.0, -0.04))
-                        * Mat4::from_translation(Vec3::new(rng.range(-5.0, 5.0), rng.range(-1.0, 1.0), 0.0))
-                }
-                _ => {
-                    let eye = Vec3::new(rng.range(-5.0, 5.0), rng.range(-5.0, 5.0), rng.range(-5.0, 5.0));
-                    let target = eye + Vec3::new(rng.range(-1.0, 1.0), rng.range(-1.0, 1.0), rng.range(-1.0, 1.0));
-                    let near = [1e-4, 0.1, 1.0][rng.below(3) as usize];
-                    match Camera::perspective_look_at(eye, target, Vec3::Y, rng.range(10.0, 120.0), 1.7, near, 500.0) {
-                        Ok(c) => c.clip_from_world(),
-                        Err(_) => continue,
-                    }
-                }
-            };
+            let Some(m) = random_matrix(&mut rng, cam_i % 5) else { continue };
             let (w, h) = [(1280, 720), (97, 33), (1, 1), (0, 0), (4096, 3000)][rng.below(5) as usize];
             let p = BoxProjector::new(m, w, h);
             for _ in 0..400 {
@@ -791,23 +795,7 @@ mod tests {
         let mut rng = sightline_scene::rng::Rng::new(78);
         let mut kinds = [0usize; 3];
         for cam_i in 0..200 {
-            let m = match cam_i % 4 {
-                3 => Mat4::from_cols_array(&std::array::from_fn(|_| match rng.below(60) {
-                    0 => f32::NAN,
-                    1 => 1e30,
-                    2 => f32::INFINITY,
-                    _ => rng.range(-2.0, 2.0),
-                })),
-                _ => {
-                    let eye = Vec3::new(rng.range(-5.0, 5.0), rng.range(-5.0, 5.0), rng.range(-5.0, 5.0));
-                    let target = eye + Vec3::new(rng.range(-1.0, 1.0), rng.range(-1.0, 1.0), rng.range(-1.0, 1.0));
-                    let near = [1e-4, 0.1, 1.0][rng.below(3) as usize];
-                    match Camera::perspective_look_at(eye, target, Vec3::Y, rng.range(10.0, 120.0), 1.7, near, 500.0) {
-                        Ok(c) => c.clip_from_world(),
-                        Err(_) => continue,
-                    }
-                }
-            };
+            let Some(m) = random_matrix(&mut rng, if cam_i % 4 == 3 { 3 } else { 0 }) else { continue };
             let (w, h) = [(1280, 720), (97, 33), (1, 1), (0, 0), (4096, 3000), (1 << 25, 8)][rng.below(6) as usize];
             let p = BoxProjector::new(m, w, h);
             let reach = [1.0, 10.0, 100.0][rng.below(3) as usize];
