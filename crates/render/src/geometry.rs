@@ -2,8 +2,9 @@
 //! the few that need it, set up the rest.
 //!
 //! Per draw piece the referenced vertex span is transformed by one `clip_from_local`
-//! matrix into flat, reused arrays (clip position, outcode, snapped window position), so a
-//! vertex shared by six triangles is transformed and projected once. Each triangle then
+//! matrix, eight vertices at a time, into flat, reused arrays (outcode, snapped window
+//! position), so a vertex shared by six triangles is transformed and projected once; the
+//! few triangles that need clipping recompute their clip positions. Each triangle then
 //! costs three array reads, an AND and an OR of outcodes (Cohen–Sutherland's trivial
 //! reject/accept), and setup. Only triangles crossing the near/far planes or the guard band
 //! go through the homogeneous Sutherland–Hodgman clipper ([`crate::clip`]).
@@ -455,8 +456,6 @@ mod tests {
     #[test]
     fn eight_wide_transform_equals_glam() {
         let mut rng = sightline_scene::rng::Rng::new(5);
-        let mut vc = VertexCache::default();
-        vc.resize(8);
         for _ in 0..2000 {
             let m = Mat4::from_cols_array(&[0.0; 16].map(|_| rng.range(-4.0, 4.0)));
             let p: Vec<Vec3> =

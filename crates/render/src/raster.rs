@@ -166,9 +166,10 @@ impl TileBuf {
         // Depth is affine in the window: over the pixel centers of this rectangle it is at
         // least its value at the nearest corner. For a big triangle reaching far behind
         // this tile, that bound is much tighter than its nearest vertex.
-        // Small rectangles (most triangles) are not worth the second bound.
+        // Small triangles (most of them) are not worth the second bound; big ones keep it
+        // even where only a corner of them reaches into this tile.
         let near = t.z0.min(z1).min(z2) - err;
-        let near = if x1 - x0 < 8 && y1 - y0 < 8 {
+        let near = if t.bbox[2] - t.bbox[0] < 8 && t.bbox[3] - t.bbox[1] < 8 {
             near
         } else {
             let (sx, sy) = (self.x0 as i32, self.y0 as i32);
@@ -684,7 +685,9 @@ struct FastEdges {
 }
 
 impl FastEdges {
-    /// `None` when some value over the block-aligned box of `[x0, y0, x1, y1]` leaves i32.
+    /// `None` when some value over the block-aligned box of `[x0, y0, x1, y1]`, or the
+    /// spread of an edge's values over one block, leaves i32 (long slivers: a steep edge
+    /// over a box one block wide), so that every sum below is a true value in i32.
     #[inline]
     #[allow(clippy::needless_range_loop)] // edge k of several arrays
     fn new(e: &[Edge; 3], [x0, y0, x1, y1]: [i32; 4]) -> Option<Self> {
@@ -697,14 +700,15 @@ impl FastEdges {
             let v = e[k].a * ax0 + e[k].b * ay0 + e[k].c;
             let lo = v + e[k].a.min(0) * w + e[k].b.min(0) * h;
             let hi = v + e[k].a.max(0) * w + e[k].b.max(0) * h;
-            if lo < i32::MIN as i64 || hi > i32::MAX as i64 {
+            let (block_lo, block_hi) = (e[k].a.min(0) * m + e[k].b.min(0) * m, e[k].a.max(0) * m + e[k].b.max(0) * m);
+            let fits = |x: i64| x >= i32::MIN as i64 && x <= i32::MAX as i64;
+            if !(fits(lo) && fits(hi) && fits(block_lo) && fits(block_hi)) {
                 return None;
             }
             f.e[k] = v as i32;
             f.a[k] = e[k].a as i32;
             f.b[k] = e[k].b as i32;
-            f.lo[k] = (e[k].a.min(0) * m + e[k].b.min(0) * m) as i32;
-            f.hi[k] = (e[k].a.max(0) * m + e[k].b.max(0) * m) as i32;
+            (f.lo[k], f.hi[k]) = (block_lo as i32, block_hi as i32);
         }
         Some(f)
     }
@@ -1109,6 +1113,20 @@ mod tests {
             checked += 1;
         }
         assert!(partly >= 50, "only {partly} triangles cross the tile");
+        // A sliver one block wide with a steep edge: its values over the box fit i32, but
+        // an edge's spread over a whole block does not (found in review; it overflowed).
+        let sliver = tri([(4.0, -3000.0), (4.0, 3000.0), (5.0, 0.0)], 1, &vp)
+            .or_else(|| tri([(4.0, -3000.0), (5.0, 0.0), (4.0, 3000.0)], 1, &vp))
+            .expect("the sliver covers column 4");
+        let (ids, _) = draw(&[sliver], 64, 64);
+        let e = edges(&sliver);
+        for py in 0..64i64 {
+            for px in 0..64i64 {
+                let inside = e.iter().all(|e| e.a * px + e.b * py + e.c >= 0);
+                assert_eq!(ids[(py * 64 + px) as usize] == 1, inside, "sliver at {px},{py}");
+            }
+        }
+        assert!(ids.contains(&1), "the sliver draws column 4");
         let mut big = t;
         big.x = t.x.map(|v| v * 2);
         big.y = t.y.map(|v| v * 2);
