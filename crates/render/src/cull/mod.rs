@@ -197,6 +197,12 @@ impl Culler {
     /// the pyramid has occluders before the bulk of the walk is tested.
     pub const DEFAULT_FIRST_BATCH: usize = 8;
 
+    /// The default [`Culler::max_batch`]. Smaller batches refresh the pyramid that binning
+    /// tests whole triangles against more often: on the boxfield's occluder pass (one
+    /// thread) 256 rejects 10% more triangle-tile pairs there than 2048 and is about 0.8 ms
+    /// faster; the city's street walks (two threads) measured the same with either.
+    pub const DEFAULT_MAX_BATCH: usize = 256;
+
     /// Builds clusters, meshlets, BVH and octree for the scene's instances (world transforms
     /// must be up to date).
     pub fn new(scene: &Scene) -> Self {
@@ -251,7 +257,7 @@ impl Culler {
             drawn_in: Vec::new(),
             frame: 0,
             first_batch: Self::DEFAULT_FIRST_BATCH,
-            max_batch: 2048,
+            max_batch: Self::DEFAULT_MAX_BATCH,
         }
     }
 
@@ -556,8 +562,8 @@ impl Culler {
                 f.cs.ms_draw += ms_since(t);
                 f.cs.batches += 1;
             }
-            // With last frame's occluders in place the pyramid is mostly complete: big batches.
-            let first_batch = if first.is_empty() { self.first_batch } else { self.max_batch / 4 };
+            // With last frame's occluders in place the pyramid is mostly complete: full batches.
+            let first_batch = if first.is_empty() { self.first_batch } else { self.max_batch };
             self.hzb_bvh(f, frustum, Walk { first_batch, skip: Some(frame), test: true })
         })();
         // Re-test last frame's clusters against the finished pyramid: the occluded ones leave
