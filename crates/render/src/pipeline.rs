@@ -211,20 +211,10 @@ impl Renderer {
         self.draw_sources_checked(sources, camera, fb, opts, true)
     }
 
-    /// [`Renderer::draw_sources`] for sources whose indices are in range by construction
-    /// (the culler's meshlets): the per-index scan, a pass over every index of every draw,
-    /// is left out; the other checks stay.
-    pub(crate) fn draw_meshlet_sources(
-        &mut self,
-        sources: &[DrawSource],
-        camera: &Camera,
-        fb: &mut Framebuffer,
-        opts: &RenderOptions,
-    ) -> Result<FrameStats> {
-        self.draw_sources_checked(sources, camera, fb, opts, false)
-    }
-
-    fn draw_sources_checked(
+    /// [`Renderer::draw_sources`]; `check_indices = false` is for sources whose indices are
+    /// in range by construction (the culler's meshlets): the per-index scan, a pass over
+    /// every index of every draw, is then left out of release builds.
+    pub(crate) fn draw_sources_checked(
         &mut self,
         sources: &[DrawSource],
         camera: &Camera,

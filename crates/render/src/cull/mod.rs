@@ -468,7 +468,7 @@ impl Culler {
             f.cs.triangles_drawn += d.count as u64;
         }
         // Meshlet indices point into their own positions by construction.
-        f.fs.add(&self.renderer.draw_meshlet_sources(&sources, f.camera, f.fb, f.opts)?);
+        f.fs.add(&self.renderer.draw_sources_checked(&sources, f.camera, f.fb, f.opts, false)?);
         Ok(())
     }
 
