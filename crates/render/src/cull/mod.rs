@@ -148,7 +148,7 @@ pub struct Culler {
     frame: u32,
     /// First batch size of the front-to-back walk.
     pub first_batch: usize,
-    /// Largest batch size.
+    /// Largest batch size (on one thread at most [`Culler::ONE_THREAD_MAX_BATCH`]).
     pub max_batch: usize,
 }
 
@@ -197,11 +197,22 @@ impl Culler {
     /// the pyramid has occluders before the bulk of the walk is tested.
     pub const DEFAULT_FIRST_BATCH: usize = 8;
 
-    /// The default [`Culler::max_batch`]. Smaller batches refresh the pyramid that binning
-    /// tests whole triangles against more often: on the boxfield's occluder pass (one
-    /// thread) 256 rejects 10% more triangle-tile pairs there than 2048 and is about 0.8 ms
-    /// faster; the city's street walks (two threads) measured the same with either.
-    pub const DEFAULT_MAX_BATCH: usize = 256;
+    /// The default [`Culler::max_batch`].
+    pub const DEFAULT_MAX_BATCH: usize = 2048;
+
+    /// The batch cap on one thread (with [`Culler::max_batch`] the lower of the two). A
+    /// batch then costs no synchronization, and smaller batches refresh the pyramid that
+    /// binning tests whole triangles against more often: on the boxfield's occluder pass
+    /// 256 rejects 10% more triangle-tile pairs there than 2048 and is about 0.8 ms faster.
+    /// With two threads the street walk measured the same either way and the aerial walk
+    /// about 1 ms slower with 256, so there the cap stays [`Culler::max_batch`].
+    pub const ONE_THREAD_MAX_BATCH: usize = 256;
+
+    /// The largest draw batch for the calling thread pool.
+    fn batch_cap(&self) -> usize {
+        let cap = if rayon::current_num_threads() == 1 { Self::ONE_THREAD_MAX_BATCH } else { usize::MAX };
+        self.max_batch.min(cap).max(1)
+    }
 
     /// Builds clusters, meshlets, BVH and octree for the scene's instances (world transforms
     /// must be up to date).
@@ -517,7 +528,7 @@ impl Culler {
             if !more {
                 return Ok(());
             }
-            batch = (batch * 2).min(self.max_batch.max(1));
+            batch = (batch * 2).min(self.batch_cap());
         }
     }
 
@@ -562,8 +573,8 @@ impl Culler {
                 f.cs.ms_draw += ms_since(t);
                 f.cs.batches += 1;
             }
-            // With last frame's occluders in place the pyramid is mostly complete: full batches.
-            let first_batch = if first.is_empty() { self.first_batch } else { self.max_batch };
+            // With last frame's occluders in place the pyramid is mostly complete: big batches.
+            let first_batch = if first.is_empty() { self.first_batch } else { self.batch_cap() / 4 };
             self.hzb_bvh(f, frustum, Walk { first_batch, skip: Some(frame), test: true })
         })();
         // Re-test last frame's clusters against the finished pyramid: the occluded ones leave
@@ -654,7 +665,7 @@ struct Frame<'a> {
 /// How [`Culler::hzb_bvh`] walks.
 #[derive(Debug, Clone, Copy)]
 struct Walk {
-    /// Clusters in the first draw batch (batches then double up to `Culler::max_batch`).
+    /// Clusters in the first draw batch (batches then double up to the batch cap).
     first_batch: usize,
     /// `Some(frame)`: clusters already drawn in that frame (see `drawn_in`) are passed
     /// over, and the ones drawn get marked and join `last_visible`.
@@ -686,7 +697,7 @@ impl OctreeWalk<'_, '_> {
         }
         self.f.cs.ms_draw += ms_since(t);
         self.f.cs.batches += 1;
-        self.batch = (self.batch * 2).min(self.culler.max_batch.max(1));
+        self.batch = (self.batch * 2).min(self.culler.batch_cap());
         self.pending = items;
         self.pending.clear();
     }
