@@ -225,7 +225,7 @@ impl Renderer {
         let t0 = Instant::now();
         let mut resolved: Vec<Item> = Vec::with_capacity(sources.len());
         self.ranges.clear();
-        let mut last: Option<(glam::Affine3A, glam::Mat4)> = None;
+        let mut m = glam::Mat4::ZERO;
         let clip_from_world = camera.clip_from_world_f64();
         for (k, d) in sources.iter().enumerate() {
             let n = (d.indices.len() / 3) as u64;
@@ -242,11 +242,10 @@ impl Renderer {
                 return bad("an index is out of range".into());
             }
             // Consecutive clusters of one instance share the matrix.
-            let m = match last {
-                Some((w, m)) if crate::cull::same_matrix(&w, &d.world_from_local) => m,
-                _ => Camera::clip_from_local_with(&clip_from_world, &d.world_from_local),
-            };
-            last = Some((d.world_from_local, m));
+            let same = k > 0 && crate::cull::same_matrix(&sources[k - 1].world_from_local, &d.world_from_local);
+            if !same {
+                m = Camera::clip_from_local_with(&clip_from_world, &d.world_from_local);
+            }
             resolved.push(Item {
                 src: Source::Mesh {
                     positions: d.positions,
