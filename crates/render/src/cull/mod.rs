@@ -148,8 +148,13 @@ pub struct Culler {
     frame: u32,
     /// First batch size of the front-to-back walk.
     pub first_batch: usize,
-    /// Largest batch size (on one thread at most [`Culler::ONE_THREAD_MAX_BATCH`]).
+    /// Largest batch size.
     pub max_batch: usize,
+    /// Largest batch size when the calling thread pool has one thread (the lower of this
+    /// and `max_batch` applies), [`Culler::ONE_THREAD_MAX_BATCH`] by default. Batch sizes
+    /// change which clusters and triangles get tested and skipped, so counters such as
+    /// `triangles_drawn` depend on the thread count (never the image).
+    pub one_thread_max_batch: usize,
 }
 
 /// What drawing one cluster takes, in one record per cluster: a batch of clusters then
@@ -202,7 +207,7 @@ impl Culler {
     /// 20,290 at 2048); the aerial walk was about 1 ms slower at 256 and the same at 1024.
     pub const DEFAULT_MAX_BATCH: usize = 1024;
 
-    /// The batch cap on one thread (with [`Culler::max_batch`] the lower of the two). A
+    /// The default [`Culler::one_thread_max_batch`]. A
     /// batch then costs no synchronization, and smaller batches refresh the pyramid that
     /// binning tests whole triangles against more often: on the boxfield's occluder pass
     /// 256 rejects 10% more triangle-tile pairs there than 2048 and is about 0.8 ms faster.
@@ -210,7 +215,7 @@ impl Culler {
 
     /// The largest draw batch for the calling thread pool.
     fn batch_cap(&self) -> usize {
-        let cap = if rayon::current_num_threads() == 1 { Self::ONE_THREAD_MAX_BATCH } else { usize::MAX };
+        let cap = if rayon::current_num_threads() == 1 { self.one_thread_max_batch } else { usize::MAX };
         self.max_batch.min(cap).max(1)
     }
 
@@ -269,6 +274,7 @@ impl Culler {
             frame: 0,
             first_batch: Self::DEFAULT_FIRST_BATCH,
             max_batch: Self::DEFAULT_MAX_BATCH,
+            one_thread_max_batch: Self::ONE_THREAD_MAX_BATCH,
         }
     }
 
@@ -483,8 +489,9 @@ impl Culler {
         Ok(())
     }
 
-    /// The front-to-back walk of [`Method::HzbOnePass`] inside an open frame session, in
-    /// batches growing from `walk.first_batch` clusters; see [`Walk`] for the rest.
+    /// The front-to-back walk of [`Method::HzbOnePass`] (and of the occluder pass, which
+    /// does not test) inside an open frame session, in batches growing from
+    /// `walk.first_batch` clusters; see [`Walk`] for the rest.
     fn hzb_bvh(&mut self, f: &mut Frame, frustum: &Frustum, walk: Walk) -> Result<()> {
         let projector = BoxProjector::new(f.camera.clip_from_world(), f.fb.width(), f.fb.height());
         let eye = f.camera.view.eye;
@@ -495,7 +502,10 @@ impl Culler {
             let t = Instant::now();
             out.clear();
             let more = {
-                let Some(pyramid) = self.renderer.session_pyramid() else { break Ok(()) };
+                let Some(pyramid) = self.renderer.session_pyramid() else {
+                    debug_assert!(false, "the walk runs inside a frame session");
+                    break Ok(());
+                };
                 let q = walk.test.then(|| OcclusionQueries::with_projector(projector, pyramid));
                 let cs = &mut f.cs;
                 cursor.next_batch(
@@ -574,7 +584,8 @@ impl Culler {
                 f.cs.batches += 1;
             }
             // With last frame's occluders in place the pyramid is mostly complete: big batches.
-            let first_batch = if first.is_empty() { self.first_batch } else { self.batch_cap() / 4 };
+            let first_batch =
+                if first.is_empty() { self.first_batch } else { (self.batch_cap() / 4).max(self.first_batch) };
             self.hzb_bvh(f, frustum, Walk { first_batch, skip: Some(frame), test: true })
         })();
         // Re-test last frame's clusters against the finished pyramid: the occluded ones leave
@@ -703,6 +714,8 @@ impl OctreeWalk<'_, '_> {
     }
 }
 
+/// `world_from_local` equality used to reuse a clip matrix between consecutive sources.
+#[inline]
 pub(crate) fn same_matrix(a: &Affine3A, b: &Affine3A) -> bool {
     a.matrix3 == b.matrix3 && a.translation == b.translation
 }

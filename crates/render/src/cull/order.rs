@@ -87,7 +87,7 @@ impl Culler {
                 }
                 f.cs.batches += 1;
             }
-            self.renderer.end_session(f.fb);
+            f.fs.covered_pixels = self.renderer.end_session(f.fb);
         } else {
             self.draw_items(&items, |x| x.1, &mut f)?;
             f.cs.batches = 1;

@@ -76,8 +76,10 @@ impl DepthPyramid {
     pub fn level_count(&self) -> usize {
         self.levels.len() + 1
     }
-    /// Level `k` ≥ 1 as (width, height, texels, row-major); `None` past the top (level 0
-    /// is the depth buffer itself).
+    /// Level `k` as (width, height, texels, row-major), for 1 ≤ k < [`level_count`]; `None`
+    /// for level 0 (the depth buffer itself, not held here) and past the top.
+    ///
+    /// [`level_count`]: DepthPyramid::level_count
     pub fn level(&self, k: usize) -> Option<(u32, u32, &[f32])> {
         let (w, h, t) = self.levels.get(k.checked_sub(1)?)?;
         Some((*w, *h, t))
@@ -333,6 +335,21 @@ mod tests {
             assert!(p.is_occluded(&depth, r, 1.5) || m >= 1.5);
         }
         assert_eq!(p.farthest(&depth), brute_max(&depth, w, Rect { x0: 0, y0: 0, x1: w - 1, y1: h - 1 }));
+        // Levels: 0 is the depth buffer (not held), then sizes halve rounding up, each texel
+        // the max of the texels below it that exist.
+        assert!(p.level(0).is_none() && p.level(p.level_count()).is_none());
+        let (mut lw, mut lh, mut below) = (w, h, depth.clone());
+        for k in 1..p.level_count() {
+            let (kw, kh, texels) = p.level(k).expect("a level below the top");
+            assert_eq!((kw, kh), (lw.div_ceil(2), lh.div_ceil(2)));
+            for y in 0..kh {
+                for x in 0..kw {
+                    let r = Rect { x0: 2 * x, y0: 2 * y, x1: (2 * x + 1).min(lw - 1), y1: (2 * y + 1).min(lh - 1) };
+                    assert_eq!(texels[(y * kw + x) as usize], brute_max(&below, lw, r), "level {k} at {x},{y}");
+                }
+            }
+            (lw, lh, below) = (kw, kh, texels.to_vec());
+        }
     }
 
     #[test]

@@ -206,6 +206,7 @@ fn run(
                     for child in [na, nc] {
                         match child.count {
                             0 => prefetch(bvh.nodes.get(child.index as usize)),
+                            1 => prefetch(bvh.items.get(child.index as usize)),
                             _ => prefetch(bvh.item_boxes.get(child.index as usize)),
                         }
                     }
