@@ -526,10 +526,8 @@ fn raster_bins<const F: u8, const C: bool, const COARSE: bool>(
     for c in chunks {
         for &i in &c.bins[index] {
             let t = &c.tris[i as usize];
+            // With `coarse` on, the rasterizer marks the blocks it writes stale.
             let r = raster_tri::<F, C>(t, tile);
-            if COARSE && r.written > 0 {
-                mark_written(tile, t);
-            }
             st.tested += r.covered as u64;
             st.written += r.written as u64;
             if t.multi == u32::MAX {
@@ -539,16 +537,6 @@ fn raster_bins<const F: u8, const C: bool, const COARSE: bool>(
             }
         }
     }
-}
-
-/// Marks the blocks of the triangle's bounding box inside the tile as stale in its pyramid.
-#[inline]
-fn mark_written(tile: &mut TileBuf, t: &crate::setup::Tri) {
-    let x0 = (t.bbox[0] as i32).max(tile.x0 as i32);
-    let y0 = (t.bbox[1] as i32).max(tile.y0 as i32);
-    let x1 = (t.bbox[2] as i32).min((tile.x0 + tile.w) as i32 - 1);
-    let y1 = (t.bbox[3] as i32).min((tile.y0 + tile.h) as i32 - 1);
-    tile.mark_written([x0, y0, x1, y1]);
 }
 
 /// Writes tiles to `fb`: the dirty ones from their buffers and, with `all`, every other

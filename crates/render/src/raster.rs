@@ -57,7 +57,9 @@ pub struct TileBuf {
     pub dirty: bool,
     /// In a frame session: whether the tile has been drawn into (else it is still clear).
     pub touched: bool,
-    /// Whether the rasterizer may skip 8×8 blocks behind the tile's pyramid (set per pass).
+    /// Whether the rasterizer may skip 8×8 blocks behind the tile's pyramid, and keeps the
+    /// pyramid of the blocks it writes up to date (level 3 at once, the rest marked in
+    /// `stale_blocks`); set per pass, on in frame sessions.
     pub coarse: bool,
     /// In a frame session: the tile's z-pyramid levels 1..=6 (32², 16², …, 1² texels, each
     /// the max window depth of the 2×2 texels below), see [`MIP_OFFSETS`].
@@ -125,18 +127,6 @@ impl TileBuf {
         // would ever mark them).
         self.stale_blocks = if self.w < TILE || self.h < TILE { !0 } else { 0 };
         self.touched = true;
-    }
-
-    /// Notes that pixels inside the screen rectangle `[x0, y0, x1, y1]` (inclusive, clipped
-    /// to the tile by the caller) may have been written: their 8×8 blocks become stale.
-    #[inline]
-    pub fn mark_written(&mut self, [x0, y0, x1, y1]: [i32; 4]) {
-        let (bx0, bx1) = ((x0 - self.x0 as i32) >> 3, (x1 - self.x0 as i32) >> 3);
-        let (by0, by1) = ((y0 - self.y0 as i32) >> 3, (y1 - self.y0 as i32) >> 3);
-        let row = ((1u64 << (bx1 + 1)) - 1) & !((1u64 << bx0) - 1);
-        for by in by0..=by1 {
-            self.stale_blocks |= row << (8 * by);
-        }
     }
 
     /// Coarse depth (the seeds' per-tile Z_max, "HyperZ"; Greene's pyramid test per
@@ -593,16 +583,68 @@ fn plane_min(t: &Tri, [x0, y0, x1, y1]: [i32; 4]) -> f32 {
 /// y1]` (clipped to the tile): blocks outside an edge are skipped, blocks behind the tile's
 /// pyramid (coarse depth) too, and the rest go through the block kernel, edges the whole
 /// block is inside of dropped from its test (Greene 1996; the block-level trivial
-/// reject/accept of Intel's Masked Occlusion Culling).
-fn raster_blocks<const FMT: u8, const COUNT: bool>(
+/// reject/accept of Intel's Masked Occlusion Culling). Edge values are set up per block in
+/// i32 when they fit over the whole box ([`FastEdges`], nearly every triangle), else from
+/// the i64 edge functions.
+fn raster_blocks<const FMT: u8, const COUNT: bool>(t: &Tri, tile: &mut TileBuf, rect: [i32; 4]) -> TriRaster {
+    let e = edges(t);
+    match FastEdges::new(&e, rect) {
+        Some(f) => walk_blocks::<FMT, COUNT>(t, tile, rect, &e, |r, c| f.block(r, c)),
+        None => walk_blocks::<FMT, COUNT>(t, tile, rect, &e, |r, _| wide_block(&e, r)),
+    }
+}
+
+/// How the kernel is to run one block.
+enum BlockSetup {
+    /// Outside an edge: nothing to do.
+    Outside,
+    /// Edge values in i32 (an edge the block is inside of is all zeros).
+    Narrow(BlockEdges),
+    /// Values too big for i32: per pixel on i64, from these values at the rectangle's first
+    /// pixel (rare: vertices thousands of pixels away).
+    Wide([i64; 3]),
+}
+
+/// Block setup from the i64 edge functions over the rectangle `[rx0, ry0, rx1, ry1]`.
+#[allow(clippy::needless_range_loop)] // edge k of several arrays
+fn wide_block(e: &[Edge; 3], [rx0, ry0, rx1, ry1]: [i32; 4]) -> BlockSetup {
+    let (w, h) = ((rx1 - rx0) as i64, (ry1 - ry0) as i64);
+    let mut fits = true;
+    let mut k32 = BlockEdges { e: [0; 3], a: [0; 3], b: [0; 3] };
+    let mut e00 = [0i64; 3];
+    for k in 0..3 {
+        let v = e[k].a * rx0 as i64 + e[k].b * ry0 as i64 + e[k].c;
+        e00[k] = v;
+        let lo = v + e[k].a.min(0) * w + e[k].b.min(0) * h;
+        let hi = v + e[k].a.max(0) * w + e[k].b.max(0) * h;
+        if hi < 0 {
+            return BlockSetup::Outside;
+        }
+        if lo < 0 {
+            // The edge crosses the block: tested per pixel. Wrapping i32 steps are exact
+            // modulo 2^32, so values that fit i32 come out exact.
+            fits &= lo >= i32::MIN as i64 && hi <= i32::MAX as i64;
+            (k32.e[k], k32.a[k], k32.b[k]) = (v as i32, e[k].a as i32, e[k].b as i32);
+        }
+    }
+    if fits {
+        BlockSetup::Narrow(k32)
+    } else {
+        BlockSetup::Wide(e00)
+    }
+}
+
+/// The block loop of [`raster_blocks`]; `setup(rect, block corner)` (screen pixels) says
+/// how each block runs. A block the triangle wrote into gets its pyramid texel refreshed
+/// at once and is marked stale for the levels below it (frame sessions only).
+#[allow(clippy::needless_range_loop)] // edge k of several arrays
+fn walk_blocks<const FMT: u8, const COUNT: bool>(
     t: &Tri,
     tile: &mut TileBuf,
     [x0, y0, x1, y1]: [i32; 4],
+    e: &[Edge; 3],
+    mut setup: impl FnMut([i32; 4], [i32; 2]) -> BlockSetup,
 ) -> TriRaster {
-    let e = edges(t);
-    if let Some(f) = FastEdges::new(&e, [x0, y0, x1, y1]) {
-        return raster_blocks_i32::<FMT, COUNT>(t, tile, [x0, y0, x1, y1], &f);
-    }
     let mut out = TriRaster::default();
     let (tx, ty) = (tile.x0 as i32, tile.y0 as i32);
     // Block corners are aligned to the tile (whose corner is a multiple of 8).
@@ -614,55 +656,39 @@ fn raster_blocks<const FMT: u8, const COUNT: bool>(
             let (rx0, rx1) = (bx.max(x0), (bx + BLOCK - 1).min(x1));
             let rect = [rx0, ry0, rx1, ry1];
             let corner = [bx - tx, by - ty];
+            let how = setup(rect, [bx, by]);
             bx += BLOCK;
-            let (w, h) = ((rx1 - rx0) as i64, (ry1 - ry0) as i64);
-            let mut outside = false;
-            let mut fits = true;
-            let mut k32 = BlockEdges { e: [0; 3], a: [0; 3], b: [0; 3] };
-            let mut e00 = [0i64; 3];
-            for k in 0..3 {
-                let v = e[k].a * rx0 as i64 + e[k].b * ry0 as i64 + e[k].c;
-                e00[k] = v;
-                let lo = v + e[k].a.min(0) * w + e[k].b.min(0) * h;
-                let hi = v + e[k].a.max(0) * w + e[k].b.max(0) * h;
-                outside |= hi < 0;
-                if lo < 0 {
-                    // The edge crosses the block: tested per pixel. Wrapping i32 steps are
-                    // exact modulo 2^32, so values that fit i32 come out exact.
-                    fits &= lo >= i32::MIN as i64 && hi <= i32::MAX as i64;
-                    (k32.e[k], k32.a[k], k32.b[k]) = (v as i32, e[k].a as i32, e[k].b as i32);
-                }
-            }
-            if outside || (tile.coarse && block_hidden(t, tile, rect, corner)) {
+            if matches!(how, BlockSetup::Outside) || (tile.coarse && block_hidden(t, tile, rect, corner)) {
                 continue;
             }
-            if fits {
-                let before = out.written;
-                block::<FMT, COUNT>(t, tile, rect, &k32, &mut out);
-                if tile.coarse && out.written != before {
-                    refresh_block_max::<FMT>(tile, corner);
-                }
-            } else {
-                // Edges too long for i32 values: per pixel on i64 (rare: vertices thousands
-                // of pixels away).
-                for py in ry0..=ry1 {
-                    let zrow = depth_row(t, py);
-                    let row = ((py - ty) as usize) << TILE_SHIFT;
-                    let dy = (py - ry0) as i64;
-                    let mut ev = [0i64; 3];
-                    for k in 0..3 {
-                        ev[k] = e00[k] + e[k].b * dy;
-                    }
-                    for px in rx0..=rx1 {
-                        if (ev[0] | ev[1] | ev[2]) >= 0 {
-                            let z = depth_at(t, zrow, px);
-                            fragment::<FMT, COUNT>(tile, row + (px - tx) as usize, z, t.id, &mut out);
-                        }
+            let before = out.written;
+            match how {
+                BlockSetup::Outside => {}
+                BlockSetup::Narrow(k32) => block::<FMT, COUNT>(t, tile, rect, &k32, &mut out),
+                BlockSetup::Wide(e00) => {
+                    for py in ry0..=ry1 {
+                        let zrow = depth_row(t, py);
+                        let row = ((py - ty) as usize) << TILE_SHIFT;
+                        let dy = (py - ry0) as i64;
+                        let mut ev = [0i64; 3];
                         for k in 0..3 {
-                            ev[k] += e[k].a;
+                            ev[k] = e00[k] + e[k].b * dy;
+                        }
+                        for px in rx0..=rx1 {
+                            if (ev[0] | ev[1] | ev[2]) >= 0 {
+                                let z = depth_at(t, zrow, px);
+                                fragment::<FMT, COUNT>(tile, row + (px - tx) as usize, z, t.id, &mut out);
+                            }
+                            for k in 0..3 {
+                                ev[k] += e[k].a;
+                            }
                         }
                     }
                 }
+            }
+            if tile.coarse && out.written != before {
+                refresh_block_max::<FMT>(tile, corner);
+                tile.stale_blocks |= 1 << ((corner[1] >> 3) * 8 + (corner[0] >> 3));
             }
         }
         by += BLOCK;
@@ -674,6 +700,8 @@ fn raster_blocks<const FMT: u8, const COUNT: bool>(
 /// bounding box (clipped to the tile) touches: the common case, triangles up to about a
 /// hundred pixels across.
 struct FastEdges {
+    /// The first block's corner (screen pixels).
+    corner: [i32; 2],
     /// Values at the first block's corner.
     e: [i32; 3],
     /// Steps per pixel along x and y.
@@ -693,7 +721,8 @@ impl FastEdges {
     fn new(e: &[Edge; 3], [x0, y0, x1, y1]: [i32; 4]) -> Option<Self> {
         let (ax0, ay0) = ((x0 & !(BLOCK - 1)) as i64, (y0 & !(BLOCK - 1)) as i64);
         let (w, h) = ((x1 | (BLOCK - 1)) as i64 - ax0, (y1 | (BLOCK - 1)) as i64 - ay0);
-        let mut f = FastEdges { e: [0; 3], a: [0; 3], b: [0; 3], lo: [0; 3], hi: [0; 3] };
+        let corner = [ax0 as i32, ay0 as i32];
+        let mut f = FastEdges { corner, e: [0; 3], a: [0; 3], b: [0; 3], lo: [0; 3], hi: [0; 3] };
         let m = (BLOCK - 1) as i64;
         for k in 0..3 {
             // Affine: the extremes over the box are at its corners.
@@ -714,61 +743,30 @@ impl FastEdges {
     }
 }
 
-/// [`raster_blocks`] for triangles whose edge values fit i32 over all their blocks: the
-/// values step from block to block by additions, and whole blocks (not their parts inside
-/// the box) decide "outside" and "inside an edge" — a block skipped or an edge dropped
-/// that way is so for its part inside the box too, so the pixels drawn are the same.
-#[allow(clippy::needless_range_loop)] // edge k of several arrays
-fn raster_blocks_i32<const FMT: u8, const COUNT: bool>(
-    t: &Tri,
-    tile: &mut TileBuf,
-    [x0, y0, x1, y1]: [i32; 4],
-    f: &FastEdges,
-) -> TriRaster {
-    let mut out = TriRaster::default();
-    let (tx, ty) = (tile.x0 as i32, tile.y0 as i32);
-    let (ax0, ay0) = (x0 & !(BLOCK - 1), y0 & !(BLOCK - 1));
-    let mut row = f.e;
-    let mut by = ay0;
-    while by <= y1 {
-        let (ry0, ry1) = (by.max(y0), (by + BLOCK - 1).min(y1));
-        let mut v = row;
-        let mut bx = ax0;
-        while bx <= x1 {
-            let (rx0, rx1) = (bx.max(x0), (bx + BLOCK - 1).min(x1));
-            let corner = [bx - tx, by - ty];
-            let at = v;
-            bx += BLOCK;
-            for k in 0..3 {
-                v[k] = v[k].wrapping_add(f.a[k].wrapping_mul(BLOCK));
-            }
-            let mut outside = false;
-            let mut k32 = BlockEdges { e: [0; 3], a: [0; 3], b: [0; 3] };
-            for k in 0..3 {
-                outside |= at[k] + f.hi[k] < 0;
-                if at[k] + f.lo[k] < 0 {
-                    // The edge crosses the block: tested per pixel, from the rectangle's
-                    // first pixel.
-                    let e = at[k] + f.a[k] * (rx0 - (corner[0] + tx)) + f.b[k] * (ry0 - (corner[1] + ty));
-                    (k32.e[k], k32.a[k], k32.b[k]) = (e, f.a[k], f.b[k]);
-                }
-            }
-            let rect = [rx0, ry0, rx1, ry1];
-            if outside || (tile.coarse && block_hidden(t, tile, rect, corner)) {
-                continue;
-            }
-            let before = out.written;
-            block::<FMT, COUNT>(t, tile, rect, &k32, &mut out);
-            if tile.coarse && out.written != before {
-                refresh_block_max::<FMT>(tile, corner);
-            }
-        }
+impl FastEdges {
+    /// Setup of the block with corner `[bx, by]` and rectangle `[rx0, ry0, ...]` inside
+    /// it: whole blocks (not their parts inside the box) decide "outside" and "inside an
+    /// edge"; a block skipped or an edge dropped that way is so for its part inside the box
+    /// too, so the pixels drawn are the same. Every sum is a value over the box: in i32.
+    #[inline]
+    #[allow(clippy::needless_range_loop)] // edge k of several arrays
+    fn block(&self, [rx0, ry0, _, _]: [i32; 4], [bx, by]: [i32; 2]) -> BlockSetup {
+        let mut k32 = BlockEdges { e: [0; 3], a: [0; 3], b: [0; 3] };
+        let (dx, dy) = (bx - self.corner[0], by - self.corner[1]);
         for k in 0..3 {
-            row[k] = row[k].wrapping_add(f.b[k].wrapping_mul(BLOCK));
+            let at = self.e[k] + self.a[k] * dx + self.b[k] * dy;
+            if at + self.hi[k] < 0 {
+                return BlockSetup::Outside;
+            }
+            if at + self.lo[k] < 0 {
+                // The edge crosses the block: tested per pixel, from the rectangle's first
+                // pixel.
+                let e = at + self.a[k] * (rx0 - bx) + self.b[k] * (ry0 - by);
+                (k32.e[k], k32.a[k], k32.b[k]) = (e, self.a[k], self.b[k]);
+            }
         }
-        by += BLOCK;
+        BlockSetup::Narrow(k32)
     }
-    out
 }
 
 /// Brings the pyramid texel of one 8×8 block (level 3; `corner` in tile pixels) up to date
