@@ -43,7 +43,7 @@ use std::time::Instant;
 use glam::Affine3A;
 use serde::Serialize;
 use sightline_scene::{Aabb, Camera, Instance, Scene};
-use sightline_spatial::{BoxProjector, ClusteredScene, CullOptions, Frustum, LooseOctree, Visible, Visit};
+use sightline_spatial::{prefetch, BoxProjector, ClusteredScene, CullOptions, Frustum, LooseOctree, Visible, Visit};
 
 pub use meshlets::{Meshlets, SceneMeshlets};
 pub use order::DrawOrder;
@@ -174,21 +174,6 @@ struct ClusterDraw {
     /// First triangle of the cluster in its meshlets, and the count (0: nothing to draw).
     first: u32,
     count: u32,
-}
-
-/// Asks the CPU to start loading `v`'s cache line; a hint only, no effect on results.
-#[inline(always)]
-fn prefetch<T>(v: &T) {
-    #[cfg(target_arch = "x86_64")]
-    // SAFETY: a prefetch never faults and has no architectural effect; the address is a
-    // valid reference anyway.
-    #[allow(unused_unsafe)]
-    unsafe {
-        use std::arch::x86_64::{_mm_prefetch, _MM_HINT_T0};
-        _mm_prefetch::<_MM_HINT_T0>(v as *const T as *const i8);
-    }
-    #[cfg(not(target_arch = "x86_64"))]
-    let _ = v;
 }
 
 /// How far ahead batch loops prefetch per-cluster records.

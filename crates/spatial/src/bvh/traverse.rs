@@ -17,6 +17,7 @@ use glam::Vec3;
 use sightline_scene::Aabb;
 
 use super::Bvh;
+use crate::hint::prefetch;
 use crate::{AabbExt, Containment, CullOptions, CullStats, Frustum, PlaneMask, Visible, Visit, ALL_PLANES};
 
 /// Per-node plane-coherency state for [`Bvh::cull_coherent`]: the plane that last rejected
@@ -204,11 +205,12 @@ fn run(
                     // Both children are visited soon (unless culled): start loading what they
                     // will read, their child pairs or item boxes, while this pair is ordered.
                     for child in [na, nc] {
+                        let i = child.index as usize;
                         match child.count {
-                            0 => prefetch(bvh.nodes.get(child.index as usize)),
-                            1 => prefetch(bvh.items.get(child.index as usize)),
-                            _ => prefetch(bvh.item_boxes.get(child.index as usize)),
-                        }
+                            0 => bvh.nodes.get(i).map(prefetch),
+                            1 => bvh.items.get(i).map(prefetch),
+                            _ => bvh.item_boxes.get(i).map(prefetch),
+                        };
                     }
                     let (near, far) = if nearer(&na.aabb(), &nc.aabb(), eye) { (a, c) } else { (c, a) };
                     stack.push(Entry { id: far, mask, kind: KIND_NODE });
@@ -217,23 +219,6 @@ fn run(
             }
         }
     }
-}
-
-/// Asks the CPU to start loading `v`'s cache line (a hint, no effect on results).
-#[inline(always)]
-fn prefetch<T>(v: Option<&T>) {
-    #[cfg(target_arch = "x86_64")]
-    if let Some(v) = v {
-        // SAFETY: a prefetch never faults and has no architectural effect; the address is
-        // that of a valid reference.
-        #[allow(unused_unsafe)]
-        unsafe {
-            use std::arch::x86_64::{_mm_prefetch, _MM_HINT_T0};
-            _mm_prefetch::<_MM_HINT_T0>(v as *const T as *const i8);
-        }
-    }
-    #[cfg(not(target_arch = "x86_64"))]
-    let _ = v;
 }
 
 /// True when box `a` should be visited before box `b` from `eye`.
