@@ -275,15 +275,22 @@ impl Renderer {
             t.touched = false;
             t.dirty = false;
         }
-        self.upper.clear();
-        let (mut w, mut h) = (grid.tiles_x, grid.tiles_y);
-        loop {
-            self.upper.push((w, h, vec![1.0; (w * h) as usize]));
-            if w == 1 && h == 1 {
-                break;
+        // Levels above the tiles, cleared; allocated only when the grid changes.
+        if self.upper.first().is_some_and(|l| (l.0, l.1) == (grid.tiles_x, grid.tiles_y)) {
+            for l in &mut self.upper {
+                l.2.fill(1.0);
             }
-            w = w.div_ceil(2);
-            h = h.div_ceil(2);
+        } else {
+            self.upper.clear();
+            let (mut w, mut h) = (grid.tiles_x, grid.tiles_y);
+            loop {
+                self.upper.push((w, h, vec![1.0; (w * h) as usize]));
+                if w == 1 && h == 1 {
+                    break;
+                }
+                w = w.div_ceil(2);
+                h = h.div_ceil(2);
+            }
         }
         self.session = Some(format);
         self.fresh = false;
