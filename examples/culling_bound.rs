@@ -1,0 +1,109 @@
+//! How far is occlusion culling from ideal? Along the street path of the default city, each
+//! frame is rendered three ways:
+//!
+//! - `brute`: every triangle;
+//! - `hzb`: the culler's default occlusion culling;
+//! - `oracle`: exactly the triangles visible in the brute-force frame, found from its ID
+//!   buffer beforehand (not timed), drawn as a plain frame: what perfect culling at zero
+//!   cost would draw.
+//!
+//! The oracle frame bounds every culling method from below: what it still costs (clears,
+//! rasterizing the visible pixels, writing depth and IDs, shading) does not depend on
+//! culling, so `brute / oracle` is the largest speed-up any culling can give this renderer.
+//! Each oracle frame is checked to equal the brute-force frame.
+//!
+//! ```text
+//! cargo run --release --example culling_bound [-- FRAMES]
+//! ```
+
+use std::time::Instant;
+
+use sightline::render::{Culler, DrawItem, FrameStats, Framebuffer, Method, RenderOptions, Renderer};
+use sightline::scene::builders::{city, CityParams};
+use sightline::scene::Instance;
+
+fn main() -> Result<(), Box<dyn std::error::Error>> {
+    let frames: usize = std::env::args().nth(1).map(|v| v.parse()).transpose()?.unwrap_or(120);
+    if frames == 0 {
+        return Err("FRAMES must be at least 1".into());
+    }
+    let c = city(&CityParams::for_triangles(1_000_000))?;
+    let scene = &c.scene;
+    let cams =
+        c.layout.street_path(frames, 11).iter().map(|k| k.camera(1280.0 / 720.0)).collect::<Result<Vec<_>, _>>()?;
+    let instances = scene.instances();
+    let mut culler = Culler::new(scene);
+    let mut renderer = Renderer::new();
+    let (mut reference, mut fb) = (Framebuffer::new(1280, 720)?, Framebuffer::new(1280, 720)?);
+    let opts = RenderOptions::default();
+    let mut runs: [Vec<f64>; 3] = Default::default();
+    let (mut visible, mut stages) = (Vec::new(), Vec::new());
+    // The first round warms caches and buffers; the second is measured.
+    for round in 0..2 {
+        for (k, cam) in cams.iter().enumerate() {
+            let t = Instant::now();
+            culler.render(scene, cam, Method::Brute, &mut reference, &opts)?;
+            let brute = ms(t);
+            let t = Instant::now();
+            culler.render(scene, cam, Method::Hzb, &mut fb, &opts)?;
+            let hzb = ms(t);
+            let items = visible_items(&reference.ids, &instances);
+            let t = Instant::now();
+            let st = renderer.render(scene, &instances, &items.0, cam, &mut fb, &opts)?;
+            let oracle = ms(t);
+            if fb.ids != reference.ids {
+                return Err(format!("frame {k}: the oracle frame differs from brute force").into());
+            }
+            if round == 1 {
+                for (run, v) in runs.iter_mut().zip([brute, hzb, oracle]) {
+                    run.push(v);
+                }
+                visible.push(items.1 as f64);
+                stages.push(st);
+            }
+        }
+    }
+    let [brute, hzb, oracle] = runs.map(median);
+    println!("street path, {frames} frames at 1280×720, medians:");
+    println!("  brute   {brute:6.2} ms");
+    println!("  hzb     {hzb:6.2} ms  ({:.2}× brute)", brute / hzb);
+    println!("  oracle  {oracle:6.2} ms  ({:.2}× brute), {:.0} visible triangles", brute / oracle, median(visible));
+    let stage = |f: fn(&FrameStats) -> f64| median(stages.iter().map(f).collect());
+    println!(
+        "  oracle stages: geometry {:.2}, binning {:.2}, raster and write-out {:.2}, shading {:.2} ms",
+        stage(|s| s.ms_geometry),
+        stage(|s| s.ms_binning),
+        stage(|s| s.ms_raster),
+        stage(|s| s.ms_shading)
+    );
+    Ok(())
+}
+
+/// The triangles with an ID in `ids`, as draw items (runs of consecutive triangles of one
+/// instance merged), and how many there are.
+fn visible_items(ids: &[u32], instances: &[Instance]) -> (Vec<DrawItem>, usize) {
+    let mut seen: Vec<u32> = ids.iter().copied().filter(|&i| i != 0).collect();
+    seen.sort_unstable();
+    seen.dedup();
+    let mut items: Vec<DrawItem> = Vec::new();
+    for &id in &seen {
+        // IDs are 1 + the instance's first triangle + the triangle within its mesh.
+        let g = id - 1;
+        let k = instances.partition_point(|i| i.first_triangle <= g) - 1;
+        let local = g - instances[k].first_triangle;
+        match items.last_mut() {
+            Some(it) if it.instance == k as u32 && it.first + it.count == local => it.count += 1,
+            _ => items.push(DrawItem { instance: k as u32, first: local, count: 1 }),
+        }
+    }
+    (items, seen.len())
+}
+
+fn ms(t: Instant) -> f64 {
+    t.elapsed().as_secs_f64() * 1e3
+}
+
+fn median(mut v: Vec<f64>) -> f64 {
+    v.sort_by(f64::total_cmp);
+    v[v.len() / 2]
+}
