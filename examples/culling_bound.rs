@@ -23,10 +23,13 @@ use sightline::scene::builders::{city, CityParams};
 use sightline::scene::Instance;
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {
-    let frames: usize = std::env::args().nth(1).map(|v| v.parse()).transpose()?.unwrap_or(120);
-    if frames == 0 {
-        return Err("FRAMES must be at least 1".into());
-    }
+    let frames = match std::env::args().nth(1) {
+        None => 120,
+        Some(v) => match v.parse::<usize>() {
+            Ok(n) if n > 0 => n,
+            _ => return Err(format!("FRAMES must be a whole number of at least 1, not {v:?}").into()),
+        },
+    };
     let c = city(&CityParams::for_triangles(1_000_000))?;
     let scene = &c.scene;
     let cams =
