@@ -715,7 +715,7 @@ struct FastEdges {
 impl FastEdges {
     /// `None` when some value over the block-aligned box of `[x0, y0, x1, y1]`, or the
     /// spread of an edge's values over one block, leaves i32 (long slivers: a steep edge
-    /// over a box one block wide), so that every sum below is a true value in i32.
+    /// over a box one block wide), so that every edge value over the box fits i32.
     #[inline]
     #[allow(clippy::needless_range_loop)] // edge k of several arrays
     fn new(e: &[Edge; 3], [x0, y0, x1, y1]: [i32; 4]) -> Option<Self> {
@@ -741,27 +741,31 @@ impl FastEdges {
         }
         Some(f)
     }
-}
 
-impl FastEdges {
     /// Setup of the block with corner `[bx, by]` and rectangle `[rx0, ry0, ...]` inside
     /// it: whole blocks (not their parts inside the box) decide "outside" and "inside an
     /// edge"; a block skipped or an edge dropped that way is so for its part inside the box
-    /// too, so the pixels drawn are the same. Every sum is a value over the box: in i32.
+    /// too, so the pixels drawn are the same. Every result is a value over the box, so it
+    /// fits i32 (a product on the way may wrap; see below).
     #[inline]
     #[allow(clippy::needless_range_loop)] // edge k of several arrays
     fn block(&self, [rx0, ry0, _, _]: [i32; 4], [bx, by]: [i32; 2]) -> BlockSetup {
         let mut k32 = BlockEdges { e: [0; 3], a: [0; 3], b: [0; 3] };
         let (dx, dy) = (bx - self.corner[0], by - self.corner[1]);
+        // A step times an offset can leave i32 (a long steep edge) while the value it leads to
+        // cannot: wrapping arithmetic is exact modulo 2^32, so every result that fits is exact.
+        let value = |k: usize, x: i32, y: i32, from: i32| {
+            from.wrapping_add(self.a[k].wrapping_mul(x)).wrapping_add(self.b[k].wrapping_mul(y))
+        };
         for k in 0..3 {
-            let at = self.e[k] + self.a[k] * dx + self.b[k] * dy;
+            let at = value(k, dx, dy, self.e[k]);
             if at + self.hi[k] < 0 {
                 return BlockSetup::Outside;
             }
             if at + self.lo[k] < 0 {
                 // The edge crosses the block: tested per pixel, from the rectangle's first
                 // pixel.
-                let e = at + self.a[k] * (rx0 - bx) + self.b[k] * (ry0 - by);
+                let e = value(k, rx0 - bx, ry0 - by, at);
                 (k32.e[k], k32.a[k], k32.b[k]) = (e, self.a[k], self.b[k]);
             }
         }
@@ -1077,13 +1081,29 @@ mod tests {
         raster_tri::<0, false>(&t, &mut tile);
     }
 
+    /// Big triangles, slivers and triangles reaching thousands of pixels past the tile cover
+    /// exactly the pixel centers their i64 edge functions say, whichever block path
+    /// (i32 steps or i64 per pixel) draws them.
     #[test]
-    fn small_and_block_paths_agree() {
-        // The same big triangle drawn through both paths (by shrinking the extent limit
-        // artificially is not possible, so compare against a direct per-pixel evaluation).
+    fn big_and_sliver_triangles_cover_exactly() {
         let vp = Viewport::new(64, 64, true);
         let t = tri([(0.3, 0.7), (63.2, 20.1), (10.4, 63.9)], 1, &vp).unwrap();
         covers_exactly_its_pixels(&t, "first");
+        // A long steep edge: its step per pixel times a block offset leaves i32 although
+        // every edge value over the box fits (found in review; checked builds overflowed).
+        let steep = tri([(9.36, -514.5), (60.3, 534.0), (16.7, -178.9)], 1, &vp)
+            .or_else(|| tri([(9.36, -514.5), (16.7, -178.9), (60.3, 534.0)], 1, &vp))
+            .expect("the steep triangle covers pixels of the tile");
+        assert!(covers_exactly_its_pixels(&steep, "steep") > 0);
+        // Many like it: edges a few hundred to a thousand pixels long across the tile.
+        let mut rng = sightline_scene::rng::Rng::new(17);
+        for _ in 0..500 {
+            let mut p = |r: f32| (rng.range(-40.0, 104.0), rng.range(-r, r));
+            let pts = [p(1200.0), p(1200.0), p(100.0)];
+            if let Some(t) = tri(pts, 1, &vp) {
+                covers_exactly_its_pixels(&t, "long edge");
+            }
+        }
         // Huge triangles (vertices thousands of pixels away, as near-plane-hugging geometry
         // gives): partly covered blocks run on i32 when their edge values fit, else on i64.
         let mut rng = sightline_scene::rng::Rng::new(11);
