@@ -2,7 +2,7 @@
 //! the few that need it, set up the rest.
 //!
 //! Per draw piece the referenced vertex span is transformed by one `clip_from_local`
-//! matrix, eight vertices at a time, into flat, reused arrays (outcode, snapped window
+//! matrix (eight vertices at a time in AVX2 builds), into flat, reused arrays (outcode, snapped window
 //! position), so a vertex shared by six triangles is transformed and projected once; the
 //! few triangles that need clipping recompute their clip positions. Each triangle then
 //! costs three array reads, an AND and an OR of outcodes (Cohen–Sutherland's trivial

@@ -519,7 +519,8 @@ fn raster_tile<const F: u8, const C: bool>(
 }
 
 /// Rasterizes the tile's binned triangles, chunk after chunk, in submission order.
-/// With `COARSE` (frame sessions), triangles behind the tile's pyramid are skipped whole.
+/// With `COARSE` (frame sessions, on a tile drawn into before), 8×8 blocks behind the
+/// tile's pyramid are skipped; whole triangles behind it were left out at binning.
 fn raster_bins<const F: u8, const C: bool, const COARSE: bool>(
     tile: &mut TileBuf,
     index: usize,

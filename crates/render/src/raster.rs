@@ -379,8 +379,8 @@ fn fragment<const FMT: u8, const COUNT: bool>(tile: &mut TileBuf, idx: usize, z:
     }
 }
 
-/// One row of a small triangle: edge values at its first pixel and their steps, the
-/// depth plane along the row, the pixel count.
+/// One row of a block for the row loops: edge values at its first pixel and their steps,
+/// the depth plane along the row, the pixel count.
 #[derive(Clone, Copy)]
 struct Row {
     e: [i32; 3],
@@ -435,7 +435,7 @@ fn opaque(mut v: std::arch::x86_64::__m128i) -> std::arch::x86_64::__m128i {
 }
 
 /// The lane sums of two vectors, in registers with SSE2 only (a store and four scalar loads
-/// per row were a measurable share of small-triangle time).
+/// per row were a measurable share of the row loops' time).
 #[cfg(target_arch = "x86_64")]
 #[inline(always)]
 fn sum2(a: std::arch::x86_64::__m128i, b: std::arch::x86_64::__m128i) -> (u32, u32) {
@@ -450,7 +450,7 @@ fn sum2(a: std::arch::x86_64::__m128i, b: std::arch::x86_64::__m128i) -> (u32, u
 }
 
 /// A row in groups of four pixels with SSE2, branch-free (coverage and the depth test are
-/// unpredictable for small triangles). Same arithmetic as [`row_scalar`], so the same
+/// unpredictable along the edges of triangles). Same arithmetic as [`row_scalar`], so the same
 /// result bit for bit. Lanes past the row are masked; they read and rewrite unchanged
 /// values of the next row or of the buffer's padding.
 #[cfg(target_arch = "x86_64")]
@@ -1070,10 +1070,52 @@ mod tests {
         }
     }
 
-    /// A tile built by hand larger than the buffers allow is refused with a panic, never
-    /// written out of bounds.
+    /// With coarse depth on (frame sessions), skipping blocks behind the pyramid changes no
+    /// pixel, and every block written gets its level-3 texel refreshed at once, exactly the
+    /// max of its depths, before any later triangle is tested against it.
     #[test]
-    #[should_panic]
+    fn coarse_blocks_skip_nothing_visible_and_refresh_their_texel() {
+        let vp = Viewport::new(64, 64, true);
+        let mut rng = sightline_scene::rng::Rng::new(9);
+        let mut a = TileBuf::new(0, 0, 64, 64);
+        a.clear_for_session(crate::DepthFormat::F32, false);
+        a.coarse = true;
+        let mut b = a.clone();
+        b.coarse = false;
+        let mut skipped = 0;
+        for n in 0..2000 {
+            let s = [3.0f32, 12.0, 40.0][n % 3];
+            let (cx, cy) = (rng.range(0.0, 64.0), rng.range(0.0, 64.0));
+            let z = rng.range(0.0, 1.0);
+            let mut p = || SnappedVertex {
+                x: crate::setup::snap(cx + rng.range(-s, s)),
+                y: crate::setup::snap(cy + rng.range(-s, s)),
+                z: (z + rng.range(-0.05, 0.05)).clamp(0.0, 1.0),
+            };
+            let v = [p(), p(), p()];
+            let Setup::Ready(t) = setup(v, 1 + n as u32, false, &vp) else { continue };
+            let (ra, rb) = (raster_tri::<0, false>(&t, &mut a), reference::<0>(&t, &mut b));
+            assert_eq!(ra.written, rb.written, "triangle {n}");
+            skipped += (ra.covered < rb.covered) as u32;
+            let mut stale = a.stale_blocks;
+            while stale != 0 {
+                let k = stale.trailing_zeros() as usize;
+                stale &= stale - 1;
+                let (bx, by) = ((k % 8) * 8, (k / 8) * 8);
+                let max = (by..by + 8).flat_map(|y| (bx..bx + 8).map(move |x| y * 64 + x)).map(|i| a.depth[i]).max();
+                assert_eq!(a.mips[MIP_OFFSETS[2] + k], f32::from_bits(max.unwrap()), "block {k} after triangle {n}");
+            }
+        }
+        assert_eq!((&a.depth, &a.ids), (&b.depth, &b.ids));
+        assert!(skipped > 100, "coarse depth skipped blocks of only {skipped} triangles");
+    }
+
+    /// A tile built by hand larger than the buffers allow is refused with a panic, never
+    /// written out of bounds (with AVX2, by the block kernel's check; without, by the row
+    /// loops' slice bounds).
+    #[test]
+    #[cfg_attr(all(target_arch = "x86_64", target_feature = "avx2"), should_panic(expected = "block outside the tile"))]
+    #[cfg_attr(not(all(target_arch = "x86_64", target_feature = "avx2")), should_panic)]
     fn oversized_hand_built_tile_panics() {
         let vp = Viewport::new(200, 200, true);
         let t = tri([(0.5, 0.5), (199.5, 0.5), (0.5, 199.5)], 1, &vp).unwrap();

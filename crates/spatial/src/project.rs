@@ -755,6 +755,8 @@ mod tests {
 
     /// The SIMD path of `classify` gives exactly the answers of the portable path, on
     /// perspective and orthographic cameras, arbitrary matrices and every kind of box.
+    /// (Builds without AVX2 have only the portable path; there this compares it with
+    /// itself. The project's x86-64 build config enables AVX2.)
     #[test]
     fn classify_equals_the_portable_path() {
         let mut rng = sightline_scene::rng::Rng::new(77);
@@ -789,7 +791,8 @@ mod tests {
     }
 
     /// `classify_many` (eight boxes per SIMD batch, the rest one by one) answers every box
-    /// exactly like the portable path, in order, whatever lane an unusual box lands in.
+    /// exactly like the portable path, in order, whatever lane an unusual box lands in
+    /// (a self-comparison in builds without AVX2, as above).
     #[test]
     fn classify_many_equals_the_portable_path() {
         let mut rng = sightline_scene::rng::Rng::new(78);
