@@ -213,7 +213,9 @@ impl Renderer {
 
     /// [`Renderer::draw_sources`]; `check_indices = false` is for sources whose indices are
     /// in range by construction (the culler's meshlets): the per-index scan, a pass over
-    /// every index of every draw, is then left out of release builds.
+    /// every index of every draw, is then left out of release builds. (Should such an index
+    /// be out of range after all, the draw reads stale vertex-cache entries or panics on a
+    /// bounds check; it never reads outside memory.)
     pub(crate) fn draw_sources_checked(
         &mut self,
         sources: &[DrawSource],
