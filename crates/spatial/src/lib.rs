@@ -46,6 +46,7 @@ mod octree;
 mod plane;
 mod project;
 mod ray;
+pub mod simd;
 mod sphere;
 
 pub use aabb::{AabbExt, BoxKind};
@@ -65,6 +66,7 @@ pub use plane::Plane;
 pub use project::{project_box, BoxImage, BoxProjector, ScreenRect};
 pub use ray::Ray;
 pub use sightline_scene::Aabb;
+pub use simd::SimdLevel;
 pub use sphere::Sphere;
 
 use glam::Vec3;

@@ -67,52 +67,7 @@ use packet::{Hits, Rays, NO_HIT};
 use tlas::{invertible, InstanceRec, Tlas};
 use trace::{trace, Scratch};
 
-/// Which instruction set the packet kernels run on. Every level gives bit-identical images
-/// (no fused multiply-adds, same operation order); only the speed differs.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
-pub enum SimdLevel {
-    /// The best the CPU supports.
-    #[default]
-    Auto,
-    /// AVX-512 (F, BW, DQ, VL): 16 lanes per instruction.
-    Avx512,
-    /// AVX2: 8 lanes per instruction.
-    Avx2,
-    /// Whatever the compile target gives (SSE2 on x86-64).
-    Portable,
-}
-
-impl SimdLevel {
-    /// The level actually used: `Auto` and unsupported requests fall back to what the CPU
-    /// has.
-    pub fn resolve(self) -> SimdLevel {
-        #[cfg(target_arch = "x86_64")]
-        {
-            let avx512 = std::is_x86_feature_detected!("avx512f")
-                && std::is_x86_feature_detected!("avx512bw")
-                && std::is_x86_feature_detected!("avx512dq")
-                && std::is_x86_feature_detected!("avx512vl")
-                && std::is_x86_feature_detected!("bmi1")
-                && std::is_x86_feature_detected!("bmi2")
-                && std::is_x86_feature_detected!("lzcnt")
-                && std::is_x86_feature_detected!("popcnt");
-            let avx2 = std::is_x86_feature_detected!("avx2")
-                && std::is_x86_feature_detected!("bmi1")
-                && std::is_x86_feature_detected!("bmi2")
-                && std::is_x86_feature_detected!("lzcnt")
-                && std::is_x86_feature_detected!("popcnt");
-            match self {
-                SimdLevel::Auto | SimdLevel::Avx512 if avx512 => SimdLevel::Avx512,
-                SimdLevel::Auto | SimdLevel::Avx512 | SimdLevel::Avx2 if avx2 => SimdLevel::Avx2,
-                _ => SimdLevel::Portable,
-            }
-        }
-        #[cfg(not(target_arch = "x86_64"))]
-        {
-            SimdLevel::Portable
-        }
-    }
-}
+pub use sightline_spatial::simd::SimdLevel;
 
 /// How a frame is ray cast.
 #[derive(Debug, Clone, Copy, PartialEq)]
