@@ -79,12 +79,13 @@ fn write_pyramid(depth: &[f32], w: u32, h: u32, path: &std::path::Path) {
     let (cw, ch, gap) = (w / 2, h / 2, 8);
     let mut img = image::RgbaImage::from_pixel(4 * cw + 3 * gap, 2 * ch + gap, image::Rgba([255, 255, 255, 255]));
     for k in 1..=8 {
-        let Some((lw, lh, texels)) = pyramid.level(k) else { break };
+        let Some(level) = pyramid.level(k) else { break };
+        let (lw, lh) = (level.width, level.height);
         let (ox, oy) = (((k - 1) % 4) as u32 * (cw + gap), ((k - 1) / 4) as u32 * (ch + gap));
         for y in 0..ch {
             for x in 0..cw {
                 let (tx, ty) = ((x * lw / cw).min(lw - 1), (y * lh / ch).min(lh - 1));
-                let g = gray(texels[(ty * lw + tx) as usize]);
+                let g = gray(level.at(tx, ty));
                 img.put_pixel(ox + x, oy + y, image::Rgba([g, g, g, 255]));
             }
         }

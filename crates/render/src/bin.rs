@@ -9,35 +9,19 @@
 
 use std::sync::atomic::AtomicBool;
 
+use crate::edge::{misses_rect, Tri};
 use crate::geometry::Chunk;
-use crate::raster::{misses_rect, TileBuf, TILE, TILE_SHIFT};
-
-/// The tile grid of a framebuffer.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub(crate) struct Grid {
-    pub tiles_x: u32,
-    pub tiles_y: u32,
-    pub width: u32,
-    pub height: u32,
-}
-
-impl Grid {
-    pub fn new(width: u32, height: u32) -> Self {
-        Self { tiles_x: width.div_ceil(TILE), tiles_y: height.div_ceil(TILE), width, height }
-    }
-    pub fn len(&self) -> usize {
-        (self.tiles_x * self.tiles_y) as usize
-    }
-}
+use crate::hzb::TileLevels;
+use crate::tiling::{Grid, TILE, TILE_SHIFT};
 
 /// Bins all triangles of a chunk (also assigns their multi-tile flags).
 ///
 /// With `session` (the tiles of a frame session), the coarse depth test runs here, while the
 /// triangle is still in cache from setup: a triangle behind a tile's pyramid (as of the last
-/// draw batch) is not sent to that tile (the seeds' per-tile Z_max, "HyperZ"). Tiles not yet
+/// draw batch) is not sent to that tile (the per-tile z-max of ATI's "HyperZ"). Tiles not yet
 /// drawn into this session hold a stale pyramid and are not tested.
 #[inline(never)] // a stage of its own in profiles
-pub(crate) fn bin_chunk(chunk: &mut Chunk, grid: &Grid, session: Option<&[TileBuf]>) {
+pub(crate) fn bin_chunk(chunk: &mut Chunk, grid: &Grid, session: Option<&[TileLevels]>) {
     let n = grid.len();
     chunk.bins.resize_with(n, Vec::new);
     chunk.bins.truncate(n);
@@ -47,7 +31,7 @@ pub(crate) fn bin_chunk(chunk: &mut Chunk, grid: &Grid, session: Option<&[TileBu
     chunk.multi.clear();
     chunk.hidden_at_binning = 0;
     let tx = grid.tiles_x as usize;
-    let hidden = |k: usize, t: &crate::setup::Tri| session.is_some_and(|s| s[k].touched && s[k].occludes(t));
+    let hidden = |k: usize, t: &Tri| session.is_some_and(|s| s[k].touched && s[k].occludes(t));
     for (i, t) in chunk.tris.iter_mut().enumerate() {
         let [x0, y0, x1, y1] = t.bbox.map(|v| v as u32);
         let (tx0, ty0) = (x0 >> TILE_SHIFT, y0 >> TILE_SHIFT);

@@ -1,4 +1,4 @@
-//! Depth formats and the integer keys the rasterizer compares.
+//! Depth formats and the integer keys the rasterizer compares: one codec per format.
 //!
 //! The z-buffer algorithm (Catmull 1974) keeps the nearest window depth per pixel and
 //! accepts a fragment when its depth is LESS than the stored one. Window depth is
@@ -6,9 +6,18 @@
 //! precision (z-fighting) can be shown: `f32`, and 16- and 24-bit unsigned integers holding
 //! `round(z_w · (2^n − 1))`, like GL's fixed-point depth buffers.
 //!
-//! Inside the rasterizer every format is a `u32` *key* whose unsigned order equals depth
-//! order: the integer value itself, or the bit pattern of a non-negative `f32` (IEEE 754
-//! floats of one sign compare like their bit patterns). One comparison serves all formats.
+//! Inside the rasterizer every format is a `u32` *key* whose order equals depth order: the
+//! integer value itself, or the bit pattern of a non-negative `f32` (IEEE 754 floats of one
+//! sign compare like their bit patterns). One comparison serves all formats. Each format is
+//! a zero-sized type implementing [`DepthCodec`] (scalar, four- and eight-wide keys, decode,
+//! tie margin); the kernels are generic over it and the format is chosen once per frame.
+//!
+//! # NaN
+//!
+//! A fragment whose depth is NaN is never written, as on GPUs, where every comparison with
+//! NaN fails: its key is [`NAN_KEY`], above every key a depth can have, so it is never LESS
+//! than a stored key nor equal to one. A NaN *stored* in a framebuffer handed in by a user
+//! reads as the far plane ([`DepthFormat::key_of_stored`]).
 
 use serde::Serialize;
 
@@ -35,10 +44,14 @@ impl DepthFormat {
         }
     }
 
-    /// The key of window depth `z` (clamped to [0, 1]; NaN maps to the far plane).
+    /// The key of window depth `z` (clamped to [0, 1]); NaN gives [`NAN_KEY`], which never
+    /// passes a depth test.
     #[inline]
     pub fn key(self, z: f32) -> u32 {
-        // `!(z > 0)` also catches NaN; `+ 0.0` turns −0.0 into +0.0 (whose bits are 0).
+        if z.is_nan() {
+            return NAN_KEY;
+        }
+        // `+ 0.0` turns −0.0 into +0.0 (whose bits are 0).
         let z = if z > 0.0 { z.min(1.0) + 0.0 } else { 0.0 };
         match self.max_value() {
             None => z.to_bits(),
@@ -83,6 +96,155 @@ impl DepthFormat {
     }
 }
 
+/// The key of a NaN depth: above every key a depth in [0, 1] (or an f32 above 1) can have,
+/// and below 2^31 so that signed SIMD compares order it too. Never stored.
+pub(crate) const NAN_KEY: u32 = i32::MAX as u32;
+
+/// One depth storage format as the rasterizer's kernels use it. Every method performs the
+/// same IEEE operations at every width, so the scalar, SSE2 and AVX2 kernels agree bit for
+/// bit.
+pub(crate) trait DepthCodec: Copy + Send + Sync + 'static {
+    /// The format this codec stands for.
+    const FORMAT: DepthFormat;
+
+    /// The key of interpolated window depth `z`. Interpolation can stray a rounding error
+    /// outside [0, 1]: below 0 clamps (a negative float's bits would compare as "far");
+    /// above 1 fails LESS against a cleared buffer anyway. NaN gives [`NAN_KEY`].
+    fn key(z: f32) -> u32;
+
+    /// The window depth a key stands for.
+    fn decode(key: u32) -> f32;
+
+    /// [`DepthFormat::tie_margin`].
+    #[inline(always)]
+    fn tie_margin() -> f32 {
+        Self::FORMAT.tie_margin()
+    }
+
+    /// [`DepthCodec::key`] of four lanes (SSE2).
+    ///
+    /// # Safety
+    /// None beyond SSE2, which every x86-64 CPU has.
+    #[cfg(target_arch = "x86_64")]
+    unsafe fn key4(z: std::arch::x86_64::__m128) -> std::arch::x86_64::__m128i;
+
+    /// [`DepthCodec::key`] of eight lanes.
+    ///
+    /// # Safety
+    /// The CPU must have AVX2, and the caller must be compiled with it (an AVX2
+    /// `#[target_feature]` function this inlines into).
+    #[cfg(target_arch = "x86_64")]
+    unsafe fn key8(z: std::arch::x86_64::__m256) -> std::arch::x86_64::__m256i;
+}
+
+/// 32-bit float depth: the key is the bit pattern.
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct F32;
+/// 24-bit unsigned normalized depth.
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct Unorm24;
+/// 16-bit unsigned normalized depth.
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct Unorm16;
+
+impl DepthCodec for F32 {
+    const FORMAT: DepthFormat = DepthFormat::F32;
+
+    #[inline(always)]
+    fn key(z: f32) -> u32 {
+        let b = z.to_bits();
+        if z.is_nan() {
+            NAN_KEY
+        } else if (b as i32) < 0 {
+            0
+        } else {
+            b
+        }
+    }
+
+    #[inline(always)]
+    fn decode(key: u32) -> f32 {
+        f32::from_bits(key)
+    }
+
+    #[cfg(target_arch = "x86_64")]
+    #[inline(always)]
+    unsafe fn key4(z: std::arch::x86_64::__m128) -> std::arch::x86_64::__m128i {
+        use std::arch::x86_64::*;
+        let bits = _mm_castps_si128(z);
+        let k = _mm_andnot_si128(_mm_srai_epi32(bits, 31), bits);
+        // NaN lanes: all low 31 bits set gives NAN_KEY whatever the key was.
+        _mm_or_si128(k, _mm_and_si128(_mm_castps_si128(_mm_cmpunord_ps(z, z)), _mm_set1_epi32(NAN_KEY as i32)))
+    }
+
+    #[cfg(target_arch = "x86_64")]
+    #[inline(always)]
+    unsafe fn key8(z: std::arch::x86_64::__m256) -> std::arch::x86_64::__m256i {
+        use std::arch::x86_64::*;
+        let bits = _mm256_castps_si256(z);
+        let k = _mm256_andnot_si256(_mm256_srai_epi32(bits, 31), bits);
+        let nan = _mm256_castps_si256(_mm256_cmp_ps::<_CMP_UNORD_Q>(z, z));
+        _mm256_or_si256(k, _mm256_and_si256(nan, _mm256_set1_epi32(NAN_KEY as i32)))
+    }
+}
+
+/// The integer formats: `round(clamp(z, 0, 1) · MAX)`.
+macro_rules! unorm_codec {
+    ($name:ident, $format:expr, $max:expr) => {
+        impl DepthCodec for $name {
+            const FORMAT: DepthFormat = $format;
+
+            #[inline(always)]
+            fn key(z: f32) -> u32 {
+                if z.is_nan() {
+                    return NAN_KEY;
+                }
+                (z.clamp(0.0, 1.0) * $max + 0.5) as i32 as u32
+            }
+
+            #[inline(always)]
+            fn decode(key: u32) -> f32 {
+                key as f32 / $max
+            }
+
+            #[cfg(target_arch = "x86_64")]
+            #[inline(always)]
+            unsafe fn key4(z: std::arch::x86_64::__m128) -> std::arch::x86_64::__m128i {
+                use std::arch::x86_64::*;
+                let c = _mm_min_ps(_mm_max_ps(z, _mm_setzero_ps()), _mm_set1_ps(1.0));
+                let k = _mm_cvttps_epi32(_mm_add_ps(_mm_mul_ps(c, _mm_set1_ps($max)), _mm_set1_ps(0.5)));
+                _mm_or_si128(k, _mm_and_si128(_mm_castps_si128(_mm_cmpunord_ps(z, z)), _mm_set1_epi32(NAN_KEY as i32)))
+            }
+
+            #[cfg(target_arch = "x86_64")]
+            #[inline(always)]
+            unsafe fn key8(z: std::arch::x86_64::__m256) -> std::arch::x86_64::__m256i {
+                use std::arch::x86_64::*;
+                let c = _mm256_min_ps(_mm256_max_ps(z, _mm256_setzero_ps()), _mm256_set1_ps(1.0));
+                let k = _mm256_cvttps_epi32(_mm256_add_ps(_mm256_mul_ps(c, _mm256_set1_ps($max)), _mm256_set1_ps(0.5)));
+                let nan = _mm256_castps_si256(_mm256_cmp_ps::<_CMP_UNORD_Q>(z, z));
+                _mm256_or_si256(k, _mm256_and_si256(nan, _mm256_set1_epi32(NAN_KEY as i32)))
+            }
+        }
+    };
+}
+
+unorm_codec!(Unorm24, DepthFormat::Unorm24, 16_777_215.0);
+unorm_codec!(Unorm16, DepthFormat::Unorm16, 65_535.0);
+
+/// Calls `$f::<Codec>` ($args) for a run-time [`DepthFormat`]: the one place where a format
+/// value becomes a codec type.
+macro_rules! with_codec {
+    ($fmt:expr, $f:ident::<_ $(, $rest:tt)*>($($args:expr),* $(,)?)) => {
+        match $fmt {
+            $crate::depth::DepthFormat::F32 => $f::<$crate::depth::F32 $(, $rest)*>($($args),*),
+            $crate::depth::DepthFormat::Unorm24 => $f::<$crate::depth::Unorm24 $(, $rest)*>($($args),*),
+            $crate::depth::DepthFormat::Unorm16 => $f::<$crate::depth::Unorm16 $(, $rest)*>($($args),*),
+        }
+    };
+}
+pub(crate) use with_codec;
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -102,6 +264,8 @@ mod tests {
             assert_eq!(f.key(-5.0), f.key(0.0));
             assert_eq!(f.key(7.0), f.key(1.0));
             assert_eq!(f.key_of_stored(f32::NAN), f.key(1.0));
+            assert_eq!(f.key(f32::NAN), NAN_KEY);
+            assert!(f.key(1.0) < NAN_KEY);
         }
         assert_eq!(DepthFormat::Unorm16.key(1.0), 65535);
         assert_eq!(DepthFormat::Unorm16.key(0.5), 32768);
@@ -109,5 +273,53 @@ mod tests {
         let (a, b) = (0.9, 0.9 + 1e-6);
         assert_eq!(DepthFormat::Unorm16.key(a), DepthFormat::Unorm16.key(b));
         assert!(DepthFormat::F32.key(a) < DepthFormat::F32.key(b));
+    }
+
+    fn codec_agrees<D: DepthCodec>() {
+        let samples = [0.0, -0.0, 1e-30, 0.25, 0.5, 0.999_999_9, 1.0, 1.5, -2.0, f32::INFINITY, -f32::INFINITY];
+        let nans = [f32::NAN, -f32::NAN, f32::from_bits(0x7fc0_0001), f32::from_bits(0xffff_ffff)];
+        for &z in samples.iter().chain(&nans) {
+            let k = D::key(z);
+            if z.is_nan() {
+                assert_eq!(k, NAN_KEY, "{:?} NaN {:#x}", D::FORMAT, z.to_bits());
+            } else {
+                assert!(k < NAN_KEY, "{:?} {z}", D::FORMAT);
+            }
+            if (0.0..=1.0).contains(&z) {
+                assert_eq!(k, D::FORMAT.key(z), "{:?} {z}", D::FORMAT);
+                assert_eq!(D::decode(k), D::FORMAT.depth(k));
+            }
+            #[cfg(target_arch = "x86_64")]
+            {
+                use std::arch::x86_64::*;
+                // SAFETY: SSE2 is baseline; AVX2 only when detected (the function is then
+                // compiled for it).
+                let k4 = unsafe {
+                    let mut out = [0u32; 4];
+                    _mm_storeu_si128(out.as_mut_ptr() as *mut __m128i, D::key4(_mm_set1_ps(z)));
+                    out
+                };
+                assert_eq!(k4, [k; 4], "{:?} key4 {z}", D::FORMAT);
+                if std::is_x86_feature_detected!("avx2") {
+                    assert_eq!(unsafe { key8_avx2::<D>(z) }, [k; 8], "{:?} key8 {z}", D::FORMAT);
+                }
+            }
+        }
+    }
+
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2")]
+    unsafe fn key8_avx2<D: DepthCodec>(z: f32) -> [u32; 8] {
+        use std::arch::x86_64::*;
+        let mut out = [0u32; 8];
+        _mm256_storeu_si256(out.as_mut_ptr() as *mut __m256i, D::key8(_mm256_set1_ps(z)));
+        out
+    }
+
+    #[test]
+    fn every_codec_gives_one_key_at_every_width_and_never_writes_nan() {
+        codec_agrees::<F32>();
+        codec_agrees::<Unorm24>();
+        codec_agrees::<Unorm16>();
     }
 }

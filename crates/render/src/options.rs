@@ -160,3 +160,9 @@ impl RenderOptions {
         o
     }
 }
+
+/// `world_from_local` equality used to reuse a clip matrix between consecutive sources.
+#[inline]
+pub(crate) fn same_matrix(a: &glam::Affine3A, b: &glam::Affine3A) -> bool {
+    a.matrix3 == b.matrix3 && a.translation == b.translation
+}

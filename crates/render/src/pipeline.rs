@@ -25,13 +25,17 @@ use glam::Vec4;
 use rayon::prelude::*;
 use sightline_scene::{Camera, Instance, Scene};
 
-use crate::bin::{bin_chunk, Grid};
+use sightline_spatial::SimdLevel;
+
+use crate::bin::bin_chunk;
 use crate::depth::DepthFormat;
 use crate::geometry::{split, Chunk, Item, Source};
-use crate::options::{DrawItem, DrawSource, RenderOptions, Wireframe};
-use crate::raster::{raster_tri, TileBuf, TILE, TILE_SHIFT};
+use crate::hzb::{TileLevels, TilePyramid, UpperLevels};
+use crate::options::{same_matrix, DrawItem, DrawSource, RenderOptions, Wireframe};
+use crate::raster::{raster_tiles, TileBuf, TilePass};
 use crate::setup::Viewport;
 use crate::stats::{ms_since, FrameStats};
+use crate::tiling::{Grid, TILE, TILE_SHIFT};
 use crate::{aa, deferred, wire, Error, Framebuffer, Result};
 
 /// A rasterizer with its reusable buffers. Create once, render many frames.
@@ -40,6 +44,8 @@ pub struct Renderer {
     chunks: Vec<Chunk>,
     work: Vec<Vec<crate::geometry::Piece>>,
     tiles: Vec<TileBuf>,
+    /// Each tile's z-pyramid levels (parallel to `tiles`).
+    levels: Vec<TileLevels>,
     grid: Option<Grid>,
     ranges: Vec<(u32, u32, u32)>,
     supersampled: Option<Framebuffer>,
@@ -48,20 +54,7 @@ pub struct Renderer {
     /// Inside a frame session (see [`Renderer::begin_session`]): the depth format.
     session: Option<DepthFormat>,
     /// During a session: z-pyramid levels from the tile grid (level 6, one texel per tile) up.
-    upper: Vec<(u32, u32, Vec<f32>)>,
-}
-
-#[derive(Debug, Default, Clone, Copy)]
-struct TileStats {
-    tested: u64,
-    written: u64,
-    empty: u64,
-}
-
-impl TileStats {
-    fn sum(a: Self, b: Self) -> Self {
-        Self { tested: a.tested + b.tested, written: a.written + b.written, empty: a.empty + b.empty }
-    }
+    upper: UpperLevels,
 }
 
 impl Renderer {
@@ -244,7 +237,7 @@ impl Renderer {
                 return bad("an index is out of range".into());
             }
             // Consecutive clusters of one instance share the matrix.
-            let same = k > 0 && crate::cull::same_matrix(&sources[k - 1].world_from_local, &d.world_from_local);
+            let same = k > 0 && same_matrix(&sources[k - 1].world_from_local, &d.world_from_local);
             if !same {
                 m = Camera::clip_from_local_with(&clip_from_world, &d.world_from_local);
             }
@@ -273,27 +266,11 @@ impl Renderer {
     pub fn begin_session(&mut self, fb: &Framebuffer, format: DepthFormat) {
         let grid = Grid::new(fb.width(), fb.height());
         self.prepare_tiles(grid);
-        for t in &mut self.tiles {
-            t.touched = false;
+        for (t, lv) in self.tiles.iter_mut().zip(&mut self.levels) {
+            lv.touched = false;
             t.dirty = false;
         }
-        // Levels above the tiles, cleared; allocated only when the grid changes.
-        if self.upper.first().is_some_and(|l| (l.0, l.1) == (grid.tiles_x, grid.tiles_y)) {
-            for l in &mut self.upper {
-                l.2.fill(1.0);
-            }
-        } else {
-            self.upper.clear();
-            let (mut w, mut h) = (grid.tiles_x, grid.tiles_y);
-            loop {
-                self.upper.push((w, h, vec![1.0; (w * h) as usize]));
-                if w == 1 && h == 1 {
-                    break;
-                }
-                w = w.div_ceil(2);
-                h = h.div_ceil(2);
-            }
-        }
+        self.upper.clear(grid.tiles_x, grid.tiles_y);
         self.session = Some(format);
         self.fresh = false;
     }
@@ -304,8 +281,8 @@ impl Renderer {
     pub fn end_session(&mut self, fb: &mut Framebuffer) -> u64 {
         let Some(fmt) = self.session.take() else { return 0 };
         let Some(grid) = self.grid else { return 0 };
-        for t in &mut self.tiles {
-            t.dirty = t.touched;
+        for (t, lv) in self.tiles.iter_mut().zip(&self.levels) {
+            t.dirty = lv.touched;
         }
         store_tiles(&self.tiles, &grid, fb, fmt, true)
     }
@@ -323,10 +300,10 @@ impl Renderer {
     }
 
     /// The z-pyramid of the frame drawn so far in this session (`None` outside a session).
-    pub fn session_pyramid(&self) -> Option<crate::cull::TilePyramid<'_>> {
+    pub fn session_pyramid(&self) -> Option<TilePyramid<'_>> {
         let fmt = self.session?;
         let grid = self.grid?;
-        Some(crate::cull::TilePyramid::new(&self.tiles, grid.tiles_x, grid.width, grid.height, &self.upper, fmt))
+        Some(TilePyramid::new(&self.levels, grid.tiles_x, (grid.width, grid.height), &self.upper, fmt))
     }
 
     /// Draws raw clip-space triangles (no scene), triangle `k` with ID `first_id + k`: the
@@ -370,7 +347,7 @@ impl Renderer {
 
         // 2. Binning.
         let t = Instant::now();
-        let session_tiles = self.session.is_some().then_some(&self.tiles[..]);
+        let session_tiles = self.session.is_some().then_some(&self.levels[..]);
         chunks.par_iter_mut().for_each(|c| bin_chunk(c, &grid, session_tiles));
         st.ms_binning = ms_since(t);
 
@@ -380,9 +357,10 @@ impl Renderer {
         let fresh = std::mem::take(&mut self.fresh);
         let session = self.session;
         let fmt = session.unwrap_or(opts.depth_format);
-        let ts = raster_tiles(&mut self.tiles, chunks, fb, fmt, fresh, session.is_some());
+        let pass = TilePass { chunks, fb, fresh, session: session.is_some() };
+        let ts = raster_tiles(&mut self.tiles, &mut self.levels, &pass, fmt, SimdLevel::Auto);
         if session.is_some() {
-            update_upper_levels(&self.tiles, &mut self.upper);
+            self.upper.update(&self.levels);
         } else {
             let covered = store_tiles(&self.tiles, &grid, fb, fmt, fresh);
             // Only a fresh draw wrote every pixel; after a plain batch the count would include
@@ -413,139 +391,13 @@ impl Renderer {
             return;
         }
         self.tiles.clear();
-        for ty in 0..grid.tiles_y {
-            for tx in 0..grid.tiles_x {
-                let (x0, y0) = (tx * TILE, ty * TILE);
-                let w = TILE.min(grid.width - x0);
-                let h = TILE.min(grid.height - y0);
-                self.tiles.push(TileBuf::new(x0, y0, w, h));
-            }
+        self.levels.clear();
+        for k in 0..grid.len() {
+            let (x0, y0, w, h) = grid.tile_rect(k);
+            self.tiles.push(TileBuf::new(x0, y0, w, h));
+            self.levels.push(TileLevels::new(x0, y0, w, h));
         }
         self.grid = Some(grid);
-    }
-}
-
-/// Session pyramid levels above the tiles: level 6 holds each tile's max, the rest
-/// reduce 2×2 (odd sizes keep the edge texel's own max).
-fn update_upper_levels(tiles: &[TileBuf], upper: &mut [(u32, u32, Vec<f32>)]) {
-    let Some((_, _, l6)) = upper.first_mut() else { return };
-    for (v, t) in l6.iter_mut().zip(tiles) {
-        *v = if t.touched { t.mips[crate::raster::MIP_OFFSETS[5]] } else { 1.0 };
-    }
-    for k in 1..upper.len() {
-        let (below, above) = upper.split_at_mut(k);
-        let (sw, sh, src) = (&below[k - 1].0, &below[k - 1].1, &below[k - 1].2);
-        let (dw, dh, dst) = &mut above[0];
-        for y in 0..*dh {
-            let (y0, y1) = (2 * y, (2 * y + 1).min(sh - 1));
-            for x in 0..*dw {
-                let (x0, x1) = (2 * x, (2 * x + 1).min(sw - 1));
-                let at = |xx: u32, yy: u32| src[(yy * sw + xx) as usize];
-                dst[(y * *dw + x) as usize] = at(x0, y0).max(at(x1, y0)).max(at(x0, y1)).max(at(x1, y1));
-            }
-        }
-    }
-}
-
-fn raster_tiles(
-    tiles: &mut [TileBuf],
-    chunks: &[Chunk],
-    fb: &Framebuffer,
-    fmt: DepthFormat,
-    fresh: bool,
-    session: bool,
-) -> TileStats {
-    let count = fb.depth_tests.is_some();
-    let f = match (fmt, count) {
-        (DepthFormat::F32, false) => raster_tile::<0, false>,
-        (DepthFormat::F32, true) => raster_tile::<0, true>,
-        (DepthFormat::Unorm16, false) => raster_tile::<16, false>,
-        (DepthFormat::Unorm16, true) => raster_tile::<16, true>,
-        (DepthFormat::Unorm24, false) => raster_tile::<24, false>,
-        (DepthFormat::Unorm24, true) => raster_tile::<24, true>,
-    };
-    tiles
-        .par_iter_mut()
-        .enumerate()
-        .map(|(i, tile)| f(tile, i, chunks, fb, fmt, fresh, session))
-        .reduce(TileStats::default, TileStats::sum)
-}
-
-fn raster_tile<const F: u8, const C: bool>(
-    tile: &mut TileBuf,
-    index: usize,
-    chunks: &[Chunk],
-    fb: &Framebuffer,
-    fmt: DepthFormat,
-    fresh: bool,
-    session: bool,
-) -> TileStats {
-    let mut st = TileStats::default();
-    tile.dirty = chunks.iter().any(|c| !c.bins[index].is_empty());
-    if !tile.dirty {
-        return st;
-    }
-    if session {
-        // The tile holds the frame: clear it on first use, never load or store here.
-        if !tile.touched {
-            tile.clear_for_session(fmt, C);
-        }
-        raster_bins::<F, C, true>(tile, index, chunks, &mut st);
-        tile.update_mips(fmt);
-        return st;
-    }
-    // Start from the clear values right after a clear; otherwise load the tile's pixels
-    // (earlier batches may have drawn here).
-    let width = fb.width() as usize;
-    if fresh {
-        tile.depth.fill(fmt.key(1.0));
-        tile.ids.fill(0);
-        if C {
-            tile.counts.fill(0); // only read and written when counting
-        }
-    }
-    for r in (0..tile.h as usize).filter(|_| !fresh) {
-        let src = (tile.y0 as usize + r) * width + tile.x0 as usize;
-        let dst = r << TILE_SHIFT;
-        let w = tile.w as usize;
-        for (k, d) in tile.depth[dst..dst + w].iter_mut().zip(&fb.depth[src..src + w]) {
-            *k = fmt.key_of_stored(*d);
-        }
-        tile.ids[dst..dst + w].copy_from_slice(&fb.ids[src..src + w]);
-        if let (true, Some(c)) = (C, &fb.depth_tests) {
-            tile.counts[dst..dst + w].copy_from_slice(&c[src..src + w]);
-        }
-    }
-    raster_bins::<F, C, false>(tile, index, chunks, &mut st);
-    st
-}
-
-/// Rasterizes the tile's binned triangles, chunk after chunk, in submission order.
-/// With `COARSE` (frame sessions, on a tile drawn into before), 8×8 blocks behind the
-/// tile's pyramid are skipped; whole triangles behind it were left out at binning.
-fn raster_bins<const F: u8, const C: bool, const COARSE: bool>(
-    tile: &mut TileBuf,
-    index: usize,
-    chunks: &[Chunk],
-    st: &mut TileStats,
-) {
-    // With depth-test counting on, coarse rejection stays on: the heat map then counts
-    // the tests actually made. Whole triangles were tested against the tile at binning;
-    // here 8×8 blocks are.
-    tile.coarse = COARSE && tile.touched;
-    for c in chunks {
-        for &i in &c.bins[index] {
-            let t = &c.tris[i as usize];
-            // With `coarse` on, the rasterizer marks the blocks it writes stale.
-            let r = raster_tri::<F, C>(t, tile);
-            st.tested += r.covered as u64;
-            st.written += r.written as u64;
-            if t.multi == u32::MAX {
-                st.empty += (r.covered == 0) as u64;
-            } else if r.covered > 0 {
-                c.multi[t.multi as usize].store(true, Ordering::Relaxed);
-            }
-        }
     }
 }
 
@@ -637,10 +489,10 @@ mod tests {
                 })
                 .collect();
             r.draw_clip_triangles(&tris, 1 + batch * 100, &mut fb, &opts);
-            for t in r.tiles.iter().filter(|t| t.touched) {
-                let mut full = t.clone();
-                full.compute_mips(opts.depth_format);
-                assert_eq!(t.mips, full.mips, "tile at {},{} after batch {batch}", t.x0, t.y0);
+            for (t, lv) in r.tiles.iter().zip(&r.levels).filter(|(_, lv)| lv.touched) {
+                let mut full = lv.clone();
+                full.compute::<crate::depth::F32>(&t.depth);
+                assert_eq!(lv.mips, full.mips, "tile at {},{} after batch {batch}", t.x0, t.y0);
             }
         }
         r.end_session(&mut fb);

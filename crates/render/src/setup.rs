@@ -12,12 +12,9 @@
 //! plane: window z is affine in screen space, so `z = z0 + zx·Δx + zy·Δy`.
 
 use crate::clip;
-use crate::raster;
+use crate::edge::covers_any;
+pub(crate) use crate::edge::{Tri, ONE, SUBPIXEL_BITS};
 
-/// Fractional bits of snapped coordinates.
-pub const SUBPIXEL_BITS: u32 = 8;
-/// One pixel in fixed point.
-pub const ONE: i32 = 1 << SUBPIXEL_BITS;
 /// The guard band, in pixels beyond each side of the screen: triangles whose vertices stay
 /// inside it are not clipped against x and y (their off-screen parts are skipped by the
 /// clamped bounding box). 16384 px keeps snapped coordinates below 2^23 in magnitude and the
@@ -116,30 +113,10 @@ pub fn snap(v: f32) -> i32 {
     }
 }
 
-/// A set-up triangle, ready for binning and rasterization.
-#[derive(Debug, Clone, Copy)]
-pub struct Tri {
-    /// Snapped x of the vertices (oriented so the signed area is positive, y down).
-    pub x: [i32; 3],
-    /// Snapped y (down).
-    pub y: [i32; 3],
-    /// Depth at vertex 0.
-    pub z0: f32,
-    /// Depth change per fixed-point unit of x.
-    pub zx: f32,
-    /// Depth change per fixed-point unit of y.
-    pub zy: f32,
-    /// The ID written.
-    pub id: u32,
-    /// Pixel-center bounding box, inclusive, clamped to the screen: x0, y0, x1, y1.
-    pub bbox: [u16; 4],
-    /// Index of this triangle's "covered" flag when it spans several tiles (else u32::MAX).
-    pub multi: u32,
-}
-
 /// What setup made of a triangle.
+#[cfg(test)]
 #[derive(Debug, Clone, Copy)]
-pub enum Setup {
+pub(crate) enum Setup {
     /// A back face while culling is on.
     BackFace,
     /// Zero area after snapping.
@@ -164,7 +141,8 @@ pub enum Outcome {
 }
 
 /// Sets up a triangle from snapped vertices (see [`setup_into`]).
-pub fn setup(v: [SnappedVertex; 3], id: u32, cull: bool, vp: &Viewport) -> Setup {
+#[cfg(test)]
+pub(crate) fn setup(v: [SnappedVertex; 3], id: u32, cull: bool, vp: &Viewport) -> Setup {
     let mut out = Vec::with_capacity(1);
     match setup_into(v, id, cull, vp, &mut out) {
         Outcome::BackFace => Setup::BackFace,
@@ -220,7 +198,7 @@ pub fn setup_into(v: [SnappedVertex; 3], id: u32, cull: bool, vp: &Viewport, out
     };
     // Tiny boxes: decide coverage now, before the triangle costs a depth plane, binning and
     // a tile visit.
-    if (px1 - px0 + 1) * (py1 - py0 + 1) <= 4 && !raster::covers_any(&tri) {
+    if (px1 - px0 + 1) * (py1 - py0 + 1) <= 4 && !covers_any(&tri) {
         return Outcome::TooSmall;
     }
     // Depth plane through the snapped vertices, in f64 once per triangle.

@@ -34,7 +34,6 @@
 pub mod cone;
 pub mod meshlets;
 pub mod order;
-pub mod pyramid;
 pub mod query;
 mod verify;
 
@@ -47,9 +46,9 @@ use serde::Serialize;
 use sightline_scene::{Aabb, Camera, Instance, Scene};
 use sightline_spatial::{prefetch, BoxProjector, ClusteredScene, CullOptions, Frustum, LooseOctree, Visible, Visit};
 
+pub use crate::hzb::{DepthPyramid, Level, Rect, TilePyramid};
 pub use meshlets::{Meshlets, SceneMeshlets};
 pub use order::DrawOrder;
-pub use pyramid::{DepthPyramid, Rect, TilePyramid};
 pub use query::{BoxVisibility, OcclusionQueries};
 pub use verify::{compare_ids, Mismatch};
 
@@ -702,10 +701,4 @@ impl OctreeWalk<'_, '_> {
         self.pending = items;
         self.pending.clear();
     }
-}
-
-/// `world_from_local` equality used to reuse a clip matrix between consecutive sources.
-#[inline]
-pub(crate) fn same_matrix(a: &Affine3A, b: &Affine3A) -> bool {
-    a.matrix3 == b.matrix3 && a.translation == b.translation
 }

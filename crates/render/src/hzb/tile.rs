@@ -1,0 +1,219 @@
+//! Levels 1–6 of the z-pyramid inside one 64 × 64 rasterizer tile, and the coarse depth
+//! tests made against them while drawing.
+//!
+//! The levels are 32², 16², …, 1² texels stored one after the other ([`OFFSETS`]). During a
+//! frame session the rasterizer keeps them up to date: right after a triangle writes into an
+//! 8 × 8 block, that block's level-3 texel is recomputed ([`TileLevels::refresh_block`]), so
+//! the next triangles of the same batch are tested against it (Masked Occlusion Culling's
+//! sequential updates; Hasselgren, Andersson, Akenine-Möller 2016); levels 1–2 under the
+//! written blocks and levels 4–6 follow after the batch ([`TileLevels::update`]). Two tests
+//! read them: a whole triangle against the tile at binning ([`TileLevels::occludes`], the
+//! per-tile z-max of "HyperZ" and Greene's pyramid test per triangle), and each 8 × 8 block
+//! in the rasterizer ([`TileLevels::block_hidden`]).
+
+use super::{reduce_2x2, Rect};
+use crate::depth::DepthCodec;
+use crate::edge::Tri;
+use crate::tiling::{BLOCK, TILE, TILE_SHIFT};
+
+/// Offsets of levels 1..=6 in [`TileLevels::mips`] (index = level − 1), and the total length.
+pub(crate) const OFFSETS: [usize; 7] = [0, 1024, 1280, 1344, 1360, 1364, 1365];
+
+/// The pyramid levels of a tile not drawn into in this session: cleared.
+pub(crate) static CLEARED: [f32; OFFSETS[6]] = [1.0; OFFSETS[6]];
+
+/// One tile's z-pyramid levels 1..=6 and the state of their incremental update.
+#[derive(Debug, Clone)]
+pub(crate) struct TileLevels {
+    /// The tile's left pixel column, top row, width and height (≤ [`TILE`]).
+    pub x0: u32,
+    pub y0: u32,
+    pub w: u32,
+    pub h: u32,
+    /// In a frame session: whether the tile has been drawn into (else it is still clear and
+    /// the levels are stale).
+    pub touched: bool,
+    /// Whether the rasterizer may skip 8×8 blocks behind these levels and keeps the level
+    /// of the blocks it writes up to date; set per pass, on in frame sessions.
+    pub coarse: bool,
+    /// Levels 1..=6, see [`OFFSETS`].
+    pub mips: Vec<f32>,
+    /// The 8×8-pixel blocks (bit `8·by + bx`) written since levels 1–2 were last updated.
+    pub stale_blocks: u64,
+    /// The depth format's tie margin, added to texels before a test says "hidden".
+    pub tie_margin: f32,
+}
+
+impl TileLevels {
+    /// Cleared levels for the tile at pixel (x0, y0) of size w × h.
+    pub(crate) fn new(x0: u32, y0: u32, w: u32, h: u32) -> Self {
+        Self {
+            x0,
+            y0,
+            w,
+            h,
+            touched: false,
+            coarse: false,
+            mips: vec![1.0; OFFSETS[6]],
+            stale_blocks: 0,
+            tie_margin: 0.0,
+        }
+    }
+
+    /// Clears the levels when the tile is first drawn into in a session of format `D`.
+    pub(crate) fn clear<D: DepthCodec>(&mut self) {
+        self.tie_margin = D::tie_margin();
+        self.mips.fill(1.0);
+        // A tile cut by the screen edge: its first update computes every level, so that
+        // texels over pixels that do not exist take their depth 0 (no pixel written there
+        // would ever mark them).
+        self.stale_blocks = if self.w < TILE || self.h < TILE { !0 } else { 0 };
+        self.touched = true;
+    }
+
+    /// True when triangle `t` cannot pass the depth test anywhere in this tile, judged from
+    /// the levels. They may lag behind the pixels (refreshed after each draw batch), but
+    /// depths only decrease, so a stale max is a safe bound. Only meaningful on a tile drawn
+    /// into in this session.
+    #[inline]
+    pub(crate) fn occludes(&self, t: &Tri) -> bool {
+        // The triangle's nearest depth: its plane at the three vertices, minus the rounding
+        // that evaluating the plane at a pixel center may add.
+        let d = |k: usize| ((t.x[k] - t.x[0]) as f32, (t.y[k] - t.y[0]) as f32);
+        let ((x1, y1), (x2, y2)) = (d(1), d(2));
+        let (a1, b1, a2, b2) = (t.zx * x1, t.zy * y1, t.zx * x2, t.zy * y2);
+        let z1 = t.z0 + a1 + b1;
+        let z2 = t.z0 + a2 + b2;
+        let err = 8.0 * f32::EPSILON * (t.z0.abs() + a1.abs() + b1.abs() + a2.abs() + b2.abs()) + 1e-7;
+        // The triangle's pixels in this tile, in tile coordinates.
+        let x0 = (t.bbox[0] as u32).max(self.x0) - self.x0;
+        let y0 = (t.bbox[1] as u32).max(self.y0) - self.y0;
+        let x1 = (t.bbox[2] as u32).min(self.x0 + self.w - 1).saturating_sub(self.x0);
+        let y1 = (t.bbox[3] as u32).min(self.y0 + self.h - 1).saturating_sub(self.y0);
+        if x0 > x1 || y0 > y1 {
+            return false;
+        }
+        // Depth is affine in the window: over the pixel centers of this rectangle it is at
+        // least its value at the nearest corner. For a big triangle reaching far behind
+        // this tile, that bound is much tighter than its nearest vertex. Small triangles
+        // (most of them) are not worth the second bound.
+        let near = t.z0.min(z1).min(z2) - err;
+        let near = if t.bbox[2] - t.bbox[0] < 8 && t.bbox[3] - t.bbox[1] < 8 {
+            near
+        } else {
+            let (sx, sy) = (self.x0 as i32, self.y0 as i32);
+            near.max(t.plane_min([x0 as i32 + sx, y0 as i32 + sy, x1 as i32 + sx, y1 as i32 + sy]))
+        };
+        if !(near > 0.0) {
+            return false;
+        }
+        let span = (x1 - x0).max(y1 - y0) + 1;
+        let mut level = 1usize;
+        while (span >> level) > 1 && level < 6 {
+            level += 1;
+        }
+        let s = (TILE >> level) as usize;
+        let off = OFFSETS[level - 1];
+        for y in (y0 >> level) as usize..=(y1 >> level) as usize {
+            for x in (x0 >> level) as usize..=(x1 >> level) as usize {
+                if near <= self.mips[off + y * s + x] + self.tie_margin {
+                    return false;
+                }
+            }
+        }
+        true
+    }
+
+    /// Coarse depth per 8×8 block: true when the triangle's plane over the block's pixel
+    /// centers `rect` (screen) lies behind the farthest depth drawn in the block (level 3;
+    /// `[bx, by]` is the block's corner in the tile).
+    #[inline(always)]
+    pub(crate) fn block_hidden(&self, t: &Tri, rect: [i32; 4], [bx, by]: [i32; 2]) -> bool {
+        let max = self.mips[OFFSETS[2] + ((by >> 3) * 8 + (bx >> 3)) as usize];
+        if max >= 1.0 {
+            return false; // something is still clear here
+        }
+        t.plane_min(rect) > max + self.tie_margin
+    }
+
+    /// Brings the level-3 texel of one 8×8 block (`corner` in tile pixels) up to date from
+    /// the tile's depth keys right after a triangle wrote into it, and marks the block stale
+    /// for levels 1–2.
+    #[inline(always)]
+    pub(crate) fn refresh_block<D: DepthCodec>(&mut self, depth: &[u32], [bx, by]: [i32; 2]) {
+        let (bx, by) = ((bx & !(BLOCK - 1)) as usize, (by & !(BLOCK - 1)) as usize);
+        let mut m = [0u32; BLOCK as usize];
+        for r in 0..BLOCK as usize {
+            let row = &depth[((by + r) << TILE_SHIFT) + bx..][..BLOCK as usize];
+            for (m, &k) in m.iter_mut().zip(row) {
+                *m = (*m).max(k);
+            }
+        }
+        let k = m.into_iter().max().unwrap_or(0);
+        self.mips[OFFSETS[2] + (by / 8) * 8 + bx / 8] = D::decode(k);
+        self.stale_blocks |= 1 << ((by / 8) * 8 + bx / 8);
+    }
+
+    /// Brings the levels up to date after writes: levels 1–3 only under the stale 8×8
+    /// blocks (one level-3 texel each), levels 4–6 (21 texels) whole.
+    pub(crate) fn update<D: DepthCodec>(&mut self, depth: &[u32]) {
+        let mut stale = std::mem::take(&mut self.stale_blocks);
+        if stale == 0 {
+            return;
+        }
+        const T: usize = TILE as usize;
+        while stale != 0 {
+            let b = stale.trailing_zeros() as usize;
+            stale &= stale - 1;
+            let (bx, by) = (b & 7, b >> 3);
+            // Level 1 (32×32): the block's 4×4 texels from the keys (the max key, decoded once).
+            let l1 = &mut self.mips[..OFFSETS[1]];
+            for y in 4 * by..4 * by + 4 {
+                let r0 = &depth[(2 * y) * T..(2 * y + 1) * T];
+                let r1 = &depth[(2 * y + 1) * T..(2 * y + 2) * T];
+                for x in 4 * bx..4 * bx + 4 {
+                    let k = r0[2 * x].max(r0[2 * x + 1]).max(r1[2 * x]).max(r1[2 * x + 1]);
+                    l1[y * 32 + x] = D::decode(k);
+                }
+            }
+            // Level 2 (16×16): the block's 2×2 texels; level 3 (8×8): its own texel.
+            let (bx, by) = (bx as u32, by as u32);
+            self.reduce_level(2, Rect { x0: 2 * bx, y0: 2 * by, x1: 2 * bx + 1, y1: 2 * by + 1 });
+            self.reduce_level(3, Rect { x0: bx, y0: by, x1: bx, y1: by });
+        }
+        for level in 4..=6 {
+            let s = TILE >> level;
+            self.reduce_level(level, Rect { x0: 0, y0: 0, x1: s - 1, y1: s - 1 });
+        }
+    }
+
+    /// Texels `r` of level `level` (≥ 2) from the level below.
+    #[inline]
+    fn reduce_level(&mut self, level: usize, r: Rect) {
+        let (below, above) = self.mips.split_at_mut(OFFSETS[level - 1]);
+        let src = &below[OFFSETS[level - 2]..];
+        let s = TILE >> level; // this level's side
+        reduce_2x2(src, 2 * s, 2 * s, above, s, r);
+    }
+
+    /// Recomputes every level from the depth keys: the reference the incremental
+    /// [`TileLevels::update`] is tested against.
+    #[cfg(test)]
+    pub(crate) fn compute<D: DepthCodec>(&mut self, depth: &[u32]) {
+        let t = TILE as usize;
+        let first = &mut self.mips[..OFFSETS[1]];
+        // Level 1 from the keys: keys order like depths, so take the max key, decode once.
+        for y in 0..t / 2 {
+            let (r0, r1) = (&depth[(2 * y) * t..(2 * y + 1) * t], &depth[(2 * y + 1) * t..(2 * y + 2) * t]);
+            for x in 0..t / 2 {
+                let k = r0[2 * x].max(r0[2 * x + 1]).max(r1[2 * x]).max(r1[2 * x + 1]);
+                first[y * (t / 2) + x] = D::decode(k);
+            }
+        }
+        for level in 2..=6 {
+            let s = TILE >> level;
+            self.reduce_level(level, Rect { x0: 0, y0: 0, x1: s - 1, y1: s - 1 });
+        }
+        self.stale_blocks = 0;
+    }
+}

@@ -1,0 +1,383 @@
+//! The per-pixel kernels: depth test (LESS, exact ties to the smaller triangle ID), depth,
+//! ID and count writes, for one block of up to 8 × 8 pixels.
+//!
+//! Three forms of the same arithmetic, bit for bit: a scalar row loop (the reference, and
+//! the kernel off x86-64), an SSE2 row loop (four pixels per step; every x86-64 CPU), and
+//! an AVX2 block kernel (eight pixels of a row per step, everything constant down a column
+//! set up once per block). Which one runs is the [`Kernel`] type parameter of the block
+//! walk, chosen once per frame from the run-time [`SimdLevel`](sightline_spatial::SimdLevel).
+//! All are branch-free per pixel: coverage and the depth test are unpredictable along the
+//! edges of triangles.
+
+use super::tile::{TileBuf, PAD};
+use super::TriRaster;
+use crate::depth::DepthCodec;
+use crate::edge::{BlockEdges, Tri, ONE, SUBPIXEL_BITS};
+use crate::tiling::{TILE, TILE_SHIFT};
+
+/// A block kernel for one instruction set.
+pub(crate) trait Kernel: Copy + Send + Sync + 'static {
+    /// Draws triangle `t` over the block rectangle `rect` (inclusive, screen pixels) with
+    /// the edge values `k`, adding to `out`.
+    ///
+    /// # Safety
+    /// The CPU must support the kernel's instruction set.
+    unsafe fn block<D: DepthCodec, const COUNT: bool>(
+        t: &Tri,
+        tile: &mut TileBuf,
+        rect: [i32; 4],
+        k: &BlockEdges,
+        out: &mut TriRaster,
+    );
+}
+
+/// Row by row: SSE2 on x86-64, scalar elsewhere.
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct Rows;
+
+/// AVX2, eight pixels per step.
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct Avx2;
+
+impl Kernel for Rows {
+    #[inline(always)]
+    unsafe fn block<D: DepthCodec, const COUNT: bool>(
+        t: &Tri,
+        tile: &mut TileBuf,
+        rect: [i32; 4],
+        k: &BlockEdges,
+        out: &mut TriRaster,
+    ) {
+        block_rows::<D, COUNT>(t, tile, rect, k, out)
+    }
+}
+
+impl Kernel for Avx2 {
+    #[inline(always)]
+    unsafe fn block<D: DepthCodec, const COUNT: bool>(
+        t: &Tri,
+        tile: &mut TileBuf,
+        rect: [i32; 4],
+        k: &BlockEdges,
+        out: &mut TriRaster,
+    ) {
+        #[cfg(target_arch = "x86_64")]
+        // SAFETY: forwarded from the caller (the CPU has AVX2).
+        unsafe {
+            block_avx2::<D, COUNT>(t, tile, rect, k, out)
+        }
+        #[cfg(not(target_arch = "x86_64"))]
+        block_rows::<D, COUNT>(t, tile, rect, k, out)
+    }
+}
+
+/// The depth test: a fragment wins when it is nearer (LESS), or exactly as near and of a
+/// smaller triangle ID. Drawing in ID order with a plain LESS test keeps the first (smallest
+/// ID) of equal depths, so this gives the same image for ANY draw order: what lets culled,
+/// front-to-back and clustered frames equal the brute-force frame pixel for pixel.
+#[inline(always)]
+pub(crate) fn wins(key: u32, id: u32, stored_key: u32, stored_id: u32) -> bool {
+    key < stored_key || (key == stored_key && id < stored_id)
+}
+
+#[inline(always)]
+pub(super) fn fragment<D: DepthCodec, const COUNT: bool>(
+    tile: &mut TileBuf,
+    idx: usize,
+    z: f32,
+    id: u32,
+    r: &mut TriRaster,
+) {
+    let k = D::key(z);
+    r.covered += 1;
+    if COUNT {
+        tile.counts[idx] += 1;
+    }
+    // LESS, with exact ties going to the smaller ID: what in-order drawing gives, but
+    // independent of draw order, so culled and reordered frames equal brute force.
+    if wins(k, id, tile.depth[idx], tile.ids[idx]) {
+        tile.depth[idx] = k;
+        tile.ids[idx] = id;
+        r.written += 1;
+    }
+}
+
+/// One row of a block for the row loops: edge values at its first pixel and their steps,
+/// the depth plane along the row, the pixel count.
+#[derive(Clone, Copy)]
+pub(super) struct Row {
+    pub(super) e: [i32; 3],
+    pub(super) a: [i32; 3],
+    pub(super) n: i32,
+    pub(super) zrow: f32,
+    pub(super) zx: f32,
+    pub(super) dx0: i32,
+    pub(super) id: u32,
+}
+
+/// Scalar form of a row (the reference; used where SSE2 is not available).
+#[cfg(any(test, not(target_arch = "x86_64")))]
+#[inline(always)]
+pub(super) fn row_scalar<D: DepthCodec, const COUNT: bool>(
+    r: &Row,
+    depth: &mut [u32],
+    ids: &mut [u32],
+    counts: &mut [u32],
+    out: &mut TriRaster,
+) {
+    let [mut e0, mut e1, mut e2] = r.e;
+    for k in 0..r.n {
+        let inside = (e0 | e1 | e2) >= 0;
+        e0 = e0.wrapping_add(r.a[0]);
+        e1 = e1.wrapping_add(r.a[1]);
+        e2 = e2.wrapping_add(r.a[2]);
+        let z = r.zrow + r.zx * (r.dx0 + (k << SUBPIXEL_BITS)) as f32;
+        let key = D::key(z);
+        let i = k as usize;
+        let pass = inside & wins(key, r.id, depth[i], ids[i]);
+        if pass {
+            depth[i] = key;
+            ids[i] = r.id;
+        }
+        if COUNT {
+            counts[i] += inside as u32;
+        }
+        out.covered += inside as u32;
+        out.written += pass as u32;
+    }
+}
+
+/// The value unchanged, but opaque to the optimizer (an empty inline-asm barrier).
+#[cfg(target_arch = "x86_64")]
+#[inline(always)]
+fn opaque(mut v: std::arch::x86_64::__m128i) -> std::arch::x86_64::__m128i {
+    // SAFETY: the assembly is empty; it only pins `v` to a register.
+    unsafe { std::arch::asm!("/* {0} */", inout(xmm_reg) v, options(pure, nomem, nostack, preserves_flags)) };
+    v
+}
+
+/// The lane sums of two vectors, in registers with SSE2 only (a store and four scalar loads
+/// per row were a measurable share of the row loops' time).
+#[cfg(target_arch = "x86_64")]
+#[inline(always)]
+fn sum2(a: std::arch::x86_64::__m128i, b: std::arch::x86_64::__m128i) -> (u32, u32) {
+    use std::arch::x86_64::*;
+    // SAFETY: SSE2 is part of the x86_64 baseline.
+    unsafe {
+        // (a0+a2, a1+a3, b0+b2, b1+b3), then pairwise: lane 0 = Σa, lane 2 = Σb.
+        let s = _mm_add_epi32(_mm_unpacklo_epi64(a, b), _mm_unpackhi_epi64(a, b));
+        let s = _mm_add_epi32(s, _mm_shuffle_epi32(s, 0b10_11_00_01));
+        (_mm_cvtsi128_si32(s) as u32, _mm_cvtsi128_si32(_mm_shuffle_epi32(s, 0b10)) as u32)
+    }
+}
+
+/// A row in groups of four pixels with SSE2, branch-free (coverage and the depth test are
+/// unpredictable along the edges of triangles). Same arithmetic as [`row_scalar`], so the same
+/// result bit for bit. Lanes past the row are masked; they read and rewrite unchanged
+/// values of the next row or of the buffer's padding.
+#[cfg(target_arch = "x86_64")]
+#[inline(always)]
+pub(super) fn row_sse2<D: DepthCodec, const COUNT: bool>(
+    r: &Row,
+    depth: &mut [u32],
+    ids: &mut [u32],
+    counts: &mut [u32],
+    out: &mut TriRaster,
+) {
+    use std::arch::x86_64::*;
+    let lanes = |a: i32| [0, a, a.wrapping_mul(2), a.wrapping_mul(3)];
+    let (l0, l1, l2) = (lanes(r.a[0]), lanes(r.a[1]), lanes(r.a[2]));
+    // SAFETY: SSE2 is part of the x86_64 baseline, so the intrinsics are always available;
+    // memory is only touched through 4-element chunks of the slices (unaligned loads and
+    // stores).
+    unsafe {
+        let v = |l: [i32; 4], base: i32| _mm_add_epi32(_mm_set1_epi32(base), _mm_setr_epi32(l[0], l[1], l[2], l[3]));
+        let mut e0 = v(l0, r.e[0]);
+        let mut e1 = v(l1, r.e[1]);
+        let mut e2 = v(l2, r.e[2]);
+        let s0 = _mm_set1_epi32(r.a[0].wrapping_mul(4));
+        let s1 = _mm_set1_epi32(r.a[1].wrapping_mul(4));
+        let s2 = _mm_set1_epi32(r.a[2].wrapping_mul(4));
+        let mut k = _mm_setr_epi32(0, 1, 2, 3);
+        let four = _mm_set1_epi32(4);
+        let n = _mm_set1_epi32(r.n);
+        let minus1 = _mm_set1_epi32(-1);
+        let dx0 = _mm_set1_epi32(r.dx0);
+        let (zrow, zx) = (_mm_set1_ps(r.zrow), _mm_set1_ps(r.zx));
+        let id = _mm_set1_epi32(r.id as i32);
+        let (mut cov, mut wr) = (_mm_setzero_si128(), _mm_setzero_si128());
+        for ((dq, iq), cq) in depth.chunks_exact_mut(4).zip(ids.chunks_exact_mut(4)).zip(counts.chunks_exact_mut(4)) {
+            let inside =
+                _mm_and_si128(_mm_cmpgt_epi32(_mm_or_si128(_mm_or_si128(e0, e1), e2), minus1), _mm_cmplt_epi32(k, n));
+            let dx = _mm_add_epi32(dx0, _mm_slli_epi32(k, SUBPIXEL_BITS as i32));
+            let z = _mm_add_ps(zrow, _mm_mul_ps(zx, _mm_cvtepi32_ps(dx)));
+            let key = D::key4(z);
+            let dp = dq.as_mut_ptr() as *mut __m128i;
+            let ip = iq.as_mut_ptr() as *mut __m128i;
+            let d = _mm_loadu_si128(dp);
+            let old = _mm_loadu_si128(ip);
+            // Keys and IDs are below 2^31, so signed compares order them. Ties in depth go to
+            // the smaller ID (see `wins`).
+            let tie = _mm_and_si128(_mm_cmpeq_epi32(key, d), _mm_cmplt_epi32(id, old));
+            let pass = _mm_and_si128(inside, _mm_or_si128(_mm_cmplt_epi32(key, d), tie));
+            // Plain stores of the blended vectors. `opaque` hides that they are selects of
+            // the loaded values: with AVX enabled LLVM would otherwise emit masked stores
+            // (vpmaskmovd), several times slower on AMD Zen.
+            _mm_storeu_si128(dp, opaque(_mm_or_si128(_mm_and_si128(pass, key), _mm_andnot_si128(pass, d))));
+            _mm_storeu_si128(ip, opaque(_mm_or_si128(_mm_and_si128(pass, id), _mm_andnot_si128(pass, old))));
+            if COUNT {
+                let cp = cq.as_mut_ptr() as *mut __m128i;
+                _mm_storeu_si128(cp, _mm_sub_epi32(_mm_loadu_si128(cp), inside));
+            }
+            cov = _mm_sub_epi32(cov, inside);
+            wr = _mm_sub_epi32(wr, pass);
+            e0 = _mm_add_epi32(e0, s0);
+            e1 = _mm_add_epi32(e1, s1);
+            e2 = _mm_add_epi32(e2, s2);
+            k = _mm_add_epi32(k, four);
+        }
+        let (c, w) = sum2(cov, wr);
+        out.covered += c;
+        out.written += w;
+    }
+}
+
+/// The value unchanged, but opaque to the optimizer (see [`opaque`]).
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+#[inline]
+fn opaque256(mut v: std::arch::x86_64::__m256i) -> std::arch::x86_64::__m256i {
+    // SAFETY: the assembly is empty; it only pins `v` to a register.
+    unsafe { std::arch::asm!("/* {0} */", inout(ymm_reg) v, options(pure, nomem, nostack, preserves_flags)) };
+    v
+}
+
+/// Runs one row starting at tile buffer index `base`, four pixels per step with SSE2 (the
+/// block kernel without AVX2).
+#[inline(always)]
+fn run_row<D: DepthCodec, const COUNT: bool>(r: &Row, tile: &mut TileBuf, base: usize, out: &mut TriRaster) {
+    let n4 = ((r.n + 3) & !3) as usize;
+    let depth = &mut tile.depth[base..base + n4];
+    let ids = &mut tile.ids[base..base + n4];
+    let counts = &mut tile.counts[base..base + n4];
+    #[cfg(target_arch = "x86_64")]
+    row_sse2::<D, COUNT>(r, depth, ids, counts, out);
+    #[cfg(not(target_arch = "x86_64"))]
+    row_scalar::<D, COUNT>(r, depth, ids, counts, out);
+}
+
+/// One block of at most 8×8 pixels (`rect`, inclusive, in screen pixels): eight pixels per
+/// row in AVX2 registers, with everything that does not change along a column (edge lane
+/// offsets, the depth plane's x part, the column mask) set up once per block instead of once
+/// per row. Same arithmetic per pixel as the row loops, so the same result bit for bit.
+///
+/// # Safety
+/// The CPU must have AVX2 (the caller resolved [`SimdLevel`](sightline_spatial::SimdLevel)).
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2,fma,bmi1,bmi2,lzcnt,popcnt")]
+#[inline]
+unsafe fn block_avx2<D: DepthCodec, const COUNT: bool>(
+    t: &Tri,
+    tile: &mut TileBuf,
+    [rx0, ry0, rx1, ry1]: [i32; 4],
+    k: &BlockEdges,
+    out: &mut TriRaster,
+) {
+    use std::arch::x86_64::*;
+    let (tx, ty) = (tile.x0 as i32, tile.y0 as i32);
+    let mut base = (((ry0 - ty) as usize) << TILE_SHIFT) + (rx0 - tx) as usize;
+    // Eight lanes from a row's first pixel overrun the row by at most 7 entries, into the
+    // next row or the padding after the last one ([`PAD`]). Tiles are made only by the
+    // renderer, and the walk clips every block to its tile, so this holds by construction.
+    let end = base + ((ry1 - ry0) as usize) * TILE as usize + PAD;
+    debug_assert!(
+        rx0 >= tx
+            && ry0 >= ty
+            && end <= tile.depth.len()
+            && end <= tile.ids.len()
+            && (!COUNT || end <= tile.counts.len()),
+        "block outside the tile buffers"
+    );
+    // SAFETY: the caller guarantees AVX2; every load and store covers eight u32 at `base`
+    // for rows ry0..=ry1, all inside the buffers (see above); lanes past the block rewrite
+    // the values they read (masked by `cols`).
+    unsafe {
+        let lanes = _mm256_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7);
+        let cols = _mm256_cmpgt_epi32(_mm256_set1_epi32(rx1 - rx0 + 1), lanes);
+        let ev = |i: usize| {
+            _mm256_add_epi32(_mm256_set1_epi32(k.e[i]), _mm256_mullo_epi32(lanes, _mm256_set1_epi32(k.a[i])))
+        };
+        let (mut e0, mut e1, mut e2) = (ev(0), ev(1), ev(2));
+        let (b0, b1, b2) = (_mm256_set1_epi32(k.b[0]), _mm256_set1_epi32(k.b[1]), _mm256_set1_epi32(k.b[2]));
+        let dx0 = (rx0 << SUBPIXEL_BITS) + ONE / 2 - t.x[0];
+        let dx = _mm256_add_epi32(_mm256_set1_epi32(dx0), _mm256_slli_epi32(lanes, SUBPIXEL_BITS as i32));
+        // The x part of the depth plane, as the row loops compute it (multiply, then add).
+        let zx = _mm256_mul_ps(_mm256_set1_ps(t.zx), _mm256_cvtepi32_ps(dx));
+        let minus1 = _mm256_set1_epi32(-1);
+        let id = _mm256_set1_epi32(t.id as i32);
+        let (mut cov, mut wr) = (_mm256_setzero_si256(), _mm256_setzero_si256());
+        let dp = tile.depth.as_mut_ptr();
+        let ip = tile.ids.as_mut_ptr();
+        let cp = tile.counts.as_mut_ptr();
+        for py in ry0..=ry1 {
+            let z = _mm256_add_ps(_mm256_set1_ps(t.depth_row(py)), zx);
+            let inside =
+                _mm256_and_si256(_mm256_cmpgt_epi32(_mm256_or_si256(_mm256_or_si256(e0, e1), e2), minus1), cols);
+            let key = D::key8(z);
+            let (d_at, i_at) = (dp.add(base) as *mut __m256i, ip.add(base) as *mut __m256i);
+            let (d, old) = (_mm256_loadu_si256(d_at), _mm256_loadu_si256(i_at));
+            // Keys and IDs are below 2^31, so signed compares order them; depth ties go to the
+            // smaller ID (see `wins`).
+            let tie = _mm256_and_si256(_mm256_cmpeq_epi32(key, d), _mm256_cmpgt_epi32(old, id));
+            let pass = _mm256_and_si256(inside, _mm256_or_si256(_mm256_cmpgt_epi32(d, key), tie));
+            let nd = opaque256(_mm256_or_si256(_mm256_and_si256(pass, key), _mm256_andnot_si256(pass, d)));
+            let ni = opaque256(_mm256_or_si256(_mm256_and_si256(pass, id), _mm256_andnot_si256(pass, old)));
+            _mm256_storeu_si256(d_at, nd);
+            _mm256_storeu_si256(i_at, ni);
+            if COUNT {
+                let c_at = cp.add(base) as *mut __m256i;
+                _mm256_storeu_si256(c_at, opaque256(_mm256_sub_epi32(_mm256_loadu_si256(c_at), inside)));
+            }
+            cov = _mm256_sub_epi32(cov, inside);
+            wr = _mm256_sub_epi32(wr, pass);
+            e0 = _mm256_add_epi32(e0, b0);
+            e1 = _mm256_add_epi32(e1, b1);
+            e2 = _mm256_add_epi32(e2, b2);
+            base += TILE as usize;
+        }
+        let c = _mm_add_epi32(_mm256_castsi256_si128(cov), _mm256_extracti128_si256(cov, 1));
+        let w = _mm_add_epi32(_mm256_castsi256_si128(wr), _mm256_extracti128_si256(wr, 1));
+        let (c, w) = sum2(c, w);
+        out.covered += c;
+        out.written += w;
+    }
+}
+
+/// [`block_avx2`] without AVX2: row by row through the SSE2 (or scalar) row loop.
+#[inline(always)]
+fn block_rows<D: DepthCodec, const COUNT: bool>(
+    t: &Tri,
+    tile: &mut TileBuf,
+    [rx0, ry0, rx1, ry1]: [i32; 4],
+    k: &BlockEdges,
+    out: &mut TriRaster,
+) {
+    let (tx, ty) = (tile.x0 as i32, tile.y0 as i32);
+    let mut r = Row {
+        e: k.e,
+        a: k.a,
+        n: rx1 - rx0 + 1,
+        zrow: 0.0,
+        zx: t.zx,
+        dx0: (rx0 << SUBPIXEL_BITS) + ONE / 2 - t.x[0],
+        id: t.id,
+    };
+    for py in ry0..=ry1 {
+        r.zrow = t.depth_row(py);
+        let base = (((py - ty) as usize) << TILE_SHIFT) + (rx0 - tx) as usize;
+        run_row::<D, COUNT>(&r, tile, base, out);
+        for (e, b) in r.e.iter_mut().zip(k.b) {
+            *e = e.wrapping_add(b);
+        }
+    }
+}

@@ -1,0 +1,324 @@
+//! Edge-function rasterization of set-up triangles into screen tiles: the block walk and
+//! the tile stage of the pipeline.
+//!
+//! Every triangle walks the 8×8 blocks of its bounding box (clipped to the tile), with the
+//! block-level trivial reject/accept of Greene ("Hierarchical Polygon Tiling with Coverage
+//! Masks", SIGGRAPH 1996) and Intel's Masked Occlusion Culling (Hasselgren, Andersson,
+//! Akenine-Möller 2016): blocks outside an edge are skipped, and an edge the whole block is
+//! inside of is dropped from the per-pixel test. In a frame session a block whose pyramid
+//! texel lies nearer than the triangle's plane over it is skipped too (coarse depth,
+//! [`TileLevels::block_hidden`]). The rest go through one [`Kernel`]. Edge values run on i32
+//! where they fit ([`FastEdges`]), per pixel on i64 in the rare blocks where they do not
+//! (vertices thousands of pixels away). After a triangle writes into a block, the block's
+//! pyramid texel is refreshed at once, so the next triangles of the same batch are tested
+//! against it.
+//!
+//! The edge functions and the fill rule are in [`crate::edge`]; the per-pixel kernels in
+//! [`kernel`]; the tile buffers in [`tile`].
+//!
+//! # Instruction sets
+//!
+//! The tile stage ([`raster_tiles`]) is compiled twice: as plain Rust with the [`Rows`]
+//! kernel, and inside an AVX2 `#[target_feature]` function with the [`Avx2`] kernel, every
+//! function on the way `#[inline(always)]` so that the whole walk gets AVX2 code. The
+//! run-time [`SimdLevel`] picks one per frame; the images are identical.
+
+pub(crate) mod kernel;
+pub(crate) mod tile;
+
+use std::sync::atomic::Ordering;
+
+use rayon::prelude::*;
+use sightline_spatial::SimdLevel;
+
+use crate::depth::{with_codec, DepthCodec, DepthFormat};
+use crate::edge::{edges, wide_block, BlockSetup, Edge, FastEdges, Tri};
+use crate::geometry::Chunk;
+use crate::hzb::TileLevels;
+use crate::tiling::{BLOCK, TILE_SHIFT};
+use crate::Framebuffer;
+pub(crate) use kernel::{Avx2, Kernel, Rows};
+pub(crate) use tile::TileBuf;
+
+/// Per-triangle result of rasterizing into one tile.
+#[derive(Debug, Clone, Copy, Default)]
+pub(crate) struct TriRaster {
+    /// Pixel centers covered (= fragments depth-tested).
+    pub covered: u32,
+    /// Fragments that passed the depth test.
+    pub written: u32,
+}
+
+/// Rasterizes one triangle into `tile` (depth test LESS; IDs written with depth), with the
+/// block kernel `K`; `lv` holds the tile's pyramid levels (read and refreshed when
+/// `lv.coarse`).
+///
+/// # Safety
+/// The CPU must support `K`'s instruction set.
+#[inline(always)]
+pub(crate) unsafe fn raster_tri<D: DepthCodec, const COUNT: bool, K: Kernel>(
+    t: &Tri,
+    tile: &mut TileBuf,
+    lv: &mut TileLevels,
+) -> TriRaster {
+    let x0 = (t.bbox[0] as i32).max(tile.x0 as i32);
+    let y0 = (t.bbox[1] as i32).max(tile.y0 as i32);
+    let x1 = (t.bbox[2] as i32).min((tile.x0 + tile.w) as i32 - 1);
+    let y1 = (t.bbox[3] as i32).min((tile.y0 + tile.h) as i32 - 1);
+    if x0 > x1 || y0 > y1 {
+        return TriRaster::default();
+    }
+    let rect = [x0, y0, x1, y1];
+    let e = edges(t);
+    // SAFETY (both): forwarded from the caller.
+    match FastEdges::new(&e, rect) {
+        Some(f) => unsafe { walk_blocks::<D, COUNT, K>(t, tile, lv, rect, &e, |r, c| f.block(r, c)) },
+        None => unsafe { walk_blocks::<D, COUNT, K>(t, tile, lv, rect, &e, |r, _| wide_block(&e, r)) },
+    }
+}
+
+/// Walks the 8×8 blocks (aligned in the tile) of the triangle's bounding box `[x0, y0, x1,
+/// y1]` (clipped to the tile); `setup(rect, block corner)` (screen pixels) says how each
+/// block runs. Blocks outside an edge are skipped, blocks behind the tile's pyramid (coarse
+/// depth) too, and the rest go through the kernel. A block the triangle wrote into gets its
+/// pyramid texel refreshed at once and is marked stale for the levels below it (frame
+/// sessions only).
+///
+/// # Safety
+/// The CPU must support `K`'s instruction set.
+#[inline(always)]
+#[allow(clippy::needless_range_loop)] // edge k of several arrays
+unsafe fn walk_blocks<D: DepthCodec, const COUNT: bool, K: Kernel>(
+    t: &Tri,
+    tile: &mut TileBuf,
+    lv: &mut TileLevels,
+    [x0, y0, x1, y1]: [i32; 4],
+    e: &[Edge; 3],
+    mut setup: impl FnMut([i32; 4], [i32; 2]) -> BlockSetup,
+) -> TriRaster {
+    let mut out = TriRaster::default();
+    let (tx, ty) = (tile.x0 as i32, tile.y0 as i32);
+    // Block corners are aligned to the tile (whose corner is a multiple of 8).
+    let mut by = y0 & !(BLOCK - 1);
+    while by <= y1 {
+        let (ry0, ry1) = (by.max(y0), (by + BLOCK - 1).min(y1));
+        let mut bx = x0 & !(BLOCK - 1);
+        while bx <= x1 {
+            let (rx0, rx1) = (bx.max(x0), (bx + BLOCK - 1).min(x1));
+            let rect = [rx0, ry0, rx1, ry1];
+            let corner = [bx - tx, by - ty];
+            let how = setup(rect, [bx, by]);
+            bx += BLOCK;
+            if matches!(how, BlockSetup::Outside) || (lv.coarse && lv.block_hidden(t, rect, corner)) {
+                continue;
+            }
+            let before = out.written;
+            match how {
+                BlockSetup::Outside => {}
+                // SAFETY: forwarded from the caller.
+                BlockSetup::Narrow(k32) => unsafe { K::block::<D, COUNT>(t, tile, rect, &k32, &mut out) },
+                BlockSetup::Wide(e00) => {
+                    for py in ry0..=ry1 {
+                        let zrow = t.depth_row(py);
+                        let row = ((py - ty) as usize) << TILE_SHIFT;
+                        let dy = (py - ry0) as i64;
+                        let mut ev = [0i64; 3];
+                        for k in 0..3 {
+                            ev[k] = e00[k] + e[k].b * dy;
+                        }
+                        for px in rx0..=rx1 {
+                            if (ev[0] | ev[1] | ev[2]) >= 0 {
+                                let z = t.depth_at(zrow, px);
+                                kernel::fragment::<D, COUNT>(tile, row + (px - tx) as usize, z, t.id, &mut out);
+                            }
+                            for k in 0..3 {
+                                ev[k] += e[k].a;
+                            }
+                        }
+                    }
+                }
+            }
+            if lv.coarse && out.written != before {
+                lv.refresh_block::<D>(&tile.depth, corner);
+            }
+        }
+        by += BLOCK;
+    }
+    out
+}
+
+/// Counters of one tile's rasterization.
+#[derive(Debug, Default, Clone, Copy)]
+pub(crate) struct TileStats {
+    pub tested: u64,
+    pub written: u64,
+    pub empty: u64,
+}
+
+impl TileStats {
+    fn sum(a: Self, b: Self) -> Self {
+        Self { tested: a.tested + b.tested, written: a.written + b.written, empty: a.empty + b.empty }
+    }
+}
+
+/// What the tile stage draws and how.
+#[derive(Clone, Copy)]
+pub(crate) struct TilePass<'a> {
+    /// The binned chunks, in submission order.
+    pub chunks: &'a [Chunk],
+    /// The target (pixels are loaded from it outside sessions, unless `fresh`).
+    pub fb: &'a Framebuffer,
+    /// The target is to be overwritten whole: tiles start from the clear values.
+    pub fresh: bool,
+    /// Inside a frame session: tiles hold the frame and keep their pyramid levels.
+    pub session: bool,
+}
+
+/// The tile stage: every tile rasterizes its binned triangles, in parallel over tiles, on
+/// the instruction set `simd` resolves to.
+pub(crate) fn raster_tiles(
+    tiles: &mut [TileBuf],
+    levels: &mut [TileLevels],
+    pass: &TilePass,
+    fmt: DepthFormat,
+    simd: SimdLevel,
+) -> TileStats {
+    with_codec!(fmt, tiles_in::<_>(tiles, levels, pass, simd))
+}
+
+type TileFn = fn(&mut TileBuf, &mut TileLevels, usize, &TilePass) -> TileStats;
+
+/// The AVX2 build of the tile function.
+///
+/// # Safety
+/// The CPU must have AVX2 and the other features enabled here.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2,fma,bmi1,bmi2,lzcnt,popcnt")]
+unsafe fn raster_tile_avx2<D: DepthCodec, const C: bool>(
+    tile: &mut TileBuf,
+    lv: &mut TileLevels,
+    index: usize,
+    pass: &TilePass,
+) -> TileStats {
+    // SAFETY: the CPU has AVX2 (this function's contract).
+    unsafe { raster_tile::<D, C, Avx2>(tile, lv, index, pass) }
+}
+
+fn tiles_in<D: DepthCodec>(
+    tiles: &mut [TileBuf],
+    levels: &mut [TileLevels],
+    pass: &TilePass,
+    simd: SimdLevel,
+) -> TileStats {
+    let count = pass.fb.depth_tests.is_some();
+    let avx2 = simd.resolve() >= SimdLevel::Avx2;
+    // SAFETY (every `unsafe` below): `Rows` needs nothing beyond the baseline, and the AVX2
+    // functions are chosen only when the resolved level says the CPU has AVX2.
+    let f: TileFn = match (avx2, count) {
+        #[cfg(target_arch = "x86_64")]
+        (true, false) => |t, l, i, p| unsafe { raster_tile_avx2::<D, false>(t, l, i, p) },
+        #[cfg(target_arch = "x86_64")]
+        (true, true) => |t, l, i, p| unsafe { raster_tile_avx2::<D, true>(t, l, i, p) },
+        (_, false) => |t, l, i, p| unsafe { raster_tile::<D, false, Rows>(t, l, i, p) },
+        (_, true) => |t, l, i, p| unsafe { raster_tile::<D, true, Rows>(t, l, i, p) },
+    };
+    tiles
+        .par_iter_mut()
+        .zip(levels.par_iter_mut())
+        .enumerate()
+        .map(|(i, (tile, lv))| f(tile, lv, i, pass))
+        .reduce(TileStats::default, TileStats::sum)
+}
+
+/// One tile of the tile stage: in a session, clear on first use and keep the pyramid
+/// levels; otherwise start from the clear values (fresh) or load the target's pixels.
+///
+/// # Safety
+/// The CPU must support `K`'s instruction set.
+#[inline(always)]
+unsafe fn raster_tile<D: DepthCodec, const C: bool, K: Kernel>(
+    tile: &mut TileBuf,
+    lv: &mut TileLevels,
+    index: usize,
+    pass: &TilePass,
+) -> TileStats {
+    let mut st = TileStats::default();
+    tile.dirty = pass.chunks.iter().any(|c| !c.bins[index].is_empty());
+    if !tile.dirty {
+        return st;
+    }
+    if pass.session {
+        // The tile holds the frame: clear it on first use, never load or store here.
+        if !lv.touched {
+            tile.clear_for_session::<D>(C);
+            lv.clear::<D>();
+        }
+        // SAFETY: forwarded from the caller.
+        unsafe { raster_bins::<D, C, true, K>(tile, lv, index, pass.chunks, &mut st) };
+        lv.update::<D>(&tile.depth);
+        return st;
+    }
+    // Start from the clear values right after a clear; otherwise load the tile's pixels
+    // (earlier batches may have drawn here).
+    let fb = pass.fb;
+    let width = fb.width() as usize;
+    if pass.fresh {
+        tile.depth.fill(D::FORMAT.key(1.0));
+        tile.ids.fill(0);
+        if C {
+            tile.counts.fill(0); // only read and written when counting
+        }
+    } else {
+        for r in 0..tile.h as usize {
+            let src = (tile.y0 as usize + r) * width + tile.x0 as usize;
+            let dst = r << TILE_SHIFT;
+            let w = tile.w as usize;
+            for (k, d) in tile.depth[dst..dst + w].iter_mut().zip(&fb.depth[src..src + w]) {
+                *k = D::FORMAT.key_of_stored(*d);
+            }
+            tile.ids[dst..dst + w].copy_from_slice(&fb.ids[src..src + w]);
+            if let (true, Some(c)) = (C, &fb.depth_tests) {
+                tile.counts[dst..dst + w].copy_from_slice(&c[src..src + w]);
+            }
+        }
+    }
+    // SAFETY: forwarded from the caller.
+    unsafe { raster_bins::<D, C, false, K>(tile, lv, index, pass.chunks, &mut st) };
+    st
+}
+
+/// Rasterizes the tile's binned triangles, chunk after chunk, in submission order.
+/// With `COARSE` (frame sessions, on a tile drawn into before), 8×8 blocks behind the
+/// tile's pyramid are skipped; whole triangles behind it were left out at binning.
+///
+/// # Safety
+/// The CPU must support `K`'s instruction set.
+#[inline(always)]
+unsafe fn raster_bins<D: DepthCodec, const C: bool, const COARSE: bool, K: Kernel>(
+    tile: &mut TileBuf,
+    lv: &mut TileLevels,
+    index: usize,
+    chunks: &[Chunk],
+    st: &mut TileStats,
+) {
+    // With depth-test counting on, coarse rejection stays on: the heat map then counts
+    // the tests actually made.
+    lv.coarse = COARSE && lv.touched;
+    for c in chunks {
+        for &i in &c.bins[index] {
+            let t = &c.tris[i as usize];
+            // SAFETY: forwarded from the caller.
+            let r = unsafe { raster_tri::<D, C, K>(t, tile, lv) };
+            st.tested += r.covered as u64;
+            st.written += r.written as u64;
+            if t.multi == u32::MAX {
+                st.empty += (r.covered == 0) as u64;
+            } else if r.covered > 0 {
+                c.multi[t.multi as usize].store(true, Ordering::Relaxed);
+            }
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests;

@@ -1,0 +1,63 @@
+//! One tile's pixel buffers: depth keys, triangle IDs and depth-test counts, row stride
+//! [`TILE`], with padding after the last row for the eight-lane kernels.
+
+use crate::depth::DepthCodec;
+use crate::tiling::TILE;
+
+/// Padding after a tile's last row: the kernels work in groups of four or eight pixels and
+/// may read and rewrite (unchanged) entries past a row's end.
+pub(crate) const PAD: usize = 8;
+
+/// One tile's depth keys, IDs and depth-test counts (row stride [`TILE`]).
+#[derive(Debug, Clone)]
+pub(crate) struct TileBuf {
+    /// Left pixel column.
+    pub x0: u32,
+    /// Top pixel row.
+    pub y0: u32,
+    /// Width (≤ TILE at the right border).
+    pub w: u32,
+    /// Height.
+    pub h: u32,
+    /// Depth keys ([`DepthCodec::key`]).
+    pub depth: Vec<u32>,
+    /// Triangle IDs.
+    pub ids: Vec<u32>,
+    /// Depth tests per pixel (only used when counting).
+    pub counts: Vec<u32>,
+    /// Whether the tile received triangles in the current pass.
+    pub dirty: bool,
+}
+
+impl TileBuf {
+    /// An empty tile at pixel (x0, y0) of size w × h.
+    pub(crate) fn new(x0: u32, y0: u32, w: u32, h: u32) -> Self {
+        let n = (TILE * TILE) as usize + PAD;
+        Self { x0, y0, w, h, depth: vec![0; n], ids: vec![0; n], counts: vec![0; n], dirty: false }
+    }
+
+    /// Clears the tile for a frame session in depth format `D`: the far plane's key inside
+    /// the screen and 0 (nearest) outside it, so that the pyramid's max ignores pixels that
+    /// do not exist; IDs to 0, depth-test counts too when `counting`.
+    pub(crate) fn clear_for_session<D: DepthCodec>(&mut self, counting: bool) {
+        let clear = D::FORMAT.key(1.0);
+        let (w, h) = (self.w as usize, self.h as usize);
+        let t = TILE as usize;
+        if w == t && h == t {
+            self.depth[..t * t].fill(clear);
+        } else {
+            for (r, row) in self.depth[..t * t].chunks_exact_mut(t).enumerate() {
+                if r < h {
+                    row[..w].fill(clear);
+                    row[w..].fill(0);
+                } else {
+                    row.fill(0);
+                }
+            }
+        }
+        self.ids.fill(0);
+        if counting {
+            self.counts.fill(0);
+        }
+    }
+}
