@@ -9,7 +9,7 @@
 //!   with the boxes stored as one mesh; `occluders_one_mesh_skip_hidden`: the same with
 //!   occluders hidden by the pyramid as it fills skipped (an identical z-buffer). Only the
 //!   pass is timed, as in the `boxfield` example: its z-buffer and pyramid are the tiles the
-//!   queries read; copying them out to the framebuffer afterwards (`end_occluder_pass`) is
+//!   queries read; copying them out to the framebuffer afterwards (`OccluderPass::finish`) is
 //!   not part of (a).
 
 use std::time::{Duration, Instant};
@@ -57,9 +57,9 @@ fn boxfield_1thread(c: &mut Criterion) {
                 let mut spent = Duration::ZERO;
                 for _ in 0..n {
                     let t = Instant::now();
-                    let _ = culler.occluder_pass(&bf.camera, &mut fb, &opts).unwrap();
+                    let (_, _, pass) = culler.occluder_pass(&bf.camera, &mut fb, &opts).unwrap();
                     spent += t.elapsed();
-                    culler.end_occluder_pass(&mut fb);
+                    pass.finish(&mut fb).unwrap();
                 }
                 spent
             })
@@ -76,9 +76,9 @@ fn boxfield_1thread(c: &mut Criterion) {
                     let mut spent = Duration::ZERO;
                     for _ in 0..n {
                         let t = Instant::now();
-                        let _ = flat.occluder_pass_with(&bf.camera, &mut fb, &opts, skip_hidden).unwrap();
+                        let (_, _, pass) = flat.occluder_pass_with(&bf.camera, &mut fb, &opts, skip_hidden).unwrap();
                         spent += t.elapsed();
-                        flat.end_occluder_pass(&mut fb);
+                        pass.finish(&mut fb).unwrap();
                     }
                     spent
                 })
@@ -94,7 +94,7 @@ fn boxfield_1thread(c: &mut Criterion) {
             answers.len()
         })
     });
-    culler.end_occluder_pass(&mut fb);
+    q.finish(&mut fb).unwrap();
     g.finish();
 }
 

@@ -42,7 +42,7 @@ fn main() {
             let t = Instant::now();
             q.test_many(&bf.queries, &mut answers);
             query.push(t.elapsed().as_secs_f64() * 1e3);
-            culler.end_occluder_pass(&mut fb);
+            q.finish(&mut fb).expect("same framebuffer");
         }
         if std::env::var("QUERY_PROFILE").is_ok() {
             // Profiling aid: the queries alone, many times.
@@ -50,7 +50,7 @@ fn main() {
             for _ in 0..200 {
                 q.test_many(&bf.queries, &mut answers);
             }
-            culler.end_occluder_pass(&mut fb);
+            q.finish(&mut fb).expect("same framebuffer");
         }
         // The other two ways of (a): one mesh, all occluders; one mesh, hidden ones skipped.
         let one_mesh = boxfield(&BoxfieldParams { layout: BoxfieldLayout::OneMesh, ..Default::default() })
@@ -63,10 +63,10 @@ fn main() {
             let mut drawn = 0;
             for _ in 0..15 {
                 let t = Instant::now();
-                let (cs, _, _) = flat.occluder_pass_with(&bf.camera, &mut other, &opts, skip_hidden).expect("occluders");
+                let (cs, _, pass) = flat.occluder_pass_with(&bf.camera, &mut other, &opts, skip_hidden).expect("occluders");
                 times.push(t.elapsed().as_secs_f64() * 1e3);
                 drawn = cs.triangles_drawn;
-                flat.end_occluder_pass(&mut other);
+                pass.finish(&mut other).expect("same framebuffer");
             }
             let label = if skip_hidden { "hidden occluders skipped" } else { "every occluder" };
             println!("(a) one mesh, {label}: median {:.2} ms (1 thread), {drawn} triangles sent", median(times));

@@ -49,8 +49,8 @@ fn boxes_behind_beside_and_across_the_near_plane() {
         assert_eq!(q.test(&cube_at(Vec3::new(0.0, 0.0, 0.0), 0.5)), BoxVisibility::Visible, "crossing the near plane");
         assert_eq!(q.test(&cube_at(Vec3::new(0.0, 0.0, 5.0), 0.5)), BoxVisibility::OutsideView, "behind the eye");
         assert_eq!(q.test(&Aabb::new(Vec3::NAN, Vec3::NAN)), BoxVisibility::Visible, "NaN box");
+        q.finish(&mut fb).unwrap();
     }
-    culler.end_occluder_pass(&mut fb);
     // The occluders were really drawn: the wall covers the middle of the image.
     assert_ne!(fb.ids[(90 * 320 + 160) as usize], 0);
 }
@@ -100,11 +100,11 @@ fn session_pyramid_is_conservative_against_the_depth_buffer() {
     for key in c.layout.street_path(4, 2) {
         let cam = key.camera(w as f32 / h as f32).unwrap();
         // Draw once to get the finished depth buffer, then again to read its pyramid.
-        let _ = culler.occluder_pass(&cam, &mut fb, &RenderOptions::ids_only()).unwrap();
-        culler.end_occluder_pass(&mut fb);
+        let (_, _, pass) = culler.occluder_pass(&cam, &mut fb, &RenderOptions::ids_only()).unwrap();
+        pass.finish(&mut fb).unwrap();
         let depth = fb.depth.clone();
-        let _ = culler.occluder_pass(&cam, &mut fb, &RenderOptions::ids_only()).unwrap();
-        let pyramid = culler.renderer_pyramid().unwrap();
+        let (_, _, pass) = culler.occluder_pass(&cam, &mut fb, &RenderOptions::ids_only()).unwrap();
+        let pyramid = pass.pyramid();
         let mut occluded = 0;
         for _ in 0..3000 {
             let (xa, xb, ya, yb) = (rng.below(w), rng.below(w), rng.below(h), rng.below(h));
@@ -121,7 +121,7 @@ fn session_pyramid_is_conservative_against_the_depth_buffer() {
             }
         }
         assert!(occluded > 0, "street views must occlude something");
-        culler.end_occluder_pass(&mut fb);
+        pass.finish(&mut fb).unwrap();
     }
 }
 
@@ -185,7 +185,7 @@ fn many_and_batch_answer_like_test() {
         }
     }
     assert!(counts.iter().all(|&c| c > 300), "visible / occluded / outside: {counts:?}");
-    culler.end_occluder_pass(&mut fb);
+    q.finish(&mut fb).unwrap();
 }
 
 /// Skipping occluders hidden by the pyramid as it fills leaves the z-buffer, the IDs and the
@@ -204,7 +204,7 @@ fn skipping_hidden_occluders_changes_nothing() {
             let mut fb = Framebuffer::new(320, 180).unwrap();
             let (cs, _, q) = culler.occluder_pass_with(&camera, &mut fb, &opts, skip_hidden).unwrap();
             let answers: Vec<_> = queries.iter().map(|b| q.test(b)).collect();
-            culler.end_occluder_pass(&mut fb);
+            q.finish(&mut fb).unwrap();
             results.push((fb.depth, fb.ids, answers, cs.triangles_drawn));
         }
         let (all, skipped) = (&results[0], &results[1]);

@@ -5,9 +5,10 @@
 //! clearing it. [`Renderer::render`] draws a whole frame, shades it (deferred: only the
 //! final visible pixel of each position is shaded, from its triangle ID), resolves
 //! supersampling and draws the wireframe; it writes every plane, so the target needs no
-//! clear. An occlusion culler draws batch after batch inside a frame session
-//! ([`Renderer::begin_session`]): the tiles then hold the frame and keep their part of the
-//! z-pyramid up to date, and the frame is written out once at the end.
+//! clear. An occlusion culler draws batch after batch inside a frame [`Session`]
+//! ([`Renderer::begin`]): the tiles then hold the frame and keep their part of the
+//! z-pyramid up to date, and the frame is written out once at the end
+//! ([`Session::finish`]).
 //!
 //! Stages and their parallelism (rayon; the image is bit-identical for any thread count):
 //! 1. geometry over chunks of the draw list (contiguous, so submission order is kept);
@@ -49,12 +50,17 @@ pub struct Renderer {
     grid: Option<Grid>,
     ranges: Vec<(u32, u32, u32)>,
     supersampled: Option<Framebuffer>,
-    /// The target was just cleared: tiles start from the clear values instead of loading.
-    fresh: bool,
-    /// Inside a frame session (see [`Renderer::begin_session`]): the depth format.
-    session: Option<DepthFormat>,
     /// During a session: z-pyramid levels from the tile grid (level 6, one texel per tile) up.
     upper: UpperLevels,
+}
+
+/// Where a draw goes.
+pub(crate) enum Target<'a> {
+    /// Straight into a framebuffer: tiles load its pixels (or, when `fresh`, start from the
+    /// clear values because every pixel will be written) and store them back.
+    Frame { fb: &'a mut Framebuffer, fresh: bool },
+    /// Into the tiles of an open [`Session`] of this size, depth format and counting mode.
+    Session { width: u32, height: u32, counting: bool, format: DepthFormat },
 }
 
 impl Renderer {
@@ -76,9 +82,6 @@ impl Renderer {
         opts: &RenderOptions,
     ) -> Result<FrameStats> {
         let t0 = Instant::now();
-        // A whole new frame: a frame session left open (its frame never written out) ends
-        // here unwritten, instead of swallowing this frame's draws.
-        self.session = None;
         let s = opts.antialias.factor();
         let mut stats = if s == 1 {
             self.fill_frame(scene, instances, items, camera, fb, opts)?
@@ -126,10 +129,10 @@ impl Renderer {
             target.clear(opts.background);
             return Ok(FrameStats::default());
         }
-        self.fresh = true;
-        let r = self.draw(scene, instances, items, camera, target, opts);
-        self.fresh = false; // also when `draw` failed before using it
-        let mut stats = r?;
+        let t0 = Instant::now();
+        let resolved = self.resolve_items(scene, instances, items, camera)?;
+        let mut stats = self.run(&resolved, Target::Frame { fb: &mut *target, fresh: true }, opts);
+        stats.ms_total = ms_since(t0);
         let t = Instant::now();
         deferred::shade_pass(scene, instances, camera, target, &opts.shading, opts.background);
         stats.ms_shading = ms_since(t);
@@ -149,6 +152,21 @@ impl Renderer {
         opts: &RenderOptions,
     ) -> Result<FrameStats> {
         let t0 = Instant::now();
+        let resolved = self.resolve_items(scene, instances, items, camera)?;
+        let mut st = self.run(&resolved, Target::Frame { fb, fresh: false }, opts);
+        st.ms_total = ms_since(t0);
+        Ok(st)
+    }
+
+    /// The geometry sources of `items` (checked against the scene), with their triangle
+    /// ranges in `self.ranges`.
+    fn resolve_items<'s>(
+        &mut self,
+        scene: &'s Scene,
+        instances: &[Instance],
+        items: &[DrawItem],
+        camera: &Camera,
+    ) -> Result<Vec<Item<'s>>> {
         let mut resolved: Vec<Item> = Vec::with_capacity(items.len());
         self.ranges.clear();
         let mut last: Option<(u32, glam::Mat4)> = None;
@@ -185,9 +203,7 @@ impl Renderer {
             });
             self.ranges.push((k as u32, d.first, d.count));
         }
-        let mut st = self.run(&resolved, fb, opts);
-        st.ms_total = ms_since(t0);
-        Ok(st)
+        Ok(resolved)
     }
 
     /// Draws triangle ranges of arbitrary indexed geometry (e.g. meshlets: clusters with
@@ -201,19 +217,19 @@ impl Renderer {
         fb: &mut Framebuffer,
         opts: &RenderOptions,
     ) -> Result<FrameStats> {
-        self.draw_sources_checked(sources, camera, fb, opts, true)
+        self.draw_sources_to(sources, camera, Target::Frame { fb, fresh: false }, opts, true)
     }
 
-    /// [`Renderer::draw_sources`]; `check_indices = false` is for sources whose indices are
-    /// in range by construction (the culler's meshlets): the per-index scan, a pass over
-    /// every index of every draw, is then left out of release builds. (Should such an index
-    /// be out of range after all, the draw reads stale vertex-cache entries or panics on a
-    /// bounds check; it never reads outside memory.)
-    pub(crate) fn draw_sources_checked(
+    /// [`Renderer::draw_sources`] into `target`; `check_indices = false` is for sources
+    /// whose indices are in range by construction (the culler's meshlets): the per-index
+    /// scan, a pass over every index of every draw, is then left out of release builds.
+    /// (Should such an index be out of range after all, the draw reads stale vertex-cache
+    /// entries or panics on a bounds check; it never reads outside memory.)
+    pub(crate) fn draw_sources_to(
         &mut self,
         sources: &[DrawSource],
         camera: &Camera,
-        fb: &mut Framebuffer,
+        target: Target,
         opts: &RenderOptions,
         check_indices: bool,
     ) -> Result<FrameStats> {
@@ -253,57 +269,37 @@ impl Renderer {
             });
             self.ranges.push((k as u32, d.first, d.count));
         }
-        let mut st = self.run(&resolved, fb, opts);
+        let mut st = self.run(&resolved, target, opts);
         st.ms_total = ms_since(t0);
         Ok(st)
     }
 
-    /// Starts a frame session on `fb` (no clear needed): until [`Renderer::end_session`],
-    /// the tiles hold the frame, draws neither load nor store pixels, and each tile keeps its
-    /// z-pyramid levels up to date, read through [`Renderer::session_pyramid`]. This is what
-    /// makes many small draw batches cheap for the occlusion culler. A session left open is
-    /// dropped, unwritten, by the next [`Renderer::render`] or `begin_session`.
-    pub fn begin_session(&mut self, fb: &Framebuffer, format: DepthFormat) {
-        let grid = Grid::new(fb.width(), fb.height());
+    /// Prepares the tiles and pyramid of a session on a `fb`-sized target (see
+    /// [`Renderer::begin`]).
+    pub(crate) fn start_session(&mut self, width: u32, height: u32) {
+        let grid = Grid::new(width, height);
         self.prepare_tiles(grid);
         for (t, lv) in self.tiles.iter_mut().zip(&mut self.levels) {
             lv.touched = false;
             t.dirty = false;
         }
         self.upper.clear(grid.tiles_x, grid.tiles_y);
-        self.session = Some(format);
-        self.fresh = false;
     }
 
-    /// Ends the frame session: the whole frame is written to `fb` (depth, IDs and, when
-    /// counting, depth tests; tiles never drawn into as cleared), so `fb` needs no clearing
-    /// before a session. Returns the pixels covered (ID ≠ 0); 0 outside a session.
-    pub fn end_session(&mut self, fb: &mut Framebuffer) -> u64 {
-        let Some(fmt) = self.session.take() else { return 0 };
+    /// Writes a session's frame to `fb` (depth, IDs and, when counting, depth tests; tiles
+    /// never drawn into as cleared). Returns the pixels covered (ID ≠ 0).
+    pub(crate) fn store_session(&mut self, fb: &mut Framebuffer, format: DepthFormat) -> u64 {
         let Some(grid) = self.grid else { return 0 };
         for (t, lv) in self.tiles.iter_mut().zip(&self.levels) {
             t.dirty = lv.touched;
         }
-        store_tiles(&self.tiles, &grid, fb, fmt, true)
+        store_tiles(&self.tiles, &grid, fb, format, true)
     }
 
-    /// Marks the target of the next draw as to be overwritten whole: tiles start from the
-    /// clear values instead of loading, and the store writes every pixel. Reset by the draw.
-    pub(crate) fn start_fresh(&mut self) {
-        self.session = None; // as in `render`: a new frame abandons an open session
-        self.fresh = true;
-    }
-
-    /// Forgets a [`Renderer::start_fresh`] that no draw consumed (after an error).
-    pub(crate) fn cancel_fresh(&mut self) {
-        self.fresh = false;
-    }
-
-    /// The z-pyramid of the frame drawn so far in this session (`None` outside a session).
-    pub fn session_pyramid(&self) -> Option<TilePyramid<'_>> {
-        let fmt = self.session?;
+    /// The z-pyramid of a session's frame drawn so far.
+    pub(crate) fn session_pyramid(&self, format: DepthFormat) -> Option<TilePyramid<'_>> {
         let grid = self.grid?;
-        Some(TilePyramid::new(&self.levels, grid.tiles_x, (grid.width, grid.height), &self.upper, fmt))
+        Some(TilePyramid::new(&self.levels, grid.tiles_x, (grid.width, grid.height), &self.upper, format))
     }
 
     /// Draws raw clip-space triangles (no scene), triangle `k` with ID `first_id + k`: the
@@ -315,20 +311,35 @@ impl Renderer {
         fb: &mut Framebuffer,
         opts: &RenderOptions,
     ) -> FrameStats {
+        self.draw_clip_to(triangles, first_id, Target::Frame { fb, fresh: false }, opts)
+    }
+
+    /// [`Renderer::draw_clip_triangles`] into `target`.
+    pub(crate) fn draw_clip_to(
+        &mut self,
+        triangles: &[[Vec4; 3]],
+        first_id: u32,
+        target: Target,
+        opts: &RenderOptions,
+    ) -> FrameStats {
         let t0 = Instant::now();
         let n = triangles.len().min(u32::MAX as usize) as u32;
         let items = [Item { src: Source::Clip(&triangles[..n as usize]), first_id, source_triangles: n }];
         self.ranges.clear();
         self.ranges.push((0, 0, n));
-        let mut st = self.run(&items, fb, opts);
+        let mut st = self.run(&items, target, opts);
         st.ms_total = ms_since(t0);
         st
     }
 
-    fn run(&mut self, items: &[Item], fb: &mut Framebuffer, opts: &RenderOptions) -> FrameStats {
+    fn run(&mut self, items: &[Item], mut target: Target, opts: &RenderOptions) -> FrameStats {
         let mut st = FrameStats::default();
-        let vp = Viewport::new(fb.width(), fb.height(), opts.guard_band);
-        let grid = Grid::new(fb.width(), fb.height());
+        let (width, height, session) = match &target {
+            Target::Frame { fb, .. } => (fb.width(), fb.height(), None),
+            Target::Session { width, height, format, .. } => (*width, *height, Some(*format)),
+        };
+        let vp = Viewport::new(width, height, opts.guard_band);
+        let grid = Grid::new(width, height);
         self.prepare_tiles(grid);
 
         // 1. Geometry.
@@ -347,27 +358,29 @@ impl Renderer {
 
         // 2. Binning.
         let t = Instant::now();
-        let session_tiles = self.session.is_some().then_some(&self.levels[..]);
+        let session_tiles = session.is_some().then_some(&self.levels[..]);
         chunks.par_iter_mut().for_each(|c| bin_chunk(c, &grid, session_tiles));
         st.ms_binning = ms_since(t);
 
         // 3. Rasterization.
         let t = Instant::now();
         let chunks = &self.chunks[..n];
-        let fresh = std::mem::take(&mut self.fresh);
-        let session = self.session;
         let fmt = session.unwrap_or(opts.depth_format);
-        let pass = TilePass { chunks, fb, fresh, session: session.is_some() };
+        let (load, counting, fresh) = match &target {
+            Target::Frame { fb, fresh } => ((!*fresh).then_some(&**fb), fb.depth_tests.is_some(), *fresh),
+            Target::Session { counting, .. } => (None, *counting, false),
+        };
+        let pass = TilePass { chunks, load, counting, session: session.is_some() };
         let ts = raster_tiles(&mut self.tiles, &mut self.levels, &pass, fmt, SimdLevel::Auto);
-        if session.is_some() {
-            self.upper.update(&self.levels);
-        } else {
+        if let Target::Frame { fb, .. } = &mut target {
             let covered = store_tiles(&self.tiles, &grid, fb, fmt, fresh);
             // Only a fresh draw wrote every pixel; after a plain batch the count would include
             // earlier batches' pixels.
             if fresh {
                 st.covered_pixels = covered;
             }
+        } else {
+            self.upper.update(&self.levels);
         }
         st.ms_raster = ms_since(t);
 
@@ -476,7 +489,7 @@ mod tests {
         let mut fb = Framebuffer::new(w, h).unwrap();
         let opts = RenderOptions::ids_only();
         let mut r = Renderer::new();
-        r.begin_session(&fb, opts.depth_format);
+        let mut session = r.begin(&fb, &opts);
         let mut rng = Rng::new(3);
         for batch in 0..6 {
             let tris: Vec<[Vec4; 3]> = (0..40)
@@ -488,13 +501,14 @@ mod tests {
                     [p(), p(), p()]
                 })
                 .collect();
-            r.draw_clip_triangles(&tris, 1 + batch * 100, &mut fb, &opts);
+            session.draw_clip_triangles(&tris, 1 + batch * 100);
+            let r = session.renderer();
             for (t, lv) in r.tiles.iter().zip(&r.levels).filter(|(_, lv)| lv.touched) {
                 let mut full = lv.clone();
                 full.compute::<crate::depth::F32>(&t.depth);
                 assert_eq!(lv.mips, full.mips, "tile at {},{} after batch {batch}", t.x0, t.y0);
             }
         }
-        r.end_session(&mut fb);
+        session.finish(&mut fb).unwrap();
     }
 }

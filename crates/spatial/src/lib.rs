@@ -61,7 +61,7 @@ pub use bvh::{Bvh, BvhNode, BvhPreset};
 pub use frustum::{Containment, Frustum, PlaneMask, ALL_PLANES};
 pub use hint::prefetch;
 pub use octree::occupancy::{occupancy_string, occupancy_voxels, Occupancy};
-pub use octree::{octant_order, LooseOctree};
+pub use octree::{octant_order, LooseOctree, OctreeCursor};
 pub use plane::Plane;
 pub use project::{project_box, BoxImage, BoxProjector, ScreenRect};
 pub use ray::Ray;

@@ -6,7 +6,7 @@
 //! * [`Method::Frustum`]: the (instance, cluster) BVH of `sightline_spatial::ClusteredScene`
 //!   culled against the view frustum; the surviving clusters are drawn.
 //! * [`Method::HzbOnePass`]: frustum culling plus occlusion culling with Greene's z-pyramid
-//!   ([`pyramid`]): the BVH is walked front to back in batches; before anything (node or
+//!   ([`crate::hzb`]): the BVH is walked front to back in batches; before anything (node or
 //!   cluster) is drawn, its box is projected to a screen rectangle and nearest depth and tested
 //!   against the pyramid of what is already drawn; a batch is drawn, the pyramid refreshed over
 //!   the drawn rectangles, and the walk resumes. Batches start small (the nearest occluders go
@@ -21,7 +21,10 @@
 //!   where little is hidden, it was faster (19.8 against 22.3 ms per aerial frame in one
 //!   verified walk), so it is `hzb`.
 //! * [`Method::OctreeHzb`]: Greene's original: a loose octree over the same clusters, walked
-//!   front to back, skipping a whole octant when its loose cube is occluded.
+//!   front to back in the same batches (a resumable `OctreeCursor`), skipping a whole
+//!   octant when its loose cube is occluded.
+//!
+//! The walks live in `walk.rs`; each draws through one frame [`Session`] of the renderer.
 //!
 //! Exactness. A box is skipped only when its nearest possible window depth is farther than
 //! the farthest depth stored over every pixel it can touch, so none of its fragments could
@@ -36,15 +39,13 @@ pub mod meshlets;
 pub mod order;
 pub mod query;
 mod verify;
-
-use std::cell::RefCell;
+mod walk;
 
 use std::time::Instant;
 
-use glam::Affine3A;
 use serde::Serialize;
 use sightline_scene::{Aabb, Camera, Instance, Scene};
-use sightline_spatial::{prefetch, BoxProjector, ClusteredScene, CullOptions, Frustum, LooseOctree, Visible, Visit};
+use sightline_spatial::{BoxProjector, ClusteredScene, LooseOctree, Visible};
 
 pub use crate::hzb::{DepthPyramid, Level, Rect, TilePyramid};
 pub use meshlets::{Meshlets, SceneMeshlets};
@@ -52,8 +53,10 @@ pub use order::DrawOrder;
 pub use query::{BoxVisibility, OcclusionQueries};
 pub use verify::{compare_ids, Mismatch};
 
+use crate::pipeline::Target;
 use crate::stats::ms_since;
-use crate::{draw_all, DrawSource, FrameStats, Framebuffer, RenderOptions, Renderer, Result};
+use crate::{draw_all, FrameStats, Framebuffer, RenderOptions, Renderer, Result, Session};
+use walk::{Batching, Frame, Source, Walk};
 
 /// How a frame decides what to draw.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize)]
@@ -126,6 +129,23 @@ pub struct CullStats {
 /// renderer, all reused frame after frame.
 #[derive(Debug)]
 pub struct Culler {
+    renderer: Renderer,
+    c: Clusters,
+    /// First batch size of the front-to-back walk.
+    pub first_batch: usize,
+    /// Largest batch size.
+    pub max_batch: usize,
+    /// Largest batch size when the calling thread pool has one thread (the lower of this
+    /// and `max_batch` applies), [`Culler::ONE_THREAD_MAX_BATCH`] by default. Batch sizes
+    /// change which clusters and triangles get tested and skipped, so counters such as
+    /// `triangles_drawn` depend on the thread count (never the image).
+    pub one_thread_max_batch: usize,
+}
+
+/// Everything a culled frame reads and updates besides the renderer (so that a walk can
+/// hold the renderer's [`Session`] and this at once).
+#[derive(Debug)]
+struct Clusters {
     instances: Vec<Instance>,
     clustered: ClusteredScene,
     meshlets: SceneMeshlets,
@@ -137,9 +157,7 @@ pub struct Culler {
     /// array that stays in cache, so that clusters whose cone never culls (closed meshes
     /// such as boxes) cost no load of their cone.
     cone_can_cull: Vec<u64>,
-    /// `None` only while a walk borrows it.
-    octree: Option<LooseOctree>,
-    renderer: Renderer,
+    octree: LooseOctree,
     visible: Vec<Visible>,
     /// Two-pass state: the clusters found visible in the last frame drawn with it.
     last_visible: Vec<u32>,
@@ -147,15 +165,6 @@ pub struct Culler {
     drawn_in: Vec<u32>,
     /// Two-pass state: frames drawn with it so far (never 0 once started).
     frame: u32,
-    /// First batch size of the front-to-back walk.
-    pub first_batch: usize,
-    /// Largest batch size.
-    pub max_batch: usize,
-    /// Largest batch size when the calling thread pool has one thread (the lower of this
-    /// and `max_batch` applies), [`Culler::ONE_THREAD_MAX_BATCH`] by default. Batch sizes
-    /// change which clusters and triangles get tested and skipped, so counters such as
-    /// `triangles_drawn` depend on the thread count (never the image).
-    pub one_thread_max_batch: usize,
 }
 
 /// What drawing one cluster takes, in one record per cluster: a batch of clusters then
@@ -199,10 +208,10 @@ impl Culler {
     /// 256 rejects 10% more triangle-tile pairs there than 2048 and is about 0.8 ms faster.
     pub const ONE_THREAD_MAX_BATCH: usize = 256;
 
-    /// The largest draw batch for the calling thread pool.
-    fn batch_cap(&self) -> usize {
+    /// The batch sizes for the calling thread pool.
+    fn batching(&self) -> Batching {
         let cap = if rayon::current_num_threads() == 1 { self.one_thread_max_batch } else { usize::MAX };
-        self.max_batch.min(cap).max(1)
+        Batching { first: self.first_batch.max(1), cap: self.max_batch.min(cap).max(1) }
     }
 
     /// Builds clusters, meshlets, BVH and octree for the scene's instances (world transforms
@@ -248,19 +257,21 @@ impl Culler {
             })
             .collect();
         Self {
-            instances,
-            clustered,
-            meshlets,
-            draws,
-            item_boxes,
-            cones,
-            cone_can_cull,
-            octree: Some(octree),
             renderer: Renderer::new(),
-            visible: Vec::new(),
-            last_visible: Vec::new(),
-            drawn_in: Vec::new(),
-            frame: 0,
+            c: Clusters {
+                instances,
+                clustered,
+                meshlets,
+                draws,
+                item_boxes,
+                cones,
+                cone_can_cull,
+                octree,
+                visible: Vec::new(),
+                last_visible: Vec::new(),
+                drawn_in: Vec::new(),
+                frame: 0,
+            },
             first_batch: Self::DEFAULT_FIRST_BATCH,
             max_batch: Self::DEFAULT_MAX_BATCH,
             one_thread_max_batch: Self::ONE_THREAD_MAX_BATCH,
@@ -269,23 +280,24 @@ impl Culler {
 
     /// The instances the culler was built for.
     pub fn instances(&self) -> &[Instance] {
-        &self.instances
+        &self.c.instances
     }
 
     /// The clusters and their BVH.
     pub fn clustered(&self) -> &ClusteredScene {
-        &self.clustered
+        &self.c.clustered
     }
 
     /// Heap bytes of the culling structures (clusters, BVH, meshlets, octree).
     pub fn memory_bytes(&self) -> usize {
-        self.clustered.memory_bytes()
-            + self.meshlets.memory_bytes()
-            + self.item_boxes.capacity() * std::mem::size_of::<Aabb>()
-            + self.cones.capacity() * std::mem::size_of::<cone::Cone>()
-            + self.cone_can_cull.capacity() * 8
-            + self.draws.capacity() * std::mem::size_of::<ClusterDraw>()
-            + self.octree.as_ref().map_or(0, LooseOctree::memory_bytes)
+        let c = &self.c;
+        c.clustered.memory_bytes()
+            + c.meshlets.memory_bytes()
+            + c.item_boxes.capacity() * std::mem::size_of::<Aabb>()
+            + c.cones.capacity() * std::mem::size_of::<cone::Cone>()
+            + c.cone_can_cull.capacity() * 8
+            + c.draws.capacity() * std::mem::size_of::<ClusterDraw>()
+            + c.octree.memory_bytes()
     }
 
     /// Renders one frame with `method` into `fb` (every plane written, so no clear needed;
@@ -300,13 +312,13 @@ impl Culler {
         opts: &RenderOptions,
     ) -> Result<(CullStats, FrameStats)> {
         let t0 = Instant::now();
-        let mut cs = CullStats { clusters: self.clustered.item_count() as u64, ..Default::default() };
+        let mut cs = CullStats { clusters: self.c.clustered.item_count() as u64, ..Default::default() };
         let mut opts = *opts;
         opts.antialias = crate::Antialias::Off;
         opts.wireframe = crate::Wireframe::Off;
         if method == Method::Brute {
-            let items = draw_all(&self.instances);
-            let fs = self.renderer.render(scene, &self.instances, &items, camera, fb, &opts)?;
+            let items = draw_all(&self.c.instances);
+            let fs = self.renderer.render(scene, &self.c.instances, &items, camera, fb, &opts)?;
             cs.triangles_drawn = fs.triangles_in;
             cs.clusters_in_frustum = cs.clusters;
             cs.clusters_drawn = cs.clusters;
@@ -318,35 +330,37 @@ impl Culler {
         // No clear: a fresh draw or a frame session writes every depth and ID, and shading
         // every color.
         let t = Instant::now();
-        let frustum = self.frustum_cull(camera, &mut cs);
+        let frustum = self.c.frustum_cull(camera, &mut cs);
         cs.ms_cull = ms_since(t);
-        let mut f = Frame { camera, fb: &mut *fb, opts: &opts, cs, fs: FrameStats::default() };
-        match method {
-            Method::Brute => unreachable!("handled above"),
-            Method::Frustum => {
-                let t = Instant::now();
-                let visible = std::mem::take(&mut self.visible);
-                self.renderer.start_fresh();
-                let r = self.draw_items(&visible, |v| v.index, &mut f);
-                self.renderer.cancel_fresh();
-                self.visible = visible;
-                r?;
-                f.cs.ms_draw = ms_since(t);
-                f.cs.batches = 1;
-            }
-            Method::HzbOnePass => {
-                self.renderer.begin_session(f.fb, opts.depth_format);
-                let r = self.hzb_bvh(&mut f, &frustum, Walk { first_batch: self.first_batch, skip: None, test: true });
-                f.fs.covered_pixels = self.renderer.end_session(f.fb);
-                r?
-            }
-            Method::Hzb => self.hzb_two_pass(&mut f, &frustum)?,
-            Method::OctreeHzb => self.hzb_octree(&mut f, &frustum)?,
+        let mut f = Frame { camera, opts: &opts, cs, fs: FrameStats::default() };
+        let batching = self.batching();
+        if method == Method::Frustum {
+            let t = Instant::now();
+            let sources = self.c.sources(&self.c.visible, |v| v.index, &mut f.cs);
+            let target = Target::Frame { fb: &mut *fb, fresh: true };
+            f.fs.add(&self.renderer.draw_sources_to(&sources, camera, target, &opts, false)?);
+            f.cs.ms_draw = ms_since(t);
+            f.cs.batches = 1;
+        } else {
+            let mut session = self.renderer.begin(fb, &opts);
+            let r = match method {
+                Method::HzbOnePass => {
+                    let walk = Walk { first_batch: batching.first, skip: None, test: true };
+                    self.c.hzb_walk(&mut session, &mut f, &frustum, Source::Bvh, walk, batching)
+                }
+                Method::OctreeHzb => {
+                    let walk = Walk { first_batch: batching.first, skip: None, test: true };
+                    self.c.hzb_walk(&mut session, &mut f, &frustum, Source::Octree, walk, batching)
+                }
+                _ => self.c.hzb_two_pass(&mut session, &mut f, &frustum, batching),
+            };
+            f.fs.covered_pixels = session.finish(fb)?;
+            r?;
         }
         let Frame { mut cs, mut fs, .. } = f;
         cs.culled_by_occlusion = cs.clusters_in_frustum.saturating_sub(cs.clusters_drawn + cs.culled_by_backface);
         let t = Instant::now();
-        crate::shade_pass(scene, &self.instances, camera, fb, &opts.shading, opts.background);
+        crate::shade_pass(scene, &self.c.instances, camera, fb, &opts.shading, opts.background);
         cs.ms_shading = ms_since(t);
         fs.ms_shading = cs.ms_shading;
         fs.update_overdraw();
@@ -356,14 +370,15 @@ impl Culler {
     }
 
     /// Draws every cluster in the view frustum as occluders (depth and IDs; back faces as
-    /// `opts` says) in one frame session left open, and returns box queries against the
-    /// resulting pyramid. Call [`Culler::end_occluder_pass`] afterwards to write the frame.
+    /// `opts` says) into a frame session, and returns it as an [`OccluderPass`] that
+    /// answers box queries against the resulting pyramid; [`OccluderPass::finish`] writes
+    /// the frame to a framebuffer.
     pub fn occluder_pass(
         &mut self,
         camera: &Camera,
-        fb: &mut Framebuffer,
+        fb: &Framebuffer,
         opts: &RenderOptions,
-    ) -> Result<(CullStats, FrameStats, OcclusionQueries<'_>)> {
+    ) -> Result<(CullStats, FrameStats, OccluderPass<'_>)> {
         self.occluder_pass_with(camera, fb, opts, false)
     }
 
@@ -374,331 +389,68 @@ impl Culler {
     pub fn occluder_pass_with(
         &mut self,
         camera: &Camera,
-        fb: &mut Framebuffer,
+        fb: &Framebuffer,
         opts: &RenderOptions,
         skip_hidden: bool,
-    ) -> Result<(CullStats, FrameStats, OcclusionQueries<'_>)> {
+    ) -> Result<(CullStats, FrameStats, OccluderPass<'_>)> {
         let t0 = Instant::now();
-        let mut cs = CullStats { clusters: self.clustered.item_count() as u64, ..Default::default() };
-        let frustum = self.frustum_cull(camera, &mut cs);
-        self.renderer.begin_session(fb, opts.depth_format);
+        let mut cs = CullStats { clusters: self.c.clustered.item_count() as u64, ..Default::default() };
+        let frustum = self.c.frustum_cull(camera, &mut cs);
+        let batching = self.batching();
+        let mut session = self.renderer.begin(fb, opts);
         // Front to back in growing batches, so that the coarse depth test of the rasterizer
         // rejects whole triangles hidden behind earlier ones.
-        let mut f = Frame { camera, fb: &mut *fb, opts, cs, fs: FrameStats::default() };
-        let walk = Walk { first_batch: self.first_batch, skip: None, test: skip_hidden };
-        if let Err(e) = self.hzb_bvh(&mut f, &frustum, walk) {
-            self.renderer.end_session(fb);
-            return Err(e);
-        }
+        let mut f = Frame { camera, opts, cs, fs: FrameStats::default() };
+        let walk = Walk { first_batch: batching.first, skip: None, test: skip_hidden };
+        self.c.hzb_walk(&mut session, &mut f, &frustum, Source::Bvh, walk, batching)?;
         let Frame { mut cs, fs, .. } = f;
         // The walk's split into culling and drawing is not reported for the pass.
         cs.ms_cull = 0.0;
         cs.ms_draw = ms_since(t0);
         cs.ms_total = cs.ms_draw;
         cs.culled_by_occlusion = cs.clusters_in_frustum.saturating_sub(cs.clusters_drawn + cs.culled_by_backface);
-        let pyramid = self.renderer.session_pyramid().expect("a session was just begun");
-        Ok((cs, fs, OcclusionQueries::new(camera, pyramid)))
-    }
-
-    /// The pyramid of the open frame session, if any (between [`Culler::occluder_pass`] and
-    /// [`Culler::end_occluder_pass`]).
-    pub fn renderer_pyramid(&self) -> Option<TilePyramid<'_>> {
-        self.renderer.session_pyramid()
-    }
-
-    /// Ends the pass begun by [`Culler::occluder_pass`]: the frame's depth and IDs go to `fb`
-    /// (its colors are left as they were).
-    pub fn end_occluder_pass(&mut self, fb: &mut Framebuffer) {
-        self.renderer.end_session(fb);
-    }
-
-    /// Starts a culled frame: the clusters in the view frustum go to `self.visible` (BVH
-    /// order) and their counts to `cs`; returns the frustum.
-    fn frustum_cull(&mut self, camera: &Camera, cs: &mut CullStats) -> Frustum {
-        let frustum = Frustum::from_camera(camera);
-        self.visible.clear();
-        self.clustered.cull_with(&frustum, CullOptions::default(), &mut self.visible);
-        cs.clusters_in_frustum = self.visible.len() as u64;
-        cs.culled_by_frustum = cs.clusters - cs.clusters_in_frustum;
-        frustum
-    }
-
-    /// Drops clusters whose triangles all face away from the eye (normal cones), counting them.
-    fn drop_backfacing(&self, items: &mut Vec<Visible>, eye: glam::Vec3, cs: &mut CullStats) {
-        let n = items.len();
-        let can_cull = |i: u32| self.cone_can_cull[i as usize / 64] >> (i % 64) & 1 != 0;
-        // The clusters' records are scattered over memory: ask for the cones a few ahead,
-        // and for the draw records that `draw_items` reads next.
-        for v in items.iter().take(PREFETCH_AHEAD).filter(|v| can_cull(v.index)) {
-            prefetch(&self.cones[v.index as usize]);
-        }
-        let mut kept = 0;
-        for k in 0..n {
-            if let Some(a) = items.get(k + PREFETCH_AHEAD).filter(|a| can_cull(a.index)) {
-                prefetch(&self.cones[a.index as usize]);
-            }
-            let v = items[k];
-            if !(can_cull(v.index) && self.cones[v.index as usize].backfacing(eye)) {
-                prefetch(&self.draws[v.index as usize]);
-                items[kept] = v;
-                kept += 1;
-            }
-        }
-        items.truncate(kept);
-        cs.culled_by_backface += (n - kept) as u64;
-    }
-
-    /// Draws the given items (cluster indices, `index` of each element) in order, counting
-    /// into `f`.
-    fn draw_items<T>(&mut self, items: &[T], index: impl Fn(&T) -> u32, f: &mut Frame) -> Result<()> {
-        let mut sources: Vec<DrawSource> = Vec::with_capacity(items.len());
-        for (k, v) in items.iter().enumerate() {
-            if let Some(a) = items.get(k + PREFETCH_AHEAD) {
-                prefetch(&self.draws[index(a) as usize]);
-            }
-            let d = &self.draws[index(v) as usize];
-            if d.count == 0 {
-                continue;
-            }
-            let ml = self.meshlets.by_slot(d.meshlets);
-            sources.push(DrawSource {
-                positions: &ml.positions,
-                indices: &ml.indices,
-                triangle_ids: Some(&ml.triangle_ids),
-                world_from_local: Affine3A::from_cols_array(&d.world_from_local),
-                first_triangle: d.first_triangle,
-                first: d.first,
-                count: d.count,
-            });
-            f.cs.clusters_drawn += 1;
-            f.cs.triangles_drawn += d.count as u64;
-        }
-        // Meshlet indices point into their own positions by construction.
-        f.fs.add(&self.renderer.draw_sources_checked(&sources, f.camera, f.fb, f.opts, false)?);
-        Ok(())
-    }
-
-    /// The front-to-back walk of [`Method::HzbOnePass`] (and of the occluder pass, which
-    /// does not test) inside an open frame session, in batches growing from
-    /// `walk.first_batch` clusters; see [`Walk`] for the rest.
-    fn hzb_bvh(&mut self, f: &mut Frame, frustum: &Frustum, walk: Walk) -> Result<()> {
-        let projector = BoxProjector::new(f.camera.clip_from_world(), f.fb.width(), f.fb.height());
-        let eye = f.camera.view.eye;
-        let mut cursor = self.clustered.cursor(Some(frustum), eye);
-        let mut batch = walk.first_batch.max(1);
-        let mut out: Vec<Visible> = Vec::new();
-        loop {
-            let t = Instant::now();
-            out.clear();
-            let more = {
-                let Some(pyramid) = self.renderer.session_pyramid() else {
-                    debug_assert!(false, "the walk runs inside a frame session");
-                    break Ok(());
-                };
-                let q = walk.test.then(|| OcclusionQueries::with_projector(projector, pyramid));
-                let cs = &mut f.cs;
-                cursor.next_batch(
-                    self.clustered.bvh(),
-                    |b| q.as_ref().is_none_or(|q| q.counted_visible(b, cs)),
-                    batch,
-                    &mut out,
-                )
-            };
-            if let Some(frame) = walk.skip {
-                out.retain(|v| self.drawn_in[v.index as usize] != frame);
-            }
-            // Clusters facing away would only be dropped triangle by triangle.
-            if f.opts.backface_culling {
-                self.drop_backfacing(&mut out, eye, &mut f.cs);
-            }
-            f.cs.ms_cull += ms_since(t);
-            if !out.is_empty() {
-                let t = Instant::now();
-                self.draw_items(&out, |v| v.index, f)?;
-                if let Some(frame) = walk.skip {
-                    for v in &out {
-                        self.drawn_in[v.index as usize] = frame;
-                    }
-                    self.last_visible.extend(out.iter().map(|v| v.index));
-                }
-                f.cs.ms_draw += ms_since(t);
-                f.cs.batches += 1;
-            }
-            if !more {
-                return Ok(());
-            }
-            batch = (batch * 2).min(self.batch_cap());
-        }
-    }
-
-    /// [`Method::Hzb`]: last frame's visible clusters (those still in the frustum and
-    /// not facing away) are drawn first, in one batch; the front-to-back walk then tests the
-    /// rest against their pyramid, starting with big batches; finally last frame's clusters
-    /// are tested against the finished pyramid, and the ones not occluded join this frame's
-    /// newly drawn ones as the next frame's set.
-    fn hzb_two_pass(&mut self, f: &mut Frame, frustum: &Frustum) -> Result<()> {
-        let n = self.clustered.item_count();
-        self.frame = self.frame.wrapping_add(1);
-        if self.frame == 0 || self.drawn_in.len() != n {
-            self.drawn_in.clear();
-            self.drawn_in.resize(n, 0);
-            self.frame = 1;
-        }
-        let frame = self.frame;
-        let t = Instant::now();
-        // Last frame's set, kept where still in the frustum (self.visible) and facing us.
-        for v in &self.visible {
-            self.drawn_in[v.index as usize] = frame;
-        }
-        let eye = f.camera.view.eye;
-        let mut first: Vec<u32> = std::mem::take(&mut self.last_visible);
-        first.retain(|&i| self.drawn_in.get(i as usize) == Some(&frame));
-        for v in &self.visible {
-            self.drawn_in[v.index as usize] = 0;
-        }
-        if f.opts.backface_culling {
-            // Not counted here: the walk meets them again and counts them once.
-            first.retain(|&i| !self.cones[i as usize].backfacing(eye));
-        }
-        for &i in &first {
-            self.drawn_in[i as usize] = frame;
-        }
-        f.cs.ms_cull += ms_since(t);
-        self.renderer.begin_session(f.fb, f.opts.depth_format);
-        let result = (|| {
-            if !first.is_empty() {
-                let t = Instant::now();
-                self.draw_items(&first, |&i| i, f)?;
-                f.cs.ms_draw += ms_since(t);
-                f.cs.batches += 1;
-            }
-            // With last frame's occluders in place the pyramid is mostly complete: big batches.
-            let first_batch =
-                if first.is_empty() { self.first_batch } else { (self.batch_cap() / 4).max(self.first_batch) };
-            self.hzb_bvh(f, frustum, Walk { first_batch, skip: Some(frame), test: true })
-        })();
-        // Re-test last frame's clusters against the finished pyramid: the occluded ones leave
-        // the set (their pixels went to nearer clusters).
-        let t = Instant::now();
-        if let Some(pyramid) = self.renderer.session_pyramid() {
-            let q = OcclusionQueries::new(f.camera, pyramid);
-            let boxes = &self.item_boxes;
-            let still: Vec<u32> =
-                first.iter().copied().filter(|&i| q.counted_visible(&boxes[i as usize], &mut f.cs)).collect();
-            self.last_visible.extend(still);
-        }
-        f.cs.ms_cull += ms_since(t);
-        f.fs.covered_pixels = self.renderer.end_session(f.fb);
-        if result.is_err() {
-            self.last_visible.clear();
-        }
-        result
-    }
-
-    fn hzb_octree(&mut self, f: &mut Frame, frustum: &Frustum) -> Result<()> {
-        let projector = BoxProjector::new(f.camera.clip_from_world(), f.fb.width(), f.fb.height());
-        let (eye, backface_culling) = (f.camera.view.eye, f.opts.backface_culling);
-        self.renderer.begin_session(f.fb, f.opts.depth_format);
-        let Some(octree) = self.octree.take() else {
-            // Only while a walk holds the octree, which cannot call back in here; still,
-            // leave a written (empty) frame rather than an open session.
-            f.fs.covered_pixels = self.renderer.end_session(f.fb);
-            return Ok(());
-        };
-        // The walk's two callbacks both need the frame (one reads depth, the other draws):
-        // they never run at the same time, so a RefCell shares it.
-        let batch = self.first_batch.max(1);
-        let walk = RefCell::new(OctreeWalk { culler: self, f, pending: Vec::new(), batch, err: None });
-        let t = Instant::now();
-        octree.traverse_front_to_back(
-            Some(frustum),
-            eye,
-            |b| {
-                let mut g = walk.borrow_mut();
-                let w = &mut *g;
-                let vis = match w.culler.renderer.session_pyramid() {
-                    Some(p) => OcclusionQueries::with_projector(projector, p).counted_visible(b, &mut w.f.cs),
-                    None => true,
-                };
-                if vis {
-                    Visit::Continue
-                } else {
-                    Visit::Skip
-                }
-            },
-            |v| {
-                let mut g = walk.borrow_mut();
-                if backface_culling && g.culler.cones[v.index as usize].backfacing(eye) {
-                    g.f.cs.culled_by_backface += 1;
-                    return Visit::Continue;
-                }
-                g.pending.push(v);
-                if g.pending.len() >= g.batch {
-                    g.flush();
-                }
-                Visit::Continue
-            },
-        );
-        let mut w = walk.into_inner();
-        w.flush();
-        w.culler.octree = Some(octree);
-        w.f.fs.covered_pixels = w.culler.renderer.end_session(w.f.fb);
-        // Traversal time excludes the drawing done inside it.
-        w.f.cs.ms_cull += (ms_since(t) - w.f.cs.ms_draw).max(0.0);
-        match w.err {
-            Some(e) => Err(e),
-            None => Ok(()),
-        }
+        let projector = BoxProjector::new(camera.clip_from_world(), fb.width(), fb.height());
+        Ok((cs, fs, OccluderPass { session, projector }))
     }
 }
 
-/// One culled frame in progress: the camera and options it draws with, the framebuffer it
-/// draws into, and its counters. The walks take it whole.
-struct Frame<'a> {
-    camera: &'a Camera,
-    fb: &'a mut Framebuffer,
-    opts: &'a RenderOptions,
-    cs: CullStats,
-    fs: FrameStats,
+/// The occluders of one frame drawn into an open frame session, and box queries against
+/// their z-pyramid (see [`Culler::occluder_pass`]).
+#[derive(Debug)]
+pub struct OccluderPass<'c> {
+    session: Session<'c>,
+    projector: BoxProjector,
 }
 
-/// How [`Culler::hzb_bvh`] walks.
-#[derive(Debug, Clone, Copy)]
-struct Walk {
-    /// Clusters in the first draw batch (batches then double up to the batch cap).
-    first_batch: usize,
-    /// `Some(frame)`: clusters already drawn in that frame (see `drawn_in`) are passed
-    /// over, and the ones drawn get marked and join `last_visible`.
-    skip: Option<u32>,
-    /// Test nodes and clusters against the pyramid before drawing them (false: draw every
-    /// cluster in the frustum, front to back).
-    test: bool,
-}
+impl OccluderPass<'_> {
+    /// Queries against the pyramid of the occluders.
+    pub fn queries(&self) -> OcclusionQueries<'_> {
+        OcclusionQueries::with_projector(self.projector, self.session.pyramid())
+    }
 
-/// State of the octree walk shared by its callbacks.
-struct OctreeWalk<'a, 'f> {
-    culler: &'a mut Culler,
-    f: &'a mut Frame<'f>,
-    pending: Vec<Visible>,
-    batch: usize,
-    err: Option<crate::Error>,
-}
+    /// The pyramid of the occluders.
+    pub fn pyramid(&self) -> TilePyramid<'_> {
+        self.session.pyramid()
+    }
 
-impl OctreeWalk<'_, '_> {
-    /// Draws the pending clusters (the tiles refresh their pyramid levels as they draw).
-    fn flush(&mut self) {
-        if self.pending.is_empty() || self.err.is_some() {
-            return;
-        }
-        let t = Instant::now();
-        let items = std::mem::take(&mut self.pending);
-        if let Err(e) = self.culler.draw_items(&items, |v| v.index, self.f) {
-            self.err = Some(e);
-        }
-        self.f.cs.ms_draw += ms_since(t);
-        self.f.cs.batches += 1;
-        self.batch = (self.batch * 2).min(self.culler.batch_cap());
-        self.pending = items;
-        self.pending.clear();
+    /// [`OcclusionQueries::test`].
+    pub fn test(&self, b: &Aabb) -> BoxVisibility {
+        self.queries().test(b)
+    }
+
+    /// [`OcclusionQueries::test_many`].
+    pub fn test_many(&self, boxes: &[Aabb], out: &mut Vec<BoxVisibility>) {
+        self.queries().test_many(boxes, out)
+    }
+
+    /// [`OcclusionQueries::test_batch`].
+    pub fn test_batch(&self, boxes: &[Aabb], out: &mut Vec<BoxVisibility>) {
+        self.queries().test_batch(boxes, out)
+    }
+
+    /// Ends the pass: the occluders' depth and IDs go to `fb` (its colors are left as they
+    /// were). Returns the pixels covered.
+    pub fn finish(self, fb: &mut Framebuffer) -> Result<u64> {
+        self.session.finish(fb)
     }
 }

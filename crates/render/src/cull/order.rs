@@ -1,7 +1,7 @@
-//! The seeds' scene-order experiment: the same visible set drawn front to back, back to
-//! front and in random order, with and without coarse depth (hierarchical z), to show what
-//! ordering buys a z-buffer. On a GPU the seeds measured 245 (front to back) / 704 (random)
-//! / 1755 (back to front) units; here [`Culler::render_ordered`] renders one such frame.
+//! The scene-order experiment: the same visible set drawn front to back, back to front and
+//! in random order, with and without coarse depth (hierarchical z), to show what ordering
+//! buys a z-buffer (front-to-back order is what makes early depth rejection pay, Greene,
+//! Kass & Miller 1993); [`Culler::render_ordered`] renders one such frame.
 
 use std::time::Instant;
 
@@ -10,6 +10,7 @@ use sightline_scene::rng::Rng;
 use sightline_scene::Camera;
 
 use super::{CullStats, Culler, Frame};
+use crate::pipeline::Target;
 use crate::stats::ms_since;
 use crate::{FrameStats, Framebuffer, RenderOptions, Result};
 
@@ -53,15 +54,16 @@ impl Culler {
         opts: &RenderOptions,
     ) -> Result<(CullStats, FrameStats)> {
         let t0 = Instant::now();
-        let mut cs = CullStats { clusters: self.clustered.item_count() as u64, ..Default::default() };
+        let mut cs = CullStats { clusters: self.c.clustered.item_count() as u64, ..Default::default() };
         fb.clear(opts.background);
-        self.frustum_cull(camera, &mut cs);
+        self.c.frustum_cull(camera, &mut cs);
         let eye = camera.view.eye;
         let mut items: Vec<(f32, u32)> = self
+            .c
             .visible
             .iter()
             .map(|v| {
-                let b = &self.item_boxes[v.index as usize];
+                let b = &self.c.item_boxes[v.index as usize];
                 (eye.clamp(b.min, b.max).distance_squared(eye), v.index)
             })
             .collect();
@@ -77,19 +79,19 @@ impl Culler {
         }
         cs.ms_cull = ms_since(t0);
         let t = Instant::now();
-        let mut f = Frame { camera, fb: &mut *fb, opts, cs, fs: FrameStats::default() };
+        let mut f = Frame { camera, opts, cs, fs: FrameStats::default() };
         if coarse {
-            self.renderer.begin_session(f.fb, opts.depth_format);
+            let mut session = self.renderer.begin(fb, opts);
             for chunk in items.chunks(batch.max(1)) {
-                if let Err(e) = self.draw_items(chunk, |x| x.1, &mut f) {
-                    self.renderer.end_session(f.fb);
-                    return Err(e);
-                }
+                let sources = self.c.sources(chunk, |x| x.1, &mut f.cs);
+                f.fs.add(&session.draw_sources_checked(&sources, camera, false)?);
                 f.cs.batches += 1;
             }
-            f.fs.covered_pixels = self.renderer.end_session(f.fb);
+            f.fs.covered_pixels = session.finish(fb)?;
         } else {
-            self.draw_items(&items, |x| x.1, &mut f)?;
+            let sources = self.c.sources(&items, |x| x.1, &mut f.cs);
+            let target = Target::Frame { fb: &mut *fb, fresh: false };
+            f.fs.add(&self.renderer.draw_sources_to(&sources, camera, target, opts, false)?);
             f.cs.batches = 1;
         }
         let Frame { mut cs, mut fs, .. } = f;

@@ -3,10 +3,11 @@
 //! exact: a box is occluded only when no point of it could pass the depth test.
 //!
 //! Use: [`Culler::occluder_pass`](super::Culler::occluder_pass) draws the occluders
-//! (frustum- and back-face-culled, depth and IDs only) and leaves the frame session open;
-//! [`OcclusionQueries::test`], [`OcclusionQueries::test_many`] (one thread) or
-//! [`OcclusionQueries::test_batch`] (all threads) answer box queries; then
-//! [`Culler::end_occluder_pass`](super::Culler::end_occluder_pass) writes the frame out.
+//! (frustum- and back-face-culled, depth and IDs only) into a frame session it returns as
+//! an [`OccluderPass`](super::OccluderPass); [`OcclusionQueries::test`],
+//! [`OcclusionQueries::test_many`] (one thread) or [`OcclusionQueries::test_batch`] (all
+//! threads) answer box queries; then
+//! [`OccluderPass::finish`](super::OccluderPass::finish) writes the frame out.
 //!
 //! A query is two steps: [`BoxProjector`] turns the box into a conservative pixel rectangle
 //! and nearest depth (or "outside", or "crosses the near plane": visible), then

@@ -146,7 +146,7 @@ mod tests {
         for fmt in [DepthFormat::F32, DepthFormat::Unorm16, DepthFormat::Unorm24] {
             let mut fb = Framebuffer::new(w, h).unwrap();
             let mut renderer = Renderer::new();
-            renderer.begin_session(&fb, fmt);
+            let mut session = renderer.begin(&fb, &RenderOptions { depth_format: fmt, ..opts });
             // Triangles of all sizes at all depths, over the left 80% of the screen only, so
             // that some tiles are never drawn into.
             let tris: Vec<[Vec4; 3]> = (0..400)
@@ -158,8 +158,8 @@ mod tests {
                     [v(0.0, 0.0, 0.0), v(1.0, s1, dz[0]), v(s2, 1.0, dz[1])]
                 })
                 .collect();
-            renderer.draw_clip_triangles(&tris, 1, &mut fb, &opts);
-            let pyramid = renderer.session_pyramid().unwrap();
+            session.draw_clip_triangles(&tris, 1);
+            let pyramid = session.pyramid();
             let top = pyramid.top();
             let mut queries = Vec::new();
             let mut occluded = 0;
@@ -179,7 +179,7 @@ mod tests {
                 queries.push((r, z, occ));
             }
             assert!(occluded > 1000 && occluded < 19_000, "{fmt:?}: {occluded}");
-            renderer.end_session(&mut fb);
+            session.finish(&mut fb).unwrap();
             for (r, z, occ) in queries {
                 if occ {
                     let m = brute_max(&fb.depth, w, r);

@@ -166,10 +166,11 @@ impl TileStats {
 pub(crate) struct TilePass<'a> {
     /// The binned chunks, in submission order.
     pub chunks: &'a [Chunk],
-    /// The target (pixels are loaded from it outside sessions, unless `fresh`).
-    pub fb: &'a Framebuffer,
-    /// The target is to be overwritten whole: tiles start from the clear values.
-    pub fresh: bool,
+    /// Outside sessions: the target whose pixels the tiles start from (`None`: it is
+    /// overwritten whole, so tiles start from the clear values).
+    pub load: Option<&'a Framebuffer>,
+    /// Depth tests are counted per pixel.
+    pub counting: bool,
     /// Inside a frame session: tiles hold the frame and keep their pyramid levels.
     pub session: bool,
 }
@@ -210,7 +211,7 @@ fn tiles_in<D: DepthCodec>(
     pass: &TilePass,
     simd: SimdLevel,
 ) -> TileStats {
-    let count = pass.fb.depth_tests.is_some();
+    let count = pass.counting;
     let avx2 = simd.resolve() >= SimdLevel::Avx2;
     // SAFETY (every `unsafe` below): `Rows` needs nothing beyond the baseline, and the AVX2
     // functions are chosen only when the resolved level says the CPU has AVX2.
@@ -260,15 +261,8 @@ unsafe fn raster_tile<D: DepthCodec, const C: bool, K: Kernel>(
     }
     // Start from the clear values right after a clear; otherwise load the tile's pixels
     // (earlier batches may have drawn here).
-    let fb = pass.fb;
-    let width = fb.width() as usize;
-    if pass.fresh {
-        tile.depth.fill(D::FORMAT.key(1.0));
-        tile.ids.fill(0);
-        if C {
-            tile.counts.fill(0); // only read and written when counting
-        }
-    } else {
+    if let Some(fb) = pass.load {
+        let width = fb.width() as usize;
         for r in 0..tile.h as usize {
             let src = (tile.y0 as usize + r) * width + tile.x0 as usize;
             let dst = r << TILE_SHIFT;
@@ -280,6 +274,12 @@ unsafe fn raster_tile<D: DepthCodec, const C: bool, K: Kernel>(
             if let (true, Some(c)) = (C, &fb.depth_tests) {
                 tile.counts[dst..dst + w].copy_from_slice(&c[src..src + w]);
             }
+        }
+    } else {
+        tile.depth.fill(D::FORMAT.key(1.0));
+        tile.ids.fill(0);
+        if C {
+            tile.counts.fill(0); // only read and written when counting
         }
     }
     // SAFETY: forwarded from the caller.

@@ -17,9 +17,11 @@
 //! found), NaN/infinite boxes and boxes outside the root's loose cube live in an "outside" list
 //! that every query tests one by one (unbounded ones are always visible).
 
+mod cursor;
 pub mod occupancy;
 mod query;
 
+pub use cursor::OctreeCursor;
 pub use query::octant_order;
 
 use glam::Vec3;

@@ -1,0 +1,261 @@
+//! The culling walks of one frame, drawing through a renderer [`Session`]: the
+//! front-to-back walk over the cluster BVH or the loose octree in growing batches, with
+//! occlusion tests against the session's z-pyramid between batches (Greene, Kass & Miller
+//! 1993), and its two-pass form that draws last frame's visible set first.
+
+use std::time::Instant;
+
+use glam::Affine3A;
+use sightline_scene::Camera;
+use sightline_spatial::{prefetch, BoxProjector, CullOptions, FrontToBackCursor, Frustum, OctreeCursor, Visible};
+
+use super::{Clusters, CullStats, OcclusionQueries, PREFETCH_AHEAD};
+use crate::stats::ms_since;
+use crate::{DrawSource, FrameStats, RenderOptions, Result, Session};
+
+/// One culled frame in progress: the camera and options it draws with, and its counters.
+pub(super) struct Frame<'a> {
+    pub camera: &'a Camera,
+    pub opts: &'a RenderOptions,
+    pub cs: CullStats,
+    pub fs: FrameStats,
+}
+
+/// Batch sizes of a walk.
+#[derive(Debug, Clone, Copy)]
+pub(super) struct Batching {
+    /// Clusters in the first batch of a walk that starts from an empty pyramid.
+    pub first: usize,
+    /// Largest batch (batches double up to it).
+    pub cap: usize,
+}
+
+/// How [`Clusters::hzb_walk`] walks.
+#[derive(Debug, Clone, Copy)]
+pub(super) struct Walk {
+    /// Clusters in the first draw batch (batches then double up to the batch cap).
+    pub first_batch: usize,
+    /// `Some(frame)`: clusters already drawn in that frame (see `drawn_in`) are passed
+    /// over, and the ones drawn get marked and join `last_visible`.
+    pub skip: Option<u32>,
+    /// Test nodes and clusters against the pyramid before drawing them (false: draw every
+    /// cluster in the frustum, front to back).
+    pub test: bool,
+}
+
+/// Which structure the front-to-back walk runs over.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(super) enum Source {
+    /// The BVH over (instance, cluster) boxes.
+    Bvh,
+    /// The loose octree over the same boxes (Greene's original walk).
+    Octree,
+}
+
+/// A resumable walk over either structure.
+enum Cursor {
+    Bvh(FrontToBackCursor),
+    Octree(OctreeCursor),
+}
+
+impl Clusters {
+    /// Starts a culled frame: the clusters in the view frustum go to `self.visible` (BVH
+    /// order) and their counts to `cs`; returns the frustum.
+    pub(super) fn frustum_cull(&mut self, camera: &Camera, cs: &mut CullStats) -> Frustum {
+        let frustum = Frustum::from_camera(camera);
+        self.visible.clear();
+        self.clustered.cull_with(&frustum, CullOptions::default(), &mut self.visible);
+        cs.clusters_in_frustum = self.visible.len() as u64;
+        cs.culled_by_frustum = cs.clusters - cs.clusters_in_frustum;
+        frustum
+    }
+
+    /// Drops clusters whose triangles all face away from the eye (normal cones), counting them.
+    fn drop_backfacing(&self, items: &mut Vec<Visible>, eye: glam::Vec3, cs: &mut CullStats) {
+        let n = items.len();
+        let can_cull = |i: u32| self.cone_can_cull[i as usize / 64] >> (i % 64) & 1 != 0;
+        // The clusters' records are scattered over memory: ask for the cones a few ahead,
+        // and for the draw records that `sources` reads next.
+        for v in items.iter().take(PREFETCH_AHEAD).filter(|v| can_cull(v.index)) {
+            prefetch(&self.cones[v.index as usize]);
+        }
+        let mut kept = 0;
+        for k in 0..n {
+            if let Some(a) = items.get(k + PREFETCH_AHEAD).filter(|a| can_cull(a.index)) {
+                prefetch(&self.cones[a.index as usize]);
+            }
+            let v = items[k];
+            if !(can_cull(v.index) && self.cones[v.index as usize].backfacing(eye)) {
+                prefetch(&self.draws[v.index as usize]);
+                items[kept] = v;
+                kept += 1;
+            }
+        }
+        items.truncate(kept);
+        cs.culled_by_backface += (n - kept) as u64;
+    }
+
+    /// The draw sources of the given items (cluster indices, `index` of each element), in
+    /// order, counted into `cs`.
+    pub(super) fn sources<T>(&self, items: &[T], index: impl Fn(&T) -> u32, cs: &mut CullStats) -> Vec<DrawSource<'_>> {
+        let mut sources: Vec<DrawSource> = Vec::with_capacity(items.len());
+        for (k, v) in items.iter().enumerate() {
+            if let Some(a) = items.get(k + PREFETCH_AHEAD) {
+                prefetch(&self.draws[index(a) as usize]);
+            }
+            let d = &self.draws[index(v) as usize];
+            if d.count == 0 {
+                continue;
+            }
+            let ml = self.meshlets.by_slot(d.meshlets);
+            sources.push(DrawSource {
+                positions: &ml.positions,
+                indices: &ml.indices,
+                triangle_ids: Some(&ml.triangle_ids),
+                world_from_local: Affine3A::from_cols_array(&d.world_from_local),
+                first_triangle: d.first_triangle,
+                first: d.first,
+                count: d.count,
+            });
+            cs.clusters_drawn += 1;
+            cs.triangles_drawn += d.count as u64;
+        }
+        sources
+    }
+
+    /// Draws the given items into the session, counting into `f`.
+    fn draw<T>(&self, s: &mut Session, items: &[T], index: impl Fn(&T) -> u32, f: &mut Frame) -> Result<()> {
+        let sources = self.sources(items, index, &mut f.cs);
+        // Meshlet indices point into their own positions by construction.
+        f.fs.add(&s.draw_sources_checked(&sources, f.camera, false)?);
+        Ok(())
+    }
+
+    /// The front-to-back walk of [`super::Method::HzbOnePass`] and
+    /// [`super::Method::OctreeHzb`] (and of the occluder pass, which does not test) over
+    /// `source`, in batches growing from `walk.first_batch` clusters; see [`Walk`] for the
+    /// rest.
+    pub(super) fn hzb_walk(
+        &mut self,
+        s: &mut Session,
+        f: &mut Frame,
+        frustum: &Frustum,
+        source: Source,
+        walk: Walk,
+        batching: Batching,
+    ) -> Result<()> {
+        let pyramid = s.pyramid();
+        let projector = BoxProjector::new(f.camera.clip_from_world(), pyramid.width(), pyramid.height());
+        let eye = f.camera.view.eye;
+        let mut cursor = match source {
+            Source::Bvh => Cursor::Bvh(self.clustered.cursor(Some(frustum), eye)),
+            Source::Octree => Cursor::Octree(OctreeCursor::new(&self.octree, Some(frustum), eye)),
+        };
+        let mut batch = walk.first_batch.max(1);
+        let mut out: Vec<Visible> = Vec::new();
+        loop {
+            let t = Instant::now();
+            out.clear();
+            let more = {
+                let q = walk.test.then(|| OcclusionQueries::with_projector(projector, s.pyramid()));
+                let cs = &mut f.cs;
+                let visible = |b: &_| q.as_ref().is_none_or(|q| q.counted_visible(b, cs));
+                match &mut cursor {
+                    Cursor::Bvh(c) => c.next_batch(self.clustered.bvh(), visible, batch, &mut out),
+                    Cursor::Octree(c) => c.next_batch(&self.octree, visible, batch, &mut out),
+                }
+            };
+            if let Some(frame) = walk.skip {
+                out.retain(|v| self.drawn_in[v.index as usize] != frame);
+            }
+            // Clusters facing away would only be dropped triangle by triangle.
+            if f.opts.backface_culling {
+                self.drop_backfacing(&mut out, eye, &mut f.cs);
+            }
+            f.cs.ms_cull += ms_since(t);
+            if !out.is_empty() {
+                let t = Instant::now();
+                self.draw(s, &out, |v| v.index, f)?;
+                if let Some(frame) = walk.skip {
+                    for v in &out {
+                        self.drawn_in[v.index as usize] = frame;
+                    }
+                    self.last_visible.extend(out.iter().map(|v| v.index));
+                }
+                f.cs.ms_draw += ms_since(t);
+                f.cs.batches += 1;
+            }
+            if !more {
+                return Ok(());
+            }
+            batch = (batch * 2).min(batching.cap);
+        }
+    }
+
+    /// [`super::Method::Hzb`]: last frame's visible clusters (those still in the frustum and
+    /// not facing away) are drawn first, in one batch; the front-to-back walk then tests the
+    /// rest against their pyramid, starting with big batches; finally last frame's clusters
+    /// are tested against the finished pyramid, and the ones not occluded join this frame's
+    /// newly drawn ones as the next frame's set.
+    pub(super) fn hzb_two_pass(
+        &mut self,
+        s: &mut Session,
+        f: &mut Frame,
+        frustum: &Frustum,
+        batching: Batching,
+    ) -> Result<()> {
+        let n = self.clustered.item_count();
+        self.frame = self.frame.wrapping_add(1);
+        if self.frame == 0 || self.drawn_in.len() != n {
+            self.drawn_in.clear();
+            self.drawn_in.resize(n, 0);
+            self.frame = 1;
+        }
+        let frame = self.frame;
+        let t = Instant::now();
+        // Last frame's set, kept where still in the frustum (self.visible) and facing us.
+        for v in &self.visible {
+            self.drawn_in[v.index as usize] = frame;
+        }
+        let eye = f.camera.view.eye;
+        let mut first: Vec<u32> = std::mem::take(&mut self.last_visible);
+        first.retain(|&i| self.drawn_in.get(i as usize) == Some(&frame));
+        for v in &self.visible {
+            self.drawn_in[v.index as usize] = 0;
+        }
+        if f.opts.backface_culling {
+            // Not counted here: the walk meets them again and counts them once.
+            first.retain(|&i| !self.cones[i as usize].backfacing(eye));
+        }
+        for &i in &first {
+            self.drawn_in[i as usize] = frame;
+        }
+        f.cs.ms_cull += ms_since(t);
+        let mut result = Ok(());
+        if !first.is_empty() {
+            let t = Instant::now();
+            result = self.draw(s, &first, |&i| i, f);
+            f.cs.ms_draw += ms_since(t);
+            f.cs.batches += 1;
+        }
+        if result.is_ok() {
+            // With last frame's occluders in place the pyramid is mostly complete: big batches.
+            let first_batch = if first.is_empty() { batching.first } else { (batching.cap / 4).max(batching.first) };
+            let walk = Walk { first_batch, skip: Some(frame), test: true };
+            result = self.hzb_walk(s, f, frustum, Source::Bvh, walk, batching);
+        }
+        // Re-test last frame's clusters against the finished pyramid: the occluded ones leave
+        // the set (their pixels went to nearer clusters).
+        let t = Instant::now();
+        let q = OcclusionQueries::new(f.camera, s.pyramid());
+        let boxes = &self.item_boxes;
+        let still: Vec<u32> =
+            first.iter().copied().filter(|&i| q.counted_visible(&boxes[i as usize], &mut f.cs)).collect();
+        self.last_visible.extend(still);
+        f.cs.ms_cull += ms_since(t);
+        if result.is_err() {
+            self.last_visible.clear();
+        }
+        result
+    }
+}
