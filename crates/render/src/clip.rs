@@ -1,6 +1,6 @@
 //! Outcodes and homogeneous clipping.
 //!
-//! * Trivial accept/reject: the seeds' 6-bit outcodes, i.e. 3D Cohen–Sutherland
+//! * Trivial accept/reject: 6-bit outcodes, i.e. 3D Cohen–Sutherland
 //!   (Newman & Sproull, *Principles of Interactive Computer Graphics*, 1979): one bit per
 //!   frustum plane `−w ≤ x, y, z ≤ w`. All three vertices outside one plane (AND ≠ 0) →
 //!   the triangle is invisible; no bit set (OR = 0) → no clipping needed.

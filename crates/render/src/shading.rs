@@ -5,7 +5,7 @@
 //! * Lambert's cosine law: `I = ambient + diffuse · max(0, n·l)`.
 //! * Gouraud (1971): light the three vertices, interpolate the intensities.
 //! * Per pixel ("Phong" normal interpolation, 1975): interpolate the normal, then light.
-//! * Depth cueing (the seeds; Foley et al. §16.1.3): the color moves towards a cue color
+//! * Depth cueing (Foley, van Dam, Feiner, Hughes, *Computer Graphics*, §16.1.3): the color moves towards a cue color
 //!   as the distance grows from `near` to `far`.
 //!
 //! Everything takes *world-space barycentric weights* of a triangle, so both renderers
@@ -69,7 +69,7 @@ pub struct ShadeOptions {
 
 impl Default for ShadeOptions {
     /// Flat Lambert, light from (0.35, 0.8, −0.5), 0.2 ambient + 0.8 diffuse: the shading of
-    /// the llvmpipe reference in ../shared/anchors.
+    /// the llvmpipe (Mesa) reference renderer the tests compare against.
     fn default() -> Self {
         Self {
             mode: ShadingMode::Flat,

@@ -311,3 +311,29 @@ fn covers_exactly_its_pixels(t: &Tri, label: &str) -> usize {
     }
     ids.iter().filter(|&&i| i == 1).count()
 }
+
+/// A fragment whose depth is NaN is never written, in every depth format and with every
+/// kernel (on GPUs every comparison with NaN fails); its pixels still count as covered.
+#[test]
+fn nan_depth_is_never_written() {
+    fn check<D: DepthCodec>(avx2: bool) {
+        let vp = Viewport::new(64, 64, true);
+        let mut t = tri([(1.0, 1.0), (60.0, 3.0), (5.0, 62.0)], 9, &vp).unwrap();
+        let mut tile = TileBuf::new(0, 0, 64, 64);
+        let mut lv = levels_of(&tile);
+        tile.depth.fill(D::key(1.0));
+        for (z0, zx) in [(f32::NAN, 0.0), (0.5, f32::NAN), (-f32::NAN, 0.0)] {
+            (t.z0, t.zx) = (z0, zx);
+            let r = draw_tri::<D, true>(&t, &mut tile, &mut lv, avx2);
+            assert!(r.covered > 1000, "{:?}: the triangle covers its pixels", D::FORMAT);
+            assert_eq!(r.written, 0, "{:?} avx2={avx2}: a NaN depth was written", D::FORMAT);
+        }
+        assert!(tile.ids.iter().all(|&i| i == 0));
+        assert!(tile.depth[..(TILE * TILE) as usize].iter().all(|&k| k == D::key(1.0)));
+    }
+    for avx2 in kernels() {
+        check::<F32>(avx2);
+        check::<Unorm24>(avx2);
+        check::<Unorm16>(avx2);
+    }
+}
