@@ -39,7 +39,7 @@
 
 mod aabb;
 mod bsp;
-mod bvh;
+pub mod bvh;
 mod frustum;
 mod hint;
 mod octree;

@@ -1,9 +1,12 @@
 //! The ray caster: image-order visibility through a two-level BVH, drawing the same
 //! framebuffer as the rasterizer (IDs, window depth, shading), plus CSG solids.
 //!
-//! * [`RayCaster::build`] makes one BLAS per mesh (obvhs PLOC collapsed to a 4-wide BVH,
-//!   built in parallel over meshes with rayon, shared by every instance of the mesh) and a
-//!   TLAS over the instances; rays reach a BLAS through the instance's `local_from_world`.
+//! * [`RayCaster::build`] makes one BLAS per mesh (a 4-wide BVH,
+//!   [`sightline_spatial::bvh::wide::WideBlas`], built in parallel over meshes with rayon,
+//!   shared by every instance of the mesh) and a TLAS over the instances
+//!   ([`sightline_spatial::bvh::wide::WideTlas`]); rays reach a BLAS through the instance's
+//!   `local_from_world`. The structures come from `sightline-spatial`; this module casts rays
+//!   through them.
 //! * [`RayCaster::render`] casts one ray per pixel center from the camera
 //!   ([`sightline_scene::Camera::ray_through_ndc`]'s rays) in 8 × 8 packets traced together
 //!   (Wald et al. 2001) with frustum culling (Reshetov et al. 2005), over bands of rows in
@@ -41,13 +44,10 @@
 //! # Ok::<(), Box<dyn std::error::Error>>(())
 //! ```
 
-mod blas;
-mod bvh;
 mod camera;
 mod isa;
 mod packet;
 mod render;
-mod tlas;
 mod trace;
 mod traverse;
 mod triangle;
@@ -62,9 +62,8 @@ use crate::csg::CsgObject;
 use crate::shading::ShadeOptions;
 use crate::{Framebuffer, RenderOptions, Result};
 
-use blas::Blas;
 use packet::{Hits, Rays, NO_HIT};
-use tlas::{invertible, InstanceRec, Tlas};
+use sightline_spatial::bvh::wide::{invertible, InstanceRecord, WideBlas, WideTlas};
 use trace::{trace, Scratch};
 
 pub use sightline_spatial::simd::SimdLevel;
@@ -163,8 +162,8 @@ pub enum HitTarget {
 pub struct RayCaster<'s> {
     scene: &'s Scene,
     instances: Vec<Instance>,
-    blases: Vec<Blas>,
-    tlas: Tlas,
+    blases: Vec<WideBlas>,
+    tlas: WideTlas,
     csg: Vec<CsgObject>,
     triangle_count: u32,
     build_ms: f64,
@@ -200,18 +199,15 @@ impl<'s> RayCaster<'s> {
             });
             blas_of_instance.push(Some(b));
         }
-        let mut blases: Vec<Blas> = mesh_ids
-            .par_iter()
-            .map(|&m| scene.mesh(m).map_or_else(|| Blas::build(0, |_| [Vec3::ZERO; 3]), Blas::from_mesh))
-            .collect();
-        let placed: Vec<Blas> = placed_jobs
+        let mut blases: Vec<WideBlas> =
+            mesh_ids.par_iter().map(|&m| scene.mesh(m).map_or_else(WideBlas::empty, WideBlas::from_mesh)).collect();
+        let placed: Vec<WideBlas> = placed_jobs
             .par_iter()
             .map(|&i| {
                 let inst = &instances[i];
-                scene.mesh(inst.mesh).map_or_else(
-                    || Blas::build(0, |_| [Vec3::ZERO; 3]),
-                    |m| Blas::from_mesh_placed(m, &inst.world_from_local),
-                )
+                scene
+                    .mesh(inst.mesh)
+                    .map_or_else(WideBlas::empty, |m| WideBlas::from_mesh_placed(m, &inst.world_from_local))
             })
             .collect();
         let mut records = Vec::with_capacity(instances.len());
@@ -219,15 +215,15 @@ impl<'s> RayCaster<'s> {
             if let Some(b) = b {
                 let inst = &instances[i];
                 let first_id = crate::triangle_id(inst.first_triangle, 0);
-                records.push(InstanceRec::placed(*b, i as u32, first_id, inst.world_from_local));
+                records.push(InstanceRecord::placed(*b, i as u32, first_id, inst.world_from_local));
             }
         }
         for (k, &i) in placed_jobs.iter().enumerate() {
             let first_id = crate::triangle_id(instances[i].first_triangle, 0);
-            records.push(InstanceRec::in_world((blases.len() + k) as u32, i as u32, first_id));
+            records.push(InstanceRecord::in_world((blases.len() + k) as u32, i as u32, first_id));
         }
         blases.extend(placed);
-        let tlas = Tlas::build(records, &blases);
+        let tlas = WideTlas::build(records, &blases);
         Ok(Self {
             scene,
             instances,
@@ -267,12 +263,12 @@ impl<'s> RayCaster<'s> {
 
     /// Number of instances in the TLAS.
     pub fn instance_count(&self) -> usize {
-        self.tlas.instances.len()
+        self.tlas.instances().len()
     }
 
     /// Triangles stored in all BLASes (unique geometry).
     pub fn stored_triangles(&self) -> usize {
-        self.blases.iter().map(|b| b.tris.len()).sum()
+        self.blases.iter().map(|b| b.tris().len()).sum()
     }
 
     /// How long [`RayCaster::build`] took, in milliseconds.
@@ -315,15 +311,15 @@ impl<'s> RayCaster<'s> {
         let mut hits = Hits::new();
         rays.set(0, origin.into(), dir.into());
         hits.open(0, t_min, t_max);
-        let mut s = Scratch::new(self.tlas.bvh.depth, 64);
+        let mut s = Scratch::new(self.tlas.bvh().depth(), 64);
         let off = packet::Frustum::OFF;
         trace::<isa::Portable, ANY>(&self.blases, &self.tlas, &rays, &off, false, &mut hits, 1, &mut s);
         let mut best = None;
         if hits.inst[0][0] != NO_HIT {
-            let rec = &self.tlas.instances[hits.inst[0][0] as usize];
+            let rec = &self.tlas.instances()[hits.inst[0][0] as usize];
             let blas = &self.blases[rec.blas as usize];
             let slot = hits.prim[0][0] as usize;
-            let triangle = blas.bvh.order[slot];
+            let triangle = blas.bvh().order()[slot];
             let inst = &self.instances[rec.scene_index as usize];
             let det = hits.det[0][0];
             best = Some(RayHit {

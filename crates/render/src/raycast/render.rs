@@ -93,7 +93,7 @@ pub(crate) fn render(
     let default = Material::default();
     let scene = caster.scene;
     let clip: DMat4 = camera.clip_from_world_f64();
-    let world_f64: Vec<DAffine3> = caster.tlas.instances.iter().map(|r| to_f64(&r.world_from_blas)).collect();
+    let world_f64: Vec<DAffine3> = caster.tlas.instances().iter().map(|r| to_f64(&r.world_from_blas)).collect();
     let frame = Frame {
         caster,
         camera,
@@ -128,7 +128,7 @@ pub(crate) fn render(
     let w = width as usize;
     let band_len = w * TILE as usize;
     let (tlas_depth, blas_depth) =
-        (caster.tlas.bvh.depth, caster.blases.iter().map(|b| b.bvh.depth).max().unwrap_or(0));
+        (caster.tlas.bvh().depth(), caster.blases.iter().map(|b| b.bvh().depth()).max().unwrap_or(0));
     let (shadow_rays, hit_count) = fb
         .color
         .par_chunks_mut(band_len)
@@ -203,9 +203,9 @@ impl<'a> Frame<'a, '_> {
     #[inline(always)]
     fn local_point(&self, hits: &Hits, c: usize, j: usize) -> Option<(usize, DVec3, f64, f64)> {
         let rec = hits.inst[c][j] as usize;
-        let r = self.caster.tlas.instances.get(rec)?;
+        let r = self.caster.tlas.instances().get(rec)?;
         let blas = self.caster.blases.get(r.blas as usize)?;
-        let v = blas.tris.get(hits.prim[c][j] as usize)?;
+        let v = blas.tris().get(hits.prim[c][j] as usize)?;
         let rdet = 1.0 / hits.det[c][j] as f64;
         let (b1, b2) = (hits.e1[c][j] as f64 * rdet, hits.e2[c][j] as f64 * rdet);
         let v0 = Vec3::from(v[0]).as_dvec3();
@@ -324,8 +324,8 @@ impl<'a> Frame<'a, '_> {
             }
             let (rec, p, _, _) = self.local_point(hits, c, j)?;
             let m = self.world_f64.get(rec)?;
-            let r = caster.tlas.instances.get(rec)?;
-            let v = caster.blases.get(r.blas as usize)?.tris.get(hits.prim[c][j] as usize)?;
+            let r = caster.tlas.instances().get(rec)?;
+            let v = caster.blases.get(r.blas as usize)?.tris().get(hits.prim[c][j] as usize)?;
             let wv = v.map(|q| m.transform_point3(Vec3::from(q).as_dvec3()));
             Some((m.transform_point3(p), (wv[1] - wv[0]).cross(wv[2] - wv[0]).normalize_or_zero()))
         };
@@ -409,7 +409,7 @@ impl<'a> Frame<'a, '_> {
         let entry = cache.get_mut(slot)?;
         if !matches!(entry, Some((k, s, _)) if *k == id && *s == shadowed) {
             let caster = self.caster;
-            let r = caster.tlas.instances.get(rec)?;
+            let r = caster.tlas.instances().get(rec)?;
             let inst = caster.instances.get(r.scene_index as usize)?;
             let mesh = caster.scene.mesh(inst.mesh)?;
             let ish = self.shading.get(r.scene_index as usize)?;

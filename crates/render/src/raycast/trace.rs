@@ -4,10 +4,10 @@
 //! Closest-hit queries (`ANY = false`) keep the nearest hit per lane; any-hit queries
 //! (`ANY = true`, shadow rays) close a lane at its first hit and stop when all are closed.
 
-use super::blas::Blas;
+use sightline_spatial::bvh::wide::{WideBlas, WideTlas};
+
 use super::isa::Isa;
 use super::packet::{chunk_bits, Frustum, Hits, Rays, CHUNK, CHUNKS};
-use super::tlas::Tlas;
 use super::traverse::{traverse, Entry};
 use super::triangle::{intersect_general, intersect_shared, shared_setup, Job};
 
@@ -36,7 +36,7 @@ impl Scratch {
 #[inline(always)]
 #[allow(clippy::too_many_arguments)]
 fn leaf<const ANY: bool>(
-    blas: &Blas,
+    blas: &WideBlas,
     rays: &Rays,
     hits: &mut Hits,
     first: u32,
@@ -47,10 +47,10 @@ fn leaf<const ANY: bool>(
     cull: f32,
 ) -> u64 {
     let mut done = 0u64;
-    let end = first.saturating_add(count).min(blas.tris.len() as u32);
+    let end = first.saturating_add(count).min(blas.tris().len() as u32);
     for k in first..end {
-        let tri = &blas.tris[k as usize];
-        let gid = first_id.wrapping_add(blas.bvh.order[k as usize]);
+        let tri = &blas.tris()[k as usize];
+        let gid = first_id.wrapping_add(blas.bvh().order()[k as usize]);
         let mut got = 0u64;
         match rays.shared {
             Some(o) => {
@@ -90,8 +90,8 @@ fn leaf<const ANY: bool>(
 #[inline(always)]
 #[allow(clippy::too_many_arguments)]
 pub(crate) fn trace<I: Isa, const ANY: bool>(
-    blases: &[Blas],
-    tlas: &Tlas,
+    blases: &[WideBlas],
+    tlas: &WideTlas,
     rays: &Rays,
     frustum: &Frustum,
     backface: bool,
@@ -102,7 +102,7 @@ pub(crate) fn trace<I: Isa, const ANY: bool>(
     let world = *frustum;
     let Scratch { local, tlas_stack, blas_stack } = s;
     traverse::<I, _>(
-        &tlas.bvh,
+        tlas.bvh(),
         rays,
         hits,
         &world,
@@ -112,9 +112,9 @@ pub(crate) fn trace<I: Isa, const ANY: bool>(
         |hits, first, count, m| {
             let mut done = 0u64;
             let end = first.saturating_add(count) as usize;
-            for k in first as usize..end.min(tlas.bvh.order.len()) {
-                let ii = tlas.bvh.order[k];
-                let Some(inst) = tlas.instances.get(ii as usize) else {
+            for k in first as usize..end.min(tlas.bvh().order().len()) {
+                let ii = tlas.bvh().order()[k];
+                let Some(inst) = tlas.instances().get(ii as usize) else {
                     continue;
                 };
                 let Some(blas) = blases.get(inst.blas as usize) else {
@@ -137,7 +137,7 @@ pub(crate) fn trace<I: Isa, const ANY: bool>(
                     (true, true) => -1.0,
                 };
                 done |= traverse::<I, _>(
-                    &blas.bvh,
+                    blas.bvh(),
                     lr,
                     hits,
                     &fr,

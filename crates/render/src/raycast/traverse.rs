@@ -19,8 +19,8 @@
 //! the triangle tie window), so rounding never loses a hit.
 
 use glam::Vec4;
+use sightline_spatial::bvh::wide::{WideBvh, WideNode, EMPTY_LINK, WIDTH};
 
-use super::bvh::{Bvh, Node, EMPTY_LINK, WIDTH};
 use super::isa::{Isa, Slab, ROBUST};
 use super::packet::{chunk_bits, Frustum, Hits, Rays, CHUNK, CHUNKS};
 
@@ -54,7 +54,7 @@ pub(crate) fn box_mask<I: Isa>(rays: &Rays, hits: &Hits, lo: &[f32; 3], hi: &[f3
 /// children as a 4-bit mask, and per child a sort key (the entry distance for boxes the
 /// lane hits, else the distance of the box center along the lane).
 #[inline(always)]
-fn lane_vs_node(rays: &Rays, hits: &Hits, i: usize, node: &Node) -> (u32, [f32; WIDTH]) {
+fn lane_vs_node(rays: &Rays, hits: &Hits, i: usize, node: &WideNode) -> (u32, [f32; WIDTH]) {
     let (c, j) = (i / CHUNK, i % CHUNK);
     let mut near = Vec4::splat(hits.tmin[c][j]);
     let mut far = Vec4::splat(hits.t[c][j]);
@@ -78,7 +78,7 @@ fn lane_vs_node(rays: &Rays, hits: &Hits, i: usize, node: &Node) -> (u32, [f32; 
 /// `stack` is scratch space, used above its current length and restored.
 #[inline(always)]
 pub(crate) fn traverse<I: Isa, F>(
-    bvh: &Bvh,
+    bvh: &WideBvh,
     rays: &Rays,
     hits: &mut Hits,
     fr: &Frustum,
@@ -89,7 +89,7 @@ pub(crate) fn traverse<I: Isa, F>(
 where
     F: FnMut(&mut Hits, u32, u32, u64) -> u64,
 {
-    let root = &bvh.root;
+    let root = bvh.root();
     if root.is_empty() {
         return 0;
     }
@@ -109,7 +109,7 @@ where
                 if mask & !done == 0 {
                     break;
                 }
-            } else if let Some(node) = bvh.nodes.get(link as usize) {
+            } else if let Some(node) = bvh.nodes().get(link as usize) {
                 let first = m.trailing_zeros() as usize;
                 let (early, key) = lane_vs_node(rays, hits, first, node);
                 let mut valid = 0u32;

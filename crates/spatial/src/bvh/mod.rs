@@ -21,6 +21,7 @@ pub mod cluster;
 pub mod scene;
 pub mod tlas;
 pub mod traverse;
+pub mod wide;
 
 use glam::Vec3;
 use obvhs::bvh2::{leaf_collapser::collapse, reinsertion::ReinsertionOptimizer};

@@ -1,4 +1,6 @@
-//! The ray caster's BVH layout: a 4-wide BVH collapsed from the binary BVH obvhs builds.
+//! The ray caster's BVH: a 4-wide BVH collapsed from the binary BVH obvhs builds, and the
+//! two levels built from it ([`WideBlas`] over a mesh's triangles, [`WideTlas`] over placed
+//! instances).
 //!
 //! obvhs builds the tree (PLOC, Meister & Bittner 2018, "Parallel Locally-Ordered
 //! Clustering for Bounding Volume Hierarchy Construction", then reinsertion and leaf
@@ -6,28 +8,42 @@
 //! SIMD traversal are made (Wald, Benthin & Boulos 2008, "Getting Rid of Packets"; Dammertz
 //! et al. 2008, "Shallow Bounding Volume Hierarchies for Fast SIMD Ray Tracing"): each node
 //! keeps an inner child's place for its two children, opening the child with the largest
-//! surface area first, until four slots are used. A [`Node`] stores its children's boxes as
-//! structure of arrays (two cache lines), so one packet lane is tested against all four
-//! boxes in one SIMD operation. A child is a leaf naming a run of primitives in *leaf
-//! order*; `order[k]` maps leaf-order position `k` back to the caller's primitive index, so
+//! surface area first, until four slots are used. A [`WideNode`] stores its children's boxes
+//! as structure of arrays (two cache lines), so one ray is tested against all four boxes in
+//! one SIMD operation. A child is a leaf naming a run of primitives in *leaf order*;
+//! `order[k]` maps leaf-order position `k` back to the caller's primitive index, so
 //! primitive data can be stored in leaf order and read sequentially.
+//!
+//! This module holds the data structure and its builder only; casting rays through it
+//! (packets, traversal, triangle tests) is the ray caster's business in `sightline-render`.
+//! Unlike [`crate::Bvh`] (binary, for culling and front-to-back order), a wide BVH has no
+//! refit and no rule for unbounded boxes: every box it is built from must be finite.
+
+mod blas;
+mod tlas;
+
+pub use blas::WideBlas;
+pub use tlas::{invertible, InstanceRecord, WideTlas};
 
 use obvhs::aabb::Aabb as ObAabb;
 use obvhs::bvh2::{leaf_collapser::collapse, reinsertion::ReinsertionOptimizer, Bvh2};
 use obvhs::ploc::{PlocBuilder, PlocSearchDistance, SortPrecision};
+use sightline_scene::Aabb;
+
+use crate::AabbExt;
 
 /// Children per node.
-pub(crate) const WIDTH: usize = 4;
+pub const WIDTH: usize = 4;
 
 /// `link` of an unused child slot.
-pub(crate) const EMPTY_LINK: u32 = u32::MAX;
+pub const EMPTY_LINK: u32 = u32::MAX;
 
 /// One child as a box plus a link (the root, and what a node slot describes).
 ///
-/// `count == 0`: inner node, `link` is the index of its [`Node`].
+/// `count == 0`: inner node, `link` is the index of its [`WideNode`].
 /// `count > 0`: leaf with primitives `link .. link + count` in leaf order.
 #[derive(Debug, Clone, Copy, PartialEq)]
-pub(crate) struct Child {
+pub struct WideChild {
     /// Box minimum.
     pub lo: [f32; 3],
     /// Node index (inner) or first primitive (leaf).
@@ -38,9 +54,10 @@ pub(crate) struct Child {
     pub count: u32,
 }
 
-impl Child {
+impl WideChild {
     /// No child at all.
-    pub const EMPTY: Child = Child { lo: [f32::INFINITY; 3], link: EMPTY_LINK, hi: [f32::NEG_INFINITY; 3], count: 0 };
+    pub const EMPTY: WideChild =
+        WideChild { lo: [f32::INFINITY; 3], link: EMPTY_LINK, hi: [f32::NEG_INFINITY; 3], count: 0 };
 
     /// True for a leaf.
     #[inline(always)]
@@ -58,7 +75,7 @@ impl Child {
 /// An inner node: up to four children, boxes as structure of arrays.
 #[derive(Debug, Clone, Copy)]
 #[repr(C, align(64))]
-pub(crate) struct Node {
+pub struct WideNode {
     /// Box minima, `[axis][child]`.
     pub lo: [[f32; WIDTH]; 3],
     /// Box maxima, `[axis][child]`.
@@ -69,19 +86,19 @@ pub(crate) struct Node {
     pub count: [u32; WIDTH],
 }
 
-impl Node {
+impl WideNode {
     /// A node with four unused slots.
-    pub const EMPTY: Node = Node {
+    pub const EMPTY: WideNode = WideNode {
         lo: [[f32::INFINITY; WIDTH]; 3],
         hi: [[f32::NEG_INFINITY; WIDTH]; 3],
         link: [EMPTY_LINK; WIDTH],
         count: [0; WIDTH],
     };
 
-    /// Slot `k` as a [`Child`].
-    #[cfg(test)]
-    pub fn child(&self, k: usize) -> Child {
-        Child {
+    /// Slot `k` (below [`WIDTH`]) as a [`WideChild`].
+    #[inline]
+    pub fn child(&self, k: usize) -> WideChild {
+        WideChild {
             lo: [self.lo[0][k], self.lo[1][k], self.lo[2][k]],
             link: self.link[k],
             hi: [self.hi[0][k], self.hi[1][k], self.hi[2][k]],
@@ -89,7 +106,7 @@ impl Node {
         }
     }
 
-    fn set(&mut self, k: usize, c: &Child) {
+    fn set(&mut self, k: usize, c: &WideChild) {
         for a in 0..3 {
             self.lo[a][k] = c.lo[a];
             self.hi[a][k] = c.hi[a];
@@ -99,46 +116,79 @@ impl Node {
     }
 }
 
-/// How hard the builder works: leaf size and PLOC search effort.
+/// How hard the builder works: leaf size, PLOC search effort, reinsertion effort. The two
+/// settings are the ones the ray caster's levels use.
 #[derive(Debug, Clone, Copy)]
-pub(crate) struct BuildParams {
+pub struct WideBuildParams {
     /// Largest leaf.
-    pub max_leaf: u32,
+    max_leaf: u32,
     /// obvhs collapse cost of a traversal step relative to a primitive test.
-    pub traversal_cost: f32,
+    traversal_cost: f32,
     /// PLOC neighbourhood.
-    pub search: PlocSearchDistance,
+    search: PlocSearchDistance,
     /// Reinsertion effort (0 = none).
-    pub reinsertion: f32,
+    reinsertion: f32,
 }
 
-impl BuildParams {
-    /// For triangle BVHs traversed by packets.
-    pub const BLAS: BuildParams =
-        BuildParams { max_leaf: 4, traversal_cost: 1.0, search: PlocSearchDistance::Low, reinsertion: 0.05 };
+impl WideBuildParams {
+    /// For triangle BVHs traversed by packets: up to four triangles per leaf.
+    pub const BLAS: WideBuildParams =
+        WideBuildParams { max_leaf: 4, traversal_cost: 1.0, search: PlocSearchDistance::Low, reinsertion: 0.05 };
     /// For the instance BVH: one instance per leaf.
-    pub const TLAS: BuildParams =
-        BuildParams { max_leaf: 1, traversal_cost: 1.0, search: PlocSearchDistance::Medium, reinsertion: 0.1 };
+    pub const TLAS: WideBuildParams =
+        WideBuildParams { max_leaf: 1, traversal_cost: 1.0, search: PlocSearchDistance::Medium, reinsertion: 0.1 };
 }
 
-/// A 4-wide BVH.
+/// A 4-wide BVH over a list of boxes (primitive `i` is `boxes[i]` of the build).
 #[derive(Debug, Clone)]
-pub(crate) struct Bvh {
+pub struct WideBvh {
     /// The root as a child (a leaf for tiny trees; empty for no primitives).
-    pub root: Child,
+    root: WideChild,
     /// Inner nodes; the root's is `nodes[root.link]` when the root is inner.
-    pub nodes: Vec<Node>,
+    nodes: Vec<WideNode>,
     /// Leaf-order position → caller's primitive index.
-    pub order: Vec<u32>,
+    order: Vec<u32>,
     /// Longest root-to-leaf path in nodes (sizes traversal stacks).
-    pub depth: usize,
+    depth: usize,
 }
 
-impl Bvh {
-    /// Builds over the given boxes (all finite). Empty input gives an empty tree.
-    pub fn build(boxes: &[ObAabb], params: BuildParams) -> Bvh {
+impl WideBvh {
+    /// Builds over `boxes` (all finite). Empty input gives an empty tree.
+    pub fn build(boxes: &[Aabb], params: WideBuildParams) -> WideBvh {
+        let boxes: Vec<ObAabb> = boxes.iter().map(|b| b.to_obvhs()).collect();
+        Self::build_obvhs(&boxes, params)
+    }
+
+    /// The root as a child: a leaf for trees of one leaf, [`WideChild::EMPTY`] for an empty
+    /// tree, else an inner child whose `link` indexes [`WideBvh::nodes`].
+    #[inline]
+    pub fn root(&self) -> &WideChild {
+        &self.root
+    }
+
+    /// The inner nodes, depth first (a subtree's nodes are contiguous).
+    #[inline]
+    pub fn nodes(&self) -> &[WideNode] {
+        &self.nodes
+    }
+
+    /// Leaf-order position → the caller's primitive index (a leaf's primitives are
+    /// `order[link .. link + count]`).
+    #[inline]
+    pub fn order(&self) -> &[u32] {
+        &self.order
+    }
+
+    /// The longest root-to-leaf path in nodes (what a traversal stack needs; 0 when empty).
+    #[inline]
+    pub fn depth(&self) -> usize {
+        self.depth
+    }
+
+    /// Builds over obvhs boxes (all finite); what [`WideBvh::build`] does after converting.
+    pub(crate) fn build_obvhs(boxes: &[ObAabb], params: WideBuildParams) -> WideBvh {
         if boxes.is_empty() {
-            return Bvh { root: Child::EMPTY, nodes: Vec::new(), order: Vec::new(), depth: 0 };
+            return WideBvh { root: WideChild::EMPTY, nodes: Vec::new(), order: Vec::new(), depth: 0 };
         }
         let mut bvh2 = PlocBuilder::with_capacity(boxes.len()).build(
             params.search,
@@ -155,13 +205,13 @@ impl Bvh {
 
     /// Collapses an obvhs BVH2 to four children per node (depth first, so a subtree's
     /// nodes are contiguous).
-    pub fn from_bvh2(b: &Bvh2) -> Bvh {
-        let mut nodes: Vec<Node> = Vec::with_capacity(b.nodes.len() / 3 + 1);
+    fn from_bvh2(b: &Bvh2) -> WideBvh {
+        let mut nodes: Vec<WideNode> = Vec::with_capacity(b.nodes.len() / 3 + 1);
         let mut order = Vec::with_capacity(b.primitive_indices.len());
         if b.nodes.is_empty() {
-            return Bvh { root: Child::EMPTY, nodes, order, depth: 0 };
+            return WideBvh { root: WideChild::EMPTY, nodes, order, depth: 0 };
         }
-        let make = |idx: usize, order: &mut Vec<u32>, nodes: &mut Vec<Node>| -> Child {
+        let make = |idx: usize, order: &mut Vec<u32>, nodes: &mut Vec<WideNode>| -> WideChild {
             let n = &b.nodes[idx];
             let bb = n.aabb();
             let (lo, hi) = (bb.min.to_array(), bb.max.to_array());
@@ -170,13 +220,13 @@ impl Bvh {
                 let s = n.first_index as usize;
                 let e = (s + n.prim_count as usize).min(b.primitive_indices.len());
                 if e <= s {
-                    return Child::EMPTY; // malformed leaf: never hit
+                    return WideChild::EMPTY; // malformed leaf: never hit
                 }
                 order.extend_from_slice(&b.primitive_indices[s..e]);
-                Child { lo, link: first, hi, count: (e - s) as u32 }
+                WideChild { lo, link: first, hi, count: (e - s) as u32 }
             } else {
-                nodes.push(Node::EMPTY);
-                Child { lo, link: nodes.len() as u32 - 1, hi, count: 0 }
+                nodes.push(WideNode::EMPTY);
+                WideChild { lo, link: nodes.len() as u32 - 1, hi, count: 0 }
             }
         };
         let inner = |i: usize| i < b.nodes.len() && !b.nodes[i].is_leaf();
@@ -216,7 +266,7 @@ impl Bvh {
                 kids[nk] = f + 1;
                 nk += 1;
             }
-            let mut node = Node::EMPTY;
+            let mut node = WideNode::EMPTY;
             let mut pushes = [None; WIDTH];
             for (k, &i) in kids[..nk].iter().enumerate() {
                 let c = make(i, &mut order, &mut nodes);
@@ -231,16 +281,15 @@ impl Bvh {
                 stack.push(*e);
             }
         }
-        Bvh { root, nodes, order, depth }
+        WideBvh { root, nodes, order, depth }
     }
 
     /// Checks the structure: every primitive exactly once, children inside their parents'
     /// boxes, links in range. Returns a description of the first problem.
-    #[cfg(test)]
     pub fn validate(&self, prims: usize) -> Result<(), String> {
         let mut seen = vec![false; prims];
         let mut stack = vec![self.root];
-        let inside = |c: &Child, p: &Child| (0..3).all(|a| c.lo[a] >= p.lo[a] && c.hi[a] <= p.hi[a]);
+        let inside = |c: &WideChild, p: &WideChild| (0..3).all(|a| c.lo[a] >= p.lo[a] && c.hi[a] <= p.hi[a]);
         while let Some(c) = stack.pop() {
             if c.is_empty() {
                 continue;
@@ -288,9 +337,12 @@ mod tests {
                     ObAabb::new(p, p + 0.5)
                 })
                 .collect();
-            for params in [BuildParams::BLAS, BuildParams::TLAS] {
-                let b = Bvh::build(&boxes, params);
+            for params in [WideBuildParams::BLAS, WideBuildParams::TLAS] {
+                let b = WideBvh::build_obvhs(&boxes, params);
                 b.validate(n).unwrap();
+                // The public builder converts the boxes exactly: the same tree.
+                let same: Vec<Aabb> = boxes.iter().map(Aabb::from_obvhs).collect();
+                assert_eq!(WideBvh::build(&same, params).order(), b.order());
                 assert_eq!(b.order.len(), n);
                 // Wide: far fewer nodes than a binary tree would have.
                 if n >= 100 && params.max_leaf == 1 {

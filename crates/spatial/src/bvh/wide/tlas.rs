@@ -1,0 +1,148 @@
+//! Top level: instances (a BLAS plus the matrices that place it) and a wide BVH over their
+//! world boxes.
+//!
+//! Rays reach a BLAS by being mapped into the instance's local space with
+//! `local_from_world`; directions are not renormalized, so a ray's t means the same point in
+//! every space and hits from different instances compare directly. Instances whose transform
+//! is singular (or nearly so, see [`invertible`]) are meant to get a private BLAS of their
+//! triangles placed in world space and an identity transform instead
+//! ([`InstanceRecord::in_world`]).
+
+use glam::{Affine3A, Vec3A};
+use obvhs::aabb::Aabb as ObAabb;
+
+use super::blas::WideBlas;
+use super::{WideBuildParams, WideBvh};
+
+/// One placed BLAS.
+///
+/// Build it with [`InstanceRecord::placed`] or [`InstanceRecord::in_world`], which keep the
+/// derived fields (`local_from_world`, `identity`, `mirror`) consistent.
+#[derive(Debug, Clone)]
+pub struct InstanceRecord {
+    /// Index into the caller's BLAS list.
+    pub blas: u32,
+    /// Index into `Scene::instances()` (for IDs, mesh and material).
+    pub scene_index: u32,
+    /// Maps world rays into the BLAS's space.
+    pub local_from_world: Affine3A,
+    /// Maps BLAS points to world (identity for BLASes built in world space).
+    pub world_from_blas: Affine3A,
+    /// True when `local_from_world` is the identity (rays are used as they are).
+    pub identity: bool,
+    /// The ID of the instance's triangle 0, chosen by the caller; triangle `t` of the BLAS's
+    /// mesh has ID `first_id + t`.
+    pub first_id: u32,
+    /// True when the transform mirrors (negative determinant): front faces flip winding.
+    pub mirror: bool,
+}
+
+/// True when `m` can be inverted with a finite, well-conditioned result.
+pub fn invertible(m: &Affine3A) -> bool {
+    let det = m.matrix3.determinant();
+    let scale = m.matrix3.x_axis.length() * m.matrix3.y_axis.length() * m.matrix3.z_axis.length();
+    det.is_finite() && scale.is_finite() && det.abs() > 1e-7 * scale && m.inverse().is_finite()
+}
+
+/// Instance records plus the wide BVH over them.
+#[derive(Debug, Clone)]
+pub struct WideTlas {
+    /// The instances, indexed by the BVH's leaves through `bvh.order()`.
+    instances: Vec<InstanceRecord>,
+    /// The tree over world boxes.
+    bvh: WideBvh,
+}
+
+impl WideTlas {
+    /// Builds the BVH over the instances' world boxes (BLAS bounds mapped by
+    /// `world_from_blas`). Records of empty or missing BLASes are dropped.
+    pub fn build(records: Vec<InstanceRecord>, blases: &[WideBlas]) -> WideTlas {
+        let mut instances = Vec::with_capacity(records.len());
+        let mut boxes = Vec::with_capacity(records.len());
+        for rec in records {
+            let Some(blas) = blases.get(rec.blas as usize) else {
+                continue;
+            };
+            if blas.tris().is_empty() {
+                continue;
+            }
+            let wb = blas.bounds().transformed(&rec.world_from_blas);
+            // Pad by a relative epsilon: the box must contain every transformed vertex
+            // despite rounding.
+            let pad = (wb.max - wb.min).max(wb.max.abs().max(wb.min.abs())) * 1e-6;
+            boxes.push(ObAabb::new(Vec3A::from(wb.min - pad), Vec3A::from(wb.max + pad)));
+            instances.push(rec);
+        }
+        let bvh = WideBvh::build_obvhs(&boxes, WideBuildParams::TLAS);
+        WideTlas { instances, bvh }
+    }
+
+    /// The instances kept (in the order given to [`WideTlas::build`]); the BVH's primitive
+    /// `i` is `instances()[i]`.
+    #[inline]
+    pub fn instances(&self) -> &[InstanceRecord] {
+        &self.instances
+    }
+
+    /// The tree over the instances' world boxes.
+    #[inline]
+    pub fn bvh(&self) -> &WideBvh {
+        &self.bvh
+    }
+}
+
+impl InstanceRecord {
+    /// The record of a shared BLAS placed by an invertible `world_from_local`.
+    pub fn placed(blas: u32, scene_index: u32, first_id: u32, world_from_local: Affine3A) -> Self {
+        Self {
+            blas,
+            scene_index,
+            first_id,
+            local_from_world: world_from_local.inverse(),
+            world_from_blas: world_from_local,
+            identity: world_from_local == Affine3A::IDENTITY,
+            mirror: world_from_local.matrix3.determinant() < 0.0,
+        }
+    }
+
+    /// The record of a BLAS built directly in world space.
+    pub fn in_world(blas: u32, scene_index: u32, first_id: u32) -> Self {
+        Self {
+            blas,
+            scene_index,
+            first_id,
+            local_from_world: Affine3A::IDENTITY,
+            world_from_blas: Affine3A::IDENTITY,
+            identity: true,
+            mirror: false,
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use glam::Vec3;
+
+    #[test]
+    fn empty_blases_are_dropped_and_boxes_cover_placed_instances() {
+        let tri = |_| [Vec3::ZERO, Vec3::X, Vec3::Y];
+        let blases = vec![WideBlas::build(1, tri), WideBlas::empty()];
+        let shift = Affine3A::from_translation(Vec3::new(10.0, 0.0, 0.0));
+        let records = vec![
+            InstanceRecord::placed(0, 0, 1, Affine3A::IDENTITY),
+            InstanceRecord::placed(1, 1, 2, Affine3A::IDENTITY),
+            InstanceRecord::placed(0, 2, 3, shift),
+            InstanceRecord::in_world(7, 3, 4),
+        ];
+        let tlas = WideTlas::build(records, &blases);
+        let kept: Vec<u32> = tlas.instances().iter().map(|r| r.scene_index).collect();
+        assert_eq!(kept, [0, 2]);
+        tlas.bvh().validate(2).unwrap();
+        let root = tlas.bvh().root();
+        assert!(root.lo[0] <= 0.0 && root.hi[0] >= 11.0);
+        assert!(tlas.instances()[0].identity && !tlas.instances()[1].identity);
+        assert!(!invertible(&Affine3A::from_scale(Vec3::new(1.0, 0.0, 1.0))));
+        assert!(invertible(&shift));
+    }
+}
