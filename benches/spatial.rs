@@ -11,8 +11,8 @@ use glam::Vec3;
 use sightline_scene::builders::{city, scatter, CityParams, ScatterParams};
 use sightline_scene::{shapes, Aabb, Camera, Instance, Mesh, NodeDesc, Scene};
 use sightline_spatial::{
-    Blas, BspParams, BspTree, BvhPreset, ClusteredScene, CoherencyCache, CullOptions, Frustum, LooseOctree,
-    MeshClusters, Tlas, Visible, Visit,
+    BspParams, BspTree, BvhPreset, ClusteredScene, CoherencyCache, CullOptions, Frustum, InstanceBvh, LooseOctree,
+    MeshClusters, TriangleBvh, Visible, Visit,
 };
 
 /// Octree depth: for 10^5 small objects, 8 levels make ~4.5 nodes per object; 6 suits them.
@@ -96,14 +96,14 @@ fn bench(c: &mut Criterion) {
     let tris: Vec<[Vec3; 3]> = (0..100_000).map(|t| flat_mesh.triangle_positions(t * 10)).collect();
 
     // ---- one-off numbers: sizes, counts ---------------------------------------------------
-    let tlas_city = Tlas::from_instances(&city_inst);
-    let tlas_cubes = Tlas::from_instances(&cube_inst);
+    let tlas_city = InstanceBvh::from_instances(&city_inst);
+    let tlas_cubes = InstanceBvh::from_instances(&cube_inst);
     let oct_city = LooseOctree::from_instances(&city_inst, OCTREE_DEPTH);
     let oct_cubes = LooseOctree::from_instances(&cube_inst, OCTREE_DEPTH);
     let cs_city = ClusteredScene::build(&city.scene);
     let cs_flat = ClusteredScene::build(&flat);
     let cs_cubes = ClusteredScene::build(&cubes);
-    let blas = Blas::build(&flat_mesh, BvhPreset::Fast);
+    let blas = TriangleBvh::build(&flat_mesh, BvhPreset::Fast);
     let clusters = MeshClusters::build(&flat_mesh);
     let bsp = BspTree::build(&tris, &BspParams::default());
     eprintln!(
@@ -180,12 +180,12 @@ fn bench(c: &mut Criterion) {
     // ---- builds ---------------------------------------------------------------------------
     let mut g = c.benchmark_group("spatial_build");
     g.sample_size(10).warm_up_time(Duration::from_millis(300)).measurement_time(Duration::from_secs(2));
-    g.bench_function("tlas/city", |b| b.iter(|| Tlas::from_instances(&city_inst)));
-    g.bench_function("tlas/cubes_1e5", |b| b.iter(|| Tlas::from_instances(&cube_inst)));
+    g.bench_function("tlas/city", |b| b.iter(|| InstanceBvh::from_instances(&city_inst)));
+    g.bench_function("tlas/cubes_1e5", |b| b.iter(|| InstanceBvh::from_instances(&cube_inst)));
     g.bench_function("octree/city", |b| b.iter(|| LooseOctree::from_instances(&city_inst, OCTREE_DEPTH)));
     g.bench_function("octree/cubes_1e5", |b| b.iter(|| LooseOctree::from_instances(&cube_inst, OCTREE_DEPTH)));
     g.bench_function("clusters/mesh_1e6", |b| b.iter(|| MeshClusters::build(&flat_mesh)));
-    g.bench_function("blas/mesh_1e6_fast", |b| b.iter(|| Blas::build(&flat_mesh, BvhPreset::Fast)));
+    g.bench_function("blas/mesh_1e6_fast", |b| b.iter(|| TriangleBvh::build(&flat_mesh, BvhPreset::Fast)));
     g.bench_function("clustered_scene/city", |b| b.iter(|| ClusteredScene::build(&city.scene)));
     g.bench_function("clustered_scene/flat_1e6", |b| b.iter(|| ClusteredScene::build(&flat)));
     g.bench_function("clustered_scene/cubes_1e5", |b| b.iter(|| ClusteredScene::build(&cubes)));
@@ -288,7 +288,7 @@ fn bench(c: &mut Criterion) {
     let small = moved(&cube_inst, 1.0, 1);
     let mut t = tlas_cubes.clone();
     g.bench_function("tlas_cubes_1e5/refit", |b| b.iter(|| t.refit(&small)));
-    g.bench_function("tlas_cubes_1e5/rebuild", |b| b.iter(|| Tlas::build(&small, BvhPreset::Fast)));
+    g.bench_function("tlas_cubes_1e5/rebuild", |b| b.iter(|| InstanceBvh::build(&small, BvhPreset::Fast)));
     let mut cs = cs_flat.clone();
     let flat_moved: Vec<Instance> = flat_inst
         .iter()

@@ -8,7 +8,7 @@ use proptest::prelude::*;
 use sightline::render::{render_scene, Framebuffer, RenderOptions};
 use sightline::scene::path::CameraKey;
 use sightline::scene::{shapes, Instance, NodeDesc, Scene, Transform};
-use sightline::spatial::{CullOptions, Frustum, LooseOctree, Tlas, Visible};
+use sightline::spatial::{CullOptions, Frustum, InstanceBvh, LooseOctree, Visible};
 
 const W: u32 = 96;
 const H: u32 = 64;
@@ -62,7 +62,7 @@ fn owners(scene: &Scene, instances: &[Instance], key: &CameraKey) -> Vec<bool> {
 }
 
 fn culled_sets(instances: &[Instance], frustum: &Frustum) -> Vec<(String, Vec<bool>)> {
-    let tlas = Tlas::from_instances(instances);
+    let tlas = InstanceBvh::from_instances(instances);
     let octree = LooseOctree::from_instances(instances, 5);
     let mut sets = Vec::new();
     for masking in [true, false] {

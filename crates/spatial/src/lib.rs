@@ -9,9 +9,13 @@
 //! * [`Bvh`]: a flat binary BVH built with `obvhs` (PLOC), with frustum culling (plane masking,
 //!   plane coherency), front-to-back traversal with a per-node visibility callback, a
 //!   resumable [`FrontToBackCursor`] for batched occlusion culling, and refit.
-//! * [`Tlas`] (BVH over instances, refit + rebuild policy), [`Blas`] (BVH over one mesh's
-//!   triangles, ray casting), [`MeshClusters`] (64–256-triangle clusters with a triangle
-//!   permutation) and [`ClusteredScene`] (one BVH over every (instance, cluster) world box).
+//! * [`InstanceBvh`] (BVH over instances, refit + rebuild policy), [`TriangleBvh`] (BVH over
+//!   one mesh's triangles, single-ray casting), [`MeshClusters`] (64–256-triangle clusters
+//!   with a triangle permutation) and [`ClusteredScene`] (one BVH over every (instance,
+//!   cluster) world box).
+//! * [`bvh::wide`]: the ray caster's two-level structure, 4-wide BVHs collapsed from the
+//!   binary ones ([`bvh::wide::WideBlas`] per mesh, [`bvh::wide::WideTlas`] over placed
+//!   instances), laid out for SIMD packet traversal.
 //! * [`LooseOctree`] over instances (Ulrich 2000) and the occupancy octree string
 //!   ([`occupancy_string`]).
 //! * [`BspTree`] (autopartition, Fuchs, Kedem & Naylor 1980) with painter's order.
@@ -52,11 +56,11 @@ mod sphere;
 pub use aabb::{AabbExt, BoxKind};
 pub use bsp::split::{classify_triangle, split_triangle, Pieces, Side};
 pub use bsp::{BspParams, BspStats, BspTree, BspTriangle};
-pub use bvh::blas::{Blas, RayHit};
 pub use bvh::cluster::{Cluster, MeshClusters, CLUSTER_MAX, CLUSTER_MIN};
+pub use bvh::instances::{InstanceBvh, RefitOutcome, REBUILD_RATIO};
 pub use bvh::scene::{ClusterItem, ClusteredScene};
-pub use bvh::tlas::{RefitOutcome, Tlas, REBUILD_RATIO};
 pub use bvh::traverse::{CoherencyCache, FrontToBackCursor};
+pub use bvh::triangles::{TriangleBvh, TriangleHit};
 pub use bvh::{Bvh, BvhNode, BvhPreset};
 pub use frustum::{Containment, Frustum, PlaneMask, ALL_PLANES};
 pub use hint::prefetch;

@@ -15,7 +15,7 @@ fn empty_scene_everywhere() {
     let inst = scene.instances();
     let f = Frustum::from_camera(&cam());
     let mut out = Vec::new();
-    let tlas = Tlas::from_instances(&inst);
+    let tlas = InstanceBvh::from_instances(&inst);
     tlas.cull(&f, &mut out);
     LooseOctree::from_instances(&inst, 5).cull(&f, &mut out);
     let cs = ClusteredScene::build(&scene);
@@ -63,7 +63,7 @@ fn nan_boxes_are_always_visible_and_empty_boxes_never() {
     for c in [cam(), away] {
         let f = Frustum::from_camera(&c);
         let mut a = Vec::new();
-        Tlas::from_instances(&inst).cull(&f, &mut a);
+        InstanceBvh::from_instances(&inst).cull(&f, &mut a);
         let mut b = Vec::new();
         LooseOctree::from_instances(&inst, 5).cull(&f, &mut b);
         for v in [&a, &b] {
@@ -98,7 +98,7 @@ fn degenerate_triangles_and_bad_matrices() {
     assert!(m.degenerate_triangles() > 0);
     let mc = MeshClusters::build(&m);
     assert_eq!(mc.permutation().len(), 300);
-    let blas = Blas::build(&m, BvhPreset::Fast);
+    let blas = TriangleBvh::build(&m, BvhPreset::Fast);
     let _ = blas.intersect(&m, &Ray::new(Vec3::new(0.5, 1.0, 0.0), Vec3::NEG_Y));
     let tris: Vec<[Vec3; 3]> = (0..m.triangle_count()).map(|t| m.triangle_positions(t)).collect();
     let bsp = BspTree::build(&tris, &BspParams::default());
@@ -109,7 +109,7 @@ fn degenerate_triangles_and_bad_matrices() {
     let f = Frustum::from_clip_from_world(&glam::Mat4::NAN);
     let boxes = [Aabb::new(Vec3::ZERO, Vec3::ONE)];
     let mut v = Vec::new();
-    Tlas::build(&boxes, BvhPreset::Fast).cull(&f, &mut v);
+    InstanceBvh::build(&boxes, BvhPreset::Fast).cull(&f, &mut v);
     assert_eq!(v.len(), 1);
     // Zero-size viewport in box projection.
     assert!(project_box(&boxes[0], &cam().clip_from_world(), 0, 0).is_empty());

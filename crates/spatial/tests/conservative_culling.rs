@@ -114,7 +114,7 @@ proptest! {
         let frustum = Frustum::from_camera(&cam);
         let hits = reference_hits(&scene, &instances, &cam);
 
-        let tlas = Tlas::from_instances(&instances);
+        let tlas = InstanceBvh::from_instances(&instances);
         let octree = LooseOctree::from_instances(&instances, max_depth);
         let clustered = ClusteredScene::from_instances(&scene, &instances);
         let mut sets = Vec::new();
@@ -180,7 +180,7 @@ fn a_camera_looking_away_sees_nothing() {
         .collect();
     let scene = build_scene(&params);
     let instances = scene.instances();
-    let tlas = Tlas::from_instances(&instances);
+    let tlas = InstanceBvh::from_instances(&instances);
     let octree = LooseOctree::from_instances(&instances, 6);
     let clustered = ClusteredScene::build(&scene);
     // Looking at the scene: most things are visible, and culling keeps them.

@@ -18,7 +18,7 @@ use sightline_scene::{Aabb, Mesh};
 
 use glam::Vec3;
 
-use super::blas::triangle_boxes;
+use super::triangles::triangle_boxes;
 use crate::{AabbExt, BoxKind};
 
 /// Smallest cluster size aimed for (smaller clusters occur only where a mesh has fewer

@@ -1,5 +1,8 @@
-//! A flat binary BVH over boxes, built with `obvhs`'s PLOC builder and re-laid out for
-//! culling.
+//! Bounding volume hierarchies: a flat binary BVH over boxes ([`Bvh`], this module), built
+//! with `obvhs`'s PLOC builder and re-laid out for culling, and what is built on it: the BVH
+//! over instances ([`instances`]), over one mesh's triangles ([`triangles`]), triangle
+//! clusters ([`cluster`], [`scene`]), the traversals ([`traverse`]), and the ray caster's
+//! 4-wide two-level BVH ([`wide`]).
 //!
 //! Construction: D. Meister and J. Bittner, "Parallel Locally-Ordered Clustering for Bounding
 //! Volume Hierarchy Construction" (PLOC, IEEE TVCG 2018), followed by obvhs's parallel
@@ -16,11 +19,11 @@
 //! Bad input: items with empty boxes are left out; items with NaN/infinite boxes are kept in
 //! [`Bvh::unbounded`] and reported by every traversal as visible (see the crate docs).
 
-pub mod blas;
 pub mod cluster;
+pub mod instances;
 pub mod scene;
-pub mod tlas;
 pub mod traverse;
+pub mod triangles;
 pub mod wide;
 
 use glam::Vec3;

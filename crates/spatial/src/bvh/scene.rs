@@ -17,7 +17,7 @@ use rayon::prelude::*;
 use sightline_scene::{Aabb, Instance, MeshId, Scene};
 
 use super::cluster::MeshClusters;
-use super::tlas::RefitOutcome;
+use super::instances::RefitOutcome;
 use super::traverse::FrontToBackCursor;
 use super::{Bvh, BvhPreset};
 use crate::{CullOptions, CullStats, FrontToBack, Frustum, FrustumCull, Visible, Visit, REBUILD_RATIO};

@@ -1,5 +1,6 @@
-//! The bottom-level BVH over one mesh's triangles (mesh-local space), for ray casting and
-//! as the source of clusters. Built with obvhs's PLOC like every BVH here.
+//! A binary BVH over one mesh's triangles (mesh-local space), for single-ray casting and as
+//! the source of clusters. Built with obvhs's PLOC like every BVH here; the ray caster's
+//! packet-traced BLAS is the 4-wide [`crate::bvh::wide::WideBlas`].
 
 use glam::Vec3;
 use sightline_scene::{Aabb, Mesh};
@@ -7,12 +8,12 @@ use sightline_scene::{Aabb, Mesh};
 use super::{Bvh, BvhPreset};
 use crate::{AabbExt, Ray};
 
-/// Triangles per BLAS leaf.
-const BLAS_LEAF: u32 = 4;
+/// Triangles per leaf.
+const TRIANGLE_LEAF: u32 = 4;
 
 /// The nearest hit of a ray cast.
 #[derive(Debug, Clone, Copy, PartialEq)]
-pub struct RayHit {
+pub struct TriangleHit {
     /// Ray parameter of the hit.
     pub t: f32,
     /// Index of the triangle in the mesh (original order).
@@ -25,21 +26,21 @@ pub struct RayHit {
 
 /// A BVH over a mesh's triangles: item `t` is triangle `t`.
 #[derive(Debug, Clone, Default)]
-pub struct Blas {
+pub struct TriangleBvh {
     bvh: Bvh,
 }
 
-impl Blas {
+impl TriangleBvh {
     /// Builds over `mesh`'s triangles with `preset`.
-    pub fn build(mesh: &Mesh, preset: BvhPreset) -> Blas {
+    pub fn build(mesh: &Mesh, preset: BvhPreset) -> TriangleBvh {
         Self::from_triangles(mesh.positions(), mesh.indices(), preset)
     }
 
     /// Builds over indexed triangles (`indices.len() / 3` triangles; a trailing partial
     /// triangle and out-of-range indices are treated as empty triangles).
-    pub fn from_triangles(positions: &[Vec3], indices: &[u32], preset: BvhPreset) -> Blas {
+    pub fn from_triangles(positions: &[Vec3], indices: &[u32], preset: BvhPreset) -> TriangleBvh {
         let boxes = triangle_boxes(positions, indices);
-        Blas { bvh: Bvh::build(&boxes, preset, BLAS_LEAF) }
+        TriangleBvh { bvh: Bvh::build(&boxes, preset, TRIANGLE_LEAF) }
     }
 
     /// The underlying BVH (items are triangle indices).
@@ -47,15 +48,15 @@ impl Blas {
         &self.bvh
     }
 
-    /// The nearest hit of `ray` with the mesh's triangles (the mesh the BLAS was built from),
+    /// The nearest hit of `ray` with the mesh's triangles (the mesh the tree was built from),
     /// either facing. Zero-area triangles are never hit.
-    pub fn intersect(&self, mesh: &Mesh, ray: &Ray) -> Option<RayHit> {
+    pub fn intersect(&self, mesh: &Mesh, ray: &Ray) -> Option<TriangleHit> {
         let nodes = &self.bvh.nodes;
         if nodes.is_empty() {
             return None;
         }
         let (pos, idx) = (mesh.positions(), mesh.indices());
-        let mut best: Option<RayHit> = None;
+        let mut best: Option<TriangleHit> = None;
         let mut r = *ray;
         let mut stack: Vec<(u32, f32)> = Vec::with_capacity(64);
         if let Some((t0, _)) = r.intersect_aabb(&nodes[0].aabb()) {
@@ -78,7 +79,7 @@ impl Blas {
                     };
                     if let Some((th, u, v)) = r.intersect_triangle(a, b, c) {
                         r.t_max = th;
-                        best = Some(RayHit { t: th, triangle: t as u32, u, v });
+                        best = Some(TriangleHit { t: th, triangle: t as u32, u, v });
                     }
                 }
             } else {
@@ -130,8 +131,8 @@ mod tests {
     #[test]
     fn ray_cast_matches_brute_force() {
         let mesh = shapes::subdivided_box("b", Vec3::ZERO, Vec3::new(4.0, 2.0, 3.0), [8, 4, 6], true).unwrap();
-        let blas = Blas::build(&mesh, BvhPreset::Fast);
-        blas.bvh().validate().unwrap();
+        let tree = TriangleBvh::build(&mesh, BvhPreset::Fast);
+        tree.bvh().validate().unwrap();
         let mut rng = sightline_scene::rng::Rng::new(8);
         let mut hits = 0;
         for _ in 0..500 {
@@ -144,7 +145,7 @@ mod tests {
                     ray.intersect_triangle(a, b, c).map(|h| h.0)
                 })
                 .fold(f32::INFINITY, f32::min);
-            let got = blas.intersect(&mesh, &ray).map_or(f32::INFINITY, |h| h.t);
+            let got = tree.intersect(&mesh, &ray).map_or(f32::INFINITY, |h| h.t);
             assert_eq!(got, brute);
             hits += got.is_finite() as u32;
         }
@@ -154,10 +155,10 @@ mod tests {
     #[test]
     fn degenerate_and_empty_meshes() {
         let m = Mesh::new("d", vec![Vec3::ZERO, Vec3::X, Vec3::X * 2.0], None, None, vec![0, 1, 2]).unwrap();
-        let blas = Blas::build(&m, BvhPreset::Fast);
-        assert!(blas.intersect(&m, &Ray::new(Vec3::new(1.0, 1.0, 0.0), Vec3::NEG_Y)).is_none());
+        let tree = TriangleBvh::build(&m, BvhPreset::Fast);
+        assert!(tree.intersect(&m, &Ray::new(Vec3::new(1.0, 1.0, 0.0), Vec3::NEG_Y)).is_none());
         let e = Mesh::new("e", vec![], None, None, vec![]).unwrap();
-        let blas = Blas::build(&e, BvhPreset::Fast);
-        assert!(blas.intersect(&e, &Ray::new(Vec3::ZERO, Vec3::X)).is_none());
+        let tree = TriangleBvh::build(&e, BvhPreset::Fast);
+        assert!(tree.intersect(&e, &Ray::new(Vec3::ZERO, Vec3::X)).is_none());
     }
 }

@@ -1,5 +1,6 @@
-//! The top-level BVH over a scene's instances (one item per [`Instance`], its world box),
-//! with refit after instances move and a rebuild policy.
+//! The BVH over a scene's instances (one item per [`Instance`], its world box), for culling,
+//! with refit after instances move and a rebuild policy. (The ray caster's top level is the
+//! 4-wide [`crate::bvh::wide::WideTlas`].)
 //!
 //! Refit keeps the topology and recomputes boxes bottom-up: cheap, but a tree refitted after
 //! large motions has overlapping, bloated nodes. The policy measures the SAH cost after each
@@ -18,9 +19,9 @@ use crate::{CullOptions, CullStats, FrontToBack, Frustum, FrustumCull, Visible, 
 pub const REBUILD_RATIO: f32 = 1.5;
 
 /// Instances per leaf: small leaves cull finely; items of bigger leaves are tested one by one.
-const TLAS_LEAF: u32 = 4;
+const INSTANCE_LEAF: u32 = 4;
 
-/// What [`Tlas::update`] did.
+/// What [`InstanceBvh::update`] did.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub enum RefitOutcome {
     /// Boxes refitted; the SAH cost is now `cost_ratio` × the fresh build's.
@@ -38,24 +39,24 @@ pub enum RefitOutcome {
 
 /// A BVH over instances: item `i` is instance `i` of the slice it was built from.
 #[derive(Debug, Clone, Default)]
-pub struct Tlas {
+pub struct InstanceBvh {
     bvh: Bvh,
     preset: BvhPreset,
     build_cost: f32,
 }
 
-impl Tlas {
+impl InstanceBvh {
     /// Builds over the world boxes of `instances` (the fast preset).
-    pub fn from_instances(instances: &[Instance]) -> Tlas {
+    pub fn from_instances(instances: &[Instance]) -> InstanceBvh {
         let boxes: Vec<Aabb> = instances.iter().map(|i| i.world_aabb).collect();
         Self::build(&boxes, BvhPreset::Fast)
     }
 
     /// Builds over `boxes` (item `i` is `boxes[i]`).
-    pub fn build(boxes: &[Aabb], preset: BvhPreset) -> Tlas {
-        let bvh = Bvh::build(boxes, preset, TLAS_LEAF);
+    pub fn build(boxes: &[Aabb], preset: BvhPreset) -> InstanceBvh {
+        let bvh = Bvh::build(boxes, preset, INSTANCE_LEAF);
         let build_cost = bvh.sah_cost();
-        Tlas { bvh, preset, build_cost }
+        InstanceBvh { bvh, preset, build_cost }
     }
 
     /// The underlying BVH (for custom traversals).
@@ -99,7 +100,7 @@ impl Tlas {
         }
     }
 
-    /// [`Tlas::update`] from instances (their world boxes).
+    /// [`InstanceBvh::update`] from instances (their world boxes).
     pub fn update_instances(&mut self, instances: &[Instance]) -> RefitOutcome {
         let boxes: Vec<Aabb> = instances.iter().map(|i| i.world_aabb).collect();
         self.update(&boxes)
@@ -132,13 +133,13 @@ impl Tlas {
     }
 }
 
-impl FrustumCull for Tlas {
+impl FrustumCull for InstanceBvh {
     fn cull(&self, frustum: &Frustum, out: &mut Vec<Visible>) {
         self.bvh.cull_with(frustum, CullOptions::default(), out);
     }
 }
 
-impl FrontToBack for Tlas {
+impl FrontToBack for InstanceBvh {
     fn order(&self, eye: Vec3, out: &mut Vec<u32>) {
         self.bvh.order_front_to_back(eye, out);
     }
@@ -169,27 +170,27 @@ mod tests {
                 Aabb::new(c, c + Vec3::ONE)
             })
             .collect();
-        let mut tlas = Tlas::build(&boxes, BvhPreset::Fast);
+        let mut tree = InstanceBvh::build(&boxes, BvhPreset::Fast);
         // Small jitter: refit.
         for b in &mut boxes {
             let d = Vec3::new(rng.range(-0.1, 0.1), 0.0, rng.range(-0.1, 0.1));
             *b = Aabb::new(b.min + d, b.max + d);
         }
-        assert!(matches!(tlas.update(&boxes), RefitOutcome::Refitted { .. }));
+        assert!(matches!(tree.update(&boxes), RefitOutcome::Refitted { .. }));
         // Shuffle everything across the world: the refitted tree degrades, so rebuild.
         for b in &mut boxes {
             let c = Vec3::new(rng.range(-100.0, 100.0), 0.0, rng.range(-100.0, 100.0));
             *b = Aabb::new(c, c + Vec3::ONE);
         }
-        match tlas.update(&boxes) {
+        match tree.update(&boxes) {
             RefitOutcome::Rebuilt { cost_ratio } => assert!(cost_ratio > REBUILD_RATIO),
             o => panic!("expected a rebuild, got {o:?}"),
         }
-        tlas.bvh().validate().unwrap();
-        assert!((tlas.cost_ratio() - 1.0).abs() < 1e-6);
+        tree.bvh().validate().unwrap();
+        assert!((tree.cost_ratio() - 1.0).abs() < 1e-6);
         // A box turning NaN forces a rebuild too, and the item stays visible.
         boxes[5] = Aabb::new(Vec3::NAN, Vec3::NAN);
-        assert!(matches!(tlas.update(&boxes), RefitOutcome::Rebuilt { .. }));
-        assert_eq!(tlas.bvh().unbounded(), &[5]);
+        assert!(matches!(tree.update(&boxes), RefitOutcome::Rebuilt { .. }));
+        assert_eq!(tree.bvh().unbounded(), &[5]);
     }
 }
