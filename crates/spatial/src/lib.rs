@@ -112,7 +112,7 @@ impl Default for CullOptions {
 
 /// Work counters of one culling query.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
-pub struct CullStats {
+pub struct CullCounters {
     /// Nodes (and items) whose box was classified against the frustum.
     pub boxes_tested: u64,
     /// Single box–plane tests performed.

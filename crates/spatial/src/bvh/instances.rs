@@ -13,7 +13,7 @@ use sightline_scene::{Aabb, Instance};
 
 use super::traverse::CoherencyCache;
 use super::{Bvh, BvhPreset};
-use crate::{CullOptions, CullStats, FrontToBack, Frustum, FrustumCull, Visible, Visit};
+use crate::{CullCounters, CullOptions, FrontToBack, Frustum, FrustumCull, Visible, Visit};
 
 /// Rebuild when the refitted tree's SAH cost exceeds this multiple of the fresh build's.
 pub const REBUILD_RATIO: f32 = 1.5;
@@ -107,12 +107,12 @@ impl InstanceBvh {
     }
 
     /// Frustum culling with options; see [`Bvh::cull_with`].
-    pub fn cull_with(&self, frustum: &Frustum, opts: CullOptions, out: &mut Vec<Visible>) -> CullStats {
+    pub fn cull_with(&self, frustum: &Frustum, opts: CullOptions, out: &mut Vec<Visible>) -> CullCounters {
         self.bvh.cull_with(frustum, opts, out)
     }
 
     /// Frustum culling with plane coherency; see [`Bvh::cull_coherent`].
-    pub fn cull_coherent(&self, frustum: &Frustum, cache: &mut CoherencyCache, out: &mut Vec<Visible>) -> CullStats {
+    pub fn cull_coherent(&self, frustum: &Frustum, cache: &mut CoherencyCache, out: &mut Vec<Visible>) -> CullCounters {
         self.bvh.cull_coherent(frustum, cache, out)
     }
 

@@ -20,7 +20,7 @@ use super::cluster::MeshClusters;
 use super::instances::RefitOutcome;
 use super::traverse::FrontToBackCursor;
 use super::{Bvh, BvhPreset};
-use crate::{CullOptions, CullStats, FrontToBack, Frustum, FrustumCull, Visible, Visit, REBUILD_RATIO};
+use crate::{CullCounters, CullOptions, FrontToBack, Frustum, FrustumCull, Visible, Visit, REBUILD_RATIO};
 
 /// Items per BVH leaf.
 const SCENE_LEAF: u32 = 4;
@@ -189,7 +189,7 @@ impl ClusteredScene {
     }
 
     /// Frustum culling: appends visible items (indices into the items) to `out`.
-    pub fn cull_with(&self, frustum: &Frustum, opts: CullOptions, out: &mut Vec<Visible>) -> CullStats {
+    pub fn cull_with(&self, frustum: &Frustum, opts: CullOptions, out: &mut Vec<Visible>) -> CullCounters {
         self.bvh.cull_with(frustum, opts, out)
     }
 

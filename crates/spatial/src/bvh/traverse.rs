@@ -18,7 +18,7 @@ use sightline_scene::Aabb;
 
 use super::Bvh;
 use crate::hint::prefetch;
-use crate::{AabbExt, Containment, CullOptions, CullStats, Frustum, PlaneMask, Visible, Visit, ALL_PLANES};
+use crate::{AabbExt, Containment, CullCounters, CullOptions, Frustum, PlaneMask, Visible, Visit, ALL_PLANES};
 
 /// Per-node plane-coherency state for [`Bvh::cull_coherent`]: the plane that last rejected
 /// each node, tested first next frame.
@@ -234,13 +234,13 @@ fn nearer(a: &Aabb, b: &Aabb, eye: Vec3) -> bool {
 impl Bvh {
     /// Frustum culling: appends every item whose box may intersect `frustum` to `out`
     /// (unbounded items first, never `inside`). Conservative.
-    pub fn cull_with(&self, frustum: &Frustum, opts: CullOptions, out: &mut Vec<Visible>) -> CullStats {
+    pub fn cull_with(&self, frustum: &Frustum, opts: CullOptions, out: &mut Vec<Visible>) -> CullCounters {
         self.cull_impl(frustum, opts.plane_masking, None, out)
     }
 
     /// Frustum culling with plane masking and plane coherency: each node first tests the
     /// plane that rejected it last time (kept in `cache`).
-    pub fn cull_coherent(&self, frustum: &Frustum, cache: &mut CoherencyCache, out: &mut Vec<Visible>) -> CullStats {
+    pub fn cull_coherent(&self, frustum: &Frustum, cache: &mut CoherencyCache, out: &mut Vec<Visible>) -> CullCounters {
         if cache.start.len() != self.nodes.len() {
             cache.start.clear();
             cache.start.resize(self.nodes.len(), 0);
@@ -254,8 +254,8 @@ impl Bvh {
         masking: bool,
         mut coherency: Option<&mut Vec<u8>>,
         out: &mut Vec<Visible>,
-    ) -> CullStats {
-        let mut stats = CullStats::default();
+    ) -> CullCounters {
+        let mut stats = CullCounters::default();
         let before = out.len();
         out.extend(self.unbounded.iter().map(|&index| Visible { index, inside: false }));
         if self.nodes.is_empty() {

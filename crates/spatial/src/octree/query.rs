@@ -5,7 +5,7 @@ use sightline_scene::Aabb;
 
 use super::{octant, LooseOctree, NONE, ORDER};
 use crate::{
-    AabbExt, BoxKind, Containment, CullOptions, CullStats, FrontToBack, Frustum, FrustumCull, PlaneMask, Visible,
+    AabbExt, BoxKind, Containment, CullCounters, CullOptions, FrontToBack, Frustum, FrustumCull, PlaneMask, Visible,
     Visit, ALL_PLANES,
 };
 
@@ -50,8 +50,8 @@ impl LooseOctree {
     }
 
     /// Frustum culling: appends every object whose box may intersect `frustum`.
-    pub fn cull_with(&self, frustum: &Frustum, opts: CullOptions, out: &mut Vec<Visible>) -> CullStats {
-        let mut stats = CullStats::default();
+    pub fn cull_with(&self, frustum: &Frustum, opts: CullOptions, out: &mut Vec<Visible>) -> CullCounters {
+        let mut stats = CullCounters::default();
         let before = out.len();
         let mut tests = 0u32;
         let mut o = self.outside_head;
