@@ -312,7 +312,7 @@ impl<'s> RayCaster<'s> {
         rays.set(0, origin.into(), dir.into());
         hits.open(0, t_min, t_max);
         let mut s = Scratch::new(self.tlas.bvh().depth(), 64);
-        let off = packet::Frustum::OFF;
+        let off = packet::BeamPlanes::OFF;
         trace::<isa::Portable, ANY>(&self.blases, &self.tlas, &rays, &off, false, &mut hits, 1, &mut s);
         let mut best = None;
         if hits.inst[0][0] != NO_HIT {

@@ -223,8 +223,8 @@ impl Beam {
     }
 
     /// The four side planes, oriented inwards; culling is off when they are degenerate.
-    pub fn frustum(&self) -> Frustum {
-        let mut f = Frustum { on: true, n: [[0.0; 4]; 3], c: [0.0; 4] };
+    pub fn frustum(&self) -> BeamPlanes {
+        let mut f = BeamPlanes { on: true, n: [[0.0; 4]; 3], c: [0.0; 4] };
         let q = (0..4).map(|k| self.o[k] + self.d[k]).sum::<Vec3A>() * 0.25;
         for k in 0..4 {
             let (a, b) = (k, (k + 1) % 4);
@@ -250,7 +250,7 @@ impl Beam {
 
 /// Four planes `n·x + c ≥ 0` bounding a packet's rays.
 #[derive(Debug, Clone, Copy)]
-pub(crate) struct Frustum {
+pub(crate) struct BeamPlanes {
     /// False: cull nothing.
     pub on: bool,
     /// Plane normals, SoA over the four planes.
@@ -259,9 +259,9 @@ pub(crate) struct Frustum {
     pub c: [f32; 4],
 }
 
-impl Frustum {
+impl BeamPlanes {
     /// A frustum that culls nothing.
-    pub const OFF: Frustum = Frustum { on: false, n: [[0.0; 4]; 3], c: [0.0; 4] };
+    pub const OFF: BeamPlanes = BeamPlanes { on: false, n: [[0.0; 4]; 3], c: [0.0; 4] };
 
     /// True when the box lies entirely outside one of the planes (beyond rounding).
     #[cfg(test)]
@@ -285,10 +285,10 @@ impl Frustum {
     }
 }
 
-impl Frustum {
+impl BeamPlanes {
     /// The planes in the space `world_from_local` maps from: `n·(M y + t) + c` becomes
     /// `(Mᵀ n)·y + (n·t + c)`.
-    pub fn transformed(&self, world_from_local: &Affine3A) -> Frustum {
+    pub fn transformed(&self, world_from_local: &Affine3A) -> BeamPlanes {
         if !self.on {
             return *self;
         }
@@ -310,10 +310,10 @@ impl Frustum {
     /// The beam of rays that all run along `dir` from the `origins`: the four planes
     /// parallel to `dir` around the origins' footprint on a plane across `dir`, padded by
     /// `pad` (for shadow rays towards a directional light).
-    pub fn parallel(dir: Vec3A, origins: impl Iterator<Item = Vec3A>, pad: f32) -> Frustum {
+    pub fn parallel(dir: Vec3A, origins: impl Iterator<Item = Vec3A>, pad: f32) -> BeamPlanes {
         let d = dir.normalize_or_zero();
         if d == Vec3A::ZERO {
-            return Frustum::OFF;
+            return BeamPlanes::OFF;
         }
         let helper = if d.x.abs() < 0.9 { Vec3A::X } else { Vec3A::Y };
         let u = helper.cross(d).normalize();
@@ -327,11 +327,11 @@ impl Frustum {
             }
         }
         if !(lo[0] <= hi[0] && lo[1] <= hi[1]) {
-            return Frustum::OFF;
+            return BeamPlanes::OFF;
         }
         // n·x + c ≥ 0 inside: x·u ≥ lo, −x·u ≥ −hi, and the same for v.
         let planes = [(u, -(lo[0] - pad)), (-u, hi[0] + pad), (v, -(lo[1] - pad)), (-v, hi[1] + pad)];
-        let mut f = Frustum { on: true, n: [[0.0; 4]; 3], c: [0.0; 4] };
+        let mut f = BeamPlanes { on: true, n: [[0.0; 4]; 3], c: [0.0; 4] };
         for (k, (n, c)) in planes.into_iter().enumerate() {
             for a in 0..3 {
                 f.n[a][k] = n[a];
@@ -342,7 +342,7 @@ impl Frustum {
         f
     }
 
-    /// [`Frustum::culls`] for the four boxes of a node at once (`[axis][child]` layout),
+    /// [`BeamPlanes::culls`] for the four boxes of a node at once (`[axis][child]` layout),
     /// as a 4-bit mask: the center–extent form of the plane test, `n·c + |n|·e + d < 0`,
     /// on four boxes per SIMD operation.
     #[inline(always)]
@@ -426,7 +426,7 @@ mod tests {
         }
         // Shadow beams: parallel rays from scattered origins.
         let origins = [Vec3A::new(0.0, 0.0, 0.0), Vec3A::new(2.0, 1.0, 0.0), Vec3A::new(1.0, 3.0, 1.0)];
-        let s = Frustum::parallel(Vec3A::new(0.2, 1.0, 0.1), origins.into_iter(), 1e-3);
+        let s = BeamPlanes::parallel(Vec3A::new(0.2, 1.0, 0.1), origins.into_iter(), 1e-3);
         for q in origins {
             let (lo, hi) = at(q + Vec3A::new(0.2, 1.0, 0.1) * 7.0);
             assert!(!s.culls(&lo, &hi));

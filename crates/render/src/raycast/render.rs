@@ -19,7 +19,7 @@ use sightline_scene::{Camera, Material};
 
 use super::camera::CameraRays;
 use super::isa::{Avx2, Avx512, Isa, Portable};
-use super::packet::{Frustum, Hits, Rays, CHUNK, LANES, NO_HIT, TILE};
+use super::packet::{BeamPlanes, Hits, Rays, CHUNK, LANES, NO_HIT, TILE};
 use super::trace::{trace, Scratch};
 use super::{RayCaster, RaycastOptions, RaycastStats, SimdLevel};
 use crate::csg::CsgScratch;
@@ -30,7 +30,7 @@ use crate::{Framebuffer, Result};
 const CACHE: usize = 256;
 
 /// Per-frame constants.
-struct Frame<'a, 's> {
+struct CastFrame<'a, 's> {
     caster: &'a RayCaster<'s>,
     camera: &'a Camera,
     gen: CameraRays,
@@ -94,7 +94,7 @@ pub(crate) fn render(
     let scene = caster.scene;
     let clip: DMat4 = camera.clip_from_world_f64();
     let world_f64: Vec<DAffine3> = caster.tlas.instances().iter().map(|r| to_f64(&r.world_from_blas)).collect();
-    let frame = Frame {
+    let frame = CastFrame {
         caster,
         camera,
         gen: CameraRays::new(camera, width, height),
@@ -175,7 +175,7 @@ macro_rules! isa_packet {
     ($name:ident, $isa:ty, $features:literal) => {
         #[cfg(target_arch = "x86_64")]
         #[target_feature(enable = $features)]
-        fn $name<'a>(f: &Frame<'a, '_>, band: &mut Band<'a>, x0: u32, y0: u32, out: &mut Out<'_>) {
+        fn $name<'a>(f: &CastFrame<'a, '_>, band: &mut Band<'a>, x0: u32, y0: u32, out: &mut Out<'_>) {
             f.packet_impl::<$isa>(band, x0, y0, out)
         }
     };
@@ -184,7 +184,7 @@ macro_rules! isa_packet {
 isa_packet!(packet_avx512, Avx512, "avx512f,avx512bw,avx512dq,avx512vl,avx2,bmi1,bmi2,lzcnt,popcnt");
 isa_packet!(packet_avx2, Avx2, "avx2,bmi1,bmi2,lzcnt,popcnt");
 
-impl<'a> Frame<'a, '_> {
+impl<'a> CastFrame<'a, '_> {
     /// Casts, resolves and writes the packet at (x0, y0) on the resolved SIMD level.
     fn packet(&self, band: &mut Band<'a>, x0: u32, y0: u32, out: &mut Out<'_>) {
         match self.simd {
@@ -354,7 +354,7 @@ impl<'a> Frame<'a, '_> {
             band.shadow_rays += smask.count_ones() as u64;
             if smask != 0 {
                 let lanes = (0..LANES).filter(|&i| smask >> i & 1 != 0).map(|i| srays.origin(i));
-                let beam = Frustum::parallel(Vec3A::from(light.as_vec3()), lanes, 1e-3);
+                let beam = BeamPlanes::parallel(Vec3A::from(light.as_vec3()), lanes, 1e-3);
                 dark = trace::<I, true>(&caster.blases, &caster.tlas, srays, &beam, false, shits, smask, scratch);
                 let mut open = smask & !dark;
                 while open != 0 {

@@ -7,7 +7,7 @@
 use sightline_spatial::bvh::wide::{WideBlas, WideTlas};
 
 use super::isa::Isa;
-use super::packet::{chunk_bits, Frustum, Hits, Rays, CHUNK, CHUNKS};
+use super::packet::{chunk_bits, BeamPlanes, Hits, Rays, CHUNK, CHUNKS};
 use super::traverse::{traverse, Entry};
 use super::triangle::{intersect_general, intersect_shared, shared_setup, Job};
 
@@ -93,7 +93,7 @@ pub(crate) fn trace<I: Isa, const ANY: bool>(
     blases: &[WideBlas],
     tlas: &WideTlas,
     rays: &Rays,
-    frustum: &Frustum,
+    frustum: &BeamPlanes,
     backface: bool,
     hits: &mut Hits,
     mask: u64,
@@ -124,7 +124,7 @@ pub(crate) fn trace<I: Isa, const ANY: bool>(
                 if m == 0 {
                     break;
                 }
-                let (lr, fr): (&Rays, Frustum) = if inst.identity {
+                let (lr, fr): (&Rays, BeamPlanes) = if inst.identity {
                     (rays, world)
                 } else {
                     rays.transform_into(&inst.local_from_world, m, local);

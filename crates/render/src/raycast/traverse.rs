@@ -22,7 +22,7 @@ use glam::Vec4;
 use sightline_spatial::bvh::wide::{WideBvh, WideNode, EMPTY_LINK, WIDTH};
 
 use super::isa::{Isa, Slab, ROBUST};
-use super::packet::{chunk_bits, Frustum, Hits, Rays, CHUNK, CHUNKS};
+use super::packet::{chunk_bits, BeamPlanes, Hits, Rays, CHUNK, CHUNKS};
 
 /// A pending subtree: (link, primitive count, lane mask).
 pub(crate) type Entry = (u32, u32, u64);
@@ -81,7 +81,7 @@ pub(crate) fn traverse<I: Isa, F>(
     bvh: &WideBvh,
     rays: &Rays,
     hits: &mut Hits,
-    fr: &Frustum,
+    fr: &BeamPlanes,
     mask: u64,
     stack: &mut Vec<Entry>,
     mut leaf: F,
