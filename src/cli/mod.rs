@@ -4,6 +4,7 @@
 mod bench;
 mod chart;
 mod common;
+mod csg;
 mod info;
 mod path;
 mod render;
@@ -103,7 +104,7 @@ pub fn run(cli: Cli) -> Result<()> {
         Command::Walk(a) => walk::run(&a),
         Command::Bench(a) => bench::run(&a),
         Command::Csg { out, size } => {
-            sightline::render::csg::write_classic_demo_png(&out, size.width, size.height)?;
+            csg::write_classic_demo_png(&out, size.width, size.height)?;
             println!("wrote {}", out.display());
             Ok(())
         }

@@ -8,8 +8,8 @@
 //!
 //! The scene crate has no CSG node type, so CSG solids live next to the scene: a
 //! [`CsgObject`] is a compiled tree with a world transform and a base color, handed to the
-//! ray caster ([`crate::raycast::RayCaster::with_csg`]), which draws it in the same image as
-//! the triangle meshes. Its pixels get IDs *above* the triangle range: object `k` writes
+//! ray caster (its `with_csg`), which draws it in the same image as the triangle meshes.
+//! This module knows nothing of the ray caster: the caster uses it, not the other way round. Its pixels get IDs *above* the triangle range: object `k` writes
 //! `scene_triangle_count + 1 + k`. The rasterizer does not draw CSG solids.
 //!
 //! ```
@@ -28,17 +28,14 @@ pub mod interval;
 pub mod primitive;
 pub mod tree;
 
-use std::path::Path;
-
 use glam::{Affine3A, DAffine3, DMat3, DVec3, Vec3};
-use sightline_scene::{Aabb, Camera, Material, NodeDesc, Projection, Scene, Transform, View};
+use sightline_scene::Aabb;
 
 pub use interval::{combine, Crossing, Op, Span};
 pub use primitive::Shape;
 pub use tree::{Csg, CsgScratch, CsgTree};
 
-use crate::raycast::{RayCaster, RaycastOptions};
-use crate::{Error, Framebuffer, Result};
+use crate::{Error, Result};
 
 /// A visible point of a CSG solid.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -162,7 +159,8 @@ impl CsgObject {
 }
 
 /// The classic CSG example: a cube intersected with a sphere, minus three cylinders along
-/// the axes (the picture on Wikipedia's CSG page), inside [−1, 1]³.
+/// the axes (the picture on Wikipedia's CSG page), inside [−1, 1]³. The command line's
+/// `sightline csg` draws it.
 pub fn classic_demo() -> Csg {
     let cube = Csg::cuboid(Vec3::splat(-1.0), Vec3::splat(1.0));
     let sphere = Csg::sphere(Vec3::ZERO, 1.35);
@@ -170,30 +168,4 @@ pub fn classic_demo() -> Csg {
     let cyl = |axis: Vec3| Csg::cylinder(-axis * 1.5, axis * 1.5, r);
     let holes = cyl(Vec3::X).union(cyl(Vec3::Y)).union(cyl(Vec3::Z));
     cube.intersect(sphere).subtract(holes)
-}
-
-/// Renders [`classic_demo`] (colored, standing on a ground plane, with hard shadows, seen
-/// from above and aside) into a new framebuffer of the given size.
-pub fn render_classic_demo(width: u32, height: u32) -> Result<Framebuffer> {
-    let mut scene = Scene::new();
-    let ground = scene.add_mesh(sightline_scene::shapes::ground_quad("ground", 1)?);
-    let gray = scene.add_material(Material::color("ground", [0.55, 0.57, 0.6]));
-    let place = Transform::from_translation(Vec3::new(0.0, -1.0, 0.0)).with_scale(Vec3::new(12.0, 1.0, 12.0));
-    scene.add_node(None, NodeDesc::new("ground").transform(place).mesh(ground).material(gray))?;
-    scene.update_transforms();
-    let object = CsgObject::new("classic", &classic_demo(), Affine3A::from_rotation_y(0.35), [0.85, 0.45, 0.25, 1.0])?;
-    let caster = RayCaster::build(&scene)?.with_csg(vec![object]);
-    let view = View::look_at(Vec3::new(3.2, 2.6, 4.0), Vec3::new(0.0, -0.2, 0.0), Vec3::Y)?;
-    let aspect = width as f32 / height.max(1) as f32;
-    let camera = Camera::new(view, Projection::perspective(0.75, aspect, 0.1, 100.0)?)?;
-    let mut fb = Framebuffer::new(width, height)?;
-    let opts = RaycastOptions { shadows: true, background: [40, 44, 52, 255], ..RaycastOptions::default() };
-    caster.render(&camera, &opts, &mut fb)?;
-    Ok(fb)
-}
-
-/// Renders [`classic_demo`] to a PNG file (what `sightline csg` writes).
-pub fn write_classic_demo_png(path: &Path, width: u32, height: u32) -> Result<()> {
-    let fb = render_classic_demo(width, height)?;
-    crate::output::write_color_png(&fb, path)
 }
