@@ -57,7 +57,7 @@ fn boxfield_1thread(c: &mut Criterion) {
                 let mut spent = Duration::ZERO;
                 for _ in 0..n {
                     let t = Instant::now();
-                    let (_, _, pass) = culler.occluder_pass(&bf.camera, &mut fb, &opts).unwrap();
+                    let (_, _, pass) = culler.occluder_pass(&bf.camera, &fb, &opts).unwrap();
                     spent += t.elapsed();
                     pass.finish(&mut fb).unwrap();
                 }
@@ -76,7 +76,7 @@ fn boxfield_1thread(c: &mut Criterion) {
                     let mut spent = Duration::ZERO;
                     for _ in 0..n {
                         let t = Instant::now();
-                        let (_, _, pass) = flat.occluder_pass_with(&bf.camera, &mut fb, &opts, skip_hidden).unwrap();
+                        let (_, _, pass) = flat.occluder_pass_with(&bf.camera, &fb, &opts, skip_hidden).unwrap();
                         spent += t.elapsed();
                         pass.finish(&mut fb).unwrap();
                     }
@@ -86,7 +86,7 @@ fn boxfield_1thread(c: &mut Criterion) {
         });
     }
     // The queries run on the calling thread; only the occluder pass uses the pool.
-    let (_, _, q) = pool.install(|| culler.occluder_pass(&bf.camera, &mut fb, &opts)).unwrap();
+    let (_, _, q) = pool.install(|| culler.occluder_pass(&bf.camera, &fb, &opts)).unwrap();
     let mut answers = Vec::with_capacity(bf.queries.len());
     g.bench_function("queries", |b| {
         b.iter(|| {

@@ -36,7 +36,7 @@ fn main() {
         let mut stats = None;
         for _ in 0..15 {
             let t = Instant::now();
-            let (cs, fs, q) = culler.occluder_pass(&bf.camera, &mut fb, &opts).expect("occluders");
+            let (cs, fs, q) = culler.occluder_pass(&bf.camera, &fb, &opts).expect("occluders");
             stats = Some((cs, fs));
             raster.push(t.elapsed().as_secs_f64() * 1e3);
             let t = Instant::now();
@@ -46,7 +46,7 @@ fn main() {
         }
         if std::env::var("QUERY_PROFILE").is_ok() {
             // Profiling aid: the queries alone, many times.
-            let (_, _, q) = culler.occluder_pass(&bf.camera, &mut fb, &opts).expect("occluders");
+            let (_, _, q) = culler.occluder_pass(&bf.camera, &fb, &opts).expect("occluders");
             for _ in 0..200 {
                 q.test_many(&bf.queries, &mut answers);
             }
@@ -63,7 +63,7 @@ fn main() {
             let mut drawn = 0;
             for _ in 0..15 {
                 let t = Instant::now();
-                let (cs, _, pass) = flat.occluder_pass_with(&bf.camera, &mut other, &opts, skip_hidden).expect("occluders");
+                let (cs, _, pass) = flat.occluder_pass_with(&bf.camera, &other, &opts, skip_hidden).expect("occluders");
                 times.push(t.elapsed().as_secs_f64() * 1e3);
                 drawn = cs.triangles_drawn;
                 pass.finish(&mut other).expect("same framebuffer");

@@ -38,7 +38,7 @@ fn boxes_behind_beside_and_across_the_near_plane() {
     let mut fb = Framebuffer::new(320, 180).unwrap();
     let opts = RenderOptions::ids_only();
     {
-        let (_, _, q) = culler.occluder_pass(&cam, &mut fb, &opts).unwrap();
+        let (_, _, q) = culler.occluder_pass(&cam, &fb, &opts).unwrap();
         assert_eq!(q.test(&cube_at(Vec3::new(0.0, 0.0, -12.0), 0.5)), BoxVisibility::Occluded, "right behind the wall");
         assert_eq!(q.test(&cube_at(Vec3::new(0.0, 0.0, -30.0), 2.0)), BoxVisibility::Occluded, "far behind the wall");
         // Beside the wall: x beyond its edge at x = 10, still in view at z = −12.
@@ -71,7 +71,7 @@ fn a_depth_cleared_buffer_occludes_nothing() {
     }
     .camera(16.0 / 9.0)
     .unwrap();
-    let (_, _, q) = culler.occluder_pass(&away, &mut fb, &RenderOptions::ids_only()).unwrap();
+    let (_, _, q) = culler.occluder_pass(&away, &fb, &RenderOptions::ids_only()).unwrap();
     let mut rng = Rng::new(4);
     let boxes: Vec<Aabb> = (0..2000)
         .map(|_| {
@@ -100,10 +100,10 @@ fn session_pyramid_is_conservative_against_the_depth_buffer() {
     for key in c.layout.street_path(4, 2) {
         let cam = key.camera(w as f32 / h as f32).unwrap();
         // Draw once to get the finished depth buffer, then again to read its pyramid.
-        let (_, _, pass) = culler.occluder_pass(&cam, &mut fb, &RenderOptions::ids_only()).unwrap();
+        let (_, _, pass) = culler.occluder_pass(&cam, &fb, &RenderOptions::ids_only()).unwrap();
         pass.finish(&mut fb).unwrap();
         let depth = fb.depth.clone();
-        let (_, _, pass) = culler.occluder_pass(&cam, &mut fb, &RenderOptions::ids_only()).unwrap();
+        let (_, _, pass) = culler.occluder_pass(&cam, &fb, &RenderOptions::ids_only()).unwrap();
         let pyramid = pass.pyramid();
         let mut occluded = 0;
         for _ in 0..3000 {
@@ -152,7 +152,7 @@ fn many_and_batch_answer_like_test() {
     let (scene, cam) = wall();
     let mut culler = Culler::new(&scene);
     let mut fb = Framebuffer::new(320, 180).unwrap();
-    let (_, _, q) = culler.occluder_pass(&cam, &mut fb, &RenderOptions::ids_only()).unwrap();
+    let (_, _, q) = culler.occluder_pass(&cam, &fb, &RenderOptions::ids_only()).unwrap();
     let mut rng = Rng::new(21);
     let boxes: Vec<Aabb> = (0..5000)
         .map(|_| {
@@ -202,7 +202,7 @@ fn skipping_hidden_occluders_changes_nothing() {
         let mut results = Vec::new();
         for skip_hidden in [false, true] {
             let mut fb = Framebuffer::new(320, 180).unwrap();
-            let (cs, _, q) = culler.occluder_pass_with(&camera, &mut fb, &opts, skip_hidden).unwrap();
+            let (cs, _, q) = culler.occluder_pass_with(&camera, &fb, &opts, skip_hidden).unwrap();
             let answers: Vec<_> = queries.iter().map(|b| q.test(b)).collect();
             q.finish(&mut fb).unwrap();
             results.push((fb.depth, fb.ids, answers, cs.triangles_drawn));
