@@ -30,6 +30,7 @@
 // `!(x > 0.0)` is how this code says "not positive, or NaN": the negated comparison is the point.
 #![allow(clippy::neg_cmp_op_on_partial_ord)]
 
+pub mod assets;
 mod bounds;
 pub mod builders;
 mod camera;
@@ -48,6 +49,7 @@ mod stats;
 mod transform;
 pub mod views;
 
+pub use assets::LoadOptions;
 pub use bounds::Aabb;
 pub use camera::{projection_onto_plane, Camera, View};
 pub use error::{Error, Result};
