@@ -1,6 +1,7 @@
-//! Reading the files a scene file refers to: glTF buffers and images (glTF 2.0 §3.6.1 "Buffers
-//! and buffer views", §3.9.3 "Images": a URI is a data URI or a path relative to the glTF
-//! file), OBJ material libraries (`mtllib`) and their textures (`map_Kd`).
+//! Reading the files a scene file refers to: glTF buffers and images (the glTF 2.0
+//! specification, section "URIs": a URI is a data URI or a path relative to the glTF file;
+//! absolute paths and other schemes are components a client *may* support), OBJ material
+//! libraries (`mtllib`) and their textures (`map_Kd`, Wavefront MTL).
 //!
 //! Rules, for every load:
 //!

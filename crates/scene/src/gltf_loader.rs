@@ -17,8 +17,8 @@
 //!
 //! Skins, morph targets, animations and the other material channels are ignored.
 //!
-//! External files (buffer and image URIs, glTF 2.0 §3.6.1 and §3.9.3) are read under the rules
-//! of [`crate::assets`]: inside the glTF file's folder (or an allowed root), regular files
+//! External files (buffer and image URIs; glTF 2.0 specification, sections "URIs", "Buffers
+//! and Buffer Views" and "Images") are read under the rules of [`crate::assets`]: inside the glTF file's folder (or an allowed root), regular files
 //! only, each read once and no further than needed, within a total. A buffer is read only when
 //! an accessor or image that the scene uses needs it, and no more than its `byteLength`.
 //!
