@@ -88,8 +88,14 @@ pub struct LoadedScene {
 }
 
 impl SceneSpec {
-    /// Builds or loads the scene.
+    /// Builds or loads the scene; a file may refer only to files inside its own folder.
     pub fn load(&self) -> Result<LoadedScene, scene::Error> {
+        self.load_with(&scene::LoadOptions::default())
+    }
+
+    /// Builds or loads the scene; `options` apply to a file (other folders its buffers,
+    /// images and material libraries may come from, a cap on the bytes read).
+    pub fn load_with(&self, options: &scene::LoadOptions) -> Result<LoadedScene, scene::Error> {
         match self {
             SceneSpec::City(n) => {
                 let c = scene::builders::city(&scene::builders::CityParams::for_triangles(*n))?;
@@ -98,7 +104,7 @@ impl SceneSpec {
             SceneSpec::Boxfield => {
                 Ok(LoadedScene { scene: scene::builders::boxfield(&Default::default())?, layout: None })
             }
-            SceneSpec::File(p) => Ok(LoadedScene { scene: scene::load(p)?, layout: None }),
+            SceneSpec::File(p) => Ok(LoadedScene { scene: scene::load_with(p, options)?, layout: None }),
         }
     }
 }

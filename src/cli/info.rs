@@ -1,11 +1,11 @@
 //! `sightline info`: scene statistics.
 
 use anyhow::Result;
-use sightline::SceneSpec;
 
-pub fn run(spec: &SceneSpec, json: bool) -> Result<()> {
+pub fn run(scene: &super::SceneArg, json: bool) -> Result<()> {
+    let spec = &scene.scene;
     let t = std::time::Instant::now();
-    let loaded = super::load_scene(spec)?;
+    let loaded = super::load_scene(scene)?;
     let load_ms = t.elapsed().as_secs_f64() * 1e3;
     let s = loaded.scene.stats();
     let b = loaded.scene.world_aabb();

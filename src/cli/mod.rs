@@ -30,6 +30,10 @@ pub struct SceneArg {
     /// Scene: a .gltf/.glb/.obj file, `city` (default, ≥ 10^6 triangles), `city:TRIS`, or `boxfield`
     #[arg(long, default_value = "city", value_name = "SCENE")]
     pub scene: SceneSpec,
+    /// Let a scene file read buffers, images and material libraries under DIR too (by default
+    /// only files inside the scene file's own folder are read); repeatable
+    #[arg(long = "allow-asset-root", value_name = "DIR")]
+    pub allow_asset_roots: Vec<PathBuf>,
 }
 
 /// A scene and the camera path through it, shared by `walk` and `bench`.
@@ -97,9 +101,9 @@ enum Command {
 /// Runs one command.
 pub fn run(cli: Cli) -> Result<()> {
     match cli.command {
-        Command::Info { scene, json } => info::run(&scene.scene, json),
-        Command::ExportObj { scene, out } => path::export_obj(&scene.scene, &out),
-        Command::Path { scene, kind, frames, out } => path::run(&scene.scene, kind, frames, &out),
+        Command::Info { scene, json } => info::run(&scene, json),
+        Command::ExportObj { scene, out } => path::export_obj(&scene, &out),
+        Command::Path { scene, kind, frames, out } => path::run(&scene, kind, frames, &out),
         Command::Render(a) => render::run(&a),
         Command::Walk(a) => walk::run(&a),
         Command::Bench(a) => bench::run(&a),
@@ -112,12 +116,19 @@ pub fn run(cli: Cli) -> Result<()> {
 }
 
 /// Loads a scene with a spinner on the terminal.
-pub fn load_scene(spec: &SceneSpec) -> Result<sightline::LoadedScene> {
+pub fn load_scene(arg: &SceneArg) -> Result<sightline::LoadedScene> {
+    let spec = &arg.scene;
+    let options = sightline::scene::LoadOptions { allowed_roots: arg.allow_asset_roots.clone(), ..Default::default() };
     let bar = indicatif::ProgressBar::new_spinner().with_message(format!("loading {}", describe(spec)));
     bar.enable_steady_tick(std::time::Duration::from_millis(100));
-    let s = spec.load();
+    let s = spec.load_with(&options);
     bar.finish_and_clear();
-    Ok(s?)
+    match s {
+        Err(sightline::scene::Error::Load { path, why }) if why.contains("outside the asset folder") => {
+            anyhow::bail!("{}: {why} (--allow-asset-root DIR allows another folder)", path.display())
+        }
+        s => Ok(s?),
+    }
 }
 
 fn describe(spec: &SceneSpec) -> String {
@@ -125,5 +136,42 @@ fn describe(spec: &SceneSpec) -> String {
         SceneSpec::City(n) => format!("city ({n} triangles)"),
         SceneSpec::Boxfield => "boxfield".into(),
         SceneSpec::File(p) => p.display().to_string(),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn roots(args: &[&str]) -> Vec<PathBuf> {
+        let cli = Cli::try_parse_from(args).unwrap();
+        match cli.command {
+            Command::Info { scene, .. } | Command::ExportObj { scene, .. } | Command::Path { scene, .. } => {
+                scene.allow_asset_roots
+            }
+            Command::Render(a) => a.scene.allow_asset_roots,
+            Command::Walk(a) => a.walk.scene.allow_asset_roots,
+            Command::Bench(a) => a.walk.scene.allow_asset_roots,
+            Command::Csg { .. } => unreachable!(),
+        }
+    }
+
+    #[test]
+    fn every_scene_command_takes_repeatable_asset_roots() {
+        assert!(roots(&["sightline", "info", "--scene", "a.gltf"]).is_empty());
+        let two = [PathBuf::from("x"), PathBuf::from("y")];
+        for cmd in [
+            &["info"][..],
+            &["export-obj", "--out", "o.obj"],
+            &["path", "--out", "p.json"],
+            &["render"],
+            &["walk"],
+            &["bench"],
+        ] {
+            let mut args = vec!["sightline"];
+            args.extend_from_slice(cmd);
+            args.extend(["--scene", "a.gltf", "--allow-asset-root", "x", "--allow-asset-root", "y"]);
+            assert_eq!(roots(&args), two, "{cmd:?}");
+        }
     }
 }

@@ -3,7 +3,8 @@
 use std::path::Path;
 
 use anyhow::{Context, Result};
-use sightline::SceneSpec;
+
+use super::SceneArg;
 
 /// Which camera path.
 #[derive(Debug, Clone, Copy, clap::ValueEnum)]
@@ -14,17 +15,17 @@ pub enum PathKind {
     Aerial,
 }
 
-pub fn run(spec: &SceneSpec, kind: PathKind, frames: usize, out: &Path) -> Result<()> {
+pub fn run(scene: &SceneArg, kind: PathKind, frames: usize, out: &Path) -> Result<()> {
     anyhow::ensure!(frames > 0, "--frames must be at least 1");
-    let loaded = super::load_scene(spec)?;
+    let loaded = super::load_scene(scene)?;
     let keys = loaded.path(matches!(kind, PathKind::Street), frames)?;
     sightline::scene::path::write_path(out, &keys)?;
     println!("wrote {} frames to {}", keys.len(), out.display());
     Ok(())
 }
 
-pub fn export_obj(spec: &SceneSpec, out: &Path) -> Result<()> {
-    let loaded = super::load_scene(spec)?;
+pub fn export_obj(scene: &SceneArg, out: &Path) -> Result<()> {
+    let loaded = super::load_scene(scene)?;
     sightline::scene::export::export_obj(&loaded.scene, out)
         .with_context(|| format!("exporting to {}", out.display()))?;
     let s = loaded.scene.stats();

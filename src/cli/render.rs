@@ -77,7 +77,7 @@ pub struct RenderArgs {
 }
 
 pub fn run(a: &RenderArgs) -> Result<()> {
-    let loaded = super::load_scene(&a.scene.scene)?;
+    let loaded = super::load_scene(&a.scene)?;
     let choice = CameraChoice {
         eye: a.eye,
         target: a.target,

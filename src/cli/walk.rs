@@ -117,7 +117,7 @@ fn methods(m: WalkMethod) -> Vec<(&'static str, Option<Method>)> {
 }
 
 pub fn run(a: &WalkArgs) -> Result<()> {
-    let loaded = super::load_scene(&a.walk.scene.scene)?;
+    let loaded = super::load_scene(&a.walk.scene)?;
     let keys = common::path_keys(&loaded, a.walk.path.as_deref(), a.walk.frames)?;
     let opts = a.look.options(a.backface_culling);
     let records = common::with_threads(a.threads, || walk(&loaded, &keys, a, &opts))??;

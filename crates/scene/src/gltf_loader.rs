@@ -17,10 +17,17 @@
 //!
 //! Skins, morph targets, animations and the other material channels are ignored.
 //!
+//! External files (buffer and image URIs; glTF 2.0 specification, sections "URIs", "Buffers
+//! and Buffer Views" and "Images") are read under the rules of [`crate::assets`]: inside the glTF file's folder (or an allowed root), regular files
+//! only, each read once and no further than needed, within a total. A buffer is read only when
+//! an accessor or image that the scene uses needs it, and no more than its `byteLength`.
+//!
 //! Errors ([`Error::Load`], naming the file and the problem): unreadable file, wrong magic,
-//! truncated GLB, invalid JSON, missing or short buffers, accessors reading past their buffer
-//! views, indices out of range, NaN/infinite transforms, a node graph that is not a forest
-//! (a node reached twice, a cycle), a required extension this loader does not support.
+//! truncated GLB, invalid JSON, missing or short buffers that the scene uses, accessors
+//! reading past their buffer views, indices out of range, NaN/infinite transforms, a node graph
+//! that is not a forest (a node reached twice, a cycle), a required extension this loader does
+//! not support, a buffer or image URI that the rules above refuse (outside the folder, not a
+//! regular file, over the total).
 //! Warnings (in [`Scene::warnings`], the scene still loads): a missing or undecodable
 //! texture (the material keeps its base color factor), skipped point/line primitives, used but
 //! not required unknown extensions, unusable cameras.
@@ -28,9 +35,9 @@
 //! The loader does its own bounds-checked parsing of the GLB container, buffers and accessors
 //! on top of `gltf::json` (serde structs), so no input makes it panic.
 
-use std::borrow::Cow;
+use std::cell::OnceCell;
 use std::collections::HashMap;
-use std::path::{Path, PathBuf};
+use std::path::Path;
 use std::sync::Arc;
 
 use glam::{Mat4, Quat, Vec2, Vec3};
@@ -39,9 +46,10 @@ use json::accessor::{ComponentType, Type};
 use json::mesh::{Mode, Semantic};
 use json::validation::Checked;
 
+use crate::assets::{AssetError, AssetReader};
 use crate::{
-    Error, Material, MaterialId, Mesh, MeshId, NodeDesc, NodeId, Projection, Result, Scene, SceneCamera, Texture,
-    Transform,
+    Error, LoadOptions, Material, MaterialId, Mesh, MeshId, NodeDesc, NodeId, Projection, Result, Scene, SceneCamera,
+    Texture, Transform,
 };
 
 /// glTF extensions this loader honours, so a file may list them in `extensionsRequired`.
@@ -54,18 +62,36 @@ pub const DEFAULT_FAR: f32 = 1.0e4;
 /// Aspect ratio used for a perspective camera without `aspectRatio`.
 pub const DEFAULT_ASPECT: f32 = 1.0;
 
-/// Loads a `.gltf` or `.glb` file; external buffers and images are found next to it.
+/// Loads a `.gltf` or `.glb` file; external buffers and images are found next to it, with the
+/// default [`LoadOptions`] (files inside its folder only).
 ///
 /// The returned scene's world transforms are not yet propagated (call
 /// [`Scene::update_transforms`], or use [`crate::load`], which does).
 pub fn load_gltf(path: &Path) -> Result<Scene> {
-    let bytes = std::fs::read(path).map_err(|e| Error::load(path, io_why("cannot read", &e)))?;
-    load_gltf_bytes(&bytes, path)
+    load_gltf_with(path, &LoadOptions::default())
+}
+
+/// [`load_gltf`] with options: other folders external files may come from, a read cap.
+pub fn load_gltf_with(path: &Path, options: &LoadOptions) -> Result<Scene> {
+    let assets = AssetReader::new(path, options).map_err(|e| Error::load(path, e))?;
+    let bytes = assets.read_main().map_err(|e| Error::load(path, e))?;
+    load_with_reader(&bytes, path, &assets)
 }
 
 /// Loads glTF or GLB from memory. `path` names the file in messages, decides whether the bytes
-/// must be GLB (extension `.glb`), and its folder resolves relative URIs.
+/// must be GLB (extension `.glb`), and its folder resolves relative URIs (under the default
+/// [`LoadOptions`]).
 pub fn load_gltf_bytes(bytes: &[u8], path: &Path) -> Result<Scene> {
+    load_gltf_bytes_with(bytes, path, &LoadOptions::default())
+}
+
+/// [`load_gltf_bytes`] with options.
+pub fn load_gltf_bytes_with(bytes: &[u8], path: &Path, options: &LoadOptions) -> Result<Scene> {
+    let assets = AssetReader::new(path, options).map_err(|e| Error::load(path, e))?;
+    load_with_reader(bytes, path, &assets)
+}
+
+fn load_with_reader(bytes: &[u8], path: &Path, assets: &AssetReader) -> Result<Scene> {
     let fail = |why: String| Error::load(path, why);
     let is_glb_name = path.extension().is_some_and(|e| e.eq_ignore_ascii_case("glb"));
     let (json_bytes, bin) = if bytes.starts_with(b"glTF") {
@@ -96,12 +122,28 @@ pub fn load_gltf_bytes(bytes: &[u8], path: &Path) -> Result<Scene> {
             warnings.push(format!("ignoring unsupported glTF extension '{ext}'"));
         }
     }
-    let base = path.parent().map(Path::to_path_buf);
-    let buffers = load_buffers(&root, base.as_deref(), bin).map_err(fail)?;
+    // The bytes wanted of each external file, by URI: the largest byteLength of the buffers
+    // that name it and have views, so a file named by many buffers is read once.
+    let mut uri_want: HashMap<&str, u64> = HashMap::new();
+    let mut viewed = vec![false; root.buffers.len()];
+    for v in &root.buffer_views {
+        if let Some(f) = viewed.get_mut(v.buffer.value()) {
+            *f = true;
+        }
+    }
+    for (b, _) in root.buffers.iter().zip(&viewed).filter(|(_, &v)| v) {
+        if let Some(uri) = &b.uri {
+            let w = uri_want.entry(uri.as_str()).or_insert(0);
+            *w = (*w).max(b.byte_length.0);
+        }
+    }
     let mut loader = Loader {
         root: &root,
-        buffers: &buffers,
-        base,
+        bin,
+        bin_owner: root.buffers.iter().position(|b| b.uri.is_none()),
+        buffers: root.buffers.iter().map(|_| OnceCell::new()).collect(),
+        assets,
+        uri_want,
         scene: Scene::new(),
         meshes: HashMap::new(),
         materials: vec![None; root.materials.len()],
@@ -177,47 +219,52 @@ fn split_glb(b: &[u8]) -> std::result::Result<(&[u8], Option<&[u8]>), String> {
     Ok((json, bin))
 }
 
-fn io_why(what: &str, e: &std::io::Error) -> String {
-    if e.kind() == std::io::ErrorKind::NotFound {
-        format!("{what}: file not found")
-    } else {
-        format!("{what}: {e}")
-    }
-}
-
 /// Largest external image file read, in bytes.
 const MAX_IMAGE_FILE: u64 = 256 << 20;
 
-/// Reads what a URI points to: a base64 data URI, or a regular file relative to `base`, of
-/// which at most `limit` bytes are read (so `/dev/zero` or a huge file cannot exhaust memory).
-fn read_uri(uri: &str, base: Option<&Path>, limit: u64) -> std::result::Result<Vec<u8>, String> {
+/// A buffer's bytes: the GLB BIN chunk, a decoded data URI, or (a prefix of) a file.
+enum BufferData<'a> {
+    Borrowed(&'a [u8]),
+    Owned(Vec<u8>),
+    Shared(Arc<[u8]>, usize),
+}
+
+impl BufferData<'_> {
+    fn bytes(&self) -> &[u8] {
+        match self {
+            BufferData::Borrowed(b) => b,
+            BufferData::Owned(v) => v,
+            BufferData::Shared(a, n) => a.get(..*n).unwrap_or(a),
+        }
+    }
+}
+
+/// Reads what a URI points to: a data URI (decoded), or a file relative to the glTF file's
+/// folder, read under the rules of [`crate::assets`] (at most `want` bytes; a file over
+/// `max_file` bytes is not read).
+fn read_uri<'a>(
+    uri: &str,
+    assets: &AssetReader,
+    want: u64,
+    max_file: u64,
+) -> std::result::Result<BufferData<'a>, AssetError> {
+    let bad = |m: String| AssetError::Unavailable(m);
     if let Some(rest) = uri.strip_prefix("data:") {
-        let (header, data) = rest.split_once(',').ok_or("malformed data URI: no ',' before the data")?;
-        return if header.ends_with(";base64") { base64_decode(data) } else { Ok(percent_decode(data)) };
+        let (header, data) =
+            rest.split_once(',').ok_or_else(|| bad("malformed data URI: no ',' before the data".into()))?;
+        let bytes = if header.ends_with(";base64") { base64_decode(data).map_err(bad)? } else { percent_decode(data) };
+        return Ok(BufferData::Owned(bytes));
     }
     let rel = uri.strip_prefix("file://").unwrap_or(uri);
     if let Some((scheme, _)) = rel.split_once("://") {
-        return Err(format!("unsupported URI scheme '{scheme}'"));
+        return Err(bad(format!("unsupported URI scheme '{scheme}'")));
     }
     let rel = String::from_utf8(percent_decode(rel))
-        .map_err(|_| "the URI is not valid UTF-8 after percent-decoding".to_string())?;
-    let file: PathBuf = match base {
-        Some(b) => b.join(&rel),
-        None => PathBuf::from(&rel),
-    };
-    read_file_limited(&file, limit).map_err(|e| io_why("cannot read", &e))
-}
-
-fn read_file_limited(file: &Path, limit: u64) -> std::io::Result<Vec<u8>> {
-    use std::io::Read;
-    let f = std::fs::File::open(file)?;
-    let meta = f.metadata()?;
-    if !meta.is_file() {
-        return Err(std::io::Error::other("not a regular file"));
-    }
-    let mut out = Vec::with_capacity(meta.len().min(limit) as usize);
-    f.take(limit).read_to_end(&mut out)?;
-    Ok(out)
+        .map_err(|_| bad("the URI is not valid UTF-8 after percent-decoding".to_string()))?;
+    let file = assets.resolve(Path::new(&rel))?;
+    let (bytes, _) = assets.read(&file, want, max_file)?;
+    let n = usize::try_from(want).unwrap_or(usize::MAX).min(bytes.len());
+    Ok(BufferData::Shared(bytes, n))
 }
 
 fn percent_decode(s: &str) -> Vec<u8> {
@@ -262,36 +309,6 @@ fn base64_decode(s: &str) -> std::result::Result<Vec<u8>, String> {
             out.push((acc >> bits) as u8);
             acc &= (1 << bits) - 1;
         }
-    }
-    Ok(out)
-}
-
-fn load_buffers<'a>(
-    root: &json::Root,
-    base: Option<&Path>,
-    mut bin: Option<&'a [u8]>,
-) -> std::result::Result<Vec<Cow<'a, [u8]>>, String> {
-    let mut out = Vec::with_capacity(root.buffers.len());
-    for (i, buf) in root.buffers.iter().enumerate() {
-        let (data, label): (Cow<[u8]>, String) = match &buf.uri {
-            None => match bin.take() {
-                Some(b) => (Cow::Borrowed(b), "GLB BIN chunk".into()),
-                None => return Err(format!("buffer {i} has no uri and there is no (unused) GLB BIN chunk for it")),
-            },
-            Some(uri) => {
-                let label = format!("'{}'", short_uri(uri));
-                let data = read_uri(uri, base, buf.byte_length.0).map_err(|e| format!("buffer {i} ({label}): {e}"))?;
-                (Cow::Owned(data), label)
-            }
-        };
-        if (data.len() as u64) < buf.byte_length.0 {
-            return Err(format!(
-                "buffer {i} ({label}) is too short: {} bytes, byteLength says {}",
-                data.len(),
-                buf.byte_length.0
-            ));
-        }
-        out.push(data);
     }
     Ok(out)
 }
@@ -349,23 +366,63 @@ fn read_component(b: &[u8], at: usize, c: ComponentType, normalized: bool) -> Op
 /// cannot allocate gigabytes.
 const MAX_UNBACKED_ELEMENTS: u64 = 1 << 24;
 
-impl Loader<'_> {
-    /// The bytes of buffer view `v`, bounds-checked against its buffer.
-    fn view_bytes(&self, v: usize) -> std::result::Result<(&[u8], Option<usize>), String> {
-        let view = self.root.buffer_views.get(v).ok_or_else(|| format!("buffer view {v} does not exist"))?;
+impl<'a> Loader<'a> {
+    /// Loads buffer `i` (called once per buffer, when a view of it is first read).
+    fn load_buffer(&self, i: usize) -> std::result::Result<BufferData<'a>, AssetError> {
+        let buf =
+            self.root.buffers.get(i).ok_or_else(|| AssetError::Unavailable(format!("buffer {i} does not exist")))?;
+        let (data, label) = match &buf.uri {
+            None => match self.bin.filter(|_| self.bin_owner == Some(i)) {
+                Some(b) => (BufferData::Borrowed(b), "GLB BIN chunk".to_string()),
+                None => {
+                    return Err(AssetError::Unavailable(format!(
+                        "buffer {i} has no uri and there is no (unused) GLB BIN chunk for it"
+                    )))
+                }
+            },
+            Some(uri) => {
+                let label = format!("'{}'", short_uri(uri));
+                let want = self.uri_want.get(uri.as_str()).copied().unwrap_or(buf.byte_length.0);
+                let data = read_uri(uri, self.assets, want, u64::MAX)
+                    .map_err(|e| e.context(format!("buffer {i} ({label})")))?;
+                (data, label)
+            }
+        };
+        let len = data.bytes().len() as u64;
+        if len < buf.byte_length.0 {
+            return Err(AssetError::Unavailable(format!(
+                "buffer {i} ({label}) is too short: {len} bytes, byteLength says {}",
+                buf.byte_length.0
+            )));
+        }
+        // A file read further for another buffer naming it is cut back to this one's length.
+        Ok(match data {
+            BufferData::Shared(a, _) => BufferData::Shared(a, buf.byte_length.0 as usize),
+            other => other,
+        })
+    }
+
+    /// The bytes of buffer view `v`, bounds-checked against its buffer (which is loaded now if
+    /// it was not yet).
+    fn view_bytes(&self, v: usize) -> std::result::Result<(&[u8], Option<usize>), AssetError> {
+        let bad = AssetError::Unavailable;
+        let view = self.root.buffer_views.get(v).ok_or_else(|| bad(format!("buffer view {v} does not exist")))?;
         let b = view.buffer.value();
-        let data =
-            self.buffers.get(b).ok_or_else(|| format!("buffer view {v} refers to buffer {b}, which does not exist"))?;
+        let cell = self
+            .buffers
+            .get(b)
+            .ok_or_else(|| bad(format!("buffer view {v} refers to buffer {b}, which does not exist")))?;
+        let data = cell.get_or_init(|| self.load_buffer(b)).as_ref().map_err(Clone::clone)?.bytes();
         let off = view.byte_offset.map_or(0, |o| o.0);
         let len = view.byte_length.0;
         let bytes = off
             .checked_add(len)
             .and_then(|end| data.get(usize::try_from(off).ok()?..usize::try_from(end).ok()?))
             .ok_or_else(|| {
-                format!(
+                bad(format!(
                     "buffer view {v} (offset {off}, length {len}) reads past the end of buffer {b} ({} bytes)",
                     data.len()
-                )
+                ))
             })?;
         Ok((bytes, view.byte_stride.map(|s| s.0)))
     }
@@ -511,8 +568,14 @@ impl Loader<'_> {
 
 struct Loader<'a> {
     root: &'a json::Root,
-    buffers: &'a [Cow<'a, [u8]>],
-    base: Option<PathBuf>,
+    /// The GLB BIN chunk, and the buffer it belongs to (the first one without a URI).
+    bin: Option<&'a [u8]>,
+    bin_owner: Option<usize>,
+    /// Buffers, loaded on first use.
+    buffers: Vec<OnceCell<std::result::Result<BufferData<'a>, AssetError>>>,
+    assets: &'a AssetReader,
+    /// Bytes to read of each external buffer file, by URI.
+    uri_want: HashMap<&'a str, u64>,
     scene: Scene,
     /// Converted primitives: (mesh, primitive) → mesh id, or `None` when skipped.
     meshes: HashMap<(usize, usize), Option<MeshId>>,
@@ -723,7 +786,8 @@ impl Loader<'_> {
         if let Some(info) = &pbr.base_color_texture {
             match self.base_color_texture(info) {
                 Ok(t) => texture = t,
-                Err(e) => self
+                Err(AssetError::Refused(e)) => return Err(format!("{label}: base color texture: {e}")),
+                Err(AssetError::Unavailable(e)) => self
                     .scene
                     .warnings
                     .push(format!("{label}: base color texture: {e}; using the base color factor alone")),
@@ -740,12 +804,16 @@ impl Loader<'_> {
         Ok(id)
     }
 
-    fn base_color_texture(&mut self, info: &json::texture::Info) -> std::result::Result<Option<Arc<Texture>>, String> {
+    fn base_color_texture(
+        &mut self,
+        info: &json::texture::Info,
+    ) -> std::result::Result<Option<Arc<Texture>>, AssetError> {
+        let bad = AssetError::Unavailable;
         if info.tex_coord != 0 {
-            return Err(format!("it uses TEXCOORD_{}, only TEXCOORD_0 is loaded", info.tex_coord));
+            return Err(bad(format!("it uses TEXCOORD_{}, only TEXCOORD_0 is loaded", info.tex_coord)));
         }
         let t = info.index.value();
-        let tex = self.root.textures.get(t).ok_or_else(|| format!("texture {t} does not exist"))?;
+        let tex = self.root.textures.get(t).ok_or_else(|| bad(format!("texture {t} does not exist")))?;
         let img = tex.source.value();
         if let Some(Some(cached)) = self.images.get(img) {
             return Ok(cached.clone());
@@ -754,20 +822,22 @@ impl Loader<'_> {
             .root
             .images
             .get(img)
-            .ok_or_else(|| format!("texture {t} refers to image {img}, which does not exist"))?;
+            .ok_or_else(|| bad(format!("texture {t} refers to image {img}, which does not exist")))?;
         let label = match (&image.uri, &image.name) {
             (Some(uri), _) => format!("image {img} ('{}')", short_uri(uri)),
             (None, Some(name)) => format!("image {img} ('{name}')"),
             (None, None) => format!("image {img}"),
         };
-        let bytes: Cow<[u8]> = match (&image.uri, image.buffer_view) {
+        let from_uri;
+        let bytes: &[u8] = match (&image.uri, image.buffer_view) {
             (Some(uri), _) => {
-                Cow::Owned(read_uri(uri, self.base.as_deref(), MAX_IMAGE_FILE).map_err(|e| format!("{label}: {e}"))?)
+                from_uri = read_uri(uri, self.assets, u64::MAX, MAX_IMAGE_FILE).map_err(|e| e.context(&label))?;
+                from_uri.bytes()
             }
-            (None, Some(v)) => Cow::Borrowed(self.view_bytes(v.value()).map_err(|e| format!("{label}: {e}"))?.0),
-            (None, None) => return Err(format!("{label} has neither a uri nor a buffer view")),
+            (None, Some(v)) => self.view_bytes(v.value()).map_err(|e| e.context(&label))?.0,
+            (None, None) => return Err(bad(format!("{label} has neither a uri nor a buffer view"))),
         };
-        let decoded = decode_texture(&bytes).map_err(|e| format!("{label}: {e}"))?;
+        let decoded = decode_texture(bytes).map_err(|e| bad(format!("{label}: {e}")))?;
         let decoded = Some(Arc::new(decoded));
         if let Some(slot) = self.images.get_mut(img) {
             *slot = Some(decoded.clone());

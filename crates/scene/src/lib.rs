@@ -30,6 +30,7 @@
 // `!(x > 0.0)` is how this code says "not positive, or NaN": the negated comparison is the point.
 #![allow(clippy::neg_cmp_op_on_partial_ord)]
 
+pub mod assets;
 mod bounds;
 pub mod builders;
 mod camera;
@@ -48,6 +49,7 @@ mod stats;
 mod transform;
 pub mod views;
 
+pub use assets::LoadOptions;
 pub use bounds::Aabb;
 pub use camera::{projection_onto_plane, Camera, View};
 pub use error::{Error, Result};
@@ -59,13 +61,20 @@ pub use stats::SceneStats;
 pub use transform::{affine_from_mat4, validate_affine, Transform};
 
 /// Loads a scene from a `.gltf`, `.glb` or `.obj` file, chosen by extension, with world
-/// transforms already propagated.
+/// transforms already propagated. Files it refers to must be inside its folder (see
+/// [`assets`]; [`load_with`] allows other folders).
 pub fn load(path: impl AsRef<std::path::Path>) -> Result<Scene> {
+    load_with(path, &LoadOptions::default())
+}
+
+/// [`load`] with options: other folders referenced files may come from, a cap on the bytes
+/// read.
+pub fn load_with(path: impl AsRef<std::path::Path>, options: &LoadOptions) -> Result<Scene> {
     let path = path.as_ref();
     let ext = path.extension().and_then(|e| e.to_str()).map(|e| e.to_ascii_lowercase());
     let mut scene = match ext.as_deref() {
-        Some("gltf") | Some("glb") => gltf_loader::load_gltf(path)?,
-        Some("obj") => obj_loader::load_obj(path)?,
+        Some("gltf") | Some("glb") => gltf_loader::load_gltf_with(path, options)?,
+        Some("obj") => obj_loader::load_obj_with(path, options)?,
         _ => return Err(Error::load(path, "unknown file type: expected .gltf, .glb or .obj")),
     };
     scene.update_transforms();

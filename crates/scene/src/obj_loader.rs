@@ -10,44 +10,60 @@
 //! * Each mesh holds the vertices its faces use (in first-use order); unreferenced vertices
 //!   are fine. Normals and texture coordinates are kept when every vertex of the mesh has one;
 //!   `vt` v is flipped (`1 − v`) to this crate's top-row-is-v-0 convention.
-//! * `.mtl`: `Kd` becomes the base color, `d` its alpha, `map_Kd` the base color texture
-//!   (PNG/JPEG). A missing or unreadable `.mtl` or a missing texture
+//! * `.mtl` (the Wavefront MTL format): `Kd` becomes the base color, `d` its alpha, `map_Kd`
+//!   the base color texture (PNG/JPEG). A missing or unreadable `.mtl` or a missing texture
 //!   is a warning in [`Scene::warnings`]; the geometry loads with the default material.
+//! * `mtllib` and `map_Kd` files are found relative to the OBJ file's folder and read under
+//!   the rules of [`crate::assets`]: inside that folder (or an allowed root), regular files
+//!   only, each read once, within a total. A library named twice is read (and merged) once.
 //!
-//! Errors ([`Error::Load`], naming the file): file not found, malformed lines (the `tobj`
-//! error, e.g. "face parse error"), face indices out of range, NaN or infinite coordinates.
+//! Errors ([`Error::Load`], naming the file): file not found, not a regular file, malformed
+//! lines (the `tobj` error, e.g. "face parse error"), face indices out of range, NaN or
+//! infinite coordinates, an `mtllib` or `map_Kd` that the rules above refuse.
 
 use std::cell::RefCell;
-use std::collections::HashMap;
+use std::collections::{HashMap, HashSet};
 use std::io::BufRead;
-use std::path::Path;
+use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
 use glam::{Vec2, Vec3};
 
-use crate::{Error, Material, Mesh, NodeDesc, Result, Scene};
+use crate::assets::{AssetError, AssetReader};
+use crate::{Error, LoadOptions, Material, Mesh, NodeDesc, Result, Scene, Texture};
 
-/// Loads an OBJ file (and the `.mtl` files it names, relative to its folder).
+/// Largest texture file read, in bytes.
+const MAX_IMAGE_FILE: u64 = 256 << 20;
+
+/// Loads an OBJ file (and the `.mtl` files it names, relative to its folder), with the default
+/// [`LoadOptions`] (files inside its folder only).
 ///
 /// The returned scene's world transforms are not yet propagated (call
 /// [`Scene::update_transforms`], or use [`crate::load`], which does).
 pub fn load_obj(path: &Path) -> Result<Scene> {
-    let file = std::fs::File::open(path).map_err(|e| {
-        Error::load(
-            path,
-            if e.kind() == std::io::ErrorKind::NotFound {
-                "cannot open: file not found".to_string()
-            } else {
-                format!("cannot open: {e}")
-            },
-        )
-    })?;
-    load_obj_reader(std::io::BufReader::with_capacity(1 << 16, file), path)
+    load_obj_with(path, &LoadOptions::default())
+}
+
+/// [`load_obj`] with options: other folders `mtllib`/`map_Kd` files may come from, a read cap.
+pub fn load_obj_with(path: &Path, options: &LoadOptions) -> Result<Scene> {
+    let assets = AssetReader::new(path, options).map_err(|e| Error::load(path, e))?;
+    let file = assets.open_main().map_err(|e| Error::load(path, e))?;
+    load_with_reader(std::io::BufReader::with_capacity(1 << 16, file), path, &assets)
 }
 
 /// Loads OBJ text from a reader. `path` names the file in messages and the root node, and its
-/// folder resolves `mtllib` references.
-pub fn load_obj_reader(mut reader: impl BufRead, path: &Path) -> Result<Scene> {
+/// folder resolves `mtllib` references (under the default [`LoadOptions`]).
+pub fn load_obj_reader(reader: impl BufRead, path: &Path) -> Result<Scene> {
+    load_obj_reader_with(reader, path, &LoadOptions::default())
+}
+
+/// [`load_obj_reader`] with options.
+pub fn load_obj_reader_with(reader: impl BufRead, path: &Path, options: &LoadOptions) -> Result<Scene> {
+    let assets = AssetReader::new(path, options).map_err(|e| Error::load(path, e))?;
+    load_with_reader(reader, path, &assets)
+}
+
+fn load_with_reader(mut reader: impl BufRead, path: &Path, assets: &AssetReader) -> Result<Scene> {
     // `..Default::default()` keeps this compiling if another crate turns on tobj's
     // `merging`/`reordering` features (which add fields).
     #[allow(clippy::needless_update)]
@@ -58,23 +74,38 @@ pub fn load_obj_reader(mut reader: impl BufRead, path: &Path) -> Result<Scene> {
         ignore_lines: true,
         ..Default::default()
     };
-    let dir = path.parent().unwrap_or(Path::new(""));
     let warnings = RefCell::new(Vec::new());
+    // The first refused library: the load fails with it once tobj returns.
+    let refused: RefCell<Option<String>> = RefCell::new(None);
+    let libraries: RefCell<HashSet<PathBuf>> = RefCell::new(HashSet::new());
     let mtl_loader = |mtl: &Path| {
-        let file = dir.join(mtl);
-        match std::fs::read_to_string(&file) {
-            Ok(text) => {
+        let text = assets.resolve(mtl).and_then(|file| {
+            if !libraries.borrow_mut().insert(file.clone()) {
+                return Ok(None); // named before: its materials are already in
+            }
+            let (bytes, _) = assets.read(&file, u64::MAX, u64::MAX)?;
+            match std::str::from_utf8(&bytes) {
+                Ok(text) => Ok(Some(text.to_string())),
+                Err(e) => Err(AssetError::Unavailable(format!("not UTF-8 text ({e})"))),
+            }
+        });
+        match text {
+            Ok(Some(text)) => {
                 let mats = parse_mtl(&text, &mtl.display().to_string(), &mut warnings.borrow_mut());
                 // tobj's map type is its own hasher's; let `collect` name it.
                 let map = mats.iter().enumerate().map(|(i, m)| (m.name.clone(), i)).collect();
                 Ok((mats, map))
             }
-            Err(e) => {
-                warnings.borrow_mut().push(format!(
-                    "material library '{}': {}; using the default material",
-                    mtl.display(),
-                    if e.kind() == std::io::ErrorKind::NotFound { "file not found".to_string() } else { e.to_string() }
-                ));
+            Ok(None) => Ok((Vec::new(), Default::default())),
+            Err(AssetError::Unavailable(e)) => {
+                let e = e.strip_prefix("cannot read: ").unwrap_or(&e);
+                warnings
+                    .borrow_mut()
+                    .push(format!("material library '{}': {e}; using the default material", mtl.display()));
+                Err(tobj::LoadError::OpenFileFailed)
+            }
+            Err(AssetError::Refused(e)) => {
+                refused.borrow_mut().get_or_insert_with(|| format!("material library '{}': {e}", mtl.display()));
                 Err(tobj::LoadError::OpenFileFailed)
             }
         }
@@ -84,6 +115,9 @@ pub fn load_obj_reader(mut reader: impl BufRead, path: &Path) -> Result<Scene> {
     let result = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
         tobj::load_obj_buf(&mut reader, &options, mtl_loader)
     }));
+    if let Some(e) = refused.into_inner() {
+        return Err(Error::load(path, e));
+    }
     let (models, materials) = match result {
         Ok(Ok(loaded)) => loaded,
         Ok(Err(e)) => return Err(Error::load(path, format!("malformed OBJ: {e}"))),
@@ -92,7 +126,7 @@ pub fn load_obj_reader(mut reader: impl BufRead, path: &Path) -> Result<Scene> {
     let materials = materials.unwrap_or_default();
     let mut scene = Scene::new();
     scene.warnings = warnings.into_inner();
-    build_scene(&mut scene, models, &materials, dir, path)?;
+    build_scene(&mut scene, models, &materials, assets, path)?;
     for w in &mut scene.warnings {
         *w = format!("{}: {w}", path.display());
     }
@@ -103,12 +137,13 @@ fn build_scene(
     scene: &mut Scene,
     models: Vec<tobj::Model>,
     materials: &[tobj::Material],
-    dir: &Path,
+    assets: &AssetReader,
     path: &Path,
 ) -> Result<()> {
     let root_name = path.file_name().map_or_else(|| "obj".to_string(), |n| n.to_string_lossy().into_owned());
     let root = scene.add_node(None, NodeDesc::new(root_name))?;
     let mut material_ids = HashMap::new();
+    let mut textures = HashMap::new();
     for model in models {
         let m = model.mesh;
         if m.indices.is_empty() {
@@ -126,10 +161,16 @@ fn build_scene(
         let mut desc = NodeDesc::new(model.name).mesh(mesh);
         if let Some(mi) = m.material_id {
             if let Some(mat) = materials.get(mi) {
-                let id = *material_ids.entry(mi).or_insert_with(|| {
-                    let converted = convert_material(mat, dir, &mut scene.warnings);
-                    scene.add_material(converted)
-                });
+                let id = match material_ids.get(&mi) {
+                    Some(&id) => id,
+                    None => {
+                        let converted = convert_material(mat, assets, &mut textures, &mut scene.warnings)
+                            .map_err(|e| Error::load(path, e))?;
+                        let id = scene.add_material(converted);
+                        material_ids.insert(mi, id);
+                        id
+                    }
+                };
                 desc.material = Some(id);
             }
         }
@@ -138,29 +179,38 @@ fn build_scene(
     Ok(())
 }
 
-fn convert_material(m: &tobj::Material, dir: &Path, warnings: &mut Vec<String>) -> Material {
+/// Converts a tobj material; `textures` caches decoded textures by file, so many materials
+/// naming one texture decode it once. A texture the asset rules refuse is an error.
+fn convert_material(
+    m: &tobj::Material,
+    assets: &AssetReader,
+    textures: &mut HashMap<PathBuf, Arc<Texture>>,
+    warnings: &mut Vec<String>,
+) -> std::result::Result<Material, String> {
     let mut out = Material { name: m.name.clone(), ..Material::default() };
     if let Some(kd) = m.diffuse {
         out.base_color = [kd[0], kd[1], kd[2], m.dissolve.unwrap_or(1.0)];
     }
     if let Some(tex) = &m.diffuse_texture {
-        let decoded = std::fs::read(dir.join(tex))
-            .map_err(|e| {
-                if e.kind() == std::io::ErrorKind::NotFound {
-                    "file not found".to_string()
-                } else {
-                    e.to_string()
-                }
-            })
-            .and_then(|bytes| crate::gltf_loader::decode_texture(&bytes));
+        let decoded = assets.resolve(Path::new(tex)).and_then(|file| {
+            if let Some(t) = textures.get(&file) {
+                return Ok(t.clone());
+            }
+            let (bytes, _) = assets.read(&file, u64::MAX, MAX_IMAGE_FILE)?;
+            let t = Arc::new(crate::gltf_loader::decode_texture(&bytes).map_err(AssetError::Unavailable)?);
+            textures.insert(file, t.clone());
+            Ok(t)
+        });
         match decoded {
-            Ok(t) => out.base_color_texture = Some(Arc::new(t)),
-            Err(e) => {
+            Ok(t) => out.base_color_texture = Some(t),
+            Err(AssetError::Refused(e)) => return Err(format!("material '{}': texture '{tex}': {e}", m.name)),
+            Err(AssetError::Unavailable(e)) => {
+                let e = e.strip_prefix("cannot read: ").unwrap_or(&e);
                 warnings.push(format!("material '{}': texture '{tex}': {e}; using the diffuse color alone", m.name))
             }
         }
     }
-    out
+    Ok(out)
 }
 
 /// A forgiving `.mtl` reader: `newmtl`, `Kd`, `d`/`Tr`, `map_Kd`. A malformed value is a
