@@ -59,7 +59,7 @@ fn boxes_behind_beside_and_across_the_near_plane() {
 fn a_depth_cleared_buffer_occludes_nothing() {
     let (scene, cam) = wall();
     let mut culler = Culler::new(&scene);
-    let mut fb = Framebuffer::new(160, 90).unwrap();
+    let fb = Framebuffer::new(160, 90).unwrap();
     // Looking away from the wall: nothing is drawn.
     let away = CameraKey {
         eye: [0.0; 3],
