@@ -160,27 +160,28 @@ impl BoxProjector {
         self.classify_with(b, |image| image)
     }
 
-    /// `then(self.classify(b))`, with `then` inlined into each path, so that a caller that
-    /// only needs a small answer (a query's three-way verdict) gets it without the
-    /// [`BoxImage`] passing through memory.
+    /// `then(self.classify(b))`, with `then` inlined into the caller (it has one call site,
+    /// after the branch on the level), so that a caller that only needs a small answer (a
+    /// query's three-way verdict) does not go through a call for it.
     #[inline(always)]
     pub fn classify_with<R>(&self, b: &Aabb, then: impl FnOnce(BoxImage) -> R) -> R {
-        match self.simd {
+        let image = match self.simd {
             #[cfg(target_arch = "x86_64")]
             // SAFETY: `self.simd` comes from `SimdLevel::resolve`, which gives AVX2 or AVX-512
             // only when the CPU has every feature of `simd::AVX2_FEATURES`, the features
-            // `classify_avx2_with` enables.
-            SimdLevel::Avx2 | SimdLevel::Avx512 => unsafe { self.classify_avx2_with(b, then) },
-            _ => then(self.classify_portable(b)),
-        }
+            // `classify_avx2` enables.
+            SimdLevel::Avx2 | SimdLevel::Avx512 => unsafe { self.classify_avx2(b) },
+            _ => self.classify_portable(b),
+        };
+        then(image)
     }
 
     /// Classifies every box of `boxes`: calls `f(i, self.classify(&boxes[i]))` for each `i`,
     /// in increasing order.
     ///
-    /// With AVX2 (at the projector's [`SimdLevel`]; one branch per call, then the whole loop,
-    /// `f` included, runs in a `#[target_feature]` function) this projects eight boxes at a
-    /// time, one box per lane
+    /// With AVX2 (at the projector's [`SimdLevel`]: a predictable branch per 32 boxes to a
+    /// `#[target_feature]` function; `f` keeps one call site, inlined here) this projects
+    /// eight boxes at a time, one box per lane
     /// ([`BoxProjector::classify_portable`]'s operations, lane by lane, so the answers are the
     /// same bit for bit): the corners' clip coordinates, the clip-plane and near-plane tests,
     /// the reciprocals of w and the min/max over the corners are each a few 256-bit
@@ -188,43 +189,36 @@ impl BoxProjector {
     /// of dependent operations each. Boxes that need care (empty, unbounded, or with clip
     /// terms that are not finite) are handed to the scalar path.
     #[inline]
-    pub fn classify_many(&self, boxes: &[Aabb], f: impl FnMut(usize, BoxImage)) {
-        match self.simd {
-            #[cfg(target_arch = "x86_64")]
+    pub fn classify_many(&self, boxes: &[Aabb], mut f: impl FnMut(usize, BoxImage)) {
+        #[cfg(target_arch = "x86_64")]
+        let lanes = match self.simd {
             // SAFETY: as in `classify_with`: the resolved level guarantees the features of
-            // `classify_many_avx2`.
-            SimdLevel::Avx2 | SimdLevel::Avx512 => unsafe { classify_many_avx2(self, boxes, f) },
-            _ => self.classify_many_with(boxes, f, |_, _| 0xFF, BoxProjector::classify_portable),
+            // `Lanes::new`.
+            SimdLevel::Avx2 | SimdLevel::Avx512 => Some(unsafe { Lanes::new(self) }),
+            _ => None,
+        };
+        let mut batch = Batch::default();
+        for (c, chunk) in boxes.chunks(BATCH).enumerate() {
+            #[cfg(target_arch = "x86_64")]
+            match &lanes {
+                // SAFETY: `lanes` exists only at a level with the features of `chunk_avx2`.
+                Some(lanes) => unsafe { chunk_avx2(self, lanes, chunk, &mut batch) },
+                None => self.chunk_portable(chunk, &mut batch),
+            }
+            #[cfg(not(target_arch = "x86_64"))]
+            self.chunk_portable(chunk, &mut batch);
+            // One call site for `f`, so that it is inlined.
+            for k in 0..chunk.len() {
+                f(BATCH * c + k, batch.image(k));
+            }
         }
     }
 
-    /// The loop of [`BoxProjector::classify_many`]: `batch8` answers eight boxes into a
-    /// [`Batch`] and returns the mask of the lanes it left out, which `one` answers box by
-    /// box (as do the boxes of a last, shorter chunk).
-    #[inline(always)]
-    fn classify_many_with(
-        &self,
-        boxes: &[Aabb],
-        mut f: impl FnMut(usize, BoxImage),
-        mut batch8: impl FnMut(&[Aabb; 8], &mut Batch) -> u32,
-        one: impl Fn(&BoxProjector, &Aabb) -> BoxImage,
-    ) {
-        let mut batch = Batch::default();
-        for (c, chunk) in boxes.chunks(8).enumerate() {
-            let mut scalar = match <&[Aabb; 8]>::try_from(chunk) {
-                Ok(chunk) => batch8(chunk, &mut batch),
-                Err(_) => (1 << chunk.len()) - 1,
-            };
-            // The lanes the batch left out (the tail, unusual boxes), one box at a time.
-            while scalar != 0 {
-                let k = scalar.trailing_zeros() as usize;
-                scalar &= scalar - 1;
-                batch.set(k, one(self, &chunk[k]));
-            }
-            // One call site for `f`, so that it is inlined.
-            for k in 0..chunk.len() {
-                f(8 * c + k, batch.image(k));
-            }
+    /// Answers up to [`BATCH`] boxes into lanes `0..chunk.len()` of `out`, one by one.
+    #[inline]
+    fn chunk_portable(&self, chunk: &[Aabb], out: &mut Batch) {
+        for (k, b) in chunk.iter().enumerate() {
+            out.set(k, self.classify_portable(b));
         }
     }
 
@@ -357,15 +351,14 @@ impl BoxProjector {
     /// clip tests are lane-wise compares reduced across registers, one division gives the
     /// eight reciprocals, and the min/max over the corners are six lane-wise operations.
     /// Every arithmetic operation is the one the portable path does, on the same operands,
-    /// so every value (and so the answer) is the same bit for bit. Like
-    /// [`BoxProjector::classify_with`], it answers `then(image)`, with `then` inlined.
+    /// so every value (and so the answer) is the same bit for bit.
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx2,fma,bmi1,bmi2,lzcnt,popcnt")]
     #[inline]
-    fn classify_avx2_with<R>(&self, b: &Aabb, then: impl FnOnce(BoxImage) -> R) -> R {
+    fn classify_avx2(&self, b: &Aabb) -> BoxImage {
         use std::arch::x86_64::*;
         let Some((base, dx, dy, dz)) = self.corner_terms(b) else {
-            return then(self.unbounded_or_empty(b));
+            return self.unbounded_or_empty(b);
         };
         // The intrinsics work on values only (no memory is accessed through pointers).
         let (x0, y0, x1, y1, z0) = {
@@ -389,13 +382,13 @@ impl BoxProjector {
             let beyond = Self::all_corners::<_CMP_GT_OQ>(c, w);
             let below = Self::all_corners::<_CMP_LT_OQ>(c, n);
             if (beyond | below) & 0b0111 != 0 {
-                return then(BoxImage::Outside);
+                return BoxImage::Outside;
             }
             // In front of the near plane: z ≥ −w (lane 2) and w > W_EPS (lane 3) at every corner.
             let front = Self::all_corners::<_CMP_GE_OQ>(c, n);
             let ahead = Self::all_corners::<_CMP_GT_OQ>(w, [_mm256_set1_ps(W_EPS); 4]);
             if front & 0b0100 == 0 || ahead & 0b1000 == 0 {
-                return then(BoxImage::CrossesNear);
+                return BoxImage::CrossesNear;
             }
             // The eight w in one register (corner k in lane k / 2 + 4 (k mod 2)), one division.
             let w = _mm256_blend_ps::<0xCC>(_mm256_blend_ps::<0x22>(w01, w23), _mm256_blend_ps::<0x88>(w45, w67));
@@ -408,7 +401,7 @@ impl BoxProjector {
             let z = |v: __m256| _mm256_sub_ps(v, v);
             let nan = _mm256_add_ps(_mm256_add_ps(z(p01), z(p23)), _mm256_add_ps(z(p45), z(p67)));
             if _mm256_movemask_ps(_mm256_cmp_ps::<_CMP_UNORD_Q>(nan, nan)) != 0 {
-                return then(BoxImage::CrossesNear);
+                return BoxImage::CrossesNear;
             }
             // No NaN is left, so min and max are the portable path's whatever the order.
             let lo = _mm256_min_ps(_mm256_min_ps(p01, p23), _mm256_min_ps(p45, p67));
@@ -430,21 +423,32 @@ impl BoxProjector {
             let z0 = f32::from_bits(_mm_extract_ps::<2>(lo) as u32);
             (x0, y0, x1, y1, z0)
         };
-        then(self.rect(x0, y0, x1, y1, z0))
+        self.rect(x0, y0, x1, y1, z0)
     }
 }
 
-/// The answers of eight boxes (`Lanes::classify8`), lane k for box k.
-#[derive(Debug, Default)]
+/// Boxes answered per call of the AVX2 path (four batches of eight lanes), so that the call
+/// costs little per box.
+const BATCH: usize = 32;
+
+/// The answers of up to [`BATCH`] boxes, lane k for box k (filled eight lanes at a time by
+/// `Lanes::classify8`).
+#[derive(Debug)]
 #[repr(C, align(32))]
 struct Batch {
     /// [`Batch::RECT`], [`Batch::OUTSIDE`] or [`Batch::CROSSES`].
-    kind: [i32; 8],
-    x0: [i32; 8],
-    y0: [i32; 8],
-    x1: [i32; 8],
-    y1: [i32; 8],
-    depth: [f32; 8],
+    kind: [i32; BATCH],
+    x0: [i32; BATCH],
+    y0: [i32; BATCH],
+    x1: [i32; BATCH],
+    y1: [i32; BATCH],
+    depth: [f32; BATCH],
+}
+
+impl Default for Batch {
+    fn default() -> Batch {
+        Batch { kind: [0; BATCH], x0: [0; BATCH], y0: [0; BATCH], x1: [0; BATCH], y1: [0; BATCH], depth: [0.0; BATCH] }
+    }
 }
 
 impl Batch {
@@ -518,7 +522,8 @@ impl Lanes {
         }
     }
 
-    /// [`BoxProjector::classify_portable`] for eight boxes, one per lane, into `out`. Lanes
+    /// [`BoxProjector::classify_portable`] for eight boxes, one per lane, into lanes
+    /// `at..at + 8` of `out` (`at` a multiple of eight). Lanes
     /// whose box is not finite, or whose clip terms (`base`, `dx`, `dy`, `dz`) are not all
     /// finite, are left for the one-box path (their lanes hold anything); the returned mask
     /// has bit k set for such a lane k. For the others no corner coordinate is NaN (sums of
@@ -527,11 +532,14 @@ impl Lanes {
     /// min or max over the corners (or, for w = +∞, in the max of w).
     #[target_feature(enable = "avx2,fma,bmi1,bmi2,lzcnt,popcnt")]
     #[inline]
-    fn classify8(&self, boxes: &[Aabb; 8], out: &mut Batch) -> u32 {
+    fn classify8(&self, boxes: &[Aabb; 8], out: &mut Batch, at: usize) -> u32 {
         use std::arch::x86_64::*;
-        // SAFETY: the function's features include AVX2, so the intrinsics may run. Box k is read as floats at its address: 16 bytes
-        // at offsets 0 and 8 of its 24 (layout asserted above). The stores go to `out`'s
-        // 32-byte-aligned arrays of eight 4-byte lanes.
+        assert!(at.is_multiple_of(8) && at + 8 <= BATCH);
+        // SAFETY: the function's features include AVX2, so the intrinsics may run. Box k is
+        // read as floats at its address: 16 bytes at offsets 0 and 8 of its 24 (layout
+        // asserted above). The stores write lanes `at..at + 8` (asserted in bounds) of `out`'s
+        // arrays, which are 32-byte aligned there (`Batch` is, each array is 4 · BATCH bytes
+        // long and `at` is a multiple of eight).
         unsafe {
             let p = |k: usize| &boxes[k] as *const Aabb as *const f32;
             // Rows (min.x, min.y, min.z, max.x) and (min.z, max.x, max.y, max.z) of boxes k
@@ -670,12 +678,12 @@ impl Lanes {
             let mut kind = _mm256_blendv_ps(k(Batch::RECT), k(Batch::OUTSIDE), empty);
             kind = _mm256_blendv_ps(kind, k(Batch::CROSSES), crosses);
             kind = _mm256_blendv_ps(kind, k(Batch::OUTSIDE), outside_planes);
-            _mm256_store_si256(out.kind.as_mut_ptr() as *mut __m256i, _mm256_castps_si256(kind));
-            _mm256_store_si256(out.x0.as_mut_ptr() as *mut __m256i, rx0);
-            _mm256_store_si256(out.y0.as_mut_ptr() as *mut __m256i, ry0);
-            _mm256_store_si256(out.x1.as_mut_ptr() as *mut __m256i, rx1);
-            _mm256_store_si256(out.y1.as_mut_ptr() as *mut __m256i, ry1);
-            _mm256_store_ps(out.depth.as_mut_ptr(), depth);
+            _mm256_store_si256(out.kind.as_mut_ptr().add(at) as *mut __m256i, _mm256_castps_si256(kind));
+            _mm256_store_si256(out.x0.as_mut_ptr().add(at) as *mut __m256i, rx0);
+            _mm256_store_si256(out.y0.as_mut_ptr().add(at) as *mut __m256i, ry0);
+            _mm256_store_si256(out.x1.as_mut_ptr().add(at) as *mut __m256i, rx1);
+            _mm256_store_si256(out.y1.as_mut_ptr().add(at) as *mut __m256i, ry1);
+            _mm256_store_ps(out.depth.as_mut_ptr().add(at), depth);
             (_mm256_movemask_ps(simd) ^ 0xFF) as u32
         }
     }
@@ -684,19 +692,32 @@ impl Lanes {
 /// Largest viewport side for which the SIMD path's float clamp and truncation are exact.
 const SIMD_MAX_SIZE: u32 = 1 << 24;
 
-/// [`BoxProjector::classify_many`] with AVX2: eight boxes per batch, the others one by one on
-/// the AVX2 one-box path; `f` is inlined into it.
+/// [`BoxProjector::chunk_portable`] with AVX2: each eight boxes as one batch of eight lanes,
+/// then the lanes it left out (and the boxes of a shorter group) one by one on the AVX2
+/// one-box path.
 ///
 /// It and the kernels it calls are `#[target_feature]` functions with the features of
 /// [`crate::simd::AVX2_FEATURES`] (closures inside inherit them), so that the 256-bit code is
 /// compiled whatever the build's target CPU. They may be called from code with these
-/// features, elsewhere only once [`SimdLevel::resolve`] has given AVX2 or AVX-512.
+/// features, elsewhere only once [`SimdLevel::resolve`] has given AVX2 or AVX-512. They
+/// return their answers: a caller's closure called in one of them would have two call sites
+/// (one per level) and would no longer be inlined.
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2,fma,bmi1,bmi2,lzcnt,popcnt")]
-#[inline]
-fn classify_many_avx2(p: &BoxProjector, boxes: &[Aabb], f: impl FnMut(usize, BoxImage)) {
-    let lanes = Lanes::new(p);
-    p.classify_many_with(boxes, f, |chunk, batch| lanes.classify8(chunk, batch), |p, b| p.classify_avx2_with(b, |i| i));
+fn chunk_avx2(p: &BoxProjector, lanes: &Lanes, chunk: &[Aabb], out: &mut Batch) {
+    for (g, group) in chunk.chunks(8).enumerate() {
+        let at = 8 * g;
+        let mut scalar = match <&[Aabb; 8]>::try_from(group) {
+            Ok(group) => lanes.classify8(group, out, at),
+            Err(_) => (1 << group.len()) - 1,
+        };
+        // The lanes the batch left out (the tail, unusual boxes), one box at a time.
+        while scalar != 0 {
+            let k = scalar.trailing_zeros() as usize;
+            scalar &= scalar - 1;
+            out.set(at + k, p.classify_avx2(&group[k]));
+        }
+    }
 }
 
 /// Projects one box: see [`BoxProjector::project`].
@@ -938,8 +959,9 @@ mod tests {
                 assert_eq!(p.classify(&unit), BoxImage::CrossesNear, "{:?}: {m:?}", p.simd());
                 let ordinary = Aabb::new(Vec3::ZERO, Vec3::new(0.0, 0.2, 0.0));
                 assert!(matches!(p.classify_portable(&ordinary), BoxImage::Rect(_)), "{:?}: {m:?}", p.simd());
-                for lane in 0..8 {
-                    let mut boxes = [ordinary; 8];
+                // Every lane of a call's four batches, and of a shorter last group.
+                for lane in 0..BATCH + 7 {
+                    let mut boxes = [ordinary; BATCH + 7];
                     boxes[lane] = unit;
                     p.classify_many(&boxes, |i, image| {
                         assert_eq!(
