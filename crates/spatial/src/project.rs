@@ -2,14 +2,15 @@
 //! the query shape of hierarchical z-buffer tests (Greene, Kass & Miller 1993; the
 //! rectangle-instead-of-box idea of Intel's Masked Occlusion Culling `TestRect`).
 //!
-//! Window conventions (DESIGN.md): `x_w = (x_ndc + 1)/2 · W`, `y_w = (1 − y_ndc)/2 · H`,
-//! `z_w = (z_ndc + 1)/2`. The eight corners are projected; when any corner has `w ≤ ε` or lies
-//! in front of the near plane (`z < −w`), the box crosses the near plane (or the eye plane) and
-//! the answer is "covers the whole screen, nearest depth 0". Otherwise the rectangle is the
-//! pixel-space bounds of the corners grown by a small margin (vertex snapping to 1/256 pixel
-//! and float error), rounded outwards and clamped to the viewport, and the depth is the
-//! smallest corner window z minus a small margin. Since the view depth is linear over a box
-//! and window z is monotonic in it, the box's nearest point is one of its corners.
+//! Window conventions (OpenGL's viewport transform with row 0 at the top):
+//! `x_w = (x_ndc + 1)/2 · W`, `y_w = (1 − y_ndc)/2 · H`, `z_w = (z_ndc + 1)/2`. The eight
+//! corners are projected; when any corner has `w ≤ ε` or lies in front of the near plane
+//! (`z < −w`), the box crosses the near plane (or the eye plane) and the answer is "covers the
+//! whole screen, nearest depth 0". Otherwise the rectangle is the pixel-space bounds of the
+//! corners grown by a small margin (vertex snapping to 1/256 pixel and float error), rounded
+//! outwards and clamped to the viewport, and the depth is the smallest corner window z minus
+//! a small margin. Since the view depth is linear over a box and window z is monotonic in
+//! it, the box's nearest point is one of its corners.
 //!
 //! ## One computation, three implementations
 //!
