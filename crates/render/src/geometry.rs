@@ -2,14 +2,23 @@
 //! the few that need it, set up the rest.
 //!
 //! Per draw piece the referenced vertex span is transformed by one `clip_from_local`
-//! matrix (eight vertices at a time in AVX2 builds), into flat, reused arrays (outcode, snapped window
-//! position), so a vertex shared by six triangles is transformed and projected once; the
-//! few triangles that need clipping recompute their clip positions. Each triangle then
+//! matrix (eight vertices at a time with AVX2), into flat, reused arrays (outcode, snapped
+//! window position), so a vertex shared by six triangles is transformed and projected once;
+//! the few triangles that need clipping recompute their clip positions. Each triangle then
 //! costs three array reads, an AND and an OR of outcodes (Cohen–Sutherland's trivial
 //! reject/accept), and setup. Only triangles crossing the near/far planes or the guard band
 //! go through the homogeneous Sutherland–Hodgman clipper ([`crate::clip`]).
+//!
+//! The instruction set is chosen when the program runs ([`SimdLevel`]), once per chunk: the
+//! whole stage (transform, classification, setup) is compiled twice from one
+//! `#[inline(always)]` body, once plainly and once inside an AVX2 `#[target_feature]`
+//! function, so that a build without `-C target-cpu` still runs the 256-bit transform.
+//! The eight-wide transform and classification do the scalar path's IEEE operations in the
+//! same order (no fused multiply-adds), so every level gives the same triangles bit for bit.
+//! At the AVX-512 level the AVX2 code runs.
 
 use glam::{Mat4, Vec3, Vec4};
+use sightline_spatial::simd::SimdLevel;
 
 use crate::clip::{self, BAD, GUARD, VIEW_BITS};
 use crate::setup::{setup_into, Outcome, SnappedVertex, Tri, Viewport};
@@ -92,14 +101,38 @@ pub(crate) struct Chunk {
     pub stats: FrameStats,
     /// Single-tile triangles that binning found hidden (set up, but never rasterized).
     pub hidden_at_binning: u64,
+    /// The instruction set the stage runs on, resolved at each [`Chunk::process`] (`Auto`,
+    /// the default: the best available). Every level gives the same output bit for bit.
+    pub simd: SimdLevel,
 }
 
 const NONE: SnappedVertex = SnappedVertex { x: 0, y: 0, z: 0.0 };
 
 impl Chunk {
-    /// Runs the geometry stage over `pieces`.
+    /// Runs the geometry stage over `pieces`, on the instruction set [`Chunk::simd`]
+    /// resolves to (one branch here; none per vertex or triangle).
     #[inline(never)] // a stage of its own in profiles
     pub fn process(&mut self, items: &[Item], pieces: &[Piece], vp: &Viewport, cull: bool) {
+        match self.simd.resolve() {
+            #[cfg(target_arch = "x86_64")]
+            // SAFETY: `SimdLevel::resolve` gives AVX2 or AVX-512 only when the CPU has every
+            // feature of `simd::AVX2_FEATURES`, the features `process_avx2` enables.
+            SimdLevel::Avx2 | SimdLevel::Avx512 => unsafe { process_avx2(self, items, pieces, vp, cull) },
+            _ => self.process_with(items, pieces, vp, cull, transform_portable),
+        }
+    }
+
+    /// The stage, with `transform` filling the vertex cache for a span of positions; inlined
+    /// into each instruction set's entry point.
+    #[inline(always)]
+    fn process_with(
+        &mut self,
+        items: &[Item],
+        pieces: &[Piece],
+        vp: &Viewport,
+        cull: bool,
+        transform: impl Fn(&mut VertexCache, &[Vec3], &Mat4, &Viewport),
+    ) {
         self.tris.clear();
         self.stats = FrameStats::default();
         for p in pieces {
@@ -115,7 +148,7 @@ impl Chunk {
                         (lo, hi)
                     };
                     let span = &positions[lo..hi];
-                    self.transform(span, clip_from_local, vp);
+                    transform(&mut self.verts, span, clip_from_local, vp);
                     let first_id = item.first_id.wrapping_add(p.start);
                     let ids = ids.map(|m| &m[p.start as usize..(p.start + p.count) as usize]);
                     // The clipper's input, recomputed for the few triangles that need it
@@ -141,27 +174,6 @@ impl Chunk {
                     }
                 }
             }
-        }
-    }
-
-    #[inline(never)] // per-vertex work, separate in profiles
-    fn transform(&mut self, positions: &[Vec3], m: &Mat4, vp: &Viewport) {
-        let vc = &mut self.verts;
-        vc.resize(positions.len());
-        #[cfg(not(all(target_arch = "x86_64", target_feature = "avx2")))]
-        let done = 0;
-        #[cfg(all(target_arch = "x86_64", target_feature = "avx2"))]
-        let done = {
-            let n8 = positions.len() / 8 * 8;
-            for g in (0..n8).step_by(8) {
-                let [x, y, z, w] = transform8(&positions[g..g + 8], m);
-                classify8([x, y, z, w], vp, vc, g);
-            }
-            n8
-        };
-        for (i, p) in positions.iter().enumerate().skip(done) {
-            let (code, s) = Self::classify(*m * p.extend(1.0), vp);
-            vc.set(i, code, s);
         }
     }
 
@@ -257,17 +269,59 @@ impl Chunk {
     }
 }
 
+/// Fills `vc` for `positions` under `m`, one vertex at a time.
+#[inline(never)] // per-vertex work, separate in profiles
+fn transform_portable(vc: &mut VertexCache, positions: &[Vec3], m: &Mat4, vp: &Viewport) {
+    vc.resize(positions.len());
+    transform_tail(vc, positions, m, vp, 0);
+}
+
+/// Vertices `from..` of `positions`, one at a time.
+#[inline(always)]
+fn transform_tail(vc: &mut VertexCache, positions: &[Vec3], m: &Mat4, vp: &Viewport, from: usize) {
+    for (k, p) in positions[from..].iter().enumerate() {
+        let (code, s) = Chunk::classify(*m * p.extend(1.0), vp);
+        vc.set(from + k, code, s);
+    }
+}
+
+/// [`Chunk::process`] with AVX2. It and the kernels below are `#[target_feature]` functions
+/// with the features of [`sightline_spatial::simd::AVX2_FEATURES`] (closures inside inherit
+/// them), so that the 256-bit code is compiled whatever the build's target CPU. They may be
+/// called from code with these features, elsewhere only once [`SimdLevel::resolve`] has
+/// given AVX2 or AVX-512.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2,fma,bmi1,bmi2,lzcnt,popcnt")]
+fn process_avx2(chunk: &mut Chunk, items: &[Item], pieces: &[Piece], vp: &Viewport, cull: bool) {
+    chunk.process_with(items, pieces, vp, cull, |vc, positions, m, vp| transform_avx2(vc, positions, m, vp));
+}
+
+/// [`transform_portable`] with AVX2: eight vertices at a time, then the rest one by one.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2,fma,bmi1,bmi2,lzcnt,popcnt")]
+#[inline(never)] // per-vertex work, separate in profiles
+fn transform_avx2(vc: &mut VertexCache, positions: &[Vec3], m: &Mat4, vp: &Viewport) {
+    vc.resize(positions.len());
+    let n8 = positions.len() / 8 * 8;
+    for g in (0..n8).step_by(8) {
+        let [x, y, z, w] = transform8(&positions[g..g + 8], m);
+        classify8([x, y, z, w], vp, vc, g);
+    }
+    transform_tail(vc, positions, m, vp, n8);
+}
+
 /// `m · (p, 1)` for eight positions at once with AVX2, as x, y, z and w vectors: the
 /// three-component rows are transposed with Intel's AoS-to-SoA shuffles, and each component
 /// is summed in glam's order (`((m0·x + m1·y) + m2·z) + m3`, no fused multiply-add), so the
 /// results equal `Mat4 * Vec4` bit for bit.
-#[cfg(all(target_arch = "x86_64", target_feature = "avx2"))]
-#[inline(always)]
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2,fma,bmi1,bmi2,lzcnt,popcnt")]
+#[inline]
 fn transform8(p: &[Vec3], m: &Mat4) -> [std::arch::x86_64::__m256; 4] {
     use std::arch::x86_64::*;
     assert!(p.len() >= 8);
-    // SAFETY: AVX2 is enabled for the whole build (cfg above); the six 16-byte loads read
-    // floats 0..24 of eight packed Vec3 (96 bytes, asserted length).
+    // SAFETY: the function's features include AVX2, so the intrinsics may run; the six
+    // 16-byte loads read floats 0..24 of eight packed Vec3 (96 bytes, asserted length).
     unsafe {
         let f = p.as_ptr() as *const f32;
         let half = |i: usize| _mm_loadu_ps(f.add(4 * i));
@@ -292,16 +346,17 @@ fn transform8(p: &[Vec3], m: &Mat4) -> [std::arch::x86_64::__m256; 4] {
 /// stored at `at..at + 8` of `vc`: the same operations in the same order (IEEE division,
 /// multiply then add, round-to-nearest-even conversion), so the same codes and snapped
 /// positions bit for bit.
-#[cfg(all(target_arch = "x86_64", target_feature = "avx2"))]
-#[inline(always)]
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2,fma,bmi1,bmi2,lzcnt,popcnt")]
+#[inline]
 fn classify8([x, y, z, w]: [std::arch::x86_64::__m256; 4], vp: &Viewport, vc: &mut VertexCache, at: usize) {
     use crate::clip::{BOTTOM, FAR, LEFT, NEAR, RIGHT, TOP};
     use std::arch::x86_64::*;
     let (hw, hh, h_fixed) = vp.scale();
     let (code, sx, sy, sz) =
         (&mut vc.code[at..at + 8], &mut vc.sx[at..at + 8], &mut vc.sy[at..at + 8], &mut vc.sz[at..at + 8]);
-    // SAFETY: AVX2 is enabled for the whole build (cfg above); stores write eight elements
-    // of slices of length eight (bounds-checked just above).
+    // SAFETY: the function's features include AVX2, so the intrinsics may run; stores write
+    // eight elements of slices of length eight (bounds-checked just above).
     unsafe {
         let zero = _mm256_setzero_ps();
         let sign = _mm256_set1_ps(-0.0);
@@ -364,12 +419,12 @@ fn classify8([x, y, z, w]: [std::arch::x86_64::__m256; 4], vp: &Viewport, vc: &m
 }
 
 /// Loads eight clip-space positions as x, y, z and w vectors (a 4×8 transpose).
-#[cfg(all(target_arch = "x86_64", target_feature = "avx2"))]
-#[cfg(test)]
+#[cfg(all(target_arch = "x86_64", test))]
+#[target_feature(enable = "avx2,fma,bmi1,bmi2,lzcnt,popcnt")]
 fn load8(c: &[Vec4]) -> [std::arch::x86_64::__m256; 4] {
     use std::arch::x86_64::*;
     assert!(c.len() >= 8);
-    // SAFETY: AVX2 is enabled for the whole build; the loads read eight Vec4 of the slice.
+    // SAFETY: the function's features include AVX2; the loads read eight Vec4 of the slice.
     unsafe {
         let row = |i: usize| _mm_loadu_ps(&c[i] as *const Vec4 as *const f32);
         let t0 = _mm256_set_m128(row(4), row(0));
@@ -418,9 +473,45 @@ pub(crate) fn split(items: &[(u32, u32, u32)], n: usize, out: &mut Vec<Vec<Piece
 mod tests {
     use super::*;
 
-    #[cfg(all(target_arch = "x86_64", target_feature = "avx2"))]
+    /// The levels this process has (`SIGHTLINE_SIMD` may cap them) that run the eight-wide
+    /// kernels.
+    #[cfg(target_arch = "x86_64")]
+    fn wide_levels() -> Vec<SimdLevel> {
+        SimdLevel::all_available().into_iter().filter(|&l| l >= SimdLevel::Avx2).collect()
+    }
+
+    /// The eight-wide kernels' results as arrays (a test-only entry point with their
+    /// features).
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2,fma,bmi1,bmi2,lzcnt,popcnt")]
+    fn transform8_lanes(p: &[Vec3], m: &Mat4) -> [[f32; 8]; 4] {
+        transform8(p, m).map(|v| {
+            let mut a = [0f32; 8];
+            // SAFETY: stores eight floats into `a`; the function's features include AVX.
+            unsafe { std::arch::x86_64::_mm256_storeu_ps(a.as_mut_ptr(), v) };
+            a
+        })
+    }
+
+    /// [`classify8`] of eight clip-space positions into `vc[0..8]`.
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2,fma,bmi1,bmi2,lzcnt,popcnt")]
+    fn classify8_at(c: &[Vec4], vp: &Viewport, vc: &mut VertexCache) {
+        classify8(load8(c), vp, vc, 0);
+    }
+
+    /// The eight-wide classification equals the scalar one (codes; snapped positions inside
+    /// the guard band) on every available level from AVX2 up.
     #[test]
     fn eight_wide_classification_equals_scalar() {
+        #[cfg(target_arch = "x86_64")]
+        for level in wide_levels() {
+            eight_wide_classification_at(level);
+        }
+    }
+
+    #[cfg(target_arch = "x86_64")]
+    fn eight_wide_classification_at(level: SimdLevel) {
         let mut rng = sightline_scene::rng::Rng::new(3);
         let specials = [f32::NAN, f32::INFINITY, -f32::INFINITY, 0.0, -0.0, 1e30, -1e30, 1e-30];
         for vp in [Viewport::new(1280, 720, true), Viewport::new(7, 3, false)] {
@@ -440,38 +531,164 @@ mod tests {
                     .collect();
                 let mut vc = VertexCache::default();
                 vc.resize(8);
-                classify8(load8(&c), &vp, &mut vc, 0);
+                assert!(level >= SimdLevel::Avx2 && level <= SimdLevel::best());
+                // SAFETY: `level` is available (asserted), so the CPU has AVX2.
+                unsafe { classify8_at(&c, &vp, &mut vc) };
                 for (k, ck) in c.iter().enumerate() {
                     let (want_code, want) = Chunk::classify(*ck, &vp);
-                    assert_eq!(vc.code[k], want_code, "{ck:?}");
+                    assert_eq!(vc.code[k], want_code, "{level:?}: {ck:?}");
                     if want_code & GUARD == 0 {
-                        assert_eq!(vc.snapped(k), want, "{ck:?}");
+                        assert_eq!(vc.snapped(k), want, "{level:?}: {ck:?}");
                     }
                 }
             }
         }
     }
 
-    #[cfg(all(target_arch = "x86_64", target_feature = "avx2"))]
+    /// Where the eight-wide transform runs (every available level from AVX2 up), it equals
+    /// glam's `Mat4 * Vec4` bit for bit.
     #[test]
     fn eight_wide_transform_equals_glam() {
-        let mut rng = sightline_scene::rng::Rng::new(5);
-        for _ in 0..2000 {
-            let m = Mat4::from_cols_array(&[0.0; 16].map(|_| rng.range(-4.0, 4.0)));
-            let p: Vec<Vec3> =
-                (0..8).map(|_| Vec3::new(rng.range(-9.0, 9.0), rng.range(-9.0, 9.0), rng.range(-9.0, 9.0))).collect();
-            let [x, y, z, w] = transform8(&p, &m).map(|v| {
-                let mut a = [0f32; 8];
-                // SAFETY: AVX2 is enabled for the build; stores eight floats into `a`.
-                unsafe { std::arch::x86_64::_mm256_storeu_ps(a.as_mut_ptr(), v) };
-                a
-            });
-            for k in 0..8 {
-                let want = m * p[k].extend(1.0);
-                let got = Vec4::new(x[k], y[k], z[k], w[k]);
-                assert_eq!(got.to_array().map(f32::to_bits), want.to_array().map(f32::to_bits), "{m:?} {:?}", p[k]);
+        #[cfg(target_arch = "x86_64")]
+        for level in wide_levels() {
+            let mut rng = sightline_scene::rng::Rng::new(5);
+            for _ in 0..2000 {
+                let m = Mat4::from_cols_array(&[0.0; 16].map(|_| rng.range(-4.0, 4.0)));
+                let p: Vec<Vec3> = (0..8)
+                    .map(|_| Vec3::new(rng.range(-9.0, 9.0), rng.range(-9.0, 9.0), rng.range(-9.0, 9.0)))
+                    .collect();
+                assert!(level <= SimdLevel::best());
+                // SAFETY: `level` is available (asserted) and at least AVX2.
+                let [x, y, z, w] = unsafe { transform8_lanes(&p, &m) };
+                for k in 0..8 {
+                    let want = m * p[k].extend(1.0);
+                    let got = Vec4::new(x[k], y[k], z[k], w[k]);
+                    let (got, want) = (got.to_array().map(f32::to_bits), want.to_array().map(f32::to_bits));
+                    assert_eq!(got, want, "{level:?}: {m:?} {:?}", p[k]);
+                }
             }
         }
+    }
+
+    /// A random position: mostly in a box around the view, sometimes far, huge or not finite.
+    fn random_position(rng: &mut sightline_scene::rng::Rng) -> Vec3 {
+        let mut v = || rng.range(-6.0, 6.0);
+        let p = Vec3::new(v(), v(), v());
+        match rng.below(64) {
+            0 => Vec3::new(f32::NAN, p.y, p.z),
+            1 => Vec3::new(p.x, f32::INFINITY, p.z),
+            2 => p * 1e30,
+            3 => p * 1e4,
+            _ => p,
+        }
+    }
+
+    /// The vertex cache filled at every available level equals the portable one bit for bit
+    /// (codes, snapped positions and depths), for spans of every length modulo 8.
+    #[test]
+    fn transform_is_the_same_on_every_level() {
+        let mut rng = sightline_scene::rng::Rng::new(11);
+        let cam = sightline_scene::Camera::perspective_look_at(
+            Vec3::new(0.5, 1.0, 8.0),
+            Vec3::ZERO,
+            Vec3::Y,
+            60.0,
+            1.5,
+            0.5,
+            100.0,
+        )
+        .unwrap();
+        for round in 0..300 {
+            let m = if round % 3 == 2 {
+                Mat4::from_cols_array(&[0.0; 16].map(|_| rng.range(-2.0, 2.0)))
+            } else {
+                cam.clip_from_world()
+            };
+            let vp = [Viewport::new(1280, 720, true), Viewport::new(7, 3, false)][round % 2];
+            let n = rng.below(70) as usize;
+            let positions: Vec<Vec3> = (0..n).map(|_| random_position(&mut rng)).collect();
+            let mut portable = VertexCache::default();
+            transform_portable(&mut portable, &positions, &m, &vp);
+            #[cfg(target_arch = "x86_64")]
+            for level in wide_levels() {
+                let mut vc = VertexCache::default();
+                assert!(level <= SimdLevel::best());
+                // SAFETY: `level` is available (asserted) and at least AVX2.
+                unsafe { transform_avx2(&mut vc, &positions, &m, &vp) };
+                assert_eq!(vc.code[..n], portable.code[..n], "{level:?} {m:?}");
+                assert_eq!(vc.sx[..n], portable.sx[..n], "{level:?} {m:?}");
+                assert_eq!(vc.sy[..n], portable.sy[..n], "{level:?} {m:?}");
+                let bits = |z: &[f32]| z[..n].iter().map(|z| z.to_bits()).collect::<Vec<_>>();
+                assert_eq!(bits(&vc.sz), bits(&portable.sz), "{level:?} {m:?}");
+            }
+        }
+    }
+
+    /// A set-up triangle's fields, depths as bits.
+    fn tri_bits(t: &Tri) -> ([i32; 3], [i32; 3], [u32; 3], u32, [u16; 4], u32) {
+        (t.x, t.y, [t.z0.to_bits(), t.zx.to_bits(), t.zy.to_bits()], t.id, t.bbox, t.multi)
+    }
+
+    /// The whole stage (transform, trivial reject, clipping, setup) gives the same triangles
+    /// and counters at every available level, over whole meshes, partial pieces and raw
+    /// clip-space triangles.
+    #[test]
+    fn process_is_the_same_on_every_level() {
+        let mut rng = sightline_scene::rng::Rng::new(12);
+        let cam = sightline_scene::Camera::perspective_look_at(
+            Vec3::new(0.0, 0.5, 5.0),
+            Vec3::ZERO,
+            Vec3::Y,
+            70.0,
+            1.5,
+            1.0,
+            100.0,
+        )
+        .unwrap();
+        let vp = Viewport::new(320, 200, true);
+        let mut kinds = FrameStats::default();
+        for _ in 0..20 {
+            let n = 8 + rng.below(300) as usize;
+            let positions: Vec<Vec3> = (0..n).map(|_| random_position(&mut rng)).collect();
+            let tris = 1 + rng.below(400);
+            let indices: Vec<u32> = (0..3 * tris).map(|_| rng.below(n as u32)).collect();
+            let clip: Vec<[Vec4; 3]> = (0..50)
+                .map(|_| [0; 3].map(|_| cam.clip_from_world() * random_position(&mut rng).extend(1.0)))
+                .collect();
+            let mesh = Source::Mesh {
+                positions: &positions,
+                indices: &indices,
+                clip_from_local: cam.clip_from_world(),
+                ids: None,
+            };
+            let items = [
+                Item { src: mesh, first_id: 1, source_triangles: tris },
+                Item { src: Source::Clip(&clip), first_id: 5000, source_triangles: clip.len() as u32 },
+            ];
+            let half = tris / 2;
+            let pieces = [
+                Piece { item: 0, start: 0, count: tris },
+                Piece { item: 0, start: half, count: tris - half },
+                Piece { item: 1, start: 3, count: 40 },
+            ];
+            let run = |level: SimdLevel| {
+                let mut chunk = Chunk { simd: level, ..Chunk::default() };
+                chunk.process(&items, &pieces, &vp, true);
+                (chunk.tris.iter().map(tri_bits).collect::<Vec<_>>(), chunk.stats)
+            };
+            let portable = run(SimdLevel::Portable);
+            for level in SimdLevel::all_available() {
+                let got = run(level);
+                assert_eq!(got.1, portable.1, "{level:?}");
+                assert_eq!(got.0, portable.0, "{level:?}");
+            }
+            kinds.add(&portable.1);
+        }
+        let k = &kinds;
+        assert!(
+            k.trivially_rejected > 100 && k.clipped > 100 && k.backface_culled > 100 && k.triangles_in > 5000,
+            "{k:?}"
+        );
     }
 
     #[test]

@@ -2,14 +2,15 @@
 //! the query shape of hierarchical z-buffer tests (Greene, Kass & Miller 1993; the
 //! rectangle-instead-of-box idea of Intel's Masked Occlusion Culling `TestRect`).
 //!
-//! Window conventions (DESIGN.md): `x_w = (x_ndc + 1)/2 · W`, `y_w = (1 − y_ndc)/2 · H`,
-//! `z_w = (z_ndc + 1)/2`. The eight corners are projected; when any corner has `w ≤ ε` or lies
-//! in front of the near plane (`z < −w`), the box crosses the near plane (or the eye plane) and
-//! the answer is "covers the whole screen, nearest depth 0". Otherwise the rectangle is the
-//! pixel-space bounds of the corners grown by a small margin (vertex snapping to 1/256 pixel
-//! and float error), rounded outwards and clamped to the viewport, and the depth is the
-//! smallest corner window z minus a small margin. Since the view depth is linear over a box
-//! and window z is monotonic in it, the box's nearest point is one of its corners.
+//! Window conventions (OpenGL's viewport transform with row 0 at the top):
+//! `x_w = (x_ndc + 1)/2 · W`, `y_w = (1 − y_ndc)/2 · H`, `z_w = (z_ndc + 1)/2`. The eight
+//! corners are projected; when any corner has `w ≤ ε` or lies in front of the near plane
+//! (`z < −w`), the box crosses the near plane (or the eye plane) and the answer is "covers the
+//! whole screen, nearest depth 0". Otherwise the rectangle is the pixel-space bounds of the
+//! corners grown by a small margin (vertex snapping to 1/256 pixel and float error), rounded
+//! outwards and clamped to the viewport, and the depth is the smallest corner window z minus
+//! a small margin. Since the view depth is linear over a box and window z is monotonic in
+//! it, the box's nearest point is one of its corners.
 //!
 //! ## One computation, three implementations
 //!
@@ -17,8 +18,10 @@
 //! columns scaled by the box extent, `dx`, `dy`, `dz`; corner `i` adds `dx`, `dy`, `dz` to
 //! `base` (in that order) for the bits of `i` that are set. Each corner's x, y and z are
 //! multiplied by `1/w`, and the rectangle comes from the min and max over the corners.
-//! [`BoxProjector::classify_portable`] does this in scalar code. With AVX2 (the workspace
-//! builds for x86-64-v3):
+//! [`BoxProjector::classify_portable`] does this in scalar code. With AVX2, chosen when the
+//! program runs ([`SimdLevel`]: the level is resolved once, when the projector is made, and
+//! each call branches on it to `#[target_feature]` functions, so that a build without
+//! `-C target-cpu` still runs the 256-bit code):
 //! * [`BoxProjector::classify`] keeps two corners per 256-bit register (four registers per
 //!   box; one division gives the eight reciprocals);
 //! * [`BoxProjector::classify_many`] runs eight boxes side by side, one per lane, so that the
@@ -27,6 +30,8 @@
 //!   infinity of one sign), so its answer needs no per-corner NaN checks; other boxes (empty,
 //!   unbounded, or overflowing terms) take the one-box path.
 //!
+//! At the AVX-512 level the AVX2 code runs (there is no 16-lane version).
+//!
 //! All three perform the same IEEE operations on the same operands (min and max see no NaN,
 //! so their order does not matter), so they agree bit for bit on every input; the tests check
 //! it on random cameras, matrices and boxes.
@@ -34,6 +39,7 @@
 use glam::{Mat4, Vec3A, Vec4};
 use sightline_scene::Aabb;
 
+use crate::simd::SimdLevel;
 use crate::{AabbExt, BoxKind};
 
 /// Smallest clip `w` accepted as "in front of the eye".
@@ -104,12 +110,29 @@ pub struct BoxProjector {
     clip_from_world: Mat4,
     width: u32,
     height: u32,
+    /// The instruction set the calls run on: resolved (never `Auto`), and `Portable` for
+    /// viewports too large for the SIMD path.
+    simd: SimdLevel,
 }
 
 impl BoxProjector {
-    /// A projector for `clip_from_world` and a `width × height` viewport.
+    /// A projector for `clip_from_world` and a `width × height` viewport, on the best
+    /// instruction set available ([`SimdLevel::best`]).
     pub fn new(clip_from_world: Mat4, width: u32, height: u32) -> BoxProjector {
-        BoxProjector { clip_from_world, width, height }
+        BoxProjector::with_simd(clip_from_world, width, height, SimdLevel::Auto)
+    }
+
+    /// [`BoxProjector::new`] on the instruction set `simd` (resolved: a level the CPU lacks
+    /// falls back to the best it has). Every level gives the same answers bit for bit; this
+    /// is for parity tests and measurements.
+    pub fn with_simd(clip_from_world: Mat4, width: u32, height: u32, simd: SimdLevel) -> BoxProjector {
+        let simd = if width <= SIMD_MAX_SIZE && height <= SIMD_MAX_SIZE { simd.resolve() } else { SimdLevel::Portable };
+        BoxProjector { clip_from_world, width, height, simd }
+    }
+
+    /// The instruction set the calls run on (never [`SimdLevel::Auto`]).
+    pub fn simd(&self) -> SimdLevel {
+        self.simd
     }
 
     /// The box's conservative screen rectangle and nearest depth (see the module docs).
@@ -129,8 +152,8 @@ impl BoxProjector {
     /// projection is not finite: it may cover anything), or a conservative rectangle with its
     /// nearest depth.
     ///
-    /// With AVX2 enabled at build time (the workspace builds for x86-64-v3) this runs the
-    /// eight corners as four 256-bit registers of two corners each; otherwise
+    /// With AVX2 (at the projector's [`SimdLevel`]) this runs the eight corners as four
+    /// 256-bit registers of two corners each; otherwise
     /// [`BoxProjector::classify_portable`]. Both do the same IEEE operations in the same order
     /// on every corner, so they give the same answer bit for bit, on every input.
     #[inline]
@@ -138,22 +161,28 @@ impl BoxProjector {
         self.classify_with(b, |image| image)
     }
 
-    /// `then(self.classify(b))`, with `then` inlined into each path, so that a caller that
-    /// only needs a small answer (a query's three-way verdict) gets it without the
-    /// [`BoxImage`] passing through memory.
+    /// `then(self.classify(b))`, with `then` inlined into the caller (it has one call site,
+    /// after the branch on the level), so that a caller that only needs a small answer (a
+    /// query's three-way verdict) does not go through a call for it.
     #[inline(always)]
     pub fn classify_with<R>(&self, b: &Aabb, then: impl FnOnce(BoxImage) -> R) -> R {
-        #[cfg(all(target_arch = "x86_64", target_feature = "avx2"))]
-        if self.width <= SIMD_MAX_SIZE && self.height <= SIMD_MAX_SIZE {
-            return then(self.classify_avx2(b));
-        }
-        then(self.classify_portable(b))
+        let image = match self.simd {
+            #[cfg(target_arch = "x86_64")]
+            // SAFETY: `self.simd` comes from `SimdLevel::resolve`, which gives AVX2 or AVX-512
+            // only when the CPU has every feature of `simd::AVX2_FEATURES`, the features
+            // `classify_avx2` enables.
+            SimdLevel::Avx2 | SimdLevel::Avx512 => unsafe { self.classify_avx2(b) },
+            _ => self.classify_portable(b),
+        };
+        then(image)
     }
 
     /// Classifies every box of `boxes`: calls `f(i, self.classify(&boxes[i]))` for each `i`,
     /// in increasing order.
     ///
-    /// With AVX2 this projects eight boxes at a time, one box per lane
+    /// With AVX2 (at the projector's [`SimdLevel`]: a predictable branch per 32 boxes to a
+    /// `#[target_feature]` function; `f` keeps one call site, inlined here) this projects
+    /// eight boxes at a time, one box per lane
     /// ([`BoxProjector::classify_portable`]'s operations, lane by lane, so the answers are the
     /// same bit for bit): the corners' clip coordinates, the clip-plane and near-plane tests,
     /// the reciprocals of w and the min/max over the corners are each a few 256-bit
@@ -162,32 +191,40 @@ impl BoxProjector {
     /// terms that are not finite) are handed to the scalar path.
     #[inline]
     pub fn classify_many(&self, boxes: &[Aabb], mut f: impl FnMut(usize, BoxImage)) {
-        #[cfg(all(target_arch = "x86_64", target_feature = "avx2"))]
-        let lanes = (self.width <= SIMD_MAX_SIZE && self.height <= SIMD_MAX_SIZE).then(|| Lanes::new(self));
+        #[cfg(target_arch = "x86_64")]
+        let lanes = match self.simd {
+            // SAFETY: as in `classify_with`: the resolved level guarantees the features of
+            // `Lanes::new`.
+            SimdLevel::Avx2 | SimdLevel::Avx512 => Some(unsafe { Lanes::new(self) }),
+            _ => None,
+        };
         let mut batch = Batch::default();
-        for (c, chunk) in boxes.chunks(8).enumerate() {
-            #[cfg(all(target_arch = "x86_64", target_feature = "avx2"))]
-            let mut scalar = match (&lanes, <&[Aabb; 8]>::try_from(chunk)) {
-                (Some(lanes), Ok(chunk)) => lanes.classify8(chunk, &mut batch),
-                _ => (1 << chunk.len()) - 1,
-            };
-            #[cfg(not(all(target_arch = "x86_64", target_feature = "avx2")))]
-            let mut scalar: u32 = (1 << chunk.len()) - 1;
-            // The lanes the batch left out (the tail, unusual boxes), one box at a time.
-            while scalar != 0 {
-                let k = scalar.trailing_zeros() as usize;
-                scalar &= scalar - 1;
-                batch.set(k, self.classify(&chunk[k]));
+        for (c, chunk) in boxes.chunks(BATCH).enumerate() {
+            #[cfg(target_arch = "x86_64")]
+            match &lanes {
+                // SAFETY: `lanes` exists only at a level with the features of `chunk_avx2`.
+                Some(lanes) => unsafe { chunk_avx2(self, lanes, chunk, &mut batch) },
+                None => self.chunk_portable(chunk, &mut batch),
             }
+            #[cfg(not(target_arch = "x86_64"))]
+            self.chunk_portable(chunk, &mut batch);
             // One call site for `f`, so that it is inlined.
             for k in 0..chunk.len() {
-                f(8 * c + k, batch.image(k));
+                f(BATCH * c + k, batch.image(k));
             }
         }
     }
 
+    /// Answers up to [`BATCH`] boxes into lanes `0..chunk.len()` of `out`, one by one.
+    #[inline]
+    fn chunk_portable(&self, chunk: &[Aabb], out: &mut Batch) {
+        for (k, b) in chunk.iter().enumerate() {
+            out.set(k, self.classify_portable(b));
+        }
+    }
+
     /// [`BoxProjector::classify`] in plain scalar code: the reference the SIMD path is tested
-    /// against, and the path on targets without AVX2.
+    /// against, and the path on CPUs (and targets) without AVX2.
     ///
     /// The corners are formed once in clip space: corner `i` is `base` (the clip position of
     /// `b.min`) plus, in this order, the scaled matrix columns `dx` (if bit 0 of `i` is set),
@@ -297,19 +334,17 @@ impl BoxProjector {
 
     /// Lanes k (x, y, z, w) of the corner registers `a` (two corners each) for which the
     /// compare `P` against `b` holds at all eight corners: bit k of the result.
-    #[cfg(all(target_arch = "x86_64", target_feature = "avx2"))]
-    #[inline(always)]
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2,fma,bmi1,bmi2,lzcnt,popcnt")]
+    #[inline]
     fn all_corners<const P: i32>(a: [std::arch::x86_64::__m256; 4], b: [std::arch::x86_64::__m256; 4]) -> i32 {
         use std::arch::x86_64::*;
-        // SAFETY: compiled only when the whole build enables AVX; values only, no memory.
-        unsafe {
-            let m = _mm256_and_ps(
-                _mm256_and_ps(_mm256_cmp_ps::<P>(a[0], b[0]), _mm256_cmp_ps::<P>(a[1], b[1])),
-                _mm256_and_ps(_mm256_cmp_ps::<P>(a[2], b[2]), _mm256_cmp_ps::<P>(a[3], b[3])),
-            );
-            let m = _mm256_movemask_ps(m);
-            m & (m >> 4)
-        }
+        let m = _mm256_and_ps(
+            _mm256_and_ps(_mm256_cmp_ps::<P>(a[0], b[0]), _mm256_cmp_ps::<P>(a[1], b[1])),
+            _mm256_and_ps(_mm256_cmp_ps::<P>(a[2], b[2]), _mm256_cmp_ps::<P>(a[3], b[3])),
+        );
+        let m = _mm256_movemask_ps(m);
+        m & (m >> 4)
     }
 
     /// [`BoxProjector::classify_portable`] with AVX2: corners 2k and 2k + 1 share a 256-bit
@@ -318,16 +353,16 @@ impl BoxProjector {
     /// eight reciprocals, and the min/max over the corners are six lane-wise operations.
     /// Every arithmetic operation is the one the portable path does, on the same operands,
     /// so every value (and so the answer) is the same bit for bit.
-    #[cfg(all(target_arch = "x86_64", target_feature = "avx2"))]
-    #[inline(always)]
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2,fma,bmi1,bmi2,lzcnt,popcnt")]
+    #[inline]
     fn classify_avx2(&self, b: &Aabb) -> BoxImage {
         use std::arch::x86_64::*;
         let Some((base, dx, dy, dz)) = self.corner_terms(b) else {
             return self.unbounded_or_empty(b);
         };
-        // SAFETY: compiled only when the whole build enables AVX2 (and so AVX, SSE4.1); the
-        // intrinsics work on values only, no memory is accessed through pointers.
-        let (x0, y0, x1, y1, z0) = unsafe {
+        // The intrinsics work on values only (no memory is accessed through pointers).
+        let (x0, y0, x1, y1, z0) = {
             let (base, dx, dy, dz) = (__m128::from(base), __m128::from(dx), __m128::from(dy), __m128::from(dz));
             // Corners (0, 1), (2, 3), (4, 5), (6, 7): the additions of the portable path, in its
             // order (base + dx, then + dy, then + dz).
@@ -393,17 +428,28 @@ impl BoxProjector {
     }
 }
 
-/// The answers of eight boxes (`Lanes::classify8`), lane k for box k.
-#[derive(Debug, Default)]
+/// Boxes answered per call of the AVX2 path (four batches of eight lanes), so that the call
+/// costs little per box.
+const BATCH: usize = 32;
+
+/// The answers of up to [`BATCH`] boxes, lane k for box k (filled eight lanes at a time by
+/// `Lanes::classify8`).
+#[derive(Debug)]
 #[repr(C, align(32))]
 struct Batch {
     /// [`Batch::RECT`], [`Batch::OUTSIDE`] or [`Batch::CROSSES`].
-    kind: [i32; 8],
-    x0: [i32; 8],
-    y0: [i32; 8],
-    x1: [i32; 8],
-    y1: [i32; 8],
-    depth: [f32; 8],
+    kind: [i32; BATCH],
+    x0: [i32; BATCH],
+    y0: [i32; BATCH],
+    x1: [i32; BATCH],
+    y1: [i32; BATCH],
+    depth: [f32; BATCH],
+}
+
+impl Default for Batch {
+    fn default() -> Batch {
+        Batch { kind: [0; BATCH], x0: [0; BATCH], y0: [0; BATCH], x1: [0; BATCH], y1: [0; BATCH], depth: [0.0; BATCH] }
+    }
 }
 
 impl Batch {
@@ -444,7 +490,7 @@ impl Batch {
 }
 
 /// A projector's constants broadcast to eight lanes.
-#[cfg(all(target_arch = "x86_64", target_feature = "avx2"))]
+#[cfg(target_arch = "x86_64")]
 struct Lanes {
     /// Matrix entry (column c, row r) at `4c + r`.
     m: [std::arch::x86_64::__m256; 16],
@@ -453,7 +499,7 @@ struct Lanes {
 }
 
 // The eight-box path reads each box as floats: min at 0..3, max at 3..6.
-#[cfg(all(target_arch = "x86_64", target_feature = "avx2"))]
+#[cfg(target_arch = "x86_64")]
 const _: () = assert!(
     std::mem::size_of::<Aabb>() == 24
         && std::mem::size_of::<glam::Vec3>() == 12
@@ -464,34 +510,37 @@ const _: () = assert!(
         && std::mem::offset_of!(glam::Vec3, z) == 8
 );
 
-#[cfg(all(target_arch = "x86_64", target_feature = "avx2"))]
+#[cfg(target_arch = "x86_64")]
 impl Lanes {
-    #[inline(always)]
+    #[target_feature(enable = "avx2,fma,bmi1,bmi2,lzcnt,popcnt")]
+    #[inline]
     fn new(p: &BoxProjector) -> Lanes {
         use std::arch::x86_64::*;
         let cols = p.clip_from_world.to_cols_array();
-        // SAFETY: value-only intrinsics; the build enables AVX2.
-        unsafe {
-            Lanes {
-                m: std::array::from_fn(|i| _mm256_set1_ps(cols[i])),
-                size: [_mm256_set1_ps(p.width as f32), _mm256_set1_ps(p.height as f32)],
-            }
+        Lanes {
+            m: std::array::from_fn(|i| _mm256_set1_ps(cols[i])),
+            size: [_mm256_set1_ps(p.width as f32), _mm256_set1_ps(p.height as f32)],
         }
     }
 
-    /// [`BoxProjector::classify_portable`] for eight boxes, one per lane, into `out`. Lanes
+    /// [`BoxProjector::classify_portable`] for eight boxes, one per lane, into lanes
+    /// `at..at + 8` of `out` (`at` a multiple of eight). Lanes
     /// whose box is not finite, or whose clip terms (`base`, `dx`, `dy`, `dz`) are not all
     /// finite, are left for the one-box path (their lanes hold anything); the returned mask
     /// has bit k set for such a lane k. For the others no corner coordinate is NaN (sums of
     /// finite terms are finite or ±∞ of one sign), so the comparisons, and the min/max over
     /// the corners, are those of the portable path; a non-finite projection shows up in the
     /// min or max over the corners (or, for w = +∞, in the max of w).
-    #[inline(always)]
-    fn classify8(&self, boxes: &[Aabb; 8], out: &mut Batch) -> u32 {
+    #[target_feature(enable = "avx2,fma,bmi1,bmi2,lzcnt,popcnt")]
+    #[inline]
+    fn classify8(&self, boxes: &[Aabb; 8], out: &mut Batch, at: usize) -> u32 {
         use std::arch::x86_64::*;
-        // SAFETY: the build enables AVX2. Box k is read as floats at its address: 16 bytes
-        // at offsets 0 and 8 of its 24 (layout asserted above). The stores go to `out`'s
-        // 32-byte-aligned arrays of eight 4-byte lanes.
+        assert!(at.is_multiple_of(8) && at + 8 <= BATCH);
+        // SAFETY: the function's features include AVX2, so the intrinsics may run. Box k is
+        // read as floats at its address: 16 bytes at offsets 0 and 8 of its 24 (layout
+        // asserted above). The stores write lanes `at..at + 8` (asserted in bounds) of `out`'s
+        // arrays, which are 32-byte aligned there (`Batch` is, each array is 4 · BATCH bytes
+        // long and `at` is a multiple of eight).
         unsafe {
             let p = |k: usize| &boxes[k] as *const Aabb as *const f32;
             // Rows (min.x, min.y, min.z, max.x) and (min.z, max.x, max.y, max.z) of boxes k
@@ -630,20 +679,47 @@ impl Lanes {
             let mut kind = _mm256_blendv_ps(k(Batch::RECT), k(Batch::OUTSIDE), empty);
             kind = _mm256_blendv_ps(kind, k(Batch::CROSSES), crosses);
             kind = _mm256_blendv_ps(kind, k(Batch::OUTSIDE), outside_planes);
-            _mm256_store_si256(out.kind.as_mut_ptr() as *mut __m256i, _mm256_castps_si256(kind));
-            _mm256_store_si256(out.x0.as_mut_ptr() as *mut __m256i, rx0);
-            _mm256_store_si256(out.y0.as_mut_ptr() as *mut __m256i, ry0);
-            _mm256_store_si256(out.x1.as_mut_ptr() as *mut __m256i, rx1);
-            _mm256_store_si256(out.y1.as_mut_ptr() as *mut __m256i, ry1);
-            _mm256_store_ps(out.depth.as_mut_ptr(), depth);
+            _mm256_store_si256(out.kind.as_mut_ptr().add(at) as *mut __m256i, _mm256_castps_si256(kind));
+            _mm256_store_si256(out.x0.as_mut_ptr().add(at) as *mut __m256i, rx0);
+            _mm256_store_si256(out.y0.as_mut_ptr().add(at) as *mut __m256i, ry0);
+            _mm256_store_si256(out.x1.as_mut_ptr().add(at) as *mut __m256i, rx1);
+            _mm256_store_si256(out.y1.as_mut_ptr().add(at) as *mut __m256i, ry1);
+            _mm256_store_ps(out.depth.as_mut_ptr().add(at), depth);
             (_mm256_movemask_ps(simd) ^ 0xFF) as u32
         }
     }
 }
 
 /// Largest viewport side for which the SIMD path's float clamp and truncation are exact.
-#[cfg(all(target_arch = "x86_64", target_feature = "avx2"))]
 const SIMD_MAX_SIZE: u32 = 1 << 24;
+
+/// [`BoxProjector::chunk_portable`] with AVX2: each eight boxes as one batch of eight lanes,
+/// then the lanes it left out (and the boxes of a shorter group) one by one on the AVX2
+/// one-box path.
+///
+/// It and the kernels it calls are `#[target_feature]` functions with the features of
+/// [`crate::simd::AVX2_FEATURES`] (closures inside inherit them), so that the 256-bit code is
+/// compiled whatever the build's target CPU. They may be called from code with these
+/// features, elsewhere only once [`SimdLevel::resolve`] has given AVX2 or AVX-512. They
+/// return their answers: a caller's closure called in one of them would have two call sites
+/// (one per level) and would no longer be inlined.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2,fma,bmi1,bmi2,lzcnt,popcnt")]
+fn chunk_avx2(p: &BoxProjector, lanes: &Lanes, chunk: &[Aabb], out: &mut Batch) {
+    for (g, group) in chunk.chunks(8).enumerate() {
+        let at = 8 * g;
+        let mut scalar = match <&[Aabb; 8]>::try_from(group) {
+            Ok(group) => lanes.classify8(group, out, at),
+            Err(_) => (1 << group.len()) - 1,
+        };
+        // The lanes the batch left out (the tail, unusual boxes), one box at a time.
+        while scalar != 0 {
+            let k = scalar.trailing_zeros() as usize;
+            scalar &= scalar - 1;
+            out.set(at + k, p.classify_avx2(&group[k]));
+        }
+    }
+}
 
 /// Projects one box: see [`BoxProjector::project`].
 pub fn project_box(b: &Aabb, clip_from_world: &Mat4, width: u32, height: u32) -> ScreenRect {
@@ -753,10 +829,29 @@ mod tests {
         }
     }
 
-    /// The SIMD path of `classify` gives exactly the answers of the portable path, on
-    /// perspective and orthographic cameras, arbitrary matrices and every kind of box.
-    /// (Builds without AVX2 have only the portable path; there this compares it with
-    /// itself. The project's x86-64 build config enables AVX2.)
+    /// A projector on each SIMD level this process has (`SIGHTLINE_SIMD` may cap them), the
+    /// portable one first.
+    fn on_every_level(m: Mat4, w: u32, h: u32) -> Vec<BoxProjector> {
+        let levels = SimdLevel::all_available();
+        assert_eq!(levels[0], SimdLevel::Portable);
+        levels.into_iter().map(|l| BoxProjector::with_simd(m, w, h, l)).collect()
+    }
+
+    #[test]
+    fn projector_runs_on_the_level_it_resolved() {
+        let m = cam().clip_from_world();
+        for level in SimdLevel::all_available() {
+            assert_eq!(BoxProjector::with_simd(m, 96, 64, level).simd(), level);
+        }
+        assert_eq!(BoxProjector::new(m, 96, 64).simd(), SimdLevel::best());
+        assert_eq!(BoxProjector::with_simd(m, 96, 64, SimdLevel::Avx512).simd(), SimdLevel::Avx512.resolve());
+        // Too large for the SIMD path's exact float clamp.
+        assert_eq!(BoxProjector::new(m, 1 << 25, 8).simd(), SimdLevel::Portable);
+    }
+
+    /// `classify` gives exactly the answers of the portable path, at every SIMD level this
+    /// process has, on perspective and orthographic cameras, arbitrary matrices and every
+    /// kind of box.
     #[test]
     fn classify_equals_the_portable_path() {
         let mut rng = sightline_scene::rng::Rng::new(77);
@@ -764,17 +859,17 @@ mod tests {
         for cam_i in 0..300 {
             let Some(m) = random_matrix(&mut rng, cam_i % 5) else { continue };
             let (w, h) = [(1280, 720), (97, 33), (1, 1), (0, 0), (4096, 3000)][rng.below(5) as usize];
-            let p = BoxProjector::new(m, w, h);
+            let levels = on_every_level(m, w, h);
             for _ in 0..400 {
                 let reach = [1.0, 10.0, 100.0][rng.below(3) as usize];
                 let b = random_box(&mut rng, reach);
-                let (fast, portable) = (p.classify(&b), p.classify_portable(&b));
-                assert_eq!(bits(&fast), bits(&portable), "{b:?} {m:?} {w}x{h}");
-                kinds[match fast {
-                    BoxImage::Outside => 0,
-                    BoxImage::CrossesNear => 1,
-                    BoxImage::Rect(_) => 2,
-                }] += 1;
+                let portable = levels[0].classify_portable(&b);
+                for p in &levels {
+                    let (fast, with) = (p.classify(&b), p.classify_with(&b, |i| bits(&i)));
+                    assert_eq!(bits(&fast), bits(&portable), "{:?}: {b:?} {m:?} {w}x{h}", p.simd());
+                    assert_eq!(with, bits(&portable), "{:?}: {b:?} {m:?} {w}x{h}", p.simd());
+                }
+                kinds[bits(&portable).0 as usize] += 1;
             }
         }
         assert!(kinds.iter().all(|&k| k > 2000), "{kinds:?}");
@@ -791,8 +886,8 @@ mod tests {
     }
 
     /// `classify_many` (eight boxes per SIMD batch, the rest one by one) answers every box
-    /// exactly like the portable path, in order, whatever lane an unusual box lands in
-    /// (a self-comparison in builds without AVX2, as above).
+    /// exactly like the portable path, in order, whatever lane an unusual box lands in, at
+    /// every SIMD level this process has.
     #[test]
     fn classify_many_equals_the_portable_path() {
         let mut rng = sightline_scene::rng::Rng::new(78);
@@ -800,19 +895,20 @@ mod tests {
         for cam_i in 0..200 {
             let Some(m) = random_matrix(&mut rng, if cam_i % 4 == 3 { 3 } else { 0 }) else { continue };
             let (w, h) = [(1280, 720), (97, 33), (1, 1), (0, 0), (4096, 3000), (1 << 25, 8)][rng.below(6) as usize];
-            let p = BoxProjector::new(m, w, h);
             let reach = [1.0, 10.0, 100.0][rng.below(3) as usize];
             let n = rng.below(300) as usize;
             let boxes: Vec<Aabb> = (0..n).map(|_| random_box(&mut rng, reach)).collect();
-            let mut next = 0;
-            p.classify_many(&boxes, |i, image| {
-                assert_eq!(i, next, "in order");
-                next += 1;
-                let portable = p.classify_portable(&boxes[i]);
-                assert_eq!(bits(&image), bits(&portable), "box {i} {:?} {m:?} {w}x{h}", boxes[i]);
-                kinds[bits(&image).0 as usize] += 1;
-            });
-            assert_eq!(next, n);
+            for p in on_every_level(m, w, h) {
+                let mut next = 0;
+                p.classify_many(&boxes, |i, image| {
+                    assert_eq!(i, next, "in order");
+                    next += 1;
+                    let portable = p.classify_portable(&boxes[i]);
+                    assert_eq!(bits(&image), bits(&portable), "{:?}: box {i} {:?} {m:?} {w}x{h}", p.simd(), boxes[i]);
+                    kinds[bits(&image).0 as usize] += 1;
+                });
+                assert_eq!(next, n);
+            }
         }
         assert!(kinds.iter().all(|&k| k > 1000), "{kinds:?}");
     }
@@ -820,24 +916,25 @@ mod tests {
     #[test]
     fn boxes_behind_the_eye_across_near_nan_and_empty() {
         let c = cam();
-        let p = BoxProjector::new(c.clip_from_world(), 96, 64);
-        for classify in [BoxProjector::classify, BoxProjector::classify_portable] {
-            // Behind the eye (all corners beyond the near plane): outside.
-            let b = Aabb::new(Vec3::new(-1.0, -1.0, 6.0), Vec3::new(1.0, 1.0, 7.0));
-            assert_eq!(classify(&p, &b), BoxImage::Outside);
-            // Around the eye, and across the near plane (z = 4.5).
-            let b = Aabb::new(Vec3::new(-1.0, -1.0, 4.0), Vec3::new(1.0, 1.0, 6.0));
-            assert_eq!(classify(&p, &b), BoxImage::CrossesNear);
-            let b = Aabb::new(Vec3::new(-0.1, -0.1, 4.3), Vec3::new(0.1, 0.1, 4.7));
-            assert_eq!(classify(&p, &b), BoxImage::CrossesNear);
-            assert_eq!(classify(&p, &Aabb::new(Vec3::NAN, Vec3::ONE)), BoxImage::CrossesNear);
-            assert_eq!(classify(&p, &Aabb::new(Vec3::ZERO, Vec3::INFINITY)), BoxImage::CrossesNear);
-            assert_eq!(classify(&p, &Aabb::EMPTY), BoxImage::Outside);
-            // Overflowing corners: no rectangle.
-            assert_eq!(classify(&p, &Aabb::new(Vec3::splat(-3e38), Vec3::splat(3e38))), BoxImage::CrossesNear);
-            // A point box in view is a rectangle of at least one pixel.
-            let BoxImage::Rect(r) = classify(&p, &Aabb::new(Vec3::ZERO, Vec3::ZERO)) else { panic!() };
-            assert!(r.x1 > r.x0 && r.y1 > r.y0 && r.depth > 0.0 && r.depth < 1.0, "{r:?}");
+        for p in on_every_level(c.clip_from_world(), 96, 64) {
+            for classify in [BoxProjector::classify, BoxProjector::classify_portable] {
+                // Behind the eye (all corners beyond the near plane): outside.
+                let b = Aabb::new(Vec3::new(-1.0, -1.0, 6.0), Vec3::new(1.0, 1.0, 7.0));
+                assert_eq!(classify(&p, &b), BoxImage::Outside);
+                // Around the eye, and across the near plane (z = 4.5).
+                let b = Aabb::new(Vec3::new(-1.0, -1.0, 4.0), Vec3::new(1.0, 1.0, 6.0));
+                assert_eq!(classify(&p, &b), BoxImage::CrossesNear);
+                let b = Aabb::new(Vec3::new(-0.1, -0.1, 4.3), Vec3::new(0.1, 0.1, 4.7));
+                assert_eq!(classify(&p, &b), BoxImage::CrossesNear);
+                assert_eq!(classify(&p, &Aabb::new(Vec3::NAN, Vec3::ONE)), BoxImage::CrossesNear);
+                assert_eq!(classify(&p, &Aabb::new(Vec3::ZERO, Vec3::INFINITY)), BoxImage::CrossesNear);
+                assert_eq!(classify(&p, &Aabb::EMPTY), BoxImage::Outside);
+                // Overflowing corners: no rectangle.
+                assert_eq!(classify(&p, &Aabb::new(Vec3::splat(-3e38), Vec3::splat(3e38))), BoxImage::CrossesNear);
+                // A point box in view is a rectangle of at least one pixel.
+                let BoxImage::Rect(r) = classify(&p, &Aabb::new(Vec3::ZERO, Vec3::ZERO)) else { panic!() };
+                assert!(r.x1 > r.x0 && r.y1 > r.y0 && r.depth > 0.0 && r.depth < 1.0, "{r:?}");
+            }
         }
     }
 
@@ -858,17 +955,24 @@ mod tests {
             m(Vec4::X, Vec4::new(0.0, 0.0, 0.0, 3e38), Vec4::new(0.0, 0.0, 0.0, 3e38)),
         ];
         for m in cases {
-            let p = BoxProjector::new(m, 64, 48);
-            assert_eq!(p.classify_portable(&unit), BoxImage::CrossesNear, "{m:?}");
-            assert_eq!(p.classify(&unit), BoxImage::CrossesNear, "{m:?}");
-            let ordinary = Aabb::new(Vec3::ZERO, Vec3::new(0.0, 0.2, 0.0));
-            assert!(matches!(p.classify_portable(&ordinary), BoxImage::Rect(_)), "{m:?}");
-            for lane in 0..8 {
-                let mut boxes = [ordinary; 8];
-                boxes[lane] = unit;
-                p.classify_many(&boxes, |i, image| {
-                    assert_eq!(image, p.classify_portable(&boxes[i]), "lane {lane}, box {i}, {m:?}");
-                });
+            for p in on_every_level(m, 64, 48) {
+                assert_eq!(p.classify_portable(&unit), BoxImage::CrossesNear, "{:?}: {m:?}", p.simd());
+                assert_eq!(p.classify(&unit), BoxImage::CrossesNear, "{:?}: {m:?}", p.simd());
+                let ordinary = Aabb::new(Vec3::ZERO, Vec3::new(0.0, 0.2, 0.0));
+                assert!(matches!(p.classify_portable(&ordinary), BoxImage::Rect(_)), "{:?}: {m:?}", p.simd());
+                // Every lane of a call's four batches, and of a shorter last group.
+                for lane in 0..BATCH + 7 {
+                    let mut boxes = [ordinary; BATCH + 7];
+                    boxes[lane] = unit;
+                    p.classify_many(&boxes, |i, image| {
+                        assert_eq!(
+                            image,
+                            p.classify_portable(&boxes[i]),
+                            "{:?}: lane {lane}, box {i}, {m:?}",
+                            p.simd()
+                        );
+                    });
+                }
             }
         }
     }
