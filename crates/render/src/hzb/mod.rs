@@ -91,15 +91,23 @@ impl Level {
 /// The one 2 × 2 max reduction: texels of `dst` (row stride `dw`) inside `r` become the max
 /// of their up to 2 × 2 children in `src` (`sw × sh`; a child past an odd edge is the edge
 /// texel itself, which leaves the max unchanged).
-#[inline]
+#[inline(always)]
 pub(crate) fn reduce_2x2(src: &[f32], sw: u32, sh: u32, dst: &mut [f32], dw: u32, r: Rect) {
     let (sw, sh, dw) = (sw as usize, sh as usize, dw as usize);
+    let (x0, x1) = (r.x0 as usize, r.x1 as usize);
+    // Texels x < sw / 2 have both children in their row: a straight loop over pairs that
+    // vectorizes; at most one texel (an odd width's last) takes the clamped form.
+    let full = (sw / 2).clamp(x0, x1 + 1);
     for y in r.y0 as usize..=r.y1 as usize {
         let s0 = 2 * y;
         let s1 = (2 * y + 1).min(sh - 1);
         let (row0, row1) = (&src[s0 * sw..(s0 + 1) * sw], &src[s1 * sw..(s1 + 1) * sw]);
         let out = &mut dst[y * dw..(y + 1) * dw];
-        for (x, o) in out.iter_mut().enumerate().take(r.x1 as usize + 1).skip(r.x0 as usize) {
+        let pairs = row0[2 * x0..2 * full].chunks_exact(2).zip(row1[2 * x0..2 * full].chunks_exact(2));
+        for (o, (p, q)) in out[x0..full].iter_mut().zip(pairs) {
+            *o = p[0].max(p[1]).max(q[0]).max(q[1]);
+        }
+        for (x, o) in out.iter_mut().enumerate().take(x1 + 1).skip(full) {
             let a = 2 * x;
             let b = (2 * x + 1).min(sw - 1);
             *o = row0[a].max(row0[b]).max(row1[a]).max(row1[b]);

@@ -155,7 +155,9 @@ impl TileLevels {
     }
 
     /// Brings the levels up to date after writes: levels 1–3 only under the stale 8×8
-    /// blocks (one level-3 texel each), levels 4–6 (21 texels) whole.
+    /// blocks (one level-3 texel each), levels 4–6 (21 texels) whole. Inlined into the tile
+    /// stage, so that it is compiled for the stage's instruction set.
+    #[inline(always)]
     pub(crate) fn update<D: DepthCodec>(&mut self, depth: &[u32]) {
         let mut stale = std::mem::take(&mut self.stale_blocks);
         if stale == 0 {
@@ -188,7 +190,7 @@ impl TileLevels {
     }
 
     /// Texels `r` of level `level` (≥ 2) from the level below.
-    #[inline]
+    #[inline(always)]
     fn reduce_level(&mut self, level: usize, r: Rect) {
         let (below, above) = self.mips.split_at_mut(OFFSETS[level - 1]);
         let src = &below[OFFSETS[level - 2]..];
