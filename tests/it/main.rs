@@ -11,3 +11,4 @@
 mod culling;
 mod culling_proptest;
 mod occlusion;
+mod support;
