@@ -14,3 +14,4 @@ mod raycast_agreement;
 mod raycast_determinism;
 mod raycast_reference;
 mod raycast_robustness;
+mod support;
