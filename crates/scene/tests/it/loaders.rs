@@ -10,9 +10,7 @@ use sightline_scene::gltf_loader::load_gltf;
 use sightline_scene::obj_loader::load_obj;
 use sightline_scene::*;
 
-fn asset(name: &str) -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("../../assets").join(name)
-}
+use crate::support::asset;
 
 /// A fresh, empty folder for one test.
 fn tmp_dir(test: &str) -> PathBuf {

@@ -9,3 +9,4 @@ mod graph;
 mod loader_fuzz;
 mod loader_perf;
 mod loaders;
+mod support;
