@@ -10,6 +10,8 @@
 //!   line (Melem/s) is million primary rays per second. `ids` writes IDs and depth only (as
 //!   the Embree reference does); `shaded` adds flat shading.
 
+#![forbid(unsafe_code)]
+
 use std::time::Duration;
 
 use criterion::{criterion_group, criterion_main, Criterion, Throughput};

@@ -8,6 +8,8 @@
 //!
 //! `cargo run --release --example depth_complexity [-- OUT_DIR [FRAME]]`
 
+#![forbid(unsafe_code)]
+
 use std::path::PathBuf;
 
 use sightline::render::cull::DepthPyramid;

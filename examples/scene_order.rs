@@ -7,6 +7,8 @@
 //!
 //! `cargo run --release --example scene_order [-- FRAMES]`
 
+#![forbid(unsafe_code)]
+
 use sightline::render::cull::DrawOrder;
 use sightline::render::{compare_ids, Culler, Framebuffer, RenderOptions};
 use sightline::scene::builders::{city, CityParams};

@@ -8,6 +8,8 @@
 //! proptest keeps the regression seeds of a module `m` of this binary in
 //! `tests/proptest-regressions/m.txt` (commit them).
 
+#![forbid(unsafe_code)]
+
 mod culling;
 mod culling_proptest;
 mod occlusion;

@@ -2,6 +2,8 @@
 //! test executable per package instead of one per file. `raster_*` test the rasterizer through
 //! the public API, `raycast_*` the ray caster, `csg_raycast` CSG solids.
 
+#![forbid(unsafe_code)]
+
 mod csg_raycast;
 mod raster_api;
 mod raster_clipping;

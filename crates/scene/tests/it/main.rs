@@ -5,6 +5,8 @@
 //! proptest keeps the regression seeds of a module `m` of this binary in
 //! `tests/proptest-regressions/m.txt` (commit them).
 
+#![forbid(unsafe_code)]
+
 mod graph;
 mod loader_fuzz;
 mod loader_perf;

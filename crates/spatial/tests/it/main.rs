@@ -5,5 +5,7 @@
 //! proptest keeps the regression seeds of a module `m` of this binary in
 //! `tests/proptest-regressions/m.txt` (commit them).
 
+#![forbid(unsafe_code)]
+
 mod bad_input;
 mod conservative_culling;
