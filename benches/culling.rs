@@ -12,6 +12,8 @@
 //!   queries read; copying them out to the framebuffer afterwards (`OccluderPass::finish`) is
 //!   not part of (a).
 
+#![forbid(unsafe_code)]
+
 use std::time::{Duration, Instant};
 
 use criterion::{criterion_group, criterion_main, Criterion};

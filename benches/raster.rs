@@ -5,6 +5,8 @@
 //!
 //! Before timing, the per-stage counters of each configuration are printed once.
 
+#![forbid(unsafe_code)]
+
 use std::time::Duration;
 
 use criterion::{criterion_group, criterion_main, Criterion, Throughput};

@@ -4,11 +4,13 @@
 //!
 //! * `raycast_build/city`: the caster over the instanced city (one BLAS per distinct
 //!   building mesh, shared by its instances, plus the TLAS).
-//! * `raycast_build/flat`: the same triangles flattened into one world-space mesh (what the
-//!   Embree reference in ../shared/anchors builds from the exported OBJ).
+//! * `raycast_build/flat`: the same triangles flattened into one world-space mesh (what a
+//!   ray tracer that reads the exported OBJ, such as Embree, builds).
 //! * `raycast_city_1280x720/<frame>/<ids|shaded>/<threads>t`: one frame; the throughput
 //!   line (Melem/s) is million primary rays per second. `ids` writes IDs and depth only (as
 //!   the Embree reference does); `shaded` adds flat shading.
+
+#![forbid(unsafe_code)]
 
 use std::time::Duration;
 

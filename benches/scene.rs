@@ -1,6 +1,8 @@
 //! Scene benchmarks: world-transform propagation over 10^6 nodes (flat and deep), full and
 //! after changing 1% of the nodes, and building the 10^6-triangle city.
 
+#![forbid(unsafe_code)]
+
 use criterion::{criterion_group, criterion_main, BatchSize, Criterion};
 use glam::Vec3;
 use sightline_scene::builders::{city, CityParams};

@@ -4,6 +4,8 @@
 //! 10^5-triangle subset), frustum query time per frame (street and aerial frames), refit vs
 //! rebuild, octree moves. Bytes per structure and per-frame counts are printed first.
 
+#![forbid(unsafe_code)]
+
 use std::time::{Duration, Instant};
 
 use criterion::{criterion_group, criterion_main, BenchmarkId, Criterion};

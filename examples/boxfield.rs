@@ -11,6 +11,8 @@
 //!
 //! `cargo run --release --example boxfield`
 
+#![forbid(unsafe_code)]
+
 use std::time::Instant;
 
 use sightline::boxfield::{check_occluded, count, Boxfield, QUERIES, SIZE};

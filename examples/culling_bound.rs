@@ -19,6 +19,8 @@
 //! cargo run --release --example culling_bound [-- FRAMES]
 //! ```
 
+#![forbid(unsafe_code)]
+
 use std::time::Instant;
 
 use sightline::render::{compare_ids, Culler, DrawItem, FrameStats, Framebuffer, Method, RenderOptions, Renderer};

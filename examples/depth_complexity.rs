@@ -1,12 +1,14 @@
-//! Depth complexity heat maps, plain z-buffer beside HZB (the seeds' "Depth complexity mit
-//! einfachem Z-Buffer / mit HZB"): one street frame of the 10^6-triangle city, every depth
-//! test counted per pixel, brute force on the left, occlusion culling on the right, on one
-//! color scale. Writes `depth_complexity.png` (and the two halves) into the directory given,
+//! Depth complexity heat maps, plain z-buffer beside HZB: one street frame of the
+//! 10^6-triangle city, every depth test counted per pixel, brute force on the left, occlusion
+//! culling on the right, on one color scale. Writes `depth_complexity.png` (and the two
+//! halves) into the directory given,
 //! and `z_pyramid.png`: Greene's z-pyramid over the HZB frame's depth buffer, levels 1–8,
 //! each texel the farthest depth of the pixels below it (near dark, far light, nothing
 //! drawn white): what occlusion tests compare a box's nearest depth against.
 //!
 //! `cargo run --release --example depth_complexity [-- OUT_DIR [FRAME]]`
+
+#![forbid(unsafe_code)]
 
 use std::path::PathBuf;
 

@@ -13,6 +13,7 @@
 //! the `--scene` argument of the command-line program (`city`, `city:TRIS`, `boxfield` or a
 //! file).
 
+#![forbid(unsafe_code)]
 #![warn(missing_docs)]
 
 use std::path::PathBuf;

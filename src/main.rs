@@ -1,6 +1,8 @@
 //! The `sightline` command-line program: scene statistics, OBJ export, camera paths,
 //! rendering single frames and walkthroughs, and the culling benchmark.
 
+#![forbid(unsafe_code)]
+
 mod cli;
 
 use std::process::ExitCode;

@@ -1,5 +1,5 @@
-//! Command-line parsing (clap) and dispatch. The commands and flags scripts rely on are
-//! listed in CLI.md of the shared design; keep their names.
+//! Command-line parsing (clap) and dispatch. Scripts rely on the names of the commands and
+//! flags (the README lists them); keep them.
 
 mod bench;
 mod chart;

@@ -2,6 +2,8 @@
 //!
 //! `cargo run --release -p sightline-scene --example city_stats -- 10000000`
 
+#![forbid(unsafe_code)]
+
 fn main() -> Result<(), sightline_scene::Error> {
     let n: u64 = std::env::args().nth(1).and_then(|a| a.parse().ok()).unwrap_or(1_000_000);
     let t = std::time::Instant::now();

@@ -1,9 +1,10 @@
-//! Cameras: a look-at view (the seeds' u, v, w basis) and a projection.
+//! Cameras: a look-at view (the u, v, w camera frame of Shirley & Marschner, *Fundamentals of
+//! Computer Graphics*, "Viewing") and a projection.
 //!
 //! View space is right-handed with the camera at the origin looking down −z:
 //! `w = −gaze/|gaze|`, `u = up × w / |up × w|`, `v = w × u` (gluLookAt's basis).
-//! `clip_from_world = clip_from_view · view_from_world` is formed in f64, as the references in
-//! the anchors do, so that vertices land on the same 1/256-pixel grid points.
+//! `clip_from_world = clip_from_view · view_from_world` is formed in f64 and rounded once, so
+//! that vertices land on the same 1/256-pixel grid points as in a double-precision reference.
 
 use glam::{Affine3A, DMat4, DVec3, Mat4, Vec2, Vec3};
 
@@ -142,8 +143,10 @@ impl Camera {
     }
 }
 
-/// The seeds' projection onto the plane z = 0 with the center of projection at distance `d`
-/// behind it, at (0, 0, −d): `x' = x·d/(z + d)`, `y' = y·d/(z + d)` (w' = z/d + 1).
+/// The perspective projection onto the plane z = 0 with the center of projection at distance
+/// `d` behind it, at (0, 0, −d): `x' = x·d/(z + d)`, `y' = y·d/(z + d)` (w' = z/d + 1); the
+/// matrix `M'_per` of Foley, van Dam, Feiner & Hughes, *Computer Graphics: Principles and
+/// Practice*, 2nd ed., §6.4.
 pub fn projection_onto_plane(d: f32) -> Mat4 {
     use glam::Vec4;
     Mat4::from_cols(Vec4::X, Vec4::Y, Vec4::new(0.0, 0.0, 0.0, 1.0 / d), Vec4::W)

@@ -26,6 +26,7 @@
 //! # Ok::<(), sightline_scene::Error>(())
 //! ```
 
+#![forbid(unsafe_code)]
 #![warn(missing_docs)]
 // `!(x > 0.0)` is how this code says "not positive, or NaN": the negated comparison is the point.
 #![allow(clippy::neg_cmp_op_on_partial_ord)]

@@ -1,5 +1,5 @@
-//! Camera paths: a list of look-at keys, serialized as the JSON the references in the anchors
-//! read (`[{"eye":[x,y,z],"target":[x,y,z],"up":[x,y,z],"fovy_deg":f,"near":f,"far":f}, …]`),
+//! Camera paths: a list of look-at keys, serialized as plain JSON that other renderers can
+//! replay (`[{"eye":[x,y,z],"target":[x,y,z],"up":[x,y,z],"fovy_deg":f,"near":f,"far":f}, …]`),
 //! and the two paths through the city: a street walk at eye height and a flight above roofs.
 
 use std::path::Path;

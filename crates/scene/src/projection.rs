@@ -1,7 +1,8 @@
 //! Projections to OpenGL clip space (−w ≤ x, y, z ≤ w; near → z_ndc = −1).
 //!
-//! * Perspective: the seeds' M_3D, i.e. glFrustum's matrix for the window l, r, b, t on the
-//!   near plane (symmetric when made from a vertical field of view and an aspect ratio).
+//! * Perspective: glFrustum's matrix (as the OpenGL specification defines it) for the window
+//!   l, r, b, t on the near plane (symmetric when made from a vertical field of view and an
+//!   aspect ratio).
 //! * Orthographic: glOrtho's matrix.
 //! * Oblique parallel: a shear of view space that slides each depth plane sideways by
 //!   `cot(β)·depth` in screen direction φ, followed by the orthographic matrix; β is the angle

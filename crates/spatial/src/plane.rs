@@ -93,8 +93,8 @@ impl Plane {
 
     /// The parameter `t` in `[0, 1]` where the segment `a → b` crosses the plane, from the
     /// signed distances `da`, `db` of its ends (which must have opposite signs):
-    /// `t = da / (da − db)`, which is the seeds' `t = (d − n·a) / (n·(b − a))` for a plane
-    /// written `n·x = d`.
+    /// `t = da / (da − db)`, which is `t = (d − n·a) / (n·(b − a))` for a plane written
+    /// `n·x = d` (Ericson, *Real-Time Collision Detection*, §5.3.1).
     #[inline]
     pub fn crossing(da: f32, db: f32) -> f32 {
         let t = da / (da - db);

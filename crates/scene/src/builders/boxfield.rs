@@ -1,4 +1,4 @@
-//! The boxfield: the occlusion benchmark of record (issue 5).
+//! The boxfield: the occlusion benchmark of record.
 //!
 //! 83,334 axis-aligned boxes (12 triangles each: 1,000,008 triangles), x and z uniform in
 //! [−100, 100], resting on y = 0, half extents in x and z uniform in [0.1, 0.5], height

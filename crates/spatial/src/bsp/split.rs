@@ -3,10 +3,11 @@
 //! The triangle is clipped as a polygon against both half-spaces (one Sutherland–Hodgman step
 //! per side): vertices on the plane (|distance| ≤ ε) go to both sides, and each edge whose ends
 //! lie strictly on opposite sides contributes its crossing point `a + t (b − a)`,
-//! `t = d_a / (d_a − d_b)` (the seeds' `t = (d − n·a) / (n·(b − a))` with the plane written
-//! `n·x = d`). Each side's polygon keeps the input's cyclic order and is fanned into
-//! triangles, so every piece has the input's orientation: 1 + 2 = three triangles when one
-//! vertex is alone on its side, 1 + 1 = two when a vertex lies on the plane.
+//! `t = d_a / (d_a − d_b)` (the segment–plane intersection `t = (d − n·a) / (n·(b − a))` of
+//! Ericson, *Real-Time Collision Detection*, §5.3.1, with the plane written `n·x = d`). Each
+//! side's polygon keeps the input's cyclic order and is fanned into triangles, so every piece
+//! has the input's orientation: 1 + 2 = three triangles when one vertex is alone on its side,
+//! 1 + 1 = two when a vertex lies on the plane.
 //!
 //! The crossing point of an edge is always computed from its end in front of the plane, so
 //! the two triangles sharing an edge get bit-identical points: no cracks between pieces.

@@ -3,8 +3,9 @@
 //!
 //! One structure serves both extremes: a city of many small instances (each instance is one
 //! cluster, so the BVH is a BVH over instances) and one 10^6-triangle mesh loaded from an OBJ
-//! (thousands of clusters of one instance carry the culling). The occlusion culler of issue 5
-//! walks it front to back with [`ClusteredScene::traverse_front_to_back`] or, batch by batch,
+//! (thousands of clusters of one instance carry the culling). An occlusion culler (the
+//! renderer's `hzb` methods) walks it front to back with
+//! [`ClusteredScene::traverse_front_to_back`] or, batch by batch,
 //! with a [`FrontToBackCursor`] from [`ClusteredScene::cursor`]; it asks "is this box possibly
 //! visible?" for every node and cluster box, and draws the surviving items' triangles
 //! ([`ClusteredScene::triangles`], original mesh-local triangle indices; the global triangle

@@ -8,10 +8,10 @@
 //! Front-to-back: at each inner node the child whose box is nearer to the eye (squared
 //! distance to the box, 0 when the eye is inside; ties broken by the distance to the box
 //! center) is visited first, and a leaf's items are visited nearest first. This is the order
-//! an occlusion culler wants (issue 5): near occluders are drawn before the far nodes are
-//! tested against the depth pyramid. [`FrontToBackCursor`] stops after a batch of items and
-//! resumes where it stopped, so the caller can draw a batch and refresh its pyramid between
-//! batches without fighting the borrow checker over callbacks.
+//! an occlusion culler wants (Greene, Kass & Miller 1993): near occluders are drawn before
+//! the far nodes are tested against the depth pyramid. [`FrontToBackCursor`] stops after a
+//! batch of items and resumes where it stopped, so the caller can draw a batch and refresh its
+//! pyramid between batches without fighting the borrow checker over callbacks.
 
 use glam::Vec3;
 use sightline_scene::Aabb;

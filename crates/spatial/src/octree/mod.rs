@@ -9,9 +9,9 @@
 //! into their node's doubly linked list. Each node counts the objects in its subtree so that
 //! queries skip empty octants.
 //!
-//! Front-to-back order (the seeds' recursive octree traversal, Greene, Kass & Miller 1993):
+//! Front-to-back order (the recursive octree traversal of Greene, Kass & Miller 1993):
 //! the octant containing the eye first, then the three sharing a face with it, then the three
-//! sharing an edge, then the opposite one. `octree-hzb` (issue 5) uses
+//! sharing an edge, then the opposite one. The renderer's `octree-hzb` uses
 //! [`LooseOctree::traverse_front_to_back`] and skips a whole octant when its loose cube is
 //! occluded. The rule for bad boxes is the crate's: empty boxes are stored nowhere (never
 //! found), NaN/infinite boxes and boxes outside the root's loose cube live in an "outside" list

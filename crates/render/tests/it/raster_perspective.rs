@@ -9,6 +9,8 @@ use sightline_render::texture::{Filter, Wrap};
 use sightline_render::{render_scene, Framebuffer, RenderOptions, ShadeOptions};
 use sightline_scene::{Camera, Material, Mesh, NodeDesc, Scene, Texture};
 
+use crate::support::pixel_ndc;
+
 const N: u32 = 64; // texels per side
 const W: u32 = 128;
 const H: u32 = 96;
@@ -70,8 +72,7 @@ fn max_texel_error(perspective_correct: bool) -> (i32, usize) {
     let (mut worst, mut judged) = (0, 0);
     for y in 0..H {
         for x in 0..W {
-            let ndc = Vec2::new(2.0 * (x as f32 + 0.5) / W as f32 - 1.0, 1.0 - 2.0 * (y as f32 + 0.5) / H as f32);
-            let (o, d) = cam.ray_through_ndc(ndc);
+            let (o, d) = cam.ray_through_ndc(pixel_ndc(x, y, W, H));
             let (o, d) = (o.as_dvec3(), d.as_dvec3());
             if d.y >= 0.0 {
                 continue;

@@ -3,10 +3,11 @@
 use glam::Vec3;
 use sightline::render::cull::Rect;
 use sightline::render::{BoxVisibility, Culler, Framebuffer, RenderOptions};
-use sightline::scene::path::CameraKey;
 use sightline::scene::rng::Rng;
 use sightline::scene::shapes::MeshBuilder;
 use sightline::scene::{Aabb, Camera, NodeDesc, Scene};
+
+use crate::support::camera_key;
 
 /// A 20 × 10 wall in the plane z = −10, facing +z, and a camera at the origin looking down −z.
 fn wall() -> (Scene, Camera) {
@@ -16,15 +17,7 @@ fn wall() -> (Scene, Camera) {
     let m = s.add_mesh(b.build("wall").unwrap());
     s.add_node(None, NodeDesc::new("wall").mesh(m)).unwrap();
     s.update_transforms();
-    let key = CameraKey {
-        eye: [0.0; 3],
-        target: [0.0, 0.0, -1.0],
-        up: [0.0, 1.0, 0.0],
-        fovy_deg: 60.0,
-        near: 0.1,
-        far: 100.0,
-    };
-    (s, key.camera(16.0 / 9.0).unwrap())
+    (s, camera_key([0.0; 3], [0.0, 0.0, -1.0], 60.0, 0.1, 100.0).camera(16.0 / 9.0).unwrap())
 }
 
 fn cube_at(center: Vec3, half: f32) -> Aabb {
@@ -61,16 +54,7 @@ fn a_depth_cleared_buffer_occludes_nothing() {
     let mut culler = Culler::new(&scene);
     let fb = Framebuffer::new(160, 90).unwrap();
     // Looking away from the wall: nothing is drawn.
-    let away = CameraKey {
-        eye: [0.0; 3],
-        target: [0.0, 0.0, 1.0],
-        up: [0.0, 1.0, 0.0],
-        fovy_deg: 60.0,
-        near: 0.1,
-        far: 100.0,
-    }
-    .camera(16.0 / 9.0)
-    .unwrap();
+    let away = camera_key([0.0; 3], [0.0, 0.0, 1.0], 60.0, 0.1, 100.0).camera(16.0 / 9.0).unwrap();
     let (_, _, q) = culler.occluder_pass(&away, &fb, &RenderOptions::ids_only()).unwrap();
     let mut rng = Rng::new(4);
     let boxes: Vec<Aabb> = (0..2000)

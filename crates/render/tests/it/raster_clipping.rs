@@ -4,17 +4,15 @@
 
 use glam::{DVec3, Vec3};
 use sightline_render::{render_scene, Framebuffer, RenderOptions};
-use sightline_scene::{Camera, Mesh, NodeDesc, Scene};
+use sightline_scene::{Camera, Mesh, Scene};
+
+use crate::support::{one_node_scene, pixel_ndc};
 
 const W: u32 = 64;
 const H: u32 = 48;
 
 fn scene_of(tri: [Vec3; 3]) -> Scene {
-    let mut s = Scene::new();
-    let m = s.add_mesh(Mesh::new("t", tri.to_vec(), None, None, vec![0, 1, 2]).unwrap());
-    s.add_node(None, NodeDesc::new("t").mesh(m)).unwrap();
-    s.update_transforms();
-    s
+    one_node_scene("t", Mesh::new("t", tri.to_vec(), None, None, vec![0, 1, 2]).unwrap())
 }
 
 fn render(scene: &Scene, cam: &Camera, guard_band: bool) -> Framebuffer {
@@ -56,8 +54,7 @@ fn check(tri: [Vec3; 3], cam: &Camera) -> usize {
     let mut judged = 0;
     for y in 0..H {
         for x in 0..W {
-            let ndc = glam::Vec2::new(2.0 * (x as f32 + 0.5) / W as f32 - 1.0, 1.0 - 2.0 * (y as f32 + 0.5) / H as f32);
-            let (o, d) = cam.ray_through_ndc(ndc);
+            let (o, d) = cam.ray_through_ndc(pixel_ndc(x, y, W, H));
             // The direction has view z = −1, so t is the view depth.
             let m = ray_margin(o.as_dvec3(), d.as_dvec3(), tri_d, near * (1.0 - 1e-9), far);
             let covered = fb.ids[fb.index(x, y)] == 1;

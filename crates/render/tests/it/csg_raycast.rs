@@ -7,6 +7,8 @@ use sightline_render::raycast::HitTarget;
 use sightline_render::{Framebuffer, RayCaster, RaycastOptions};
 use sightline_scene::{shapes, Camera, NodeDesc, Scene, Transform};
 
+use crate::support::pixel_ndc;
+
 fn object(csg: &Csg) -> CsgObject {
     CsgObject::new("test", csg, Affine3A::IDENTITY, [1.0; 4]).unwrap()
 }
@@ -164,8 +166,7 @@ fn csg_solids_render_with_meshes_with_ids_above_the_triangles() {
     // Depth of CSG pixels is consistent with the single-ray query.
     let (w, h) = (96usize, 64usize);
     let i = (0..w * h).find(|&i| fb.ids[i] == 25).unwrap();
-    let ndc =
-        glam::Vec2::new(2.0 * ((i % w) as f32 + 0.5) / w as f32 - 1.0, 1.0 - 2.0 * ((i / w) as f32 + 0.5) / h as f32);
+    let ndc = pixel_ndc((i % w) as u32, (i / w) as u32, w as u32, h as u32);
     let (o, d) = cam.ray_through_ndc(ndc);
     let hit = caster.intersect(o, d, 0.0, f32::INFINITY).unwrap();
     assert_eq!(hit.id, 25);

@@ -7,6 +7,8 @@ use sightline::scene::builders::{city, CityParams};
 use sightline::scene::path::CameraKey;
 use sightline::scene::Scene;
 
+use crate::support::camera_key;
+
 const W: u32 = 320;
 const H: u32 = 180;
 
@@ -86,14 +88,7 @@ fn culled_gltf_scene_equals_brute_force() {
     let keys: Vec<CameraKey> = (0..8)
         .map(|i| {
             let a = i as f32 * std::f32::consts::TAU / 8.0;
-            CameraKey {
-                eye: [c.x + r * a.cos(), c.y + 0.3 * r, c.z + r * a.sin()],
-                target: c.into(),
-                up: [0.0, 1.0, 0.0],
-                fovy_deg: 50.0,
-                near: 0.01,
-                far: 10.0 * r,
-            }
+            camera_key([c.x + r * a.cos(), c.y + 0.3 * r, c.z + r * a.sin()], c.into(), 50.0, 0.01, 10.0 * r)
         })
         .collect();
     // Its triangles are one-sided: look at both sides, shaded, to cover that path too.

@@ -3,15 +3,12 @@
 //! never a panic.
 
 use std::io::Cursor;
-use std::path::{Path, PathBuf};
 
 use proptest::prelude::*;
 use sightline_scene::gltf_loader::load_gltf_bytes;
 use sightline_scene::obj_loader::load_obj_reader;
 
-fn asset(name: &str) -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("../../assets").join(name)
-}
+use crate::support::asset;
 
 fn read(name: &str) -> Vec<u8> {
     std::fs::read(asset(name)).unwrap()

@@ -4,8 +4,9 @@
 
 use glam::{Quat, Vec3};
 use sightline_render::{render_scene, Framebuffer, RayCaster, RaycastOptions, RenderOptions};
-use sightline_scene::builders::{city, CityParams};
 use sightline_scene::{Camera, Mesh, NodeDesc, Projection, Scene, Transform, View};
+
+use crate::support::small_city;
 
 const W: u32 = 192;
 const H: u32 = 108;
@@ -72,10 +73,6 @@ fn check(name: &str, scene: &Scene, camera: &Camera, opts: &RenderOptions) {
     assert!(r.ids >= 0.995, "{name}: only {:.3}% of the IDs agree", r.ids * 100.0);
     assert!(r.depth_close >= 0.99, "{name}: depth within 1e-5 on only {:.3}%", r.depth_close * 100.0);
     assert!(r.color_close >= 0.99, "{name}: colors agree on only {:.3}%", r.color_close * 100.0);
-}
-
-fn small_city() -> sightline_scene::builders::City {
-    city(&CityParams::for_triangles(30_000)).unwrap()
 }
 
 #[test]

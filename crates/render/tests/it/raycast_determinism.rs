@@ -7,15 +7,13 @@ use sightline_render::raycast::SimdLevel;
 use sightline_render::{Framebuffer, RayCaster, RaycastOptions};
 use sightline_scene::builders::{city, CityParams};
 
+use crate::support::assert_bit_identical;
+
 fn frame(caster: &RayCaster, cam: &sightline_scene::Camera, opts: &RaycastOptions, threads: usize) -> Framebuffer {
     let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap();
     let mut fb = Framebuffer::new(203, 117).unwrap();
     pool.install(|| caster.render(cam, opts, &mut fb)).unwrap();
     fb
-}
-
-fn same(a: &Framebuffer, b: &Framebuffer) -> bool {
-    a.ids == b.ids && a.color == b.color && a.depth.iter().zip(&b.depth).all(|(x, y)| x.to_bits() == y.to_bits())
 }
 
 #[test]
@@ -40,7 +38,7 @@ fn raycast_is_deterministic_across_threads_and_simd_levels() {
         for simd in [SimdLevel::Portable, SimdLevel::Avx2, SimdLevel::Avx512, SimdLevel::Auto] {
             for threads in [1, 2, 3] {
                 let f = frame(&caster, cam, &RaycastOptions { simd, ..opts }, threads);
-                assert!(same(&reference, &f), "{simd:?} with {threads} threads differs");
+                assert_bit_identical(&reference, &f, &format!("{simd:?} with {threads} threads"));
             }
         }
     }

@@ -6,6 +6,8 @@ use sightline_render::csg::{Csg, CsgObject};
 use sightline_render::{Framebuffer, RayCaster, RaycastOptions};
 use sightline_scene::{shapes, Camera, Mesh, NodeDesc, Projection, Scene, Transform, View};
 
+use crate::support::one_node_scene;
+
 fn degenerate_scene() -> Scene {
     let mut scene = Scene::new();
     let p = vec![
@@ -57,12 +59,9 @@ fn raycast_degenerate_rays_miss() {
 
 #[test]
 fn raycast_degenerate_triangles_are_never_hit() {
-    let mut scene = Scene::new();
     // Only zero-area triangles.
     let p = vec![Vec3::ZERO, Vec3::X, Vec3::X * 2.0, Vec3::Y];
-    let m = scene.add_mesh(Mesh::new("zero", p, None, None, vec![0, 1, 2, 3, 3, 3, 0, 3, 0]).unwrap());
-    scene.add_node(None, NodeDesc::new("z").mesh(m)).unwrap();
-    scene.update_transforms();
+    let scene = one_node_scene("z", Mesh::new("zero", p, None, None, vec![0, 1, 2, 3, 3, 3, 0, 3, 0]).unwrap());
     let caster = RayCaster::build(&scene).unwrap();
     for x in [-0.5f32, 0.0, 0.5, 1.0, 1.5, 2.0] {
         for y in [-0.5f32, 0.0, 0.5, 1.0] {

@@ -108,8 +108,8 @@ fn fan_of_64_triangles_covers_every_pixel_exactly_once() {
     }
 }
 
-/// fillrule_probe.py, through the public API: NDC positions from the probe's GL window
-/// coordinates on an 8×8 target.
+/// Ties resolved as llvmpipe resolves them, through the public API: pairs of triangles sharing
+/// an edge through pixel centers, given in GL window coordinates (y up) on an 8×8 target.
 #[test]
 fn llvmpipe_probe_ties() {
     let to_ndc = |(x, y): (f32, f32)| Vec4::new(x / 4.0 - 1.0, y / 4.0 - 1.0, 0.0, 1.0);

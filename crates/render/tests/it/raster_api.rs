@@ -7,11 +7,12 @@ use sightline_render::{
     draw_all, render_scene, Antialias, DrawItem, Framebuffer, RenderOptions, Renderer, ShadeOptions, ShadingMode,
     Wireframe,
 };
-use sightline_scene::builders::{city, CityParams};
 use sightline_scene::{shapes, Camera, Material, NodeDesc, Scene};
 
+use crate::support::{self, one_node_scene};
+
 fn small_city() -> (sightline_scene::builders::City, Camera) {
-    let c = city(&CityParams::for_triangles(30_000)).unwrap();
+    let c = support::small_city();
     let cam = c.layout.street_path(10, 11)[2].camera(4.0 / 3.0).unwrap();
     (c, cam)
 }
@@ -145,12 +146,9 @@ fn wireframe_alone_and_as_overlay() {
 
 #[test]
 fn shading_modes_differ_where_they_should() {
-    let mut s = Scene::new();
     // A box with per-face normals, seen from a corner: flat, Gouraud and per-pixel agree
     // on flat faces; all are lit (not background) and the default material is grey.
-    let m = s.add_mesh(shapes::cube("c").unwrap());
-    s.add_node(None, NodeDesc::new("c").mesh(m)).unwrap();
-    s.update_transforms();
+    let s = one_node_scene("c", shapes::cube("c").unwrap());
     let cam = Camera::perspective_look_at(Vec3::new(1.5, 1.2, 2.0), Vec3::ZERO, Vec3::Y, 50.0, 1.0, 0.1, 10.0).unwrap();
     let img = |mode| {
         let mut fb = Framebuffer::new(48, 48).unwrap();

@@ -3,6 +3,8 @@
 use sightline_render::{draw_all, Antialias, Framebuffer, RenderOptions, Renderer, ShadingMode};
 use sightline_scene::builders::{city, CityParams};
 
+use crate::support::assert_bit_identical;
+
 fn render_with(threads: usize, opts: &RenderOptions, street: bool) -> Framebuffer {
     let c = city(&CityParams::for_triangles(40_000)).unwrap();
     let instances = c.scene.instances();
@@ -28,10 +30,7 @@ fn one_and_two_threads_give_identical_buffers() {
         let a = render_with(1, &opts, street);
         let b = render_with(2, &opts, street);
         assert!(a.ids.iter().any(|&i| i != 0));
-        assert_eq!(a.ids, b.ids);
-        assert_eq!(a.color, b.color);
-        let bits = |f: &Framebuffer| f.depth.iter().map(|d| d.to_bits()).collect::<Vec<_>>();
-        assert_eq!(bits(&a), bits(&b));
+        assert_bit_identical(&a, &b, "1 and 2 threads");
         assert_eq!(a.depth_tests, b.depth_tests);
     }
 }

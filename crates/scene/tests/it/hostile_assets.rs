@@ -10,7 +10,9 @@ use std::time::Duration;
 
 use sightline_scene::gltf_loader::{load_gltf, load_gltf_with};
 use sightline_scene::obj_loader::{load_obj, load_obj_with};
-use sightline_scene::{load, load_with, LoadOptions, Result, Scene};
+use sightline_scene::{load, load_with, LoadOptions};
+
+use crate::support::{assert_mentions, err_text, TRI};
 
 /// A fresh folder for one test, with the asset folder `asset/` inside it; files "outside" go
 /// in the test folder itself.
@@ -19,19 +21,6 @@ fn tmp_dir(test: &str) -> PathBuf {
     let _ = std::fs::remove_dir_all(&d);
     std::fs::create_dir_all(d.join("asset")).unwrap();
     d
-}
-
-fn err_text(r: Result<Scene>) -> String {
-    match r {
-        Ok(s) => panic!("expected an error, got a scene with {} triangles", s.stats().triangles),
-        Err(e) => e.to_string(),
-    }
-}
-
-fn assert_mentions(msg: &str, parts: &[&str]) {
-    for p in parts {
-        assert!(msg.contains(p), "message {msg:?} does not mention {p:?}");
-    }
 }
 
 /// Runs `f` on another thread and fails the test if it takes longer than a generous bound (so
@@ -92,8 +81,6 @@ fn write_doc(dir: &Path, name: &str, doc: &serde_json::Value) -> PathBuf {
     std::fs::write(&path, serde_json::to_string_pretty(doc).unwrap()).unwrap();
     path
 }
-
-const TRI: &str = "v 0 0 0\nv 1 0 0\nv 0 1 0\n";
 
 /// Writes an OBJ naming material library `mtl`, as `asset/name`.
 fn write_obj(dir: &Path, name: &str, mtl: &str) -> PathBuf {

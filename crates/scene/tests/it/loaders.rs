@@ -10,9 +10,7 @@ use sightline_scene::gltf_loader::load_gltf;
 use sightline_scene::obj_loader::load_obj;
 use sightline_scene::*;
 
-fn asset(name: &str) -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("../../assets").join(name)
-}
+use crate::support::{assert_mentions, asset, err_text, TRI};
 
 /// A fresh, empty folder for one test.
 fn tmp_dir(test: &str) -> PathBuf {
@@ -37,19 +35,6 @@ fn world_triangles(scene: &Scene) -> Vec<[Vec3; 3]> {
 fn assert_close(got: Vec3, want: [f32; 3], what: &str) {
     let want = Vec3::from(want);
     assert!((got - want).abs().max_element() < 1e-5, "{what}: got {got}, want {want}");
-}
-
-fn err_text(r: Result<Scene>) -> String {
-    match r {
-        Ok(s) => panic!("expected an error, got a scene with {} nodes", s.node_count()),
-        Err(e) => e.to_string(),
-    }
-}
-
-fn assert_mentions(msg: &str, parts: &[&str]) {
-    for p in parts {
-        assert!(msg.contains(p), "message {msg:?} does not mention {p:?}");
-    }
 }
 
 // ---- the authored glTF --------------------------------------------------------------------
@@ -671,8 +656,6 @@ fn unreadable_gltf_names_the_file() {
 }
 
 // ---- broken OBJ ---------------------------------------------------------------------------
-
-const TRI: &str = "v 0 0 0\nv 1 0 0\nv 0 1 0\n";
 
 fn write(dir: &Path, name: &str, text: &str) -> PathBuf {
     let p = dir.join(name);

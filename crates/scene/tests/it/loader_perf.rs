@@ -2,7 +2,7 @@
 //! also timed and printed (no timing assertions; the machine is noisy). Ignored by default:
 //!
 //! ```text
-//! cargo test --release -p sightline-scene --test loader_perf -- --ignored --nocapture
+//! cargo test --release -p sightline-scene --test it loader_perf -- --ignored --nocapture
 //! ```
 
 use std::time::Instant;

@@ -10,6 +10,8 @@ use sightline::scene::path::CameraKey;
 use sightline::scene::{shapes, Instance, NodeDesc, Scene, Transform};
 use sightline::spatial::{CullOptions, Frustum, InstanceBvh, LooseOctree, Visible};
 
+use crate::support::camera_key;
+
 const W: u32 = 96;
 const H: u32 = 64;
 
@@ -99,7 +101,7 @@ proptest! {
         prop_assume!(Vec3::from(eye).distance(Vec3::from(target)) > 0.5);
         let scene = build(&objects);
         let instances = scene.instances();
-        let key = CameraKey { eye, target, up: [0.0, 1.0, 0.0], fovy_deg: fovy, near, far: 200.0 };
+        let key = camera_key(eye, target, fovy, near, 200.0);
         prop_assume!(key.camera(1.5).is_ok());
         let own = owners(&scene, &instances, &key);
         let frustum = Frustum::from_camera(&key.camera(W as f32 / H as f32).unwrap());
@@ -123,14 +125,7 @@ fn looking_away_culls_everything() {
         .collect();
     let scene = build(&objects);
     let instances = scene.instances();
-    let key = CameraKey {
-        eye: [0.0, 0.0, 10.0],
-        target: [0.0, 0.0, 20.0],
-        up: [0.0, 1.0, 0.0],
-        fovy_deg: 60.0,
-        near: 0.1,
-        far: 100.0,
-    };
+    let key = camera_key([0.0, 0.0, 10.0], [0.0, 0.0, 20.0], 60.0, 0.1, 100.0);
     let frustum = Frustum::from_camera(&key.camera(1.5).unwrap());
     for (name, set) in culled_sets(&instances, &frustum) {
         assert!(set.iter().all(|&s| !s), "{name} kept something behind the camera");

@@ -5,6 +5,8 @@ use glam::{Affine3A, Vec3, Vec4};
 use sightline_render::{render_scene, DrawItem, Framebuffer, RenderOptions, Renderer};
 use sightline_scene::{shapes, Camera, NodeDesc, Scene};
 
+use crate::support::one_node_scene;
+
 fn v(x: f32, y: f32, z: f32, w: f32) -> Vec4 {
     Vec4::new(x, y, z, w)
 }
@@ -91,10 +93,7 @@ fn huge_transforms_and_tiny_framebuffers_through_the_scene() {
 
 #[test]
 fn invalid_draw_items_are_errors() {
-    let mut s = Scene::new();
-    let cube = s.add_mesh(shapes::cube("c").unwrap());
-    s.add_node(None, NodeDesc::new("n").mesh(cube)).unwrap();
-    s.update_transforms();
+    let s = one_node_scene("n", shapes::cube("c").unwrap());
     let inst = s.instances();
     let cam =
         Camera::perspective_look_at(Vec3::new(0.0, 0.0, 3.0), Vec3::ZERO, Vec3::Y, 60.0, 1.0, 0.1, 100.0).unwrap();

@@ -1,0 +1,19 @@
+//! The render crate's integration tests, one binary, so that cargo compiles and links one
+//! test executable per package instead of one per file. `raster_*` test the rasterizer through
+//! the public API, `raycast_*` the ray caster, `csg_raycast` CSG solids.
+
+#![forbid(unsafe_code)]
+
+mod csg_raycast;
+mod raster_api;
+mod raster_clipping;
+mod raster_depth;
+mod raster_determinism;
+mod raster_fillrule;
+mod raster_perspective;
+mod raster_robustness;
+mod raycast_agreement;
+mod raycast_determinism;
+mod raycast_reference;
+mod raycast_robustness;
+mod support;

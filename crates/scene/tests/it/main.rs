@@ -1,0 +1,16 @@
+//! The scene crate's integration tests, one binary, so that cargo compiles and links one
+//! test executable per package instead of one per file: the scene graph, the loaders and the
+//! exporter, hostile asset references, loader fuzzing, and an ignored 10^6-triangle round
+//! trip.
+//!
+//! proptest keeps the regression seeds of a module `m` of this binary in
+//! `tests/proptest-regressions/m.txt` (commit them).
+
+#![forbid(unsafe_code)]
+
+mod graph;
+mod hostile_assets;
+mod loader_fuzz;
+mod loader_perf;
+mod loaders;
+mod support;

@@ -1,0 +1,16 @@
+//! The root package's integration tests, one binary, so that cargo compiles and links one
+//! test executable per package instead of one per file. Each module is one subject:
+//!
+//! * `culling`: every culling method draws exactly the brute-force triangle IDs;
+//! * `culling_proptest`: conservative frustum culling, property-tested against the rasterizer;
+//! * `occlusion`: occlusion queries against the z-pyramid, and the pyramid's exactness.
+//!
+//! proptest keeps the regression seeds of a module `m` of this binary in
+//! `tests/proptest-regressions/m.txt` (commit them).
+
+#![forbid(unsafe_code)]
+
+mod culling;
+mod culling_proptest;
+mod occlusion;
+mod support;
