@@ -51,6 +51,7 @@ impl Viewport {
     }
 
     /// Half width, half height and the height in fixed point (for vectorized projection).
+    #[cfg_attr(not(target_arch = "x86_64"), allow(dead_code))]
     #[inline]
     pub(crate) fn scale(&self) -> (f32, f32, i32) {
         (self.hw, self.hh, self.h_fixed)

@@ -62,10 +62,12 @@ impl Isa for Portable {
 
 /// AVX2: two 8-lane halves, `movmskps`.
 #[derive(Debug, Clone, Copy)]
+#[cfg_attr(not(target_arch = "x86_64"), allow(dead_code))]
 pub(crate) struct Avx2;
 
 /// AVX-512: one 16-lane register, compare into a mask register.
 #[derive(Debug, Clone, Copy)]
+#[cfg_attr(not(target_arch = "x86_64"), allow(dead_code))]
 pub(crate) struct Avx512;
 
 #[cfg(target_arch = "x86_64")]

@@ -18,7 +18,9 @@ use rayon::prelude::*;
 use sightline_scene::{Camera, Material};
 
 use super::camera::CameraRays;
-use super::isa::{Avx2, Avx512, Isa, Portable};
+#[cfg(target_arch = "x86_64")]
+use super::isa::{Avx2, Avx512};
+use super::isa::{Isa, Portable};
 use super::packet::{BeamPlanes, Hits, Rays, CHUNK, LANES, NO_HIT, TILE};
 use super::trace::{trace, Scratch};
 use super::{RayCaster, RaycastOptions, RaycastStats, SimdLevel};
