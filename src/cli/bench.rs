@@ -19,8 +19,8 @@ pub struct BenchArgs {
     /// Image size
     #[arg(long, default_value = "1280x720")]
     pub size: super::common::Size,
-    /// Worker threads (default: all cores)
-    #[arg(long)]
+    /// Worker threads, 1 to 256 (default: all cores)
+    #[arg(long, value_parser = super::common::threads_arg)]
     pub threads: Option<usize>,
 }
 

@@ -140,6 +140,34 @@ impl Look {
     }
 }
 
+/// The most frames a command renders or a path holds: ten hours at 30 frames a second. A
+/// frame count is checked against it before any work (a path of 2^64 frames would try to
+/// allocate its keys up front).
+pub const MAX_FRAMES: usize = 1_000_000;
+
+/// The most worker threads a command starts (far more than any CPU this runs on has; each
+/// thread costs a stack and a share of every frame's synchronization).
+pub const MAX_THREADS: usize = 256;
+
+/// Parses `--frames`: a whole number from 0 to [`MAX_FRAMES`].
+pub fn frames_arg(s: &str) -> std::result::Result<usize, String> {
+    let n: u128 = s.trim().parse().map_err(|_| format!("`{s}` is not a whole number of frames"))?;
+    if n > MAX_FRAMES as u128 {
+        return Err(format!("{n} frames is more than the {MAX_FRAMES} a command renders"));
+    }
+    Ok(n as usize)
+}
+
+/// Parses `--threads`: a whole number from 1 to [`MAX_THREADS`].
+pub fn threads_arg(s: &str) -> std::result::Result<usize, String> {
+    let n: u128 = s.trim().parse().map_err(|_| format!("`{s}` is not a whole number of threads"))?;
+    if n == 0 || n > MAX_THREADS as u128 {
+        let cores = std::thread::available_parallelism().map_or(1, |n| n.get());
+        return Err(format!("{n} threads: give 1 to {MAX_THREADS} (this machine has {cores} cores)"));
+    }
+    Ok(n as usize)
+}
+
 /// Runs `f` on a rayon pool of `threads` threads (all cores when `None`).
 ///
 /// `f` itself runs on one of the pool's workers, not on the calling thread: a frame makes
@@ -214,5 +242,23 @@ impl CameraChoice<'_> {
             }
             _ => bail!("--eye and --target go together"),
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn frame_and_thread_counts_are_checked_before_any_work() {
+        assert_eq!(frames_arg("120"), Ok(120));
+        assert_eq!(frames_arg("0"), Ok(0));
+        assert!(frames_arg("18446744073709551615").unwrap_err().contains("more than"));
+        assert!(frames_arg("3000000000").unwrap_err().contains("more than"));
+        assert!(frames_arg("99999999999999999999999999999999999999999").unwrap_err().contains("not a whole number"));
+        assert!(frames_arg("-1").is_err() && frames_arg("ten").is_err());
+        assert_eq!(threads_arg("2"), Ok(2));
+        assert!(threads_arg("0").unwrap_err().contains("give 1 to"));
+        assert!(threads_arg("10000").unwrap_err().contains("give 1 to"));
     }
 }

@@ -44,8 +44,8 @@ pub struct PathArgs {
     /// Camera path JSON (default: the scene's street path)
     #[arg(long, value_name = "FILE")]
     pub path: Option<std::path::PathBuf>,
-    /// Frames to render (default: the whole path; 120 for the built-in path)
-    #[arg(long)]
+    /// Frames to render, at most 1,000,000 (default: the whole path; 120 for the built-in path)
+    #[arg(long, value_parser = common::frames_arg)]
     pub frames: Option<usize>,
 }
 
@@ -74,8 +74,8 @@ enum Command {
         /// Street walk at eye height, or a flight above the roofs
         #[arg(long, value_enum, default_value = "street")]
         kind: path::PathKind,
-        /// Number of frames
-        #[arg(long, default_value_t = 120)]
+        /// Number of frames, at most 1,000,000
+        #[arg(long, default_value_t = 120, value_parser = common::frames_arg)]
         frames: usize,
         /// Output file
         #[arg(long, value_name = "FILE")]

@@ -57,8 +57,8 @@ pub struct RenderArgs {
     /// Hard shadows from the light (ray casting only)
     #[arg(long)]
     pub shadows: bool,
-    /// Worker threads (default: all cores)
-    #[arg(long)]
+    /// Worker threads, 1 to 256 (default: all cores)
+    #[arg(long, value_parser = super::common::threads_arg)]
     pub threads: Option<usize>,
     /// Directory for color.png, depth.png, ids.png, complexity.png
     #[arg(long, value_name = "DIR")]

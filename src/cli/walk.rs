@@ -48,8 +48,8 @@ pub struct WalkArgs {
     /// Drop triangles facing away from the camera
     #[arg(long, value_enum, default_value = "on")]
     pub backface_culling: OnOff,
-    /// Worker threads (default: all cores)
-    #[arg(long)]
+    /// Worker threads, 1 to 256 (default: all cores)
+    #[arg(long, value_parser = super::common::threads_arg)]
     pub threads: Option<usize>,
     /// Directory for per-frame counters (CSV, JSON) and PNG frames
     #[arg(long, value_name = "DIR")]

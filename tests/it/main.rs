@@ -1,6 +1,7 @@
 //! The root package's integration tests, one binary, so that cargo compiles and links one
 //! test executable per package instead of one per file. Each module is one subject:
 //!
+//! * `cli`: the built program's usage errors;
 //! * `culling`: every culling method draws exactly the brute-force triangle IDs;
 //! * `culling_proptest`: conservative frustum culling, property-tested against the rasterizer;
 //! * `occlusion`: occlusion queries against the z-pyramid, and the pyramid's exactness.
@@ -10,6 +11,7 @@
 
 #![forbid(unsafe_code)]
 
+mod cli;
 mod culling;
 mod culling_proptest;
 mod occlusion;

@@ -1,0 +1,38 @@
+//! The built `sightline` program driven as a user drives it: numbers no command can honour
+//! are usage errors (exit 2, one line naming the flag), caught before any scene is built or
+//! memory is reserved for them.
+
+use std::process::Command;
+use std::time::{Duration, Instant};
+
+/// Runs the program; returns the exit code and stderr.
+fn run(args: &[&str]) -> (Option<i32>, String) {
+    let out = Command::new(env!("CARGO_BIN_EXE_sightline")).args(args).output().expect("the program starts");
+    (out.status.code(), String::from_utf8_lossy(&out.stderr).into_owned())
+}
+
+#[test]
+fn huge_frame_and_thread_counts_are_usage_errors() {
+    let dir = std::env::temp_dir().join(format!("sightline-cli-{}", std::process::id()));
+    let out = dir.join("path.json");
+    let out = out.to_str().expect("a UTF-8 temp path");
+    let cases: [&[&str]; 7] = [
+        &["path", "--frames", "18446744073709551615", "--out", out],
+        &["path", "--frames", "100000000", "--out", out],
+        &["walk", "--frames", "18446744073709551615"],
+        &["walk", "--frames", "3000000000"],
+        &["walk", "--threads", "10000"],
+        &["render", "--threads", "0"],
+        &["bench", "--threads", "100000"],
+    ];
+    for args in cases {
+        let t = Instant::now();
+        let (code, err) = run(args);
+        assert_eq!(code, Some(2), "{args:?}: {err}");
+        let flag = if args.contains(&"--threads") { "--threads" } else { "--frames" };
+        assert!(err.contains(flag), "{args:?}: the error names {flag}: {err}");
+        assert!(!err.contains("panicked"), "{args:?}: {err}");
+        assert!(t.elapsed() < Duration::from_secs(20), "{args:?} took {:?}", t.elapsed());
+    }
+    assert!(!dir.join("path.json").exists(), "nothing was written");
+}
