@@ -133,13 +133,15 @@ impl Projection {
                 return Err(Error::InvalidCamera("oblique shear is not finite".into()));
             }
         }
+        // Near first: a perspective window made from a field of view is scaled by near, so
+        // near = 0 would otherwise be reported as an empty window.
+        if perspective && n <= 0.0 {
+            return Err(Error::InvalidCamera(format!("near = {n}: a perspective projection needs near > 0")));
+        }
         if l >= r || b >= t {
             return Err(Error::InvalidCamera(format!(
                 "empty window: left {l} ≥ right {r} or bottom {b} ≥ top {t} (zero-size viewport?)"
             )));
-        }
-        if perspective && n <= 0.0 {
-            return Err(Error::InvalidCamera(format!("near = {n}: a perspective projection needs near > 0")));
         }
         if n < 0.0 {
             return Err(Error::InvalidCamera(format!("near = {n} is negative")));
@@ -235,6 +237,15 @@ impl Projection {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn near_zero_is_named_as_the_cause() {
+        for near in [0.0, -0.0, -1.0] {
+            let e = Projection::perspective(1.0, 1.5, near, 100.0).unwrap_err().to_string();
+            assert!(e.contains("near") && e.contains("> 0"), "{e}");
+            assert!(!e.contains("empty window"), "{e}");
+        }
+    }
     use glam::DVec3;
 
     #[test]
