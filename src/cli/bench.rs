@@ -45,8 +45,19 @@ pub fn run(a: &BenchArgs) -> Result<()> {
             depth_format: super::common::DepthArg::F32,
         },
     };
+    // A summary left by an earlier run must not pass for this one's.
+    if json.exists() {
+        std::fs::remove_file(&json).with_context(|| format!("removing the old {}", json.display()))?;
+    }
     let result = walk::run(&w);
-    let summary: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&json)?)?;
+    let text = match std::fs::read_to_string(&json) {
+        Ok(t) => t,
+        Err(e) => {
+            result?;
+            return Err(e).with_context(|| format!("the walk wrote no {}", json.display()));
+        }
+    };
+    let summary: serde_json::Value = serde_json::from_str(&text)?;
     let methods = summary["methods"].as_array().cloned().unwrap_or_default();
     let brute = methods.iter().find(|m| m["method"] == "brute").and_then(|m| m["median_ms"].as_f64());
     let mut md = String::new();

@@ -168,6 +168,37 @@ pub fn threads_arg(s: &str) -> std::result::Result<usize, String> {
     Ok(n as usize)
 }
 
+/// Checks, before any work, that output can be written where the user asked: `dirs` are
+/// created (and written to and cleaned up once), each of `files` must be creatable in an
+/// existing folder. A long walk then never renders every frame only to fail at the end.
+pub fn check_outputs(dirs: &[&Path], files: &[&Path]) -> Result<()> {
+    for dir in dirs {
+        std::fs::create_dir_all(dir).with_context(|| format!("cannot create output folder {}", dir.display()))?;
+        let probe = dir.join(".sightline-write-check");
+        std::fs::write(&probe, b"").with_context(|| format!("cannot write into output folder {}", dir.display()))?;
+        let _ = std::fs::remove_file(&probe);
+    }
+    for file in files {
+        if file.is_dir() {
+            bail!("output file {} is a folder", file.display());
+        }
+        let parent = file.parent().filter(|p| !p.as_os_str().is_empty()).unwrap_or(Path::new("."));
+        if !parent.is_dir() {
+            bail!("cannot write {}: folder {} does not exist", file.display(), parent.display());
+        }
+        let existed = file.exists();
+        std::fs::OpenOptions::new()
+            .append(true)
+            .create(true)
+            .open(file)
+            .with_context(|| format!("cannot write output file {}", file.display()))?;
+        if !existed {
+            let _ = std::fs::remove_file(file);
+        }
+    }
+    Ok(())
+}
+
 /// Runs `f` on a rayon pool of `threads` threads (all cores when `None`).
 ///
 /// `f` itself runs on one of the pool's workers, not on the calling thread: a frame makes

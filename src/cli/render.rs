@@ -77,6 +77,9 @@ pub struct RenderArgs {
 }
 
 pub fn run(a: &RenderArgs) -> Result<()> {
+    let files: Vec<&std::path::Path> =
+        [&a.id_out, &a.depth_out, &a.json].into_iter().flatten().map(|p| p.as_path()).collect();
+    common::check_outputs(a.out.as_deref().as_slice(), &files)?;
     let loaded = super::load_scene(&a.scene)?;
     let choice = CameraChoice {
         eye: a.eye,

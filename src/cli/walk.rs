@@ -117,6 +117,7 @@ fn methods(m: WalkMethod) -> Vec<(&'static str, Option<Method>)> {
 }
 
 pub fn run(a: &WalkArgs) -> Result<()> {
+    common::check_outputs(a.out.as_deref().as_slice(), a.json.as_deref().as_slice())?;
     let loaded = super::load_scene(&a.walk.scene)?;
     let keys = common::path_keys(&loaded, a.walk.path.as_deref(), a.walk.frames)?;
     let opts = a.look.options(a.backface_culling);

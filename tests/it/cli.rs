@@ -36,3 +36,25 @@ fn huge_frame_and_thread_counts_are_usage_errors() {
     }
     assert!(!dir.join("path.json").exists(), "nothing was written");
 }
+
+/// Output that cannot be written is found before any frame is rendered, and `bench` never
+/// passes off an earlier run's summary as its own.
+#[test]
+fn unwritable_output_fails_first_and_bench_never_reprints_an_old_table() {
+    let (code, err) = run(&["walk", "--frames", "2", "--size", "64x36", "--out", "/proc/sightline-no"]);
+    assert_eq!(code, Some(1), "{err}");
+    assert!(err.contains("output folder") && err.lines().count() == 1, "{err}");
+    assert!(!err.contains("ms"), "the walk rendered nothing: {err}");
+    let (code, err) = run(&["render", "--size", "64x36", "--json", "/proc/sightline-no/x.json"]);
+    assert_eq!(code, Some(1), "{err}");
+    assert!(err.contains("x.json"), "{err}");
+
+    let dir = std::env::temp_dir().join(format!("sightline-bench-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    std::fs::write(dir.join("bench.json"), r#"{"scene":"old","methods":[{"method":"brute","median_ms":1.0}]}"#)
+        .unwrap();
+    let (code, err) = run(&["bench", "--frames", "0", "--size", "64x36", "--out", dir.to_str().unwrap()]);
+    assert_eq!(code, Some(1), "{err}");
+    assert!(!dir.join("bench.md").exists(), "no table from the old summary");
+    let _ = std::fs::remove_dir_all(&dir);
+}
