@@ -98,6 +98,22 @@ enum Command {
     },
 }
 
+impl Cli {
+    /// Options that parse but cannot mean anything together: a usage error (exit 2) before
+    /// any work, instead of being ignored.
+    pub fn usage_error(&self) -> Option<String> {
+        match &self.command {
+            Command::Render(a) if a.shadows && a.method == render::FrameMethod::Raster => {
+                Some("--shadows needs --method raycast: the rasterizer draws no shadows".into())
+            }
+            Command::Csg { out, .. } if !out.extension().is_some_and(|e| e.eq_ignore_ascii_case("png")) => {
+                Some(format!("--out {}: csg writes a PNG image; give a .png file", out.display()))
+            }
+            _ => None,
+        }
+    }
+}
+
 /// Runs one command.
 pub fn run(cli: Cli) -> Result<()> {
     match cli.command {

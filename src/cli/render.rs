@@ -33,12 +33,12 @@ pub struct RenderArgs {
     /// Point looked at x,y,z (with --eye)
     #[arg(long, value_parser = common::parse_vec3, allow_hyphen_values = true)]
     pub target: Option<Vec3>,
-    /// Up direction x,y,z
-    #[arg(long, value_parser = common::parse_vec3, default_value = "0,1,0", allow_hyphen_values = true)]
-    pub up: Vec3,
-    /// Vertical field of view in degrees (with --eye)
-    #[arg(long, default_value_t = 60.0)]
-    pub fov: f32,
+    /// Up direction x,y,z (with --eye; default 0,1,0)
+    #[arg(long, value_parser = common::parse_vec3, allow_hyphen_values = true, requires = "eye")]
+    pub up: Option<Vec3>,
+    /// Vertical field of view in degrees (with --eye; default 60)
+    #[arg(long, requires = "eye")]
+    pub fov: Option<f32>,
     /// Near plane distance (default: the path's, or 0.1)
     #[arg(long)]
     pub near: Option<f32>,
@@ -84,8 +84,8 @@ pub fn run(a: &RenderArgs) -> Result<()> {
     let choice = CameraChoice {
         eye: a.eye,
         target: a.target,
-        up: a.up,
-        fov: a.fov,
+        up: a.up.unwrap_or(Vec3::Y),
+        fov: a.fov.unwrap_or(60.0),
         near: a.near,
         far: a.far,
         path: a.path.as_ref(),

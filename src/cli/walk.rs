@@ -55,7 +55,7 @@ pub struct WalkArgs {
     #[arg(long, value_name = "DIR")]
     pub out: Option<PathBuf>,
     /// Write every k-th frame as PNG into --out (0: none)
-    #[arg(long, default_value_t = 0)]
+    #[arg(long, default_value_t = 0, requires = "out")]
     pub png_every: usize,
     /// Summary as JSON
     #[arg(long, value_name = "FILE")]

@@ -58,3 +58,20 @@ fn unwritable_output_fails_first_and_bench_never_reprints_an_old_table() {
     assert!(!dir.join("bench.md").exists(), "no table from the old summary");
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+/// Options that would be silently ignored are usage errors instead.
+#[test]
+fn options_that_would_be_ignored_are_usage_errors() {
+    let cases: [(&[&str], &str); 5] = [
+        (&["render", "--fov", "30"], "--eye"),
+        (&["render", "--up", "0,0,1"], "--eye"),
+        (&["walk", "--png-every", "5"], "--out"),
+        (&["render", "--shadows"], "--method raycast"),
+        (&["csg", "--out", "demo.jpg"], ".png"),
+    ];
+    for (args, hint) in cases {
+        let (code, err) = run(args);
+        assert_eq!(code, Some(2), "{args:?}: {err}");
+        assert!(err.contains(hint), "{args:?}: the error says {hint}: {err}");
+    }
+}
