@@ -22,7 +22,11 @@ fn main() -> ExitCode {
             let mut msg = format!("error: {e}");
             let mut src = e.source();
             while let Some(s) = src {
-                msg.push_str(&format!(": {s}"));
+                // Some errors print their cause in their own message already: say it once.
+                let text = s.to_string();
+                if !msg.contains(&text) {
+                    msg.push_str(&format!(": {text}"));
+                }
                 src = s.source();
             }
             eprintln!("{msg}");

@@ -195,8 +195,21 @@ fn aerial(bounds: &Aabb, height: f32, frames: usize) -> Vec<CameraKey> {
 /// horizontally (so the first frames see the whole scene, even a flat one); `aerial` circles
 /// above it.
 pub fn generic_path(bounds: &Aabb, street: bool, frames: usize) -> Result<Vec<CameraKey>> {
+    let (lo, hi) = (bounds.min, bounds.max);
+    if !(lo.is_finite() && hi.is_finite()) && !(lo.is_nan() || hi.is_nan()) && !bounds.is_empty() {
+        return Err(Error::InvalidParams(format!(
+            "scene bounds are not finite (min {lo}, max {hi}): a coordinate or transform overflowed f32"
+        )));
+    }
     if !bounds.is_finite() {
         return Err(Error::InvalidParams("cannot make a camera path for an empty scene".into()));
+    }
+    // The camera is placed from the extent and its length: both must stay finite with room
+    // for the path's arithmetic.
+    if !(bounds.extent().length() < 1e30 && bounds.center().is_finite()) {
+        return Err(Error::InvalidParams(format!(
+            "scene bounds (min {lo}, max {hi}) are too large to place a camera in f32; scale the scene down"
+        )));
     }
     let e = bounds.extent().max(Vec3::splat(1e-3));
     if !street {
@@ -220,6 +233,18 @@ pub fn generic_path(bounds: &Aabb, street: bool, frames: usize) -> Result<Vec<Ca
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn huge_or_overflowed_bounds_are_named_as_the_cause() {
+        let huge = Aabb::new(Vec3::splat(-3e38), Vec3::splat(3e38));
+        let e = generic_path(&huge, true, 4).unwrap_err().to_string();
+        assert!(e.contains("too large"), "{e}");
+        let overflowed = Aabb::new(Vec3::new(0.0, 0.0, 0.0), Vec3::new(f32::INFINITY, 1.0, 1.0));
+        let e = generic_path(&overflowed, true, 4).unwrap_err().to_string();
+        assert!(e.contains("not finite"), "{e}");
+        let e = generic_path(&Aabb::EMPTY, true, 4).unwrap_err().to_string();
+        assert!(e.contains("empty scene"), "{e}");
+    }
     use crate::builders::{city, CityParams};
 
     /// A scene's generic street walk starts outside it and sees it, even a flat one.
