@@ -196,7 +196,8 @@ fn aerial(bounds: &Aabb, height: f32, frames: usize) -> Vec<CameraKey> {
 /// above it.
 pub fn generic_path(bounds: &Aabb, street: bool, frames: usize) -> Result<Vec<CameraKey>> {
     let (lo, hi) = (bounds.min, bounds.max);
-    if !(lo.is_finite() && hi.is_finite()) && !(lo.is_nan() || hi.is_nan()) && !bounds.is_empty() {
+    let (finite, nan) = (lo.is_finite() && hi.is_finite(), lo.is_nan() || hi.is_nan());
+    if !finite && !nan && !bounds.is_empty() {
         return Err(Error::InvalidParams(format!(
             "scene bounds are not finite (min {lo}, max {hi}): a coordinate or transform overflowed f32"
         )));
