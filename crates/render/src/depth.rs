@@ -83,10 +83,7 @@ impl DepthFormat {
     /// The window depth a key stands for.
     #[inline]
     pub fn depth(self, key: u32) -> f32 {
-        match self.max_value() {
-            None => f32::from_bits(key),
-            Some(m) => key as f32 / m as f32,
-        }
+        with_codec!(self, decode::<_>(key))
     }
 
     /// The window depth `z` as this format stores it (quantized for integer formats).
@@ -244,6 +241,20 @@ macro_rules! with_codec {
     };
 }
 pub(crate) use with_codec;
+
+/// [`DepthCodec::decode`] as a function, for [`with_codec!`].
+#[inline(always)]
+fn decode<D: DepthCodec>(key: u32) -> f32 {
+    D::decode(key)
+}
+
+/// Decodes a row of keys into window depths (the loop vectorizes once the format is known).
+#[inline]
+pub(crate) fn decode_row<D: DepthCodec>(out: &mut [f32], keys: &[u32]) {
+    for (d, k) in out.iter_mut().zip(keys) {
+        *d = D::decode(*k);
+    }
+}
 
 #[cfg(test)]
 mod tests {

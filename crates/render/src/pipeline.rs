@@ -29,7 +29,7 @@ use sightline_scene::{Camera, Instance, Scene};
 use sightline_spatial::SimdLevel;
 
 use crate::bin::bin_chunk;
-use crate::depth::DepthFormat;
+use crate::depth::{decode_row, with_codec, DepthFormat};
 use crate::geometry::{split, Chunk, Item, Source};
 use crate::hzb::{TileLevels, TilePyramid, UpperLevels};
 use crate::options::{same_matrix, DrawItem, DrawSource, RenderOptions, Wireframe};
@@ -428,12 +428,9 @@ fn store_tiles(tiles: &[TileBuf], grid: &Grid, fb: &mut Framebuffer, fmt: DepthF
         for t in row {
             let (x0, w) = (t.x0 as usize, t.w as usize);
             if t.dirty {
-                let keys = depth[x0..x0 + w].iter_mut().zip(&t.depth[r..r + w]);
                 // The format's branch outside the loop, so that the loop vectorizes.
-                match fmt.max_value() {
-                    None => keys.for_each(|(d, k)| *d = f32::from_bits(*k)),
-                    Some(m) => keys.for_each(|(d, k)| *d = *k as f32 / m as f32),
-                }
+                let (out, keys) = (&mut depth[x0..x0 + w], &t.depth[r..r + w]);
+                with_codec!(fmt, decode_row::<_>(out, keys));
                 let src = &t.ids[r..r + w];
                 ids[x0..x0 + w].copy_from_slice(src);
                 covered += src.iter().map(|&i| (i != 0) as u32).sum::<u32>() as u64;
