@@ -1,0 +1,506 @@
+//! Projection of a world box to a conservative screen rectangle and nearest window depth —
+//! the query shape of hierarchical z-buffer tests (Greene, Kass & Miller 1993; the
+//! rectangle-instead-of-box idea of Intel's Masked Occlusion Culling `TestRect`).
+//!
+//! Window conventions (OpenGL's viewport transform with row 0 at the top):
+//! `x_w = (x_ndc + 1)/2 · W`, `y_w = (1 − y_ndc)/2 · H`, `z_w = (z_ndc + 1)/2`. The eight
+//! corners are projected; when any corner has `w ≤ ε` or lies in front of the near plane
+//! (`z < −w`), the box crosses the near plane (or the eye plane) and the answer is "covers the
+//! whole screen, nearest depth 0". Otherwise the rectangle is the pixel-space bounds of the
+//! corners grown by a small margin (vertex snapping to 1/256 pixel and float error), rounded
+//! outwards and clamped to the viewport, and the depth is the smallest corner window z minus
+//! a small margin. Since the view depth is linear over a box and window z is monotonic in
+//! it, the box's nearest point is one of its corners.
+//!
+//! ## One computation, three implementations
+//!
+//! The corners are formed in clip space from four terms: `base = M·(min, 1)` and the matrix
+//! columns scaled by the box extent, `dx`, `dy`, `dz`; corner `i` adds `dx`, `dy`, `dz` to
+//! `base` (in that order) for the bits of `i` that are set. Each corner's x, y and z are
+//! multiplied by `1/w`, and the rectangle comes from the min and max over the corners.
+//! [`BoxProjector::classify_portable`] does this in scalar code. With AVX2, chosen when the
+//! program runs ([`SimdLevel`]: the level is resolved once, when the projector is made, and
+//! each call branches on it to `#[target_feature]` functions, so that a build without
+//! `-C target-cpu` still runs the 256-bit code):
+//! * [`BoxProjector::classify`] keeps two corners per 256-bit register (four registers per
+//!   box; one division gives the eight reciprocals);
+//! * [`BoxProjector::classify_many`] runs eight boxes side by side, one per lane, so that the
+//!   long chain of dependent operations of one box overlaps with seven others. A box whose
+//!   clip terms are all finite has no NaN corner (a sum of finite terms is finite or an
+//!   infinity of one sign), so its answer needs no per-corner NaN checks; other boxes (empty,
+//!   unbounded, or overflowing terms) take the one-box path.
+//!
+//! At the AVX-512 level the AVX2 code runs (there is no 16-lane version).
+//!
+//! All three perform the same IEEE operations on the same operands (min and max see no NaN,
+//! so their order does not matter), so they agree bit for bit on every input; the tests check
+//! it on random cameras, matrices and boxes.
+
+use glam::{Mat4, Vec3A, Vec4};
+use sightline_scene::Aabb;
+
+use crate::simd::SimdLevel;
+use crate::{AabbExt, BoxKind};
+
+#[cfg(target_arch = "x86_64")]
+mod lanes;
+#[cfg(target_arch = "x86_64")]
+use lanes::{chunk_avx2, Lanes};
+
+/// Smallest clip `w` accepted as "in front of the eye".
+const W_EPS: f32 = 1e-6;
+/// Margin in pixels added around the projected corners (1/256-pixel snapping plus float error).
+const PIXEL_MARGIN: f32 = 1.0 / 128.0;
+/// Margin subtracted from the nearest window depth.
+const DEPTH_MARGIN: f32 = 1e-6;
+
+/// A pixel rectangle `[x0, x1) × [y0, y1)` (row 0 at the top) with the nearest window depth of
+/// the box that made it.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ScreenRect {
+    /// First column.
+    pub x0: u32,
+    /// First row.
+    pub y0: u32,
+    /// One past the last column.
+    pub x1: u32,
+    /// One past the last row.
+    pub y1: u32,
+    /// Nearest window depth in [0, 1] (0 when the box crosses the near plane).
+    pub depth: f32,
+    /// True when the box crosses the near plane (or lies partly behind the eye): the rect is
+    /// the whole viewport and the depth 0, so an occlusion test must report it visible.
+    pub crosses_near: bool,
+}
+
+impl ScreenRect {
+    /// The rectangle of a box that projects to nothing (empty box, or off screen).
+    pub const EMPTY: ScreenRect = ScreenRect { x0: 0, y0: 0, x1: 0, y1: 0, depth: 1.0, crosses_near: false };
+
+    /// True when no pixel is covered.
+    pub fn is_empty(&self) -> bool {
+        self.x0 >= self.x1 || self.y0 >= self.y1
+    }
+
+    /// The whole `width × height` viewport at depth 0.
+    pub fn full(width: u32, height: u32) -> ScreenRect {
+        ScreenRect { x0: 0, y0: 0, x1: width, y1: height, depth: 0.0, crosses_near: true }
+    }
+
+    /// Number of pixels covered.
+    pub fn area(&self) -> u64 {
+        if self.is_empty() {
+            0
+        } else {
+            (self.x1 - self.x0) as u64 * (self.y1 - self.y0) as u64
+        }
+    }
+}
+
+/// Where a box lands on the screen ([`BoxProjector::classify`]).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum BoxImage {
+    /// Outside the view frustum (or covering no pixel): nothing of it can be drawn.
+    Outside,
+    /// At or behind the near plane (or unbounded): it may cover any pixel at any depth.
+    CrossesNear,
+    /// In front of the near plane: a conservative rectangle (never empty: a box covering no
+    /// pixel is [`BoxImage::Outside`]) and its nearest depth.
+    Rect(ScreenRect),
+}
+
+/// Projects boxes with one `clip_from_world` onto a `width × height` viewport.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct BoxProjector {
+    clip_from_world: Mat4,
+    width: u32,
+    height: u32,
+    /// The instruction set the calls run on: resolved (never `Auto`), and `Portable` for
+    /// viewports too large for the SIMD path.
+    simd: SimdLevel,
+}
+
+impl BoxProjector {
+    /// A projector for `clip_from_world` and a `width × height` viewport, on the best
+    /// instruction set available ([`SimdLevel::best`]).
+    pub fn new(clip_from_world: Mat4, width: u32, height: u32) -> BoxProjector {
+        BoxProjector::with_simd(clip_from_world, width, height, SimdLevel::Auto)
+    }
+
+    /// [`BoxProjector::new`] on the instruction set `simd` (resolved: a level the CPU lacks
+    /// falls back to the best it has). Every level gives the same answers bit for bit; this
+    /// is for parity tests and measurements.
+    pub fn with_simd(clip_from_world: Mat4, width: u32, height: u32, simd: SimdLevel) -> BoxProjector {
+        let simd = if width <= SIMD_MAX_SIZE && height <= SIMD_MAX_SIZE { simd.resolve() } else { SimdLevel::Portable };
+        BoxProjector { clip_from_world, width, height, simd }
+    }
+
+    /// The instruction set the calls run on (never [`SimdLevel::Auto`]).
+    pub fn simd(&self) -> SimdLevel {
+        self.simd
+    }
+
+    /// The box's conservative screen rectangle and nearest depth (see the module docs).
+    /// Empty boxes and boxes outside the view give [`ScreenRect::EMPTY`]; NaN/infinite boxes
+    /// and boxes crossing the near plane give the full screen.
+    #[inline]
+    pub fn project(&self, b: &Aabb) -> ScreenRect {
+        match self.classify(b) {
+            BoxImage::Outside => ScreenRect::EMPTY,
+            BoxImage::CrossesNear => ScreenRect::full(self.width, self.height),
+            BoxImage::Rect(r) => r,
+        }
+    }
+
+    /// Where the box lands: outside the view (all eight corners beyond one clip plane, or no
+    /// pixel covered), across the near plane (a corner at or behind it, or a corner whose
+    /// projection is not finite: it may cover anything), or a conservative rectangle with its
+    /// nearest depth.
+    ///
+    /// With AVX2 (at the projector's [`SimdLevel`]) this runs the eight corners as four
+    /// 256-bit registers of two corners each; otherwise
+    /// [`BoxProjector::classify_portable`]. Both do the same IEEE operations in the same order
+    /// on every corner, so they give the same answer bit for bit, on every input.
+    #[inline]
+    pub fn classify(&self, b: &Aabb) -> BoxImage {
+        self.classify_with(b, |image| image)
+    }
+
+    /// `then(self.classify(b))`, with `then` inlined into the caller (it has one call site,
+    /// after the branch on the level), so that a caller that only needs a small answer (a
+    /// query's three-way verdict) does not go through a call for it.
+    #[inline(always)]
+    pub fn classify_with<R>(&self, b: &Aabb, then: impl FnOnce(BoxImage) -> R) -> R {
+        let image = match self.simd {
+            #[cfg(target_arch = "x86_64")]
+            // SAFETY: `self.simd` comes from `SimdLevel::resolve`, which gives AVX2 or AVX-512
+            // only when the CPU has every feature of `simd::AVX2_FEATURES`, the features
+            // `classify_avx2` enables.
+            SimdLevel::Avx2 | SimdLevel::Avx512 => unsafe { self.classify_avx2(b) },
+            _ => self.classify_portable(b),
+        };
+        then(image)
+    }
+
+    /// Classifies every box of `boxes`: calls `f(i, self.classify(&boxes[i]))` for each `i`,
+    /// in increasing order.
+    ///
+    /// With AVX2 (at the projector's [`SimdLevel`]: a predictable branch per 32 boxes to a
+    /// `#[target_feature]` function; `f` keeps one call site, inlined here) this projects
+    /// eight boxes at a time, one box per lane
+    /// ([`BoxProjector::classify_portable`]'s operations, lane by lane, so the answers are the
+    /// same bit for bit): the corners' clip coordinates, the clip-plane and near-plane tests,
+    /// the reciprocals of w and the min/max over the corners are each a few 256-bit
+    /// operations for eight boxes, and the boxes run side by side instead of one long chain
+    /// of dependent operations each. Boxes that need care (empty, unbounded, or with clip
+    /// terms that are not finite) are handed to the scalar path.
+    #[inline]
+    pub fn classify_many(&self, boxes: &[Aabb], mut f: impl FnMut(usize, BoxImage)) {
+        #[cfg(target_arch = "x86_64")]
+        let lanes = match self.simd {
+            // SAFETY: as in `classify_with`: the resolved level guarantees the features of
+            // `Lanes::new`.
+            SimdLevel::Avx2 | SimdLevel::Avx512 => Some(unsafe { Lanes::new(self) }),
+            _ => None,
+        };
+        let mut batch = Batch::default();
+        for (c, chunk) in boxes.chunks(BATCH).enumerate() {
+            #[cfg(target_arch = "x86_64")]
+            match &lanes {
+                // SAFETY: `lanes` exists only at a level with the features of `chunk_avx2`.
+                Some(lanes) => unsafe { chunk_avx2(self, lanes, chunk, &mut batch) },
+                None => self.chunk_portable(chunk, &mut batch),
+            }
+            #[cfg(not(target_arch = "x86_64"))]
+            self.chunk_portable(chunk, &mut batch);
+            // One call site for `f`, so that it is inlined.
+            for k in 0..chunk.len() {
+                f(BATCH * c + k, batch.image(k));
+            }
+        }
+    }
+
+    /// Answers up to [`BATCH`] boxes into lanes `0..chunk.len()` of `out`, one by one.
+    #[inline]
+    fn chunk_portable(&self, chunk: &[Aabb], out: &mut Batch) {
+        for (k, b) in chunk.iter().enumerate() {
+            out.set(k, self.classify_portable(b));
+        }
+    }
+
+    /// [`BoxProjector::classify`] in plain scalar code: the reference the SIMD path is tested
+    /// against, and the path on CPUs (and targets) without AVX2.
+    ///
+    /// The corners are formed once in clip space: corner `i` is `base` (the clip position of
+    /// `b.min`) plus, in this order, the scaled matrix columns `dx` (if bit 0 of `i` is set),
+    /// `dy` (bit 1) and `dz` (bit 2).
+    pub fn classify_portable(&self, b: &Aabb) -> BoxImage {
+        let Some((base, dx, dy, dz)) = self.corner_terms(b) else {
+            return self.unbounded_or_empty(b);
+        };
+        let mut c = [Vec4::ZERO; 8];
+        for (i, c) in c.iter_mut().enumerate() {
+            let mut v = base;
+            if i & 1 != 0 {
+                v += dx;
+            }
+            if i & 2 != 0 {
+                v += dy;
+            }
+            if i & 4 != 0 {
+                v += dz;
+            }
+            *c = v;
+        }
+        let all = |f: &dyn Fn(&Vec4) -> bool| c.iter().all(f);
+        if all(&|c| c.x > c.w)
+            || all(&|c| c.x < -c.w)
+            || all(&|c| c.y > c.w)
+            || all(&|c| c.y < -c.w)
+            || all(&|c| c.z > c.w)
+            || all(&|c| c.z < -c.w)
+        {
+            return BoxImage::Outside;
+        }
+        // NaN-safe: a NaN w or z fails this test and takes the "crosses" path.
+        if !all(&|c| c.w > W_EPS && c.z >= -c.w) {
+            return BoxImage::CrossesNear;
+        }
+        let (mut x0, mut x1, mut y0, mut y1, mut z0) = (f32::MAX, f32::MIN, f32::MAX, f32::MIN, f32::MAX);
+        for c in &c {
+            let inv = 1.0 / c.w;
+            let (x, y, z) = (c.x * inv, c.y * inv, c.z * inv);
+            // Overflow (a huge box, or a huge x over a tiny w): no rectangle to trust.
+            if !(x.is_finite() && y.is_finite() && z.is_finite() && c.w.is_finite()) {
+                return BoxImage::CrossesNear;
+            }
+            x0 = x0.min(x);
+            x1 = x1.max(x);
+            y0 = y0.min(y);
+            y1 = y1.max(y);
+            z0 = z0.min(z);
+        }
+        let (w, h) = (self.width, self.height);
+        let (wf, hf) = (w as f32, h as f32);
+        // Pixel space, y down; pixel i spans [i, i + 1): covered columns are floor(px0) ..=
+        // floor(px1). `clamp` sends everything ≤ 0 to 0, so truncation stands in for floor
+        // (for values in (−1, 0) the end bound grows by one pixel: still conservative).
+        let clamp = |v: f32, hi: u32| -> u32 {
+            if v <= 0.0 {
+                0
+            } else if v >= hi as f32 {
+                hi
+            } else {
+                v as u32
+            }
+        };
+        let rx0 = clamp((x0 + 1.0) * 0.5 * wf - PIXEL_MARGIN, w);
+        let rx1 = clamp((x1 + 1.0) * 0.5 * wf + PIXEL_MARGIN + 1.0, w);
+        let ry0 = clamp((1.0 - y1) * 0.5 * hf - PIXEL_MARGIN, h);
+        let ry1 = clamp((1.0 - y0) * 0.5 * hf + PIXEL_MARGIN + 1.0, h);
+        self.rect(rx0, ry0, rx1, ry1, z0)
+    }
+
+    /// `base` (clip position of `b.min`) and the matrix columns scaled by the box extent, for
+    /// a finite box; `None` for empty and unbounded boxes.
+    #[inline(always)]
+    fn corner_terms(&self, b: &Aabb) -> Option<(Vec4, Vec4, Vec4, Vec4)> {
+        // `b.kind() == BoxKind::Finite` as three lane-wise compares: min ≤ max, min > −∞ and
+        // max < +∞ on every axis (any NaN fails the first).
+        let (lo, hi) = (Vec3A::from(b.min), Vec3A::from(b.max));
+        if !(lo.cmple(hi) & lo.cmpgt(Vec3A::NEG_INFINITY) & hi.cmplt(Vec3A::INFINITY)).all() {
+            return None;
+        }
+        let m = &self.clip_from_world;
+        // m · (min, 1), spelled out in the order of the eight-box path.
+        let base = ((m.x_axis * b.min.x + m.y_axis * b.min.y) + m.z_axis * b.min.z) + m.w_axis;
+        let e = b.max - b.min;
+        Some((base, m.x_axis * e.x, m.y_axis * e.y, m.z_axis * e.z))
+    }
+
+    /// The answer for a box that is not finite.
+    #[cold]
+    fn unbounded_or_empty(&self, b: &Aabb) -> BoxImage {
+        match b.kind() {
+            BoxKind::Empty => BoxImage::Outside,
+            _ => BoxImage::CrossesNear,
+        }
+    }
+
+    /// The rectangle of pixel bounds and nearest NDC z (shared tail of both paths).
+    #[inline(always)]
+    fn rect(&self, x0: u32, y0: u32, x1: u32, y1: u32, z0: f32) -> BoxImage {
+        if x0 >= x1 || y0 >= y1 {
+            return BoxImage::Outside;
+        }
+        let depth = ((z0 + 1.0) * 0.5 - DEPTH_MARGIN).clamp(0.0, 1.0);
+        BoxImage::Rect(ScreenRect { x0, y0, x1, y1, depth, crosses_near: false })
+    }
+
+    /// Lanes k (x, y, z, w) of the corner registers `a` (two corners each) for which the
+    /// compare `P` against `b` holds at all eight corners: bit k of the result.
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2,fma,bmi1,bmi2,lzcnt,popcnt")]
+    #[inline]
+    fn all_corners<const P: i32>(a: [std::arch::x86_64::__m256; 4], b: [std::arch::x86_64::__m256; 4]) -> i32 {
+        use std::arch::x86_64::*;
+        let m = _mm256_and_ps(
+            _mm256_and_ps(_mm256_cmp_ps::<P>(a[0], b[0]), _mm256_cmp_ps::<P>(a[1], b[1])),
+            _mm256_and_ps(_mm256_cmp_ps::<P>(a[2], b[2]), _mm256_cmp_ps::<P>(a[3], b[3])),
+        );
+        let m = _mm256_movemask_ps(m);
+        m & (m >> 4)
+    }
+
+    /// [`BoxProjector::classify_portable`] with AVX2: corners 2k and 2k + 1 share a 256-bit
+    /// register as (x, y, z, w, x, y, z, w), so that forming them takes four additions, the
+    /// clip tests are lane-wise compares reduced across registers, one division gives the
+    /// eight reciprocals, and the min/max over the corners are six lane-wise operations.
+    /// Every arithmetic operation is the one the portable path does, on the same operands,
+    /// so every value (and so the answer) is the same bit for bit.
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2,fma,bmi1,bmi2,lzcnt,popcnt")]
+    #[inline]
+    fn classify_avx2(&self, b: &Aabb) -> BoxImage {
+        use std::arch::x86_64::*;
+        let Some((base, dx, dy, dz)) = self.corner_terms(b) else {
+            return self.unbounded_or_empty(b);
+        };
+        // The intrinsics work on values only (no memory is accessed through pointers).
+        let (x0, y0, x1, y1, z0) = {
+            let (base, dx, dy, dz) = (__m128::from(base), __m128::from(dx), __m128::from(dy), __m128::from(dz));
+            // Corners (0, 1), (2, 3), (4, 5), (6, 7): the additions of the portable path, in its
+            // order (base + dx, then + dy, then + dz).
+            let c01 = _mm256_set_m128(_mm_add_ps(base, dx), base);
+            let dy = _mm256_set_m128(dy, dy);
+            let dz = _mm256_set_m128(dz, dz);
+            let c23 = _mm256_add_ps(c01, dy);
+            let c45 = _mm256_add_ps(c01, dz);
+            let c67 = _mm256_add_ps(c23, dz);
+            let sign = _mm256_set1_ps(-0.0);
+            let w01 = _mm256_permute_ps::<0xFF>(c01);
+            let w23 = _mm256_permute_ps::<0xFF>(c23);
+            let w45 = _mm256_permute_ps::<0xFF>(c45);
+            let w67 = _mm256_permute_ps::<0xFF>(c67);
+            let (n01, n23) = (_mm256_xor_ps(w01, sign), _mm256_xor_ps(w23, sign));
+            let (n45, n67) = (_mm256_xor_ps(w45, sign), _mm256_xor_ps(w67, sign));
+            let (c, w, n) = ([c01, c23, c45, c67], [w01, w23, w45, w67], [n01, n23, n45, n67]);
+            let beyond = Self::all_corners::<_CMP_GT_OQ>(c, w);
+            let below = Self::all_corners::<_CMP_LT_OQ>(c, n);
+            if (beyond | below) & 0b0111 != 0 {
+                return BoxImage::Outside;
+            }
+            // In front of the near plane: z ≥ −w (lane 2) and w > W_EPS (lane 3) at every corner.
+            let front = Self::all_corners::<_CMP_GE_OQ>(c, n);
+            let ahead = Self::all_corners::<_CMP_GT_OQ>(w, [_mm256_set1_ps(W_EPS); 4]);
+            if front & 0b0100 == 0 || ahead & 0b1000 == 0 {
+                return BoxImage::CrossesNear;
+            }
+            // The eight w in one register (corner k in lane k / 2 + 4 (k mod 2)), one division.
+            let w = _mm256_blend_ps::<0xCC>(_mm256_blend_ps::<0x22>(w01, w23), _mm256_blend_ps::<0x88>(w45, w67));
+            let inv = _mm256_div_ps(_mm256_set1_ps(1.0), w);
+            let p01 = _mm256_mul_ps(c01, _mm256_permute_ps::<0x00>(inv));
+            let p23 = _mm256_mul_ps(c23, _mm256_permute_ps::<0x55>(inv));
+            let p45 = _mm256_mul_ps(c45, _mm256_permute_ps::<0xAA>(inv));
+            let p67 = _mm256_mul_ps(c67, _mm256_permute_ps::<0xFF>(inv));
+            // x/w, y/w, z/w and w/w all finite (v − v is NaN exactly for ±∞ and NaN).
+            let z = |v: __m256| _mm256_sub_ps(v, v);
+            let nan = _mm256_add_ps(_mm256_add_ps(z(p01), z(p23)), _mm256_add_ps(z(p45), z(p67)));
+            if _mm256_movemask_ps(_mm256_cmp_ps::<_CMP_UNORD_Q>(nan, nan)) != 0 {
+                return BoxImage::CrossesNear;
+            }
+            // No NaN is left, so min and max are the portable path's whatever the order.
+            let lo = _mm256_min_ps(_mm256_min_ps(p01, p23), _mm256_min_ps(p45, p67));
+            let hi = _mm256_max_ps(_mm256_max_ps(p01, p23), _mm256_max_ps(p45, p67));
+            let lo = _mm_min_ps(_mm256_castps256_ps128(lo), _mm256_extractf128_ps::<1>(lo));
+            let hi = _mm_max_ps(_mm256_castps256_ps128(hi), _mm256_extractf128_ps::<1>(hi));
+            // (x0, x1, −y1, −y0): 1 − y is −y + 1 exactly.
+            let v = _mm_permute_ps::<0b10_11_01_00>(_mm_unpacklo_ps(lo, hi));
+            let v = _mm_xor_ps(v, _mm_set_ps(-0.0, -0.0, 0.0, 0.0));
+            let (wf, hf) = (self.width as f32, self.height as f32);
+            let size = _mm_set_ps(hf, hf, wf, wf);
+            let v = _mm_mul_ps(_mm_mul_ps(_mm_add_ps(v, _mm_set1_ps(1.0)), _mm_set1_ps(0.5)), size);
+            let v = _mm_add_ps(v, _mm_set_ps(PIXEL_MARGIN, -PIXEL_MARGIN, PIXEL_MARGIN, -PIXEL_MARGIN));
+            let v = _mm_add_ps(v, _mm_set_ps(1.0, 0.0, 1.0, 0.0));
+            // The portable clamp: ≤ 0 → 0, ≥ size → size, else truncation (sizes ≤ 2^24 are exact).
+            let r = _mm_cvttps_epi32(_mm_min_ps(_mm_max_ps(v, _mm_setzero_ps()), size));
+            let (x0, x1) = (_mm_cvtsi128_si32(r) as u32, _mm_extract_epi32::<1>(r) as u32);
+            let (y0, y1) = (_mm_extract_epi32::<2>(r) as u32, _mm_extract_epi32::<3>(r) as u32);
+            let z0 = f32::from_bits(_mm_extract_ps::<2>(lo) as u32);
+            (x0, y0, x1, y1, z0)
+        };
+        self.rect(x0, y0, x1, y1, z0)
+    }
+}
+
+/// Boxes answered per call of the AVX2 path (four batches of eight lanes), so that the call
+/// costs little per box.
+const BATCH: usize = 32;
+
+/// The answers of up to [`BATCH`] boxes, lane k for box k (filled eight lanes at a time by
+/// `Lanes::classify8`).
+#[derive(Debug)]
+#[repr(C, align(32))]
+struct Batch {
+    /// [`Batch::RECT`], [`Batch::OUTSIDE`] or [`Batch::CROSSES`].
+    kind: [i32; BATCH],
+    x0: [i32; BATCH],
+    y0: [i32; BATCH],
+    x1: [i32; BATCH],
+    y1: [i32; BATCH],
+    depth: [f32; BATCH],
+}
+
+impl Default for Batch {
+    fn default() -> Batch {
+        Batch { kind: [0; BATCH], x0: [0; BATCH], y0: [0; BATCH], x1: [0; BATCH], y1: [0; BATCH], depth: [0.0; BATCH] }
+    }
+}
+
+impl Batch {
+    const RECT: i32 = 0;
+    const OUTSIDE: i32 = 1;
+    const CROSSES: i32 = 2;
+
+    /// Lane `k` as a [`BoxImage`].
+    #[inline(always)]
+    fn image(&self, k: usize) -> BoxImage {
+        match self.kind[k] {
+            Batch::RECT => BoxImage::Rect(ScreenRect {
+                x0: self.x0[k] as u32,
+                y0: self.y0[k] as u32,
+                x1: self.x1[k] as u32,
+                y1: self.y1[k] as u32,
+                depth: self.depth[k],
+                crosses_near: false,
+            }),
+            Batch::OUTSIDE => BoxImage::Outside,
+            _ => BoxImage::CrossesNear,
+        }
+    }
+
+    /// Stores `image` in lane `k`.
+    #[inline]
+    fn set(&mut self, k: usize, image: BoxImage) {
+        self.kind[k] = match image {
+            BoxImage::Rect(r) => {
+                (self.x0[k], self.y0[k], self.x1[k], self.y1[k]) = (r.x0 as i32, r.y0 as i32, r.x1 as i32, r.y1 as i32);
+                self.depth[k] = r.depth;
+                Batch::RECT
+            }
+            BoxImage::Outside => Batch::OUTSIDE,
+            BoxImage::CrossesNear => Batch::CROSSES,
+        }
+    }
+}
+
+/// Largest viewport side for which the SIMD path's float clamp and truncation are exact.
+const SIMD_MAX_SIZE: u32 = 1 << 24;
+
+/// Projects one box: see [`BoxProjector::project`].
+pub fn project_box(b: &Aabb, clip_from_world: &Mat4, width: u32, height: u32) -> ScreenRect {
+    BoxProjector::new(*clip_from_world, width, height).project(b)
+}
+
+#[cfg(test)]
+mod tests;

@@ -1,0 +1,252 @@
+//! Every projection path against the portable one, on random cameras, matrices and boxes.
+
+use super::*;
+use glam::Vec3;
+use sightline_scene::Camera;
+
+fn cam() -> Camera {
+    Camera::perspective_look_at(Vec3::new(0.0, 0.0, 5.0), Vec3::ZERO, Vec3::Y, 60.0, 1.5, 0.5, 100.0).unwrap()
+}
+
+#[test]
+fn box_crossing_near_plane_covers_screen_at_depth_zero() {
+    let c = cam();
+    let m = c.clip_from_world();
+    // Straddles the near plane at z = 4.5.
+    let b = Aabb::new(Vec3::new(-0.1, -0.1, 4.3), Vec3::new(0.1, 0.1, 4.7));
+    let r = project_box(&b, &m, 96, 64);
+    assert!(r.crosses_near);
+    assert_eq!((r.x0, r.y0, r.x1, r.y1, r.depth), (0, 0, 96, 64, 0.0));
+    // Entirely behind the eye: all corners lie beyond the near plane, so nothing of it
+    // can be drawn.
+    let b = Aabb::new(Vec3::new(-1.0, -1.0, 6.0), Vec3::new(1.0, 1.0, 7.0));
+    assert!(project_box(&b, &m, 96, 64).is_empty());
+    // NaN box: full screen.
+    assert!(project_box(&Aabb::new(Vec3::NAN, Vec3::ONE), &m, 96, 64).crosses_near);
+    assert!(project_box(&Aabb::EMPTY, &m, 96, 64).is_empty());
+}
+
+#[test]
+fn rect_contains_every_projected_corner() {
+    let c = cam();
+    let m = c.clip_from_world();
+    let (w, h) = (96u32, 64u32);
+    let mut rng = sightline_scene::rng::Rng::new(5);
+    let mut tested = 0;
+    for _ in 0..500 {
+        let lo = Vec3::new(rng.range(-3.0, 3.0), rng.range(-2.0, 2.0), rng.range(-10.0, 3.0));
+        let b = Aabb::new(lo, lo + Vec3::new(rng.range(0.0, 1.0), rng.range(0.0, 1.0), rng.range(0.0, 1.0)));
+        let r = project_box(&b, &m, w, h);
+        assert!(!r.crosses_near);
+        let mut any_on = false;
+        for p in b.corners() {
+            let cl = m * p.extend(1.0);
+            let ndc = cl.truncate() / cl.w;
+            let (xw, yw, zw) = ((ndc.x + 1.0) * 0.5 * w as f32, (1.0 - ndc.y) * 0.5 * h as f32, (ndc.z + 1.0) * 0.5);
+            assert!(r.is_empty() || r.depth <= zw, "depth {} > corner {zw}", r.depth);
+            // Corners on screen lie in the rect.
+            if (0.0..w as f32).contains(&xw) && (0.0..h as f32).contains(&yw) {
+                any_on = true;
+                assert!(!r.is_empty());
+                assert!(
+                    r.x0 as f32 <= xw && xw < r.x1 as f32 && r.y0 as f32 <= yw && yw < r.y1 as f32,
+                    "corner ({xw}, {yw}) outside {r:?}"
+                );
+            }
+        }
+        tested += any_on as u32;
+    }
+    assert!(tested > 100, "{tested}");
+}
+
+/// A random box: mostly ordinary, sometimes flat, huge, empty, NaN or infinite.
+fn random_box(rng: &mut sightline_scene::rng::Rng, reach: f32) -> Aabb {
+    let mut v = || Vec3::new(rng.range(-reach, reach), rng.range(-reach, reach), rng.range(-reach, reach));
+    let (lo, d) = (v(), v().abs() * 0.2);
+    match rng.below(40) {
+        0 => Aabb::new(lo, lo),
+        1 => Aabb::new(lo + d, lo),
+        2 => Aabb::new(Vec3::new(f32::NAN, lo.y, lo.z), lo + d),
+        3 => Aabb::new(lo, Vec3::new(lo.x, f32::INFINITY, lo.z)),
+        4 => Aabb::new(Vec3::splat(-3e38), Vec3::splat(3e38)),
+        5 => Aabb::new(lo * 1e30, lo * 1e30 + d * 1e30),
+        6 => Aabb::new(lo * 1e-30, lo * 1e-30 + d * 1e-30),
+        _ => Aabb::new(lo, lo + d),
+    }
+}
+
+/// A clip-from-world matrix of kind `k`: 3 arbitrary (some entries NaN, huge or
+/// infinite), 4 orthographic (w = 1 everywhere; view volume [−5, 5] × [−3, 3] ×
+/// [−25, 25]), otherwise a random perspective camera (`None` when it is invalid).
+fn random_matrix(rng: &mut sightline_scene::rng::Rng, k: u32) -> Option<Mat4> {
+    match k {
+        3 => Some(Mat4::from_cols_array(&std::array::from_fn(|_| match rng.below(60) {
+            0 => f32::NAN,
+            1 => 1e30,
+            2 => f32::INFINITY,
+            _ => rng.range(-2.0, 2.0),
+        }))),
+        4 => Some(
+            Mat4::from_scale(Vec3::new(0.2, 1.0 / 3.0, -0.04))
+                * Mat4::from_translation(Vec3::new(rng.range(-5.0, 5.0), rng.range(-1.0, 1.0), 0.0)),
+        ),
+        _ => {
+            let eye = Vec3::new(rng.range(-5.0, 5.0), rng.range(-5.0, 5.0), rng.range(-5.0, 5.0));
+            let target = eye + Vec3::new(rng.range(-1.0, 1.0), rng.range(-1.0, 1.0), rng.range(-1.0, 1.0));
+            let near = [1e-4, 0.1, 1.0][rng.below(3) as usize];
+            let c = Camera::perspective_look_at(eye, target, Vec3::Y, rng.range(10.0, 120.0), 1.7, near, 500.0);
+            c.ok().map(|c| c.clip_from_world())
+        }
+    }
+}
+
+/// A projector on each SIMD level this process has (`SIGHTLINE_SIMD` may cap them), the
+/// portable one first.
+fn on_every_level(m: Mat4, w: u32, h: u32) -> Vec<BoxProjector> {
+    let levels = SimdLevel::all_available();
+    assert_eq!(levels[0], SimdLevel::Portable);
+    levels.into_iter().map(|l| BoxProjector::with_simd(m, w, h, l)).collect()
+}
+
+#[test]
+fn projector_runs_on_the_level_it_resolved() {
+    let m = cam().clip_from_world();
+    for level in SimdLevel::all_available() {
+        assert_eq!(BoxProjector::with_simd(m, 96, 64, level).simd(), level);
+    }
+    assert_eq!(BoxProjector::new(m, 96, 64).simd(), SimdLevel::best());
+    assert_eq!(BoxProjector::with_simd(m, 96, 64, SimdLevel::Avx512).simd(), SimdLevel::Avx512.resolve());
+    // Too large for the SIMD path's exact float clamp.
+    assert_eq!(BoxProjector::new(m, 1 << 25, 8).simd(), SimdLevel::Portable);
+}
+
+/// `classify` gives exactly the answers of the portable path, at every SIMD level this
+/// process has, on perspective and orthographic cameras, arbitrary matrices and every
+/// kind of box.
+#[test]
+fn classify_equals_the_portable_path() {
+    let mut rng = sightline_scene::rng::Rng::new(77);
+    let mut kinds = [0usize; 3];
+    for cam_i in 0..300 {
+        let Some(m) = random_matrix(&mut rng, cam_i % 5) else { continue };
+        let (w, h) = [(1280, 720), (97, 33), (1, 1), (0, 0), (4096, 3000)][rng.below(5) as usize];
+        let levels = on_every_level(m, w, h);
+        for _ in 0..400 {
+            let reach = [1.0, 10.0, 100.0][rng.below(3) as usize];
+            let b = random_box(&mut rng, reach);
+            let portable = levels[0].classify_portable(&b);
+            for p in &levels {
+                let (fast, with) = (p.classify(&b), p.classify_with(&b, |i| bits(&i)));
+                assert_eq!(bits(&fast), bits(&portable), "{:?}: {b:?} {m:?} {w}x{h}", p.simd());
+                assert_eq!(with, bits(&portable), "{:?}: {b:?} {m:?} {w}x{h}", p.simd());
+            }
+            kinds[bits(&portable).0 as usize] += 1;
+        }
+    }
+    assert!(kinds.iter().all(|&k| k > 2000), "{kinds:?}");
+}
+
+/// A [`BoxImage`] as its kind (0 outside, 1 crossing, 2 rectangle) and the rectangle's
+/// x0, y0, x1, y1, depth bits (so that NaN would show as a mismatch) and crossing flag.
+fn bits(i: &BoxImage) -> (u8, [u32; 6]) {
+    match i {
+        BoxImage::Outside => (0, [0; 6]),
+        BoxImage::CrossesNear => (1, [0; 6]),
+        BoxImage::Rect(r) => (2, [r.x0, r.y0, r.x1, r.y1, r.depth.to_bits(), r.crosses_near as u32]),
+    }
+}
+
+/// `classify_many` (eight boxes per SIMD batch, the rest one by one) answers every box
+/// exactly like the portable path, in order, whatever lane an unusual box lands in, at
+/// every SIMD level this process has.
+#[test]
+fn classify_many_equals_the_portable_path() {
+    let mut rng = sightline_scene::rng::Rng::new(78);
+    let mut kinds = [0usize; 3];
+    for cam_i in 0..200 {
+        let Some(m) = random_matrix(&mut rng, if cam_i % 4 == 3 { 3 } else { 0 }) else { continue };
+        let (w, h) = [(1280, 720), (97, 33), (1, 1), (0, 0), (4096, 3000), (1 << 25, 8)][rng.below(6) as usize];
+        let reach = [1.0, 10.0, 100.0][rng.below(3) as usize];
+        let n = rng.below(300) as usize;
+        let boxes: Vec<Aabb> = (0..n).map(|_| random_box(&mut rng, reach)).collect();
+        for p in on_every_level(m, w, h) {
+            let mut next = 0;
+            p.classify_many(&boxes, |i, image| {
+                assert_eq!(i, next, "in order");
+                next += 1;
+                let portable = p.classify_portable(&boxes[i]);
+                assert_eq!(bits(&image), bits(&portable), "{:?}: box {i} {:?} {m:?} {w}x{h}", p.simd(), boxes[i]);
+                kinds[bits(&image).0 as usize] += 1;
+            });
+            assert_eq!(next, n);
+        }
+    }
+    assert!(kinds.iter().all(|&k| k > 1000), "{kinds:?}");
+}
+
+#[test]
+fn boxes_behind_the_eye_across_near_nan_and_empty() {
+    let c = cam();
+    for p in on_every_level(c.clip_from_world(), 96, 64) {
+        for classify in [BoxProjector::classify, BoxProjector::classify_portable] {
+            // Behind the eye (all corners beyond the near plane): outside.
+            let b = Aabb::new(Vec3::new(-1.0, -1.0, 6.0), Vec3::new(1.0, 1.0, 7.0));
+            assert_eq!(classify(&p, &b), BoxImage::Outside);
+            // Around the eye, and across the near plane (z = 4.5).
+            let b = Aabb::new(Vec3::new(-1.0, -1.0, 4.0), Vec3::new(1.0, 1.0, 6.0));
+            assert_eq!(classify(&p, &b), BoxImage::CrossesNear);
+            let b = Aabb::new(Vec3::new(-0.1, -0.1, 4.3), Vec3::new(0.1, 0.1, 4.7));
+            assert_eq!(classify(&p, &b), BoxImage::CrossesNear);
+            assert_eq!(classify(&p, &Aabb::new(Vec3::NAN, Vec3::ONE)), BoxImage::CrossesNear);
+            assert_eq!(classify(&p, &Aabb::new(Vec3::ZERO, Vec3::INFINITY)), BoxImage::CrossesNear);
+            assert_eq!(classify(&p, &Aabb::EMPTY), BoxImage::Outside);
+            // Overflowing corners: no rectangle.
+            assert_eq!(classify(&p, &Aabb::new(Vec3::splat(-3e38), Vec3::splat(3e38))), BoxImage::CrossesNear);
+            // A point box in view is a rectangle of at least one pixel.
+            let BoxImage::Rect(r) = classify(&p, &Aabb::new(Vec3::ZERO, Vec3::ZERO)) else { panic!() };
+            assert!(r.x1 > r.x0 && r.y1 > r.y0 && r.depth > 0.0 && r.depth < 1.0, "{r:?}");
+        }
+    }
+}
+
+/// Finite clip terms whose projection overflows (x/w or z/w) or whose w sums to +∞ at
+/// some corners, while the box stays in front of the near plane: no rectangle
+/// (crossing), on every path and in every lane of a batch.
+#[test]
+fn overflowing_projections_cross_near() {
+    let m = |x: Vec4, z: Vec4, w: Vec4| Mat4::from_cols(x, Vec4::Y, z, w);
+    let tiny_w = Vec4::new(0.0, 0.0, 0.0, 1e-5);
+    let unit = Aabb::new(Vec3::ZERO, Vec3::ONE);
+    let cases = [
+        // x/w = 1e38 / 1e-5 at the corners with x = 1.
+        m(Vec4::new(1e38, 0.0, 0.0, 0.0), Vec4::ZERO, tiny_w),
+        // z/w = 1e38 / 1e-5 at the corners with z = 1.
+        m(Vec4::X, Vec4::new(0.0, 0.0, 1e38, 0.0), tiny_w),
+        // w = 3e38 + 3e38 at the corners with z = 1.
+        m(Vec4::X, Vec4::new(0.0, 0.0, 0.0, 3e38), Vec4::new(0.0, 0.0, 0.0, 3e38)),
+    ];
+    for m in cases {
+        for p in on_every_level(m, 64, 48) {
+            assert_eq!(p.classify_portable(&unit), BoxImage::CrossesNear, "{:?}: {m:?}", p.simd());
+            assert_eq!(p.classify(&unit), BoxImage::CrossesNear, "{:?}: {m:?}", p.simd());
+            let ordinary = Aabb::new(Vec3::ZERO, Vec3::new(0.0, 0.2, 0.0));
+            assert!(matches!(p.classify_portable(&ordinary), BoxImage::Rect(_)), "{:?}: {m:?}", p.simd());
+            // Every lane of a call's four batches, and of a shorter last group.
+            for lane in 0..BATCH + 7 {
+                let mut boxes = [ordinary; BATCH + 7];
+                boxes[lane] = unit;
+                p.classify_many(&boxes, |i, image| {
+                    assert_eq!(image, p.classify_portable(&boxes[i]), "{:?}: lane {lane}, box {i}, {m:?}", p.simd());
+                });
+            }
+        }
+    }
+}
+
+#[test]
+fn offscreen_box_is_empty() {
+    let c = cam();
+    let m = c.clip_from_world();
+    let b = Aabb::new(Vec3::new(30.0, -0.5, -1.0), Vec3::new(31.0, 0.5, 0.0));
+    assert!(project_box(&b, &m, 96, 64).is_empty());
+}
