@@ -3,6 +3,7 @@
 
 use std::path::{Path, PathBuf};
 
+use glam::Vec3;
 use sightline_scene::{Result, Scene};
 
 /// The three vertices of one triangle, as OBJ `v` lines.
@@ -28,4 +29,24 @@ pub fn assert_mentions(msg: &str, parts: &[&str]) {
     for p in parts {
         assert!(msg.contains(p), "message {msg:?} does not mention {p:?}");
     }
+}
+
+/// A fresh, empty folder for one test.
+pub fn tmp_dir(test: &str) -> PathBuf {
+    let d = std::env::temp_dir().join(format!("sightline-loaders-{}-{test}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&d);
+    std::fs::create_dir_all(&d).unwrap();
+    d
+}
+
+/// Every drawn triangle's world-space corners, in flattened (triangle ID) order.
+pub fn world_triangles(scene: &Scene) -> Vec<[Vec3; 3]> {
+    let mut out = Vec::new();
+    for inst in scene.instances() {
+        let mesh = scene.mesh(inst.mesh).unwrap();
+        for t in 0..mesh.triangle_count() {
+            out.push(mesh.triangle_positions(t).map(|p| inst.world_from_local.transform_point3(p)));
+        }
+    }
+    out
 }
