@@ -3,7 +3,6 @@
 //! memory is reserved for them.
 
 use std::process::Command;
-use std::time::{Duration, Instant};
 
 /// Runs the program; returns the exit code and stderr.
 fn run(args: &[&str]) -> (Option<i32>, String) {
@@ -26,13 +25,11 @@ fn huge_frame_and_thread_counts_are_usage_errors() {
         &["bench", "--threads", "100000"],
     ];
     for args in cases {
-        let t = Instant::now();
         let (code, err) = run(args);
         assert_eq!(code, Some(2), "{args:?}: {err}");
         let flag = if args.contains(&"--threads") { "--threads" } else { "--frames" };
         assert!(err.contains(flag), "{args:?}: the error names {flag}: {err}");
         assert!(!err.contains("panicked"), "{args:?}: {err}");
-        assert!(t.elapsed() < Duration::from_secs(20), "{args:?} took {:?}", t.elapsed());
     }
     assert!(!dir.join("path.json").exists(), "nothing was written");
 }
