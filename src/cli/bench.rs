@@ -13,14 +13,14 @@ use super::walk::{self, WalkArgs, WalkMethod};
 pub struct BenchArgs {
     #[command(flatten)]
     pub walk: super::PathArgs,
-    /// Output directory for bench.md, bench.json, frames.csv and the charts
-    #[arg(long, value_name = "DIR", default_value = "bench-out")]
+    /// Output folder for bench.md, bench.json, frames.csv and the charts
+    #[arg(short, long, value_name = "DIR", default_value = "bench-out")]
     pub out: PathBuf,
     /// Image size
     #[arg(long, default_value = "1280x720")]
     pub size: super::common::Size,
     /// Worker threads, 1 to 256 (default: all cores)
-    #[arg(long, value_parser = super::common::threads_arg)]
+    #[arg(short = 'j', long, value_parser = super::common::threads_arg)]
     pub threads: Option<usize>,
 }
 
@@ -31,6 +31,7 @@ pub fn run(a: &BenchArgs) -> Result<()> {
         walk: a.walk.clone(),
         method: WalkMethod::All,
         verify: true,
+        min_agreement: 99.5,
         size: a.size,
         backface_culling: super::common::OnOff::On,
         threads: a.threads,

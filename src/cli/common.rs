@@ -172,13 +172,14 @@ pub fn threads_arg(s: &str) -> std::result::Result<usize, String> {
 /// created (and written to and cleaned up once), each of `files` must be creatable in an
 /// existing folder. A long walk then never renders every frame only to fail at the end.
 pub fn check_outputs(dirs: &[&Path], files: &[&Path]) -> Result<()> {
+    let files: Vec<&Path> = files.iter().copied().filter(|f| !is_stdout(f)).collect();
     for dir in dirs {
         std::fs::create_dir_all(dir).with_context(|| format!("cannot create output folder {}", dir.display()))?;
         let probe = dir.join(".sightline-write-check");
         std::fs::write(&probe, b"").with_context(|| format!("cannot write into output folder {}", dir.display()))?;
         let _ = std::fs::remove_file(&probe);
     }
-    for file in files {
+    for file in &files {
         if file.is_dir() {
             bail!("output file {} is a folder", file.display());
         }
@@ -274,6 +275,21 @@ impl CameraChoice<'_> {
             _ => bail!("--eye and --target go together"),
         }
     }
+}
+
+/// `-` as an output file: standard output.
+pub fn is_stdout(path: &Path) -> bool {
+    path.as_os_str() == "-"
+}
+
+/// Writes a JSON value to `dest` (`-`: standard output), pretty-printed or on one line.
+pub fn write_json(dest: &Path, v: &serde_json::Value, pretty: bool) -> Result<()> {
+    let text = if pretty { serde_json::to_string_pretty(v)? } else { v.to_string() };
+    if is_stdout(dest) {
+        println!("{text}");
+        return Ok(());
+    }
+    std::fs::write(dest, text + "\n").with_context(|| format!("writing {}", dest.display()))
 }
 
 #[cfg(test)]

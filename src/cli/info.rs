@@ -1,20 +1,22 @@
 //! `sightline info`: scene statistics.
 
+use std::path::Path;
+
 use anyhow::Result;
 
-pub fn run(scene: &super::SceneArg, json: bool) -> Result<()> {
+pub fn run(scene: &super::SceneArg, json: Option<&Path>) -> Result<()> {
+    super::common::check_outputs(&[], json.as_slice())?;
     let spec = &scene.scene;
     let t = std::time::Instant::now();
     let loaded = super::load_scene(scene)?;
     let load_ms = t.elapsed().as_secs_f64() * 1e3;
     let s = loaded.scene.stats();
     let b = loaded.scene.world_aabb();
-    if json {
+    if let Some(dest) = json {
         let mut v = serde_json::to_value(s)?;
         v["load_ms"] = serde_json::json!(load_ms);
         v["bounds"] = serde_json::json!({ "min": b.min.to_array(), "max": b.max.to_array() });
-        println!("{v}");
-        return Ok(());
+        return super::common::write_json(dest, &v, false);
     }
     println!("scene             {}", super::describe(spec));
     println!("nodes             {:>12}", s.nodes);

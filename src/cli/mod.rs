@@ -28,7 +28,7 @@ pub struct Cli {
 #[derive(Debug, Clone, clap::Args)]
 pub struct SceneArg {
     /// Scene: a .gltf/.glb/.obj file, `city` (default, ≥ 10^6 triangles), `city:TRIS`, or `boxfield`
-    #[arg(long, default_value = "city", value_name = "SCENE")]
+    #[arg(short, long, default_value = "city", value_name = "SCENE")]
     pub scene: SceneSpec,
     /// Let a scene file read buffers, images and material libraries under DIR too (by default
     /// only files inside the scene file's own folder are read); repeatable
@@ -42,10 +42,10 @@ pub struct PathArgs {
     #[command(flatten)]
     pub scene: SceneArg,
     /// Camera path JSON (default: the scene's street path)
-    #[arg(long, value_name = "FILE")]
+    #[arg(short, long, value_name = "FILE")]
     pub path: Option<std::path::PathBuf>,
     /// Frames to render, at most 1,000,000 (default: the whole path; 120 for the built-in path)
-    #[arg(long, value_parser = common::frames_arg)]
+    #[arg(short = 'n', long, value_parser = common::frames_arg)]
     pub frames: Option<usize>,
 }
 
@@ -55,16 +55,17 @@ enum Command {
     Info {
         #[command(flatten)]
         scene: SceneArg,
-        /// Print one JSON object instead of a table
-        #[arg(long)]
-        json: bool,
+        /// Write the statistics as one JSON object to FILE instead of a table (no FILE or
+        /// `-`: to standard output)
+        #[arg(long, value_name = "FILE", num_args = 0..=1, default_missing_value = "-")]
+        json: Option<PathBuf>,
     },
     /// Write the flattened world-space scene as one OBJ (triangle order = triangle IDs)
     ExportObj {
         #[command(flatten)]
         scene: SceneArg,
-        /// Output file
-        #[arg(long, value_name = "FILE")]
+        /// Output OBJ file
+        #[arg(short, long, value_name = "FILE")]
         out: PathBuf,
     },
     /// Write a camera path as JSON
@@ -75,10 +76,10 @@ enum Command {
         #[arg(long, value_enum, default_value = "street")]
         kind: path::PathKind,
         /// Number of frames, at most 1,000,000
-        #[arg(long, default_value_t = 120, value_parser = common::frames_arg)]
+        #[arg(short = 'n', long, default_value_t = 120, value_parser = common::frames_arg)]
         frames: usize,
-        /// Output file
-        #[arg(long, value_name = "FILE")]
+        /// Output JSON file
+        #[arg(short, long, value_name = "FILE")]
         out: PathBuf,
     },
     /// Render one frame to PNGs (color, depth, IDs, depth complexity), .npy and JSON
@@ -89,8 +90,8 @@ enum Command {
     Bench(Box<bench::BenchArgs>),
     /// Render the built-in CSG demo (box ∩ sphere − three cylinders) by ray casting, to PNG
     Csg {
-        /// Output PNG
-        #[arg(long, value_name = "FILE.png", default_value = "csg.png")]
+        /// Output PNG file
+        #[arg(short, long, value_name = "FILE.png", default_value = "csg.png")]
         out: PathBuf,
         /// Image size
         #[arg(long, default_value = "1024x768")]
@@ -117,7 +118,7 @@ impl Cli {
 /// Runs one command.
 pub fn run(cli: Cli) -> Result<()> {
     match cli.command {
-        Command::Info { scene, json } => info::run(&scene, json),
+        Command::Info { scene, json } => info::run(&scene, json.as_deref()),
         Command::ExportObj { scene, out } => path::export_obj(&scene, &out),
         Command::Path { scene, kind, frames, out } => path::run(&scene, kind, frames, &out),
         Command::Render(a) => render::run(&a),

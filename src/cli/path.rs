@@ -17,6 +17,7 @@ pub enum PathKind {
 
 pub fn run(scene: &SceneArg, kind: PathKind, frames: usize, out: &Path) -> Result<()> {
     anyhow::ensure!(frames > 0, "--frames must be at least 1");
+    super::common::check_outputs(&[], &[out])?;
     let loaded = super::load_scene(scene)?;
     let keys = loaded.path(matches!(kind, PathKind::Street), frames)?;
     sightline::scene::path::write_path(out, &keys)?;
@@ -25,6 +26,7 @@ pub fn run(scene: &SceneArg, kind: PathKind, frames: usize, out: &Path) -> Resul
 }
 
 pub fn export_obj(scene: &SceneArg, out: &Path) -> Result<()> {
+    super::common::check_outputs(&[], &[out])?;
     let loaded = super::load_scene(scene)?;
     sightline::scene::export::export_obj(&loaded.scene, out)
         .with_context(|| format!("exporting to {}", out.display()))?;

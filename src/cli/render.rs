@@ -22,7 +22,7 @@ pub struct RenderArgs {
     #[command(flatten)]
     pub scene: super::SceneArg,
     /// Camera path JSON (see `sightline path`); with --frame
-    #[arg(long, value_name = "FILE", conflicts_with_all = ["eye", "target"])]
+    #[arg(short, long, value_name = "FILE", conflicts_with_all = ["eye", "target"])]
     pub path: Option<PathBuf>,
     /// Frame of the path to render
     #[arg(long, default_value_t = 0)]
@@ -49,7 +49,7 @@ pub struct RenderArgs {
     #[arg(long, default_value = "1280x720")]
     pub size: Size,
     /// Visibility method
-    #[arg(long, value_enum, default_value = "raster")]
+    #[arg(short, long, value_enum, default_value = "raster")]
     pub method: FrameMethod,
     /// Drop triangles facing away from the camera
     #[arg(long, value_enum, default_value = "on")]
@@ -58,10 +58,10 @@ pub struct RenderArgs {
     #[arg(long)]
     pub shadows: bool,
     /// Worker threads, 1 to 256 (default: all cores)
-    #[arg(long, value_parser = super::common::threads_arg)]
+    #[arg(short = 'j', long, value_parser = super::common::threads_arg)]
     pub threads: Option<usize>,
-    /// Directory for color.png, depth.png, ids.png, complexity.png
-    #[arg(long, value_name = "DIR")]
+    /// Output folder for color.png, depth.png, ids.png, complexity.png
+    #[arg(short, long, value_name = "DIR")]
     pub out: Option<PathBuf>,
     /// Raw triangle-ID buffer as .npy (uint32, H×W, row 0 = top, 0 = background)
     #[arg(long, value_name = "FILE.npy")]
@@ -69,7 +69,7 @@ pub struct RenderArgs {
     /// Window depth as .npy (float32, H×W)
     #[arg(long, value_name = "FILE.npy")]
     pub depth_out: Option<PathBuf>,
-    /// Counters as JSON
+    /// Counters as JSON into FILE (`-`: standard output)
     #[arg(long, value_name = "FILE")]
     pub json: Option<PathBuf>,
     #[command(flatten)]
@@ -161,8 +161,7 @@ fn write_outputs(fb: &Framebuffer, a: &RenderArgs, counters: &serde_json::Value)
         output::write_depth_npy(fb, p)?;
     }
     if let Some(p) = &a.json {
-        std::fs::write(p, serde_json::to_string_pretty(counters)?)
-            .with_context(|| format!("writing {}", p.display()))?;
+        common::write_json(p, counters, true)?;
     }
     Ok(())
 }

@@ -37,11 +37,15 @@ pub struct WalkArgs {
     #[command(flatten)]
     pub walk: super::PathArgs,
     /// Visibility method
-    #[arg(long, value_enum, default_value = "hzb")]
+    #[arg(short, long, value_enum, default_value = "hzb")]
     pub method: WalkMethod,
     /// Also render every frame with brute force and compare triangle IDs; a mismatch fails the run
     #[arg(long)]
     pub verify: bool,
+    /// With --verify: the least share of pixels (percent) on which ray casting must give the
+    /// rasterizer's triangle ID on every frame; a frame below it fails the run
+    #[arg(long, value_name = "PERCENT", default_value_t = 99.5, value_parser = percent_arg)]
+    pub min_agreement: f64,
     /// Image size
     #[arg(long, default_value = "1280x720")]
     pub size: Size,
@@ -49,15 +53,15 @@ pub struct WalkArgs {
     #[arg(long, value_enum, default_value = "on")]
     pub backface_culling: OnOff,
     /// Worker threads, 1 to 256 (default: all cores)
-    #[arg(long, value_parser = super::common::threads_arg)]
+    #[arg(short = 'j', long, value_parser = super::common::threads_arg)]
     pub threads: Option<usize>,
-    /// Directory for per-frame counters (CSV, JSON) and PNG frames
-    #[arg(long, value_name = "DIR")]
+    /// Output folder for per-frame counters (frames.csv) and PNG frames
+    #[arg(short, long, value_name = "DIR")]
     pub out: Option<PathBuf>,
     /// Write every k-th frame as PNG into --out (0: none)
     #[arg(long, default_value_t = 0, requires = "out")]
     pub png_every: usize,
-    /// Summary as JSON
+    /// Summary as JSON into FILE (`-`: standard output)
     #[arg(long, value_name = "FILE")]
     pub json: Option<PathBuf>,
     /// Occlusion culling: clusters in the first front-to-back batch (later batches double)
@@ -123,19 +127,52 @@ pub fn run(a: &WalkArgs) -> Result<()> {
     let opts = a.look.options(a.backface_culling);
     let records = common::with_threads(a.threads, || walk(&loaded, &keys, a, &opts))??;
     let summaries = summarize(&records, a);
-    print_table(&summaries);
+    // With the summary on standard output, the table goes to standard error.
+    if a.json.as_deref().is_some_and(common::is_stdout) {
+        print_table(&mut std::io::stderr(), &summaries)?;
+    } else {
+        print_table(&mut std::io::stdout(), &summaries)?;
+    }
     if let Some(dir) = &a.out {
         write_frames(dir, &records)?;
     }
     if let Some(p) = &a.json {
         let v = serde_json::json!({ "scene": format!("{:?}", a.walk.scene.scene), "size": [a.size.width, a.size.height], "methods": summaries });
-        std::fs::write(p, serde_json::to_string_pretty(&v)?).with_context(|| format!("writing {}", p.display()))?;
+        common::write_json(p, &v, true)?;
     }
     let bad: usize = summaries.iter().map(|s| s.mismatched_frames).sum();
     if bad > 0 {
         bail!("{bad} frames differ from brute force");
     }
+    if let Some(why) = agreement_shortfall(&records, a.min_agreement) {
+        bail!(why);
+    }
     Ok(())
+}
+
+/// Why the run fails `--min-agreement` (a percentage), if it does: the worst frame, and how
+/// many frames fell short.
+fn agreement_shortfall(records: &[FrameRecord], min_percent: f64) -> Option<String> {
+    let short: Vec<&FrameRecord> =
+        records.iter().filter(|r| r.agreement.is_some_and(|x| 100.0 * x < min_percent)).collect();
+    let worst = short.iter().min_by(|x, y| x.agreement.unwrap_or(0.0).total_cmp(&y.agreement.unwrap_or(0.0)))?;
+    Some(format!(
+        "{} gave the rasterizer's triangle IDs on only {:.2}% of the pixels of frame {}, below --min-agreement {}% ({} of {} compared frames fell short)",
+        worst.method,
+        100.0 * worst.agreement.unwrap_or(0.0),
+        worst.frame,
+        min_percent,
+        short.len(),
+        records.iter().filter(|r| r.agreement.is_some()).count()
+    ))
+}
+
+/// A percentage in [0, 100].
+fn percent_arg(s: &str) -> std::result::Result<f64, String> {
+    match s.parse::<f64>() {
+        Ok(p) if (0.0..=100.0).contains(&p) => Ok(p),
+        _ => Err(format!("'{s}' is not a percentage between 0 and 100")),
+    }
 }
 
 fn walk(
@@ -255,12 +292,13 @@ fn summarize(records: &[FrameRecord], a: &WalkArgs) -> Vec<MethodSummary> {
         .collect()
 }
 
-fn print_table(s: &[MethodSummary]) {
+fn print_table(w: &mut dyn Write, s: &[MethodSummary]) -> std::io::Result<()> {
     let brute = s.iter().find(|m| m.method == "brute").map(|m| m.median_ms);
-    println!(
+    writeln!(
+        w,
         "{:<13} {:>6} {:>10} {:>10} {:>9} {:>14} {:>9} {:>9} {:>9}",
         "method", "frames", "median ms", "p95 ms", "vs brute", "tris drawn", "frustum%", "occl%", "verified"
-    );
+    )?;
     for m in s {
         let ratio = brute.map_or("-".into(), |b| format!("{:.1}x", b / m.median_ms.max(1e-9)));
         let ver = if let (0, Some(a)) = (m.verified_frames, m.min_id_agreement) {
@@ -270,7 +308,8 @@ fn print_table(s: &[MethodSummary]) {
         } else {
             format!("{}/{}", m.verified_frames - m.mismatched_frames, m.verified_frames)
         };
-        println!(
+        writeln!(
+            w,
             "{:<13} {:>6} {:>10.2} {:>10.2} {:>9} {:>14} {:>8.1}% {:>8.1}% {:>9}",
             m.method,
             m.frames,
@@ -281,8 +320,9 @@ fn print_table(s: &[MethodSummary]) {
             100.0 * m.culled_by_frustum_share,
             100.0 * m.culled_by_occlusion_share,
             ver
-        );
+        )?;
     }
+    Ok(())
 }
 
 fn write_frames(dir: &std::path::Path, records: &[FrameRecord]) -> Result<()> {
@@ -322,4 +362,37 @@ fn write_frames(dir: &std::path::Path, records: &[FrameRecord]) -> Result<()> {
     let json = dir.join("frames.json");
     std::fs::write(&json, serde_json::to_string(records)?).with_context(|| format!("writing {}", json.display()))?;
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn record(frame: usize, method: &'static str, agreement: Option<f64>) -> FrameRecord {
+        FrameRecord {
+            frame,
+            method,
+            ms: 1.0,
+            triangles_drawn: 0,
+            cull: CullStats::default(),
+            raster: FrameStats::default(),
+            verified: None,
+            agreement,
+        }
+    }
+
+    #[test]
+    fn verify_fails_a_walk_whose_ray_casting_agrees_too_little() {
+        let rs = [
+            record(0, "hzb", Some(0.2)), // culled methods are checked exactly, not by agreement
+            record(0, "raycast", Some(0.999)),
+            record(1, "raycast", Some(0.9949)),
+            record(2, "raycast", Some(0.98)),
+        ];
+        let why = agreement_shortfall(&rs[1..], 99.5).expect("frames 1 and 2 are below 99.5%");
+        assert!(why.contains("98.00%") && why.contains("frame 2") && why.contains("2 of 3"), "{why}");
+        assert!(agreement_shortfall(&rs[1..], 98.0).is_none());
+        assert!(agreement_shortfall(&[record(0, "raycast", None)], 100.0).is_none(), "no comparison, no failure");
+        assert!(percent_arg("99.5").is_ok() && percent_arg("100.1").is_err() && percent_arg("x").is_err());
+    }
 }

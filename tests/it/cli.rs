@@ -72,3 +72,62 @@ fn options_that_would_be_ignored_are_usage_errors() {
         assert!(err.contains(hint), "{args:?}: the error says {hint}: {err}");
     }
 }
+
+/// A near plane the depth buffer cannot resolve is refused with the ratio and the format,
+/// instead of a blank picture and exit 0; ray casting, which keeps no depth buffer, renders.
+#[test]
+fn a_near_plane_too_close_for_the_depth_format_is_refused() {
+    let eye = ["--eye", "0,1.7,0", "--target", "0,1.7,10", "--size", "32x18", "-s", "boxfield"];
+    for near in ["1e-7", "1e-6"] {
+        let mut args = vec!["render"];
+        args.extend(eye);
+        args.extend(["--near", near]);
+        let (code, err) = run(&args);
+        assert_eq!(code, Some(1), "--near {near}: {err}");
+        assert!(err.contains("near") && err.contains("F32") && err.lines().count() == 1, "{err}");
+        args.extend(["--method", "raycast"]);
+        let (code, err) = run(&args);
+        assert_eq!(code, Some(0), "ray casting --near {near}: {err}");
+    }
+    let mut args = vec!["render"];
+    args.extend(eye);
+    args.extend(["--near", "1e-3", "--depth-format", "16"]);
+    let (code, err) = run(&args);
+    assert_eq!(code, Some(1), "16-bit depth resolves far less: {err}");
+    assert!(err.contains("Unorm16"), "{err}");
+}
+
+/// Short options for the common flags; `--json` means "a JSON file, `-` for standard output"
+/// on every command; commands with one output take a FILE for `--out` and check it first.
+#[test]
+fn short_options_json_and_out_mean_the_same_on_every_command() {
+    let dir = std::env::temp_dir().join(format!("sightline-cli-short-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let d = dir.to_str().unwrap();
+    let out = Command::new(env!("CARGO_BIN_EXE_sightline"))
+        .args(["walk", "-s", "boxfield", "-n", "2", "-j", "1", "-m", "hzb", "--size", "32x18", "-o", d, "--json", "-"])
+        .output()
+        .unwrap();
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let summary: serde_json::Value = serde_json::from_slice(&out.stdout).expect("stdout is the JSON summary alone");
+    assert_eq!(summary["methods"][0]["frames"], 2);
+    assert!(dir.join("frames.csv").exists());
+
+    let info = dir.join("info.json");
+    let (code, err) = run(&["info", "-s", "boxfield", "--json", info.to_str().unwrap()]);
+    assert_eq!(code, Some(0), "{err}");
+    let v: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&info).unwrap()).unwrap();
+    assert!(v["triangles"].as_u64().unwrap() > 0);
+    let stdout =
+        Command::new(env!("CARGO_BIN_EXE_sightline")).args(["info", "-s", "boxfield", "--json"]).output().unwrap();
+    let v2: serde_json::Value = serde_json::from_slice(&stdout.stdout).unwrap();
+    assert_eq!(v["triangles"], v2["triangles"]);
+
+    // A single-file output that cannot be written fails before the scene is built.
+    for cmd in [&["export-obj", "-o", "/proc/sightline-no/x.obj"][..], &["path", "-o", d]] {
+        let (code, err) = run(cmd);
+        assert_eq!(code, Some(1), "{cmd:?}: {err}");
+        assert!(err.lines().count() == 1 && !err.contains("panicked"), "{err}");
+    }
+    let _ = std::fs::remove_dir_all(&dir);
+}

@@ -91,6 +91,43 @@ impl DepthFormat {
     pub fn quantize(self, z: f32) -> f32 {
         self.depth(self.key(z))
     }
+
+    /// The size of one depth step just below the far plane (window depth 1): 2^-24 for
+    /// `f32` (the spacing of floats in [0.5, 1)), one integer step for the others.
+    pub fn step_at_far(self) -> f64 {
+        match self.max_value() {
+            None => f64::powi(2.0, -24),
+            Some(m) => 1.0 / m as f64,
+        }
+    }
+
+    /// The largest `(far − near) / near` a perspective projection may have for this format
+    /// to tell depths apart (see [`DepthFormat::check_resolves`]).
+    pub fn max_depth_ratio(self) -> f64 {
+        1.0 / self.step_at_far()
+    }
+
+    /// Refuses a perspective projection whose near plane is so close, for its far plane,
+    /// that this format cannot store its depths.
+    ///
+    /// With OpenGL's perspective depth, window depth at eye distance `d` is
+    /// `z_w(d) = f·(d − n) / (d·(f − n))`, so everything beyond `d` lies in the last
+    /// `1 − z_w(d)` of the range; halfway to the far plane that is `n / (f − n)`. When it
+    /// is smaller than one depth step ([`DepthFormat::step_at_far`]), the whole far half of
+    /// the view rounds to the far plane and ties with the cleared buffer: a blank or torn
+    /// picture (near = 10^-7 with far = 2000 blanks a street view in `f32`). Parallel
+    /// projections store depth linearly and always pass.
+    pub fn check_resolves(self, projection: &sightline_scene::Projection) -> Result<(), crate::Error> {
+        let (_, _, _, _, near, far, perspective) = projection.bounds();
+        if !(perspective && near > 0.0 && far > near) {
+            return Ok(()); // other invalid projections are refused by `Projection::validate`
+        }
+        let ratio = (far as f64 - near as f64) / near as f64;
+        if ratio <= self.max_depth_ratio() {
+            return Ok(());
+        }
+        Err(crate::Error::DepthRange { near, far, ratio, max_ratio: self.max_depth_ratio(), format: self })
+    }
 }
 
 /// The key of a NaN depth: above every key a depth in [0, 1] (or an f32 above 1) can have,
@@ -332,5 +369,27 @@ mod tests {
         codec_agrees::<F32>();
         codec_agrees::<Unorm24>();
         codec_agrees::<Unorm16>();
+    }
+
+    /// The refusal rule matches what the buffer does: at the largest accepted ratio a point
+    /// halfway to the far plane still stores below the far plane; well past it, it does not.
+    #[test]
+    fn depth_range_check_matches_what_the_format_stores() {
+        use sightline_scene::Projection;
+        let far = 1000.0f32;
+        for f in [DepthFormat::F32, DepthFormat::Unorm24, DepthFormat::Unorm16] {
+            let window_z =
+                |near: f32, d: f32| (far as f64 * (d as f64 - near as f64)) / (d as f64 * (far - near) as f64);
+            let ok_near = (far as f64 / (f.max_depth_ratio() * 0.5)) as f32;
+            let p = Projection::perspective(1.0, 1.0, ok_near, far).unwrap();
+            assert!(f.check_resolves(&p).is_ok(), "{f:?} near {ok_near}");
+            assert!(f.key(window_z(ok_near, far / 2.0) as f32) < f.key(1.0), "{f:?}: halfway still resolves");
+            let bad_near = ok_near / 64.0;
+            let p = Projection::perspective(1.0, 1.0, bad_near, far).unwrap();
+            assert!(matches!(f.check_resolves(&p), Err(crate::Error::DepthRange { .. })), "{f:?} near {bad_near}");
+            assert_eq!(f.key(window_z(bad_near, far / 2.0) as f32), f.key(1.0), "{f:?}: halfway rounds to far");
+            let ortho = Projection::orthographic(-1.0, 1.0, -1.0, 1.0, 1e-9, far).unwrap();
+            assert!(f.check_resolves(&ortho).is_ok(), "parallel depth is linear");
+        }
     }
 }

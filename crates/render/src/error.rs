@@ -17,6 +17,23 @@ pub enum Error {
     /// A draw list entry that does not fit the instances or meshes given.
     #[error("invalid draw item: {0}")]
     InvalidDraw(String),
+    /// A perspective near plane too close for the depth format to resolve the view.
+    #[error(
+        "near = {near} and far = {far} give a far/near ratio of {ratio:.3e}, beyond the {max_ratio:.3e} that \
+         {format:?} depth can resolve (the far half of the view would round to the far plane): raise near or lower far"
+    )]
+    DepthRange {
+        /// The near plane distance.
+        near: f32,
+        /// The far plane distance.
+        far: f32,
+        /// `(far − near) / near`.
+        ratio: f64,
+        /// The largest ratio the format resolves.
+        max_ratio: f64,
+        /// The depth format.
+        format: crate::DepthFormat,
+    },
     /// Writing an output file failed.
     #[error("{path}: {why}")]
     Output {

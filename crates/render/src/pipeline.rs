@@ -129,6 +129,7 @@ impl Renderer {
             target.clear(opts.background);
             return Ok(FrameStats::default());
         }
+        opts.depth_format.check_resolves(&camera.projection)?;
         let t0 = Instant::now();
         let resolved = self.resolve_items(scene, instances, items, camera)?;
         let mut stats = self.run(&resolved, Target::Frame { fb: &mut *target, fresh: true }, opts);
@@ -151,6 +152,7 @@ impl Renderer {
         fb: &mut Framebuffer,
         opts: &RenderOptions,
     ) -> Result<FrameStats> {
+        opts.depth_format.check_resolves(&camera.projection)?;
         let t0 = Instant::now();
         let resolved = self.resolve_items(scene, instances, items, camera)?;
         let mut st = self.run(&resolved, Target::Frame { fb, fresh: false }, opts);
@@ -233,6 +235,7 @@ impl Renderer {
         opts: &RenderOptions,
         check_indices: bool,
     ) -> Result<FrameStats> {
+        opts.depth_format.check_resolves(&camera.projection)?;
         let t0 = Instant::now();
         let mut resolved: Vec<Item> = Vec::with_capacity(sources.len());
         self.ranges.clear();

@@ -311,6 +311,7 @@ impl Culler {
         fb: &mut Framebuffer,
         opts: &RenderOptions,
     ) -> Result<(CullStats, FrameStats)> {
+        opts.depth_format.check_resolves(&camera.projection)?;
         let t0 = Instant::now();
         let mut cs = CullStats { clusters: self.c.clustered.item_count() as u64, ..Default::default() };
         let mut opts = *opts;
