@@ -14,5 +14,6 @@
 mod cli;
 mod culling;
 mod culling_proptest;
+mod moving;
 mod occlusion;
 mod support;

@@ -34,6 +34,12 @@ pub enum Error {
         /// The depth format.
         format: crate::DepthFormat,
     },
+    /// The scene was edited but its transforms were not propagated: drawing it would show
+    /// a stale frame.
+    #[error(
+        "the scene has edits whose world transforms are not propagated yet: call Scene::update_transforms before rendering"
+    )]
+    NotPropagated,
     /// Writing an output file failed.
     #[error("{path}: {why}")]
     Output {

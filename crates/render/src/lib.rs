@@ -37,7 +37,9 @@ pub mod wire;
 pub use error::{Error, Result};
 pub use framebuffer::{triangle_id, Framebuffer, MAX_SIZE};
 
-pub use cull::{compare_ids, BoxVisibility, CullStats, Culler, Method, Mismatch, OccluderPass, OcclusionQueries};
+pub use cull::{
+    compare_ids, BoxVisibility, CullStats, Culler, Method, Mismatch, OccluderPass, OcclusionQueries, SyncOutcome,
+};
 pub use deferred::shade_pass;
 pub use depth::DepthFormat;
 pub use options::{draw_all, Antialias, DrawItem, DrawSource, RenderOptions, Wireframe};

@@ -68,6 +68,8 @@ impl Meshlets {
 #[derive(Debug, Clone, Default)]
 pub struct SceneMeshlets {
     meshes: Vec<Meshlets>,
+    /// The mesh of each slot.
+    mesh_ids: Vec<MeshId>,
     instance_slot: Vec<u32>,
 }
 
@@ -75,6 +77,24 @@ impl SceneMeshlets {
     /// Builds meshlets for the meshes of `instances`, with the clusters of `clustered`
     /// (which must have been built from the same instances).
     pub fn build(scene: &Scene, instances: &[Instance], clustered: &ClusteredScene) -> Self {
+        Self::build_reusing(scene, instances, clustered, HashMap::new())
+    }
+
+    /// Builds anew for changed instances, keeping the meshlets of every mesh still drawn
+    /// (`clustered` must have kept that mesh's clusters too, as
+    /// [`ClusteredScene::rebuild`] does).
+    pub fn rebuild(&mut self, scene: &Scene, instances: &[Instance], clustered: &ClusteredScene) {
+        let old = std::mem::take(self);
+        let known = old.mesh_ids.into_iter().zip(old.meshes).collect();
+        *self = Self::build_reusing(scene, instances, clustered, known);
+    }
+
+    fn build_reusing(
+        scene: &Scene,
+        instances: &[Instance],
+        clustered: &ClusteredScene,
+        mut known: HashMap<MeshId, Meshlets>,
+    ) -> Self {
         let mut slot_of: HashMap<MeshId, u32> = HashMap::new();
         let mut first_instance: Vec<u32> = Vec::new();
         let instance_slot: Vec<u32> = instances
@@ -87,9 +107,15 @@ impl SceneMeshlets {
                 })
             })
             .collect();
+        let mesh_ids: Vec<MeshId> = first_instance.iter().map(|&i| instances[i as usize].mesh).collect();
+        let reused: Vec<Option<Meshlets>> = mesh_ids.iter().map(|id| known.remove(id)).collect();
         let meshes = first_instance
             .par_iter()
-            .map(|&i| {
+            .zip(reused)
+            .map(|(&i, done)| {
+                if let Some(m) = done {
+                    return m;
+                }
                 let (Some(mesh), Some(mc)) = (scene.mesh(instances[i as usize].mesh), clustered.mesh_clusters(i))
                 else {
                     return Meshlets::default();
@@ -97,7 +123,7 @@ impl SceneMeshlets {
                 Meshlets::build(mesh.positions(), mesh.indices(), (0..mc.clusters().len()).map(|c| mc.triangles(c)))
             })
             .collect();
-        Self { meshes, instance_slot }
+        Self { meshes, mesh_ids, instance_slot }
     }
 
     /// The meshlets instance `i` draws.

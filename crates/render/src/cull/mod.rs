@@ -38,6 +38,7 @@ pub mod cone;
 pub mod meshlets;
 pub mod order;
 pub mod query;
+mod update;
 mod verify;
 mod walk;
 
@@ -51,11 +52,12 @@ pub use crate::hzb::{DepthPyramid, Level, Rect, TilePyramid};
 pub use meshlets::{Meshlets, SceneMeshlets};
 pub use order::DrawOrder;
 pub use query::{BoxVisibility, OcclusionQueries};
+pub use update::SyncOutcome;
 pub use verify::{compare_ids, Mismatch};
 
 use crate::pipeline::Target;
 use crate::stats::ms_since;
-use crate::{draw_all, FrameStats, Framebuffer, RenderOptions, Renderer, Result, Session};
+use crate::{draw_all, Error, FrameStats, Framebuffer, RenderOptions, Renderer, Result, Session};
 use walk::{Batching, Frame, Source, Walk};
 
 /// How a frame decides what to draw.
@@ -147,6 +149,8 @@ pub struct Culler {
 #[derive(Debug)]
 struct Clusters {
     instances: Vec<Instance>,
+    /// Instance index by the node that draws it.
+    node_instance: update::NodeInstance,
     clustered: ClusteredScene,
     meshlets: SceneMeshlets,
     /// Per cluster, what drawing it takes.
@@ -217,65 +221,23 @@ impl Culler {
     /// Builds clusters, meshlets, BVH and octree for the scene's instances (world transforms
     /// must be up to date).
     pub fn new(scene: &Scene) -> Self {
-        let instances = scene.instances();
-        let clustered = ClusteredScene::from_instances(scene, &instances);
-        let meshlets = SceneMeshlets::build(scene, &instances, &clustered);
-        let item_boxes = clustered.item_boxes(&instances);
-        let cone_inputs: Vec<_> = (0..clustered.item_count() as u32)
-            .map(|i| {
-                let it = clustered.item(i);
-                let inst = &instances[it.instance as usize];
-                match scene.mesh(inst.mesh) {
-                    Some(m) => (m.positions(), m.indices(), clustered.triangles(i), inst.world_from_local),
-                    None => (&[][..], &[][..], &[][..], inst.world_from_local),
-                }
-            })
-            .collect();
-        let cones = cone::cones(&cone_inputs);
-        let mut cone_can_cull = vec![0u64; cones.len().div_ceil(64)];
-        for (i, c) in cones.iter().enumerate() {
-            cone_can_cull[i / 64] |= (c.can_cull() as u64) << (i % 64);
-        }
-        let octree = LooseOctree::from_boxes(&item_boxes, OCTREE_DEPTH);
-        let draws = (0..clustered.item_count() as u32)
-            .map(|i| {
-                let it = clustered.item(i);
-                let inst = &instances[it.instance as usize];
-                let slot = meshlets.slot(it.instance);
-                let cluster = meshlets.by_slot(slot).clusters.get(it.cluster as usize).copied();
-                // Clusters are made from the meshlets, so each has its range; a missing one
-                // would draw nothing rather than panic in release builds.
-                debug_assert!(cluster.is_some(), "cluster {i} has no meshlet range");
-                let (first, count) = cluster.unwrap_or((0, 0));
-                ClusterDraw {
-                    world_from_local: inst.world_from_local.to_cols_array(),
-                    meshlets: slot,
-                    first_triangle: inst.first_triangle,
-                    first,
-                    count,
-                }
-            })
-            .collect();
         Self {
             renderer: Renderer::new(),
-            c: Clusters {
-                instances,
-                clustered,
-                meshlets,
-                draws,
-                item_boxes,
-                cones,
-                cone_can_cull,
-                octree,
-                visible: Vec::new(),
-                last_visible: Vec::new(),
-                drawn_in: Vec::new(),
-                frame: 0,
-            },
+            c: Clusters::build(scene, None),
             first_batch: Self::DEFAULT_FIRST_BATCH,
             max_batch: Self::DEFAULT_MAX_BATCH,
             one_thread_max_batch: Self::ONE_THREAD_MAX_BATCH,
         }
+    }
+
+    /// Brings the culling state up to date with `scene` after edits: moved instances are
+    /// refitted, added or removed ones rebuild the world side (see the `update` module).
+    /// `scene` must have been propagated ([`Scene::update_transforms`]).
+    pub fn sync(&mut self, scene: &Scene) -> Result<SyncOutcome> {
+        if scene.needs_update() {
+            return Err(Error::NotPropagated);
+        }
+        Ok(self.c.sync_by_comparison(scene))
     }
 
     /// The instances the culler was built for.

@@ -56,6 +56,23 @@ impl ClusteredScene {
     /// Builds for the given instances of `scene` (instances whose mesh handle is stale get no
     /// items). Meshes are clustered in parallel, once each.
     pub fn from_instances(scene: &Scene, instances: &[Instance]) -> ClusteredScene {
+        Self::from_instances_reusing(scene, instances, HashMap::new())
+    }
+
+    /// Builds anew for changed instances (added, removed, reordered, other meshes), keeping
+    /// the clusters of every mesh that is still drawn: only meshes new to the scene are
+    /// clustered.
+    pub fn rebuild(&mut self, scene: &Scene, instances: &[Instance]) {
+        let old = std::mem::take(self);
+        let known: HashMap<MeshId, MeshClusters> = old.mesh_ids.into_iter().zip(old.meshes).collect();
+        *self = Self::from_instances_reusing(scene, instances, known);
+    }
+
+    fn from_instances_reusing(
+        scene: &Scene,
+        instances: &[Instance],
+        mut known: HashMap<MeshId, MeshClusters>,
+    ) -> ClusteredScene {
         let mut mesh_slot: HashMap<MeshId, u32> = HashMap::new();
         let mut mesh_ids: Vec<MeshId> = Vec::new();
         let instance_mesh: Vec<u32> = instances
@@ -70,8 +87,12 @@ impl ClusteredScene {
                 })
             })
             .collect();
-        let meshes: Vec<MeshClusters> =
-            mesh_ids.par_iter().map(|&id| scene.mesh(id).map(MeshClusters::build).unwrap_or_default()).collect();
+        let reused: Vec<Option<MeshClusters>> = mesh_ids.iter().map(|id| known.remove(id)).collect();
+        let meshes: Vec<MeshClusters> = mesh_ids
+            .par_iter()
+            .zip(reused)
+            .map(|(&id, done)| done.unwrap_or_else(|| scene.mesh(id).map(MeshClusters::build).unwrap_or_default()))
+            .collect();
         let mut items = Vec::new();
         let mut instance_first_item = Vec::with_capacity(instances.len() + 1);
         for (i, &m) in instance_mesh.iter().enumerate() {
@@ -102,18 +123,25 @@ impl ClusteredScene {
         boxes.par_chunks_mut(4096).enumerate().for_each(|(chunk, out)| {
             let base = chunk * 4096;
             for (k, b) in out.iter_mut().enumerate() {
-                let it = self.items[base + k];
-                let inst = &instances[it.instance as usize];
-                let mc = &self.meshes[self.instance_mesh[it.instance as usize] as usize];
-                *b = if mc.clusters().len() == 1 {
-                    inst.world_aabb
-                } else {
-                    let local = mc.clusters()[it.cluster as usize].aabb;
-                    local.transformed(&inst.world_from_local)
-                };
+                *b = self.item_box((base + k) as u32, instances);
             }
         });
         boxes
+    }
+
+    /// The world box of item `i` for `instances` (which must
+    /// [match](ClusteredScene::matches) the build): its cluster's box under its instance's
+    /// transform (the instance's box when the mesh is one cluster).
+    #[inline]
+    pub fn item_box(&self, i: u32, instances: &[Instance]) -> Aabb {
+        let it = self.items[i as usize];
+        let inst = &instances[it.instance as usize];
+        let mc = &self.meshes[self.instance_mesh[it.instance as usize] as usize];
+        if mc.clusters().len() == 1 {
+            inst.world_aabb
+        } else {
+            mc.clusters()[it.cluster as usize].aabb.transformed(&inst.world_from_local)
+        }
     }
 
     /// True when `instances` are the build's instances (same count, same meshes), possibly
@@ -135,7 +163,14 @@ impl ClusteredScene {
             return None;
         }
         let boxes = self.item_boxes(instances);
-        let ratio = if self.bvh.refit(&boxes) {
+        Some(self.refit_boxes(&boxes))
+    }
+
+    /// Refits the BVH to new item boxes (index = item), rebuilding it when its SAH cost grew
+    /// beyond [`REBUILD_RATIO`] × the fresh build's or when an item's box changed kind (became
+    /// empty, unbounded or finite again).
+    pub fn refit_boxes(&mut self, boxes: &[Aabb]) -> RefitOutcome {
+        let ratio = if self.bvh.refit(boxes) {
             if self.build_cost > 0.0 {
                 self.bvh.sah_cost() / self.build_cost
             } else {
@@ -145,11 +180,11 @@ impl ClusteredScene {
             f32::INFINITY
         };
         if ratio <= REBUILD_RATIO {
-            return Some(RefitOutcome::Refitted { cost_ratio: ratio });
+            return RefitOutcome::Refitted { cost_ratio: ratio };
         }
-        self.bvh = Bvh::build(&boxes, BvhPreset::Fast, SCENE_LEAF);
+        self.bvh = Bvh::build(boxes, BvhPreset::Fast, SCENE_LEAF);
         self.build_cost = self.bvh.sah_cost();
-        Some(RefitOutcome::Rebuilt { cost_ratio: ratio })
+        RefitOutcome::Rebuilt { cost_ratio: ratio }
     }
 
     /// Number of items ((instance, cluster) pairs).

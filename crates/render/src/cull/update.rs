@@ -1,0 +1,187 @@
+//! Keeping the culling state in step with a scene that changes.
+//!
+//! Rigid motion is the common change (vehicles drive, a crane turns): clusters and meshlets
+//! are mesh-local and stay; what moves is the world side — each moved instance's transform
+//! in its per-cluster draw records, its clusters' world boxes, their entries in the loose
+//! octree and their normal cones — and the BVH over all cluster boxes is refitted bottom-up,
+//! or rebuilt once refitting has let its SAH cost grow past `REBUILD_RATIO` times that of a
+//! fresh build (the rule of Wald, Boulos and Shirley 2007, "Ray tracing deformable scenes
+//! using dynamic bounding volume hierarchies": refit while the tree stays good, rebuild when
+//! it has degraded). A change of what is drawn (instances added, removed or reordered, a mesh
+//! or material swapped) rebuilds the world side but keeps the clusters and meshlets of every
+//! mesh that is still drawn, so a mesh is clustered once, however the scene changes.
+//!
+//! Two-pass culling needs nothing here: last frame's visible clusters are drawn at their
+//! new place as this frame's first occluders (drawing more than needed never changes the
+//! picture), and every other cluster is tested against the pyramid as usual.
+
+use std::collections::HashMap;
+
+use sightline_scene::{NodeId, Scene};
+use sightline_spatial::{ClusteredScene, LooseOctree, RefitOutcome};
+
+use super::{cone, ClusterDraw, Clusters, SceneMeshlets, OCTREE_DEPTH};
+
+impl Clusters {
+    /// Builds the culling state for `scene.instances()` (world transforms must be up to date),
+    /// keeping the per-mesh clusters and meshlets of `reuse` for meshes still drawn.
+    pub(super) fn build(scene: &Scene, reuse: Option<(ClusteredScene, SceneMeshlets)>) -> Clusters {
+        let instances = scene.instances();
+        let (clustered, meshlets) = match reuse {
+            Some((mut clustered, mut meshlets)) => {
+                clustered.rebuild(scene, &instances);
+                meshlets.rebuild(scene, &instances, &clustered);
+                (clustered, meshlets)
+            }
+            None => {
+                let clustered = ClusteredScene::from_instances(scene, &instances);
+                let meshlets = SceneMeshlets::build(scene, &instances, &clustered);
+                (clustered, meshlets)
+            }
+        };
+        let item_boxes = clustered.item_boxes(&instances);
+        let items = 0..clustered.item_count() as u32;
+        let cone_inputs: Vec<_> = items.clone().map(|i| cone_input(scene, &instances, &clustered, i)).collect();
+        let cones = cone::cones(&cone_inputs);
+        let mut cone_can_cull = vec![0u64; cones.len().div_ceil(64)];
+        for (i, c) in cones.iter().enumerate() {
+            cone_can_cull[i / 64] |= (c.can_cull() as u64) << (i % 64);
+        }
+        let octree = LooseOctree::from_boxes(&item_boxes, OCTREE_DEPTH);
+        let draws = items
+            .map(|i| {
+                let it = clustered.item(i);
+                let inst = &instances[it.instance as usize];
+                let slot = meshlets.slot(it.instance);
+                let cluster = meshlets.by_slot(slot).clusters.get(it.cluster as usize).copied();
+                // Clusters are made from the meshlets, so each has its range; a missing one
+                // would draw nothing rather than panic in release builds.
+                debug_assert!(cluster.is_some(), "cluster {i} has no meshlet range");
+                let (first, count) = cluster.unwrap_or((0, 0));
+                ClusterDraw {
+                    world_from_local: inst.world_from_local.to_cols_array(),
+                    meshlets: slot,
+                    first_triangle: inst.first_triangle,
+                    first,
+                    count,
+                }
+            })
+            .collect();
+        let node_instance = instances.iter().enumerate().map(|(i, inst)| (inst.node, i as u32)).collect();
+        Clusters {
+            instances,
+            node_instance,
+            clustered,
+            meshlets,
+            draws,
+            item_boxes,
+            cones,
+            cone_can_cull,
+            octree,
+            visible: Vec::new(),
+            last_visible: Vec::new(),
+            drawn_in: Vec::new(),
+            frame: 0,
+        }
+    }
+
+    /// Moves the instances drawn by `nodes` to their nodes' current world transforms (nodes
+    /// that draw nothing here are passed over). Returns what became of the cluster BVH, or
+    /// `None` when nothing moved.
+    pub(super) fn move_nodes(&mut self, scene: &Scene, nodes: &[NodeId]) -> Option<RefitOutcome> {
+        let mut moved = false;
+        for id in nodes {
+            let (Some(&i), Some(node)) = (self.node_instance.get(id), scene.node(*id)) else { continue };
+            let inst = &mut self.instances[i as usize];
+            inst.world_from_local = node.world_matrix();
+            inst.world_aabb = node.world_aabb();
+            moved = true;
+            for item in self.clustered.instance_items(i) {
+                let k = item as usize;
+                let b = self.clustered.item_box(item, &self.instances);
+                self.item_boxes[k] = b;
+                self.octree.update(item, b);
+                self.draws[k].world_from_local = self.instances[i as usize].world_from_local.to_cols_array();
+                // A cone that can cull is recomputed for the new pose; one that cannot stays
+                // unable to (conservative: at worst a cluster that could be dropped is drawn).
+                if self.cone_can_cull[k / 64] >> (k % 64) & 1 != 0 {
+                    let (p, idx, tris, m) = cone_input(scene, &self.instances, &self.clustered, item);
+                    let c = cone::Cone::of_cluster(p, idx, tris, &m);
+                    self.cones[k] = c;
+                    if !c.can_cull() {
+                        self.cone_can_cull[k / 64] &= !(1u64 << (k % 64));
+                    }
+                }
+            }
+        }
+        moved.then(|| self.clustered.refit_boxes(&self.item_boxes))
+    }
+}
+
+/// What a cluster's normal cone is made from.
+fn cone_input<'a>(
+    scene: &'a Scene,
+    instances: &[sightline_scene::Instance],
+    clustered: &'a ClusteredScene,
+    item: u32,
+) -> cone::ClusterRef<'a> {
+    let it = clustered.item(item);
+    let inst = &instances[it.instance as usize];
+    match scene.mesh(inst.mesh) {
+        Some(m) => (m.positions(), m.indices(), clustered.triangles(item), inst.world_from_local),
+        None => (&[][..], &[][..], &[][..], inst.world_from_local),
+    }
+}
+
+/// Instance index by the node that draws it.
+pub(super) type NodeInstance = HashMap<NodeId, u32>;
+
+/// What [`super::Culler::sync`] did to follow the scene.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum SyncOutcome {
+    /// Nothing had changed.
+    Unchanged,
+    /// Instances moved: their boxes, cones and octree entries followed, and the cluster BVH
+    /// was refitted or rebuilt.
+    Moved {
+        /// How many instances moved.
+        instances: usize,
+        /// What became of the cluster BVH.
+        bvh: RefitOutcome,
+    },
+    /// What is drawn changed (instances added, removed or reordered, meshes or materials
+    /// swapped): the world side was rebuilt, keeping the clusters of meshes still drawn.
+    Rebuilt,
+}
+
+impl Clusters {
+    /// Follows `scene` by comparing its instances with ours: the same nodes drawing the same
+    /// meshes with the same materials in the same order means only transforms may differ
+    /// (moved instances); anything else rebuilds.
+    pub(super) fn sync_by_comparison(&mut self, scene: &Scene) -> SyncOutcome {
+        let now = scene.instances();
+        let same_drawing = now.len() == self.instances.len()
+            && now.iter().zip(&self.instances).all(|(a, b)| {
+                a.node == b.node
+                    && a.mesh == b.mesh
+                    && a.material == b.material
+                    && a.first_triangle == b.first_triangle
+                    && a.triangle_count == b.triangle_count
+            });
+        if !same_drawing {
+            let reuse = (std::mem::take(&mut self.clustered), std::mem::take(&mut self.meshlets));
+            *self = Clusters::build(scene, Some(reuse));
+            return SyncOutcome::Rebuilt;
+        }
+        let moved: Vec<NodeId> = now
+            .iter()
+            .zip(&self.instances)
+            .filter(|(a, b)| a.world_from_local != b.world_from_local || a.world_aabb != b.world_aabb)
+            .map(|(a, _)| a.node)
+            .collect();
+        match self.move_nodes(scene, &moved) {
+            Some(bvh) => SyncOutcome::Moved { instances: moved.len(), bvh },
+            None => SyncOutcome::Unchanged,
+        }
+    }
+}
