@@ -1,7 +1,11 @@
 //! Playing animations: sample every channel at one time and set the targeted nodes' local
 //! transforms (see the parent module for the rules on time and untargeted components).
+//!
+//! The new local matrix of a node goes through [`Scene::set_local_matrix`], so the node is
+//! marked dirty (and whatever else the scene records about edits happens) exactly as for an
+//! edit made by hand.
 
-use glam::{Quat, Vec3};
+use glam::{Affine3A, Quat, Vec3};
 
 use super::{Animation, Channel, Curve};
 use crate::{Error, NodeId, Result, Scene, Transform};
@@ -23,18 +27,37 @@ impl Pose {
         }
     }
 
-    /// The full TRS: the sampled components over the node's current ones (decomposed from
-    /// its local matrix only when some component is not sampled).
-    fn over(&self, scene: &Scene, node: NodeId) -> Result<Transform> {
-        let current = match (self.translation, self.rotation, self.scale) {
-            (Some(_), Some(_), Some(_)) => Transform::IDENTITY,
-            _ => scene.try_node(node)?.local_transform(),
+    /// The node's new local matrix: the sampled components over its current ones. Only
+    /// what is missing is read back from the current matrix: the translation is its last
+    /// column, the scale its column lengths (the determinant's sign on x, as
+    /// `Affine3A::to_scale_rotation_translation` does); only a missing rotation needs the
+    /// full decomposition.
+    fn over(&self, scene: &Scene, node: NodeId) -> Result<Affine3A> {
+        let (translation, rotation, scale) = match (self.translation, self.rotation, self.scale) {
+            (Some(t), Some(r), Some(s)) => (t, r, s),
+            (t, Some(r), s) => {
+                let m = scene.try_node(node)?.local_matrix();
+                let scale = s.unwrap_or_else(|| {
+                    let sign = m.matrix3.determinant().signum();
+                    Vec3::new(m.matrix3.x_axis.length() * sign, m.matrix3.y_axis.length(), m.matrix3.z_axis.length())
+                });
+                (t.unwrap_or(m.translation.into()), r, scale)
+            }
+            (t, None, s) => {
+                let current = scene.try_node(node)?.local_transform();
+                (t.unwrap_or(current.translation), current.rotation, s.unwrap_or(current.scale))
+            }
         };
-        Ok(Transform {
-            translation: self.translation.unwrap_or(current.translation),
-            rotation: self.rotation.unwrap_or(current.rotation),
-            scale: self.scale.unwrap_or(current.scale),
-        })
+        // Sampled values are finite and rotations unit by construction, but interpolating
+        // huge values can still overflow: check as `Transform::to_affine` does, and let it
+        // word the error.
+        let ok = translation.is_finite() && scale.is_finite() && rotation.is_finite() && rotation.length() > 1e-6;
+        let trs = Transform { translation, rotation, scale };
+        if ok {
+            Ok(Affine3A::from_scale_rotation_translation(scale, rotation.normalize(), translation))
+        } else {
+            trs.to_affine(&format!("node '{}'", scene.try_node(node)?.name()))
+        }
     }
 }
 
@@ -62,7 +85,7 @@ impl Animation {
             for c in &rest[..run] {
                 pose.sample(&c.curve, t);
             }
-            let result = pose.over(scene, target).and_then(|trs| scene.set_local_transform(target, trs));
+            let result = pose.over(scene, target).and_then(|m| scene.set_local_matrix(target, m));
             match result {
                 Ok(()) => set += 1,
                 Err(e) => {

@@ -247,8 +247,10 @@ pub fn city_with_traffic(params: &TrafficParams) -> Result<City> {
     ];
     let paints: Vec<_> =
         paints.iter().map(|(n, c)| scene.add_material(Material::color(format!("vehicle {n}"), *c))).collect();
-    let traffic = scene.add_node(None, NodeDesc::new("traffic"))?;
-    for v in 0..params.vehicles {
+    // Routes and keys first, nodes next, animations last: each vehicle's keys sit together
+    // in memory, in the order `animate` visits them.
+    let mut drives = Vec::with_capacity(params.vehicles as usize);
+    for _ in 0..params.vehicles {
         let mut pick = rng.f32();
         let kind = KINDS.iter().position(|k| {
             pick -= k.share;
@@ -259,12 +261,17 @@ pub fn city_with_traffic(params: &TrafficParams) -> Result<City> {
         let (_, length) = route.arc_lengths();
         let speed = rng.range(8.0, 14.0);
         let (t, r) = route.lap(rng.f32() * length, speed)?;
-        let start = Transform::from_translation(t.sample(0.0)).with_rotation(r.sample(0.0));
         let paint = paints[rng.below(paints.len() as u32) as usize];
-        let node = scene.add_node(
-            Some(traffic),
-            NodeDesc::new(format!("{} {v}", KINDS[kind].name)).transform(start).mesh(meshes[kind]).material(paint),
-        )?;
+        drives.push((kind, paint, t, r));
+    }
+    let traffic = scene.add_node(None, NodeDesc::new("traffic"))?;
+    let mut nodes = Vec::with_capacity(drives.len());
+    for (v, (kind, paint, t, r)) in drives.iter().enumerate() {
+        let start = Transform::from_translation(t.sample(0.0)).with_rotation(r.sample(0.0));
+        let desc = NodeDesc::new(format!("{} {v}", KINDS[*kind].name)).transform(start);
+        nodes.push(scene.add_node(Some(traffic), desc.mesh(meshes[*kind]).material(*paint))?);
+    }
+    for (v, ((_, _, t, r), node)) in drives.into_iter().zip(nodes).enumerate() {
         scene.animations.push(
             Animation::new(format!("vehicle {v}"))
                 .with_wrap(Wrap::Loop)
