@@ -10,8 +10,8 @@
 //!   and the ray caster.
 //!
 //! `use sightline::prelude::*;` brings the everyday types into scope. [`SceneSpec`] parses
-//! the `--scene` argument of the command-line program (`city`, `city:TRIS`, `boxfield` or a
-//! file).
+//! the `--scene` argument of the command-line program (`city`, `city:TRIS`, `city+traffic:N`,
+//! `boxfield` or a file).
 
 #![forbid(unsafe_code)]
 #![warn(missing_docs)]
@@ -43,6 +43,9 @@ pub const DEFAULT_CITY_TRIANGLES: u64 = 1_000_000;
 pub enum SceneSpec {
     /// The procedural city with at least this many triangles.
     City(u64),
+    /// The default city with this many vehicles driving its streets and tower cranes, all
+    /// moved by the scene's animations (`scene.animate(t)`; a walk's frame f is t = f / 30 s).
+    CityTraffic(u32),
     /// The occlusion benchmark's field of boxes.
     Boxfield,
     /// A `.gltf`, `.glb` or `.obj` file.
@@ -62,7 +65,19 @@ impl std::str::FromStr for SceneSpec {
             "city" => Ok(SceneSpec::City(DEFAULT_CITY_TRIANGLES)),
             "boxfield" => Ok(SceneSpec::Boxfield),
             _ => {
-                if let Some(n) = s.strip_prefix("city:") {
+                if let Some(n) = s.strip_prefix("city+traffic:") {
+                    let n: u32 = n
+                        .replace('_', "")
+                        .parse()
+                        .map_err(|_| format!("'{s}': expected city+traffic:VEHICLES, e.g. city+traffic:1000"))?;
+                    if n > scene::builders::MAX_VEHICLES {
+                        return Err(format!(
+                            "'{s}': the number of vehicles must be at most {}",
+                            scene::builders::MAX_VEHICLES
+                        ));
+                    }
+                    Ok(SceneSpec::CityTraffic(n))
+                } else if let Some(n) = s.strip_prefix("city:") {
                     let n: u64 = n
                         .replace('_', "")
                         .parse()
@@ -102,6 +117,10 @@ impl SceneSpec {
                 let c = scene::builders::city(&scene::builders::CityParams::for_triangles(*n))?;
                 Ok(LoadedScene { scene: c.scene, layout: Some(c.layout) })
             }
+            SceneSpec::CityTraffic(n) => {
+                let c = scene::builders::city_with_traffic(&scene::builders::TrafficParams::new(*n))?;
+                Ok(LoadedScene { scene: c.scene, layout: Some(c.layout) })
+            }
             SceneSpec::Boxfield => {
                 Ok(LoadedScene { scene: scene::builders::boxfield(&Default::default())?, layout: None })
             }
@@ -133,5 +152,27 @@ mod tests {
         assert_eq!("a.obj".parse::<SceneSpec>().unwrap(), SceneSpec::File("a.obj".into()));
         assert!("city:abc".parse::<SceneSpec>().is_err());
         assert!("city:5".parse::<SceneSpec>().is_err());
+        assert_eq!("city+traffic:1000".parse::<SceneSpec>().unwrap(), SceneSpec::CityTraffic(1000));
+        assert_eq!("city+traffic:10_000".parse::<SceneSpec>().unwrap(), SceneSpec::CityTraffic(10_000));
+        assert!("city+traffic:".parse::<SceneSpec>().is_err());
+        assert!("city+traffic:-3".parse::<SceneSpec>().is_err());
+        assert!("city+traffic:2000000".parse::<SceneSpec>().is_err());
+    }
+
+    #[test]
+    fn traffic_city_builds_and_moves() {
+        let mut s = "city+traffic:20".parse::<SceneSpec>().unwrap().load().unwrap();
+        assert!(s.layout.is_some(), "the street path needs the layout");
+        let plain = SceneSpec::City(DEFAULT_CITY_TRIANGLES).load().unwrap().scene.stats();
+        let stats = s.scene.stats();
+        assert!(stats.instances > plain.instances + 20, "vehicles and cranes are drawn");
+        // 20 vehicle animations and at least one crane.
+        assert!(s.scene.animations.len() > 20);
+        let before = s.scene.instances();
+        s.scene.animate(1.0 / 30.0).unwrap();
+        s.scene.update_transforms();
+        let moved =
+            s.scene.instances().iter().zip(&before).filter(|(a, b)| a.world_from_local != b.world_from_local).count();
+        assert!(moved >= 20 + 4, "{moved} instances moved in one frame");
     }
 }

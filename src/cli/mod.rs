@@ -27,7 +27,9 @@ pub struct Cli {
 /// The scene option shared by every command.
 #[derive(Debug, Clone, clap::Args)]
 pub struct SceneArg {
-    /// Scene: a .gltf/.glb/.obj file, `city` (default, ≥ 10^6 triangles), `city:TRIS`, or `boxfield`
+    /// Scene: a .gltf/.glb/.obj file, `city` (default, ≥ 10^6 triangles), `city:TRIS`,
+    /// `city+traffic:N` (the city with N vehicles and tower cranes, animated: frame f is time
+    /// f/30 s), or `boxfield`
     #[arg(short, long, default_value = "city", value_name = "SCENE")]
     pub scene: SceneSpec,
     /// Let a scene file read buffers, images and material libraries under DIR too (by default
@@ -151,6 +153,7 @@ pub fn load_scene(arg: &SceneArg) -> Result<sightline::LoadedScene> {
 fn describe(spec: &SceneSpec) -> String {
     match spec {
         SceneSpec::City(n) => format!("city ({n} triangles)"),
+        SceneSpec::CityTraffic(n) => format!("city with {n} vehicles"),
         SceneSpec::Boxfield => "boxfield".into(),
         SceneSpec::File(p) => p.display().to_string(),
     }

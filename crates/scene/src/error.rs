@@ -41,6 +41,14 @@ pub enum Error {
     /// A camera or projection with impossible parameters.
     #[error("invalid camera: {0}")]
     InvalidCamera(String),
+    /// An animation that cannot be played: a bad time, a channel aimed at a removed node.
+    #[error("animation '{name}': {why}")]
+    Animation {
+        /// The animation's name.
+        name: String,
+        /// What is wrong.
+        why: String,
+    },
     /// A builder called with parameters it cannot honour.
     #[error("invalid builder parameters: {0}")]
     InvalidParams(String),

@@ -171,6 +171,8 @@ pub struct Scene {
     dirty: Vec<NodeId>,
     /// Cameras defined by a loaded file.
     pub cameras: Vec<SceneCamera>,
+    /// Animations of node transforms (from a file or a builder); see [`Scene::animate`].
+    pub animations: Vec<crate::animation::Animation>,
     /// Non-fatal problems met while loading (missing textures, skipped primitives, ...).
     pub warnings: Vec<String>,
 }

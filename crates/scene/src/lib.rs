@@ -31,6 +31,7 @@
 // `!(x > 0.0)` is how this code says "not positive, or NaN": the negated comparison is the point.
 #![allow(clippy::neg_cmp_op_on_partial_ord)]
 
+pub mod animation;
 pub mod assets;
 mod bounds;
 pub mod builders;
@@ -50,6 +51,7 @@ mod stats;
 mod transform;
 pub mod views;
 
+pub use animation::Animation;
 pub use assets::LoadOptions;
 pub use bounds::Aabb;
 pub use camera::{projection_onto_plane, Camera, View};

@@ -42,6 +42,24 @@ impl MeshBuilder {
         }
     }
 
+    /// Appends an axis-aligned box `[min, max]` whose faces are split into grids (`cells`
+    /// quads along x, y, z), faces pointing outwards; with `bottom = false` the face at
+    /// `min.y` is left out.
+    pub fn add_box(&mut self, min: Vec3, max: Vec3, cells: [u32; 3], bottom: bool) {
+        let e = max - min;
+        let [cx, cy, cz] = cells.map(|c| c.max(1));
+        let (x, y, z) = (Vec3::X * e.x, Vec3::Y * e.y, Vec3::Z * e.z);
+        // Each face: origin, du, dv with du × dv pointing outwards.
+        self.grid(min + z, x, y, cx, cy); // +z
+        self.grid(min + x + z, -z, y, cz, cy); // +x
+        self.grid(min + x, -x, y, cx, cy); // −z
+        self.grid(min, z, y, cz, cy); // −x
+        self.grid(min + y + z, x, -z, cx, cz); // +y
+        if bottom {
+            self.grid(min, x, z, cx, cz); // −y
+        }
+    }
+
     /// Validates and returns the mesh.
     pub fn build(self, name: &str) -> Result<Mesh> {
         Mesh::new(name, self.positions, Some(self.normals), Some(self.uvs), self.indices)
@@ -53,18 +71,7 @@ impl MeshBuilder {
 /// (buildings standing on the ground never show it).
 pub fn subdivided_box(name: &str, min: Vec3, max: Vec3, cells: [u32; 3], bottom: bool) -> Result<Mesh> {
     let mut b = MeshBuilder::default();
-    let e = max - min;
-    let [cx, cy, cz] = cells.map(|c| c.max(1));
-    let (x, y, z) = (Vec3::X * e.x, Vec3::Y * e.y, Vec3::Z * e.z);
-    // Each face: origin, du, dv with du × dv pointing outwards.
-    b.grid(min + z, x, y, cx, cy); // +z
-    b.grid(min + x + z, -z, y, cz, cy); // +x
-    b.grid(min + x, -x, y, cx, cy); // −z
-    b.grid(min, z, y, cz, cy); // −x
-    b.grid(min + y + z, x, -z, cx, cz); // +y
-    if bottom {
-        b.grid(min, x, z, cx, cz); // −y
-    }
+    b.add_box(min, max, cells, bottom);
     b.build(name)
 }
 

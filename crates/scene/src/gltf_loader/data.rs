@@ -262,7 +262,7 @@ impl<'a> Loader<'a> {
     }
 
     /// Reads accessor `i` as `count * dims` numbers (f64, converted per component type).
-    fn read_accessor(
+    pub(super) fn read_accessor(
         &self,
         i: usize,
         want: &[Type],

@@ -15,7 +15,11 @@
 //!   decoded to RGBA8 with the `image` crate).
 //! * Perspective and orthographic cameras, as [`SceneCamera`]s on their nodes.
 //!
-//! Skins, morph targets, animations and the other material channels are ignored.
+//! * Animations of node translation, rotation and scale (STEP, LINEAR, CUBICSPLINE), as
+//!   [`Scene::animations`]; skinned nodes and morph targets are drawn in the bind pose, with a
+//!   warning (see the `animation` submodule).
+//!
+//! The other material channels are ignored.
 //!
 //! External files (buffer and image URIs; glTF 2.0 specification, sections "URIs", "Buffers
 //! and Buffer Views" and "Images") are read under the rules of [`crate::assets`]: inside the glTF file's folder (or an allowed root), regular files
@@ -30,7 +34,8 @@
 //! regular file, over the total).
 //! Warnings (in [`Scene::warnings`], the scene still loads): a missing or undecodable
 //! texture (the material keeps its base color factor), skipped point/line primitives, used but
-//! not required unknown extensions, unusable cameras.
+//! not required unknown extensions, unusable cameras, bad animation channels (skipped), skins
+//! and morph targets (drawn in the bind pose).
 //!
 //! The loader does its own bounds-checked parsing of the GLB container, buffers and accessors
 //! on top of `gltf::json` (serde structs), so no input makes it panic.
@@ -48,6 +53,7 @@ use json::validation::Checked;
 
 use crate::assets::{AssetError, AssetReader};
 
+mod animation;
 mod data;
 use crate::{
     Error, LoadOptions, Material, MaterialId, Mesh, MeshId, NodeDesc, NodeId, Projection, Result, Scene, SceneCamera,
@@ -153,9 +159,11 @@ fn load_with_reader(bytes: &[u8], path: &Path, assets: &AssetReader) -> Result<S
         images: vec![None; root.images.len()],
         default_material: None,
         skipped: Vec::new(),
+        node_ids: vec![None; root.nodes.len()],
     };
     loader.scene.warnings = warnings;
     loader.build().map_err(fail)?;
+    loader.load_animations();
     let mut scene = loader.scene;
     let skipped = loader.skipped;
     if !skipped.is_empty() {
@@ -192,6 +200,8 @@ struct Loader<'a> {
     images: Vec<Option<Option<Arc<Texture>>>>,
     default_material: Option<MaterialId>,
     skipped: Vec<String>,
+    /// The scene node made for each glTF node (`None`: not in the loaded scene).
+    node_ids: Vec<Option<NodeId>>,
 }
 
 fn node_label(root: &json::Root, i: usize) -> String {
@@ -268,6 +278,7 @@ impl Loader<'_> {
                 desc.material = self.resolve_material(mat, inherits);
             }
             let id = self.scene.add_node(parent, desc).map_err(|e| e.to_string())?;
+            self.node_ids[i] = Some(id);
             let passes = inherits || self.scene.node(id).is_some_and(|n| n.material().is_some());
             if prims.len() > 1 {
                 for (p, mesh_id, mat) in prims {

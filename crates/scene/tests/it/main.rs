@@ -8,6 +8,7 @@
 
 #![forbid(unsafe_code)]
 
+mod animation;
 mod broken_gltf;
 mod graph;
 mod hostile_assets;

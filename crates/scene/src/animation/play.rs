@@ -1,0 +1,158 @@
+//! Playing animations: sample every channel at one time and set the targeted nodes' local
+//! transforms (see the parent module for the rules on time and untargeted components).
+//!
+//! The new local matrix of a node goes through [`Scene::set_local_matrix`], so the node is
+//! marked dirty (and whatever else the scene records about edits happens) exactly as for an
+//! edit made by hand.
+
+use glam::{Affine3A, Quat, Vec3};
+
+use super::{Animation, Channel, Curve};
+use crate::{Error, NodeId, Result, Scene, Transform};
+
+/// The components of one node's TRS set by consecutive channels; `None`: keep the node's.
+#[derive(Default)]
+struct Pose {
+    translation: Option<Vec3>,
+    rotation: Option<Quat>,
+    scale: Option<Vec3>,
+}
+
+impl Pose {
+    fn sample(&mut self, curve: &Curve, t: f32) {
+        match curve {
+            Curve::Translation(s) => self.translation = Some(s.sample(t)),
+            Curve::Rotation(s) => self.rotation = Some(s.sample(t)),
+            Curve::Scale(s) => self.scale = Some(s.sample(t)),
+        }
+    }
+
+    /// The node's new local matrix: the sampled components over its current ones. Only
+    /// what is missing is read back from the current matrix: the translation is its last
+    /// column, the scale its column lengths (the determinant's sign on x, as
+    /// `Affine3A::to_scale_rotation_translation` does); only a missing rotation needs the
+    /// full decomposition.
+    fn over(&self, scene: &Scene, node: NodeId) -> Result<Affine3A> {
+        let (translation, rotation, scale) = match (self.translation, self.rotation, self.scale) {
+            (Some(t), Some(r), Some(s)) => (t, r, s),
+            (t, Some(r), s) => {
+                let m = scene.try_node(node)?.local_matrix();
+                let scale = s.unwrap_or_else(|| {
+                    let sign = m.matrix3.determinant().signum();
+                    Vec3::new(m.matrix3.x_axis.length() * sign, m.matrix3.y_axis.length(), m.matrix3.z_axis.length())
+                });
+                (t.unwrap_or(m.translation.into()), r, scale)
+            }
+            (t, None, s) => {
+                let current = scene.try_node(node)?.local_transform();
+                (t.unwrap_or(current.translation), current.rotation, s.unwrap_or(current.scale))
+            }
+        };
+        // Sampled values are finite and rotations unit by construction, but interpolating
+        // huge values can still overflow: check as `Transform::to_affine` does, and let it
+        // word the error.
+        let ok = translation.is_finite() && scale.is_finite() && rotation.is_finite() && rotation.length() > 1e-6;
+        let trs = Transform { translation, rotation, scale };
+        if ok {
+            Ok(Affine3A::from_scale_rotation_translation(scale, rotation.normalize(), translation))
+        } else {
+            trs.to_affine(&format!("node '{}'", scene.try_node(node)?.name()))
+        }
+    }
+}
+
+impl Animation {
+    /// Sets the local transforms of the nodes this animation targets to their values at
+    /// time `t` (seconds; see [`Animation::local_time`] for times outside the keys). Returns
+    /// how many node transforms were set. The nodes are marked dirty: call
+    /// [`Scene::update_transforms`] before drawing.
+    ///
+    /// Errors: a non-finite `t`; a channel aimed at a node no longer in `scene` (the other
+    /// channels are still applied, the error names the first such channel).
+    pub fn apply(&self, scene: &mut Scene, t: f32) -> Result<usize> {
+        if !t.is_finite() {
+            return Err(Error::Animation { name: self.name.clone(), why: format!("time {t} is not finite") });
+        }
+        let t = self.local_time(t);
+        let mut first_error = None;
+        let mut set = 0;
+        let mut rest: &[Channel] = &self.channels;
+        let mut index = 0;
+        while let Some(first) = rest.first() {
+            let target = first.target;
+            let run = rest.iter().take_while(|c| c.target == target).count();
+            let mut pose = Pose::default();
+            for c in &rest[..run] {
+                pose.sample(&c.curve, t);
+            }
+            let result = pose.over(scene, target).and_then(|m| scene.set_local_matrix(target, m));
+            match result {
+                Ok(()) => set += 1,
+                Err(e) => {
+                    first_error.get_or_insert(Error::Animation {
+                        name: self.name.clone(),
+                        why: format!("channel {index} ({}): {e}", first.curve.property()),
+                    });
+                }
+            }
+            rest = &rest[run..];
+            index += run;
+        }
+        match first_error {
+            Some(e) => Err(e),
+            None => Ok(set),
+        }
+    }
+}
+
+impl Scene {
+    /// Plays every animation of the scene at time `t` (seconds): sets the local transforms
+    /// their channels target (each animation wraps time as its [`crate::animation::Wrap`]
+    /// says; animations later in [`Scene::animations`] win where two drive the same
+    /// component). Returns the number of node transforms set. Call
+    /// [`Scene::update_transforms`] before drawing.
+    ///
+    /// Errors as [`Animation::apply`]; every animation is applied before the first error is
+    /// returned.
+    pub fn animate(&mut self, t: f32) -> Result<usize> {
+        let animations = std::mem::take(&mut self.animations);
+        let mut first_error = None;
+        let mut set = 0;
+        for a in &animations {
+            match a.apply(self, t) {
+                Ok(n) => set += n,
+                Err(e) => {
+                    first_error.get_or_insert(e);
+                }
+            }
+        }
+        self.animations = animations;
+        match first_error {
+            Some(e) => Err(e),
+            None => Ok(set),
+        }
+    }
+
+    /// The longest [`Animation::duration`] of the scene's animations (0 without any).
+    pub fn animation_duration(&self) -> f32 {
+        self.animations.iter().map(Animation::duration).fold(0.0, f32::max)
+    }
+
+    /// Drops the animation channels whose target node is gone (after
+    /// [`Scene::remove_node`]), and animations left without channels; returns how many
+    /// channels were dropped.
+    pub fn drop_dead_animation_channels(&mut self) -> usize {
+        let animations = std::mem::take(&mut self.animations);
+        let mut dropped = 0;
+        self.animations = animations
+            .into_iter()
+            .filter_map(|mut a| {
+                let before = a.channels.len();
+                a.channels.retain(|c| self.node(c.target).is_some());
+                dropped += before - a.channels.len();
+                (!a.channels.is_empty() || before == 0).then_some(a)
+            })
+            .collect();
+        dropped
+    }
+}
