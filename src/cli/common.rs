@@ -277,6 +277,21 @@ impl CameraChoice<'_> {
     }
 }
 
+/// A time in seconds: finite and not negative.
+pub fn time_arg(s: &str) -> std::result::Result<f32, String> {
+    match s.parse::<f32>() {
+        Ok(t) if t.is_finite() && t >= 0.0 => Ok(t),
+        _ => Err(format!("'{s}' is not a time in seconds (a finite number ≥ 0)")),
+    }
+}
+
+/// Poses the scene's animations at time `t` (seconds) and propagates the transforms.
+pub fn pose(scene: &mut sightline::scene::Scene, t: f32) -> Result<()> {
+    scene.animate(t).with_context(|| format!("playing the animations at {t} s"))?;
+    scene.update_transforms();
+    Ok(())
+}
+
 /// `-` as an output file: standard output.
 pub fn is_stdout(path: &Path) -> bool {
     path.as_os_str() == "-"

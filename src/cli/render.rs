@@ -48,6 +48,10 @@ pub struct RenderArgs {
     /// Image size
     #[arg(long, default_value = "1280x720")]
     pub size: Size,
+    /// Animation time in seconds: the scene's animations (glTF animations, the traffic and
+    /// cranes of `city+traffic:N`) are posed at this time before the frame is drawn
+    #[arg(long, value_name = "SECONDS", value_parser = common::time_arg)]
+    pub time: Option<f32>,
     /// Visibility method
     #[arg(short, long, value_enum, default_value = "raster")]
     pub method: FrameMethod,
@@ -80,7 +84,10 @@ pub fn run(a: &RenderArgs) -> Result<()> {
     let files: Vec<&std::path::Path> =
         [&a.id_out, &a.depth_out, &a.json].into_iter().flatten().map(|p| p.as_path()).collect();
     common::check_outputs(a.out.as_deref().as_slice(), &files)?;
-    let loaded = super::load_scene(&a.scene)?;
+    let mut loaded = super::load_scene(&a.scene)?;
+    if let Some(t) = a.time {
+        common::pose(&mut loaded.scene, t)?;
+    }
     let choice = CameraChoice {
         eye: a.eye,
         target: a.target,
