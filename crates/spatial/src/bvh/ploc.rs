@@ -13,10 +13,10 @@
 //! Why not `obvhs`'s own PLOC builder: it breaks ties between equal costs by taking the
 //! *last* candidate scanned, so in a run of clusters whose pairwise costs are equal every
 //! cluster points to the right and only the rightmost pair of the run is mutual. Each pass
-//! then merges one pair per run, a run of n clusters needs n passes of O(n) work, and the tree
-//! degenerates into a chain: n coincident triangles build in O(n²) time with depth n, and so
-//! does any row of equally spaced identical boxes (depth stays low there, but the passes are
-//! still n). Two changes make the build robust:
+//! then merges about one pair per run, so a run of n clusters needs O(n) passes of O(n) work:
+//! n coincident boxes take n - 1 passes and come out as a chain of depth n, and a row of n
+//! equally spaced identical boxes takes n / 2 passes (the tree stays shallow there, the time
+//! is still quadratic). Two changes make the build robust:
 //!
 //! 1. **A strict order on pairs.** Candidate pairs `(a, b)` (`a < b`, positions in the current
 //!    list) are ordered by cost, then by distance `b - a`, then by preferring an even `a`, then
@@ -24,7 +24,7 @@
 //!    cheapest pair is always mutual, and among equal costs the adjacent pairs (0,1), (2,3), …
 //!    win: n coincident boxes pair up perfectly and build a balanced tree in log2(n) passes.
 //! 2. **A progress guarantee.** Strict costs can still chain (gaps shrinking along a row make
-//!    every cluster's nearest neighbour its right one). When a pass merges fewer than
+//!    every cluster's nearest neighbour its right one). When a pass pairs fewer than
 //!    1/[`SLOW_PASS`] of the clusters, it instead pairs the clusters greedily in list order,
 //!    each with the neighbour it picked if that one is still free. Each cluster is picked by at
 //!    most `2r` others, so at least 1/(2r + 1) of the clusters are paired: every pass removes a
