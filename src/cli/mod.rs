@@ -150,6 +150,16 @@ pub fn load_scene(arg: &SceneArg) -> Result<sightline::LoadedScene> {
     }
 }
 
+/// Runs `work` under a spinner naming it on the terminal (BVH builds over 10^6 primitives take
+/// a second or two).
+pub fn with_spinner<T>(what: &str, work: impl FnOnce() -> T) -> T {
+    let bar = indicatif::ProgressBar::new_spinner().with_message(what.to_string());
+    bar.enable_steady_tick(std::time::Duration::from_millis(100));
+    let out = work();
+    bar.finish_and_clear();
+    out
+}
+
 fn describe(spec: &SceneSpec) -> String {
     match spec {
         SceneSpec::City(n) => format!("city ({n} triangles)"),

@@ -112,7 +112,7 @@ pub fn run(a: &RenderArgs) -> Result<()> {
                 Ok(serde_json::to_value(stats)?)
             }
             FrameMethod::Raycast => {
-                let caster = RayCaster::build(&loaded.scene)?;
+                let caster = super::with_spinner("building BVHs", || RayCaster::build(&loaded.scene))?;
                 let mut ro = RaycastOptions::from_render(&opts);
                 ro.shadows = a.shadows;
                 let st = caster.render(&camera, &ro, &mut fb)?;

@@ -184,12 +184,15 @@ fn walk(
     let scene = &loaded.scene;
     let list = methods(a.method);
     let needs_raster = list.iter().any(|m| m.1.is_some()) || a.verify;
-    let mut culler = needs_raster.then(|| {
-        let mut c = Culler::new(scene);
-        c.first_batch = a.first_batch.max(1);
-        c
-    });
-    let caster = if list.iter().any(|m| m.1.is_none()) { Some(RayCaster::build(scene)?) } else { None };
+    let (mut culler, caster) = super::with_spinner("building BVHs", || -> Result<_> {
+        let culler = needs_raster.then(|| {
+            let mut c = Culler::new(scene);
+            c.first_batch = a.first_batch.max(1);
+            c
+        });
+        let caster = list.iter().any(|m| m.1.is_none()).then(|| RayCaster::build(scene)).transpose()?;
+        Ok((culler, caster))
+    })?;
     let mut fb = Framebuffer::new(a.size.width, a.size.height)?;
     let mut reference = Framebuffer::new(a.size.width, a.size.height)?;
     let bar = indicatif::ProgressBar::new((keys.len() * list.len()) as u64).with_style(

@@ -1,11 +1,13 @@
 //! Bounding volume hierarchies: a flat binary BVH over boxes ([`Bvh`], this module), built
-//! with `obvhs`'s PLOC builder and re-laid out for culling, and what is built on it: the BVH
+//! by locally-ordered clustering (module `ploc`), optimized with `obvhs` and re-laid out for
+//! culling, and what is built on it: the BVH
 //! over instances ([`instances`]), over one mesh's triangles ([`triangles`]), triangle
 //! clusters ([`cluster`], [`scene`]), the traversals ([`traverse`]), and the ray caster's
 //! 4-wide two-level BVH ([`wide`]).
 //!
 //! Construction: D. Meister and J. Bittner, "Parallel Locally-Ordered Clustering for Bounding
-//! Volume Hierarchy Construction" (PLOC, IEEE TVCG 2018), followed by obvhs's parallel
+//! Volume Hierarchy Construction" (PLOC, IEEE TVCG 2018), in our own version whose build
+//! time stays O(n log n) on coincident or evenly spaced boxes (module `ploc`), followed by obvhs's
 //! reinsertion (D. Meister and J. Bittner, "Parallel Reinsertion for Bounding Volume
 //! Hierarchy Optimization", Eurographics 2018) and SAH leaf collapsing, with obvhs's presets.
 //!
@@ -21,6 +23,7 @@
 
 pub mod cluster;
 pub mod instances;
+mod ploc;
 pub mod scene;
 pub mod traverse;
 pub mod triangles;
@@ -28,7 +31,7 @@ pub mod wide;
 
 use glam::Vec3;
 use obvhs::bvh2::{leaf_collapser::collapse, reinsertion::ReinsertionOptimizer};
-use obvhs::{ploc::PlocBuilder, BvhBuildParams};
+use obvhs::BvhBuildParams;
 use sightline_scene::Aabb;
 
 use crate::{AabbExt, BoxKind};
@@ -136,14 +139,7 @@ impl Bvh {
         }
         let params = preset.params(max_leaf);
         let obv: Vec<obvhs::aabb::Aabb> = ids.iter().map(|&i| boxes[i as usize].to_obvhs()).collect();
-        let n = obv.len();
-        let mut bvh2 = PlocBuilder::with_capacity(n).build(
-            params.ploc_search_distance,
-            &obv,
-            (0..n as u32).collect(),
-            params.sort_precision,
-            params.search_depth_threshold,
-        );
+        let (mut bvh2, _) = ploc::build(&obv, params.ploc_search_distance, params.search_depth_threshold);
         let mut reinsertion = ReinsertionOptimizer::default();
         reinsertion.run(&mut bvh2, params.reinsertion_batch_ratio, None);
         collapse(&mut bvh2, params.max_prims_per_leaf.clamp(1, 255), params.collapse_traversal_cost);
