@@ -1,0 +1,79 @@
+//! A moving scene: the default city with 10^4 vehicles driving and tower cranes turning.
+//!
+//! * `dynamic/animate_propagate`: posing every animation at the next time step (1/30 s) and
+//!   propagating the changed world transforms (the scene's share of a moving frame).
+//! * `dynamic/sync_culler`: bringing the culler's spatial structures up to date with one
+//!   such step (moved cluster boxes, octree entries, cones, BVH refit): the engine's share.
+//! * `dynamic/hzb_moving` against `dynamic/hzb_parked`: an `hzb` street frame while the
+//!   vehicles move (everything above included) and the same frames with them parked.
+
+#![forbid(unsafe_code)]
+
+use std::time::{Duration, Instant};
+
+use criterion::{criterion_group, criterion_main, Criterion};
+use sightline::render::{Culler, Framebuffer, Method, RenderOptions};
+use sightline::scene::builders::{city_with_traffic, TrafficParams};
+
+const VEHICLES: u32 = 10_000;
+
+fn dynamic(c: &mut Criterion) {
+    let traffic = city_with_traffic(&TrafficParams::new(VEHICLES)).unwrap();
+    let mut scene = traffic.scene;
+    let keys = traffic.layout.street_path(120, 11);
+    let cams: Vec<_> = keys.iter().map(|k| k.camera(1280.0 / 720.0).unwrap()).collect();
+    scene.animate(0.0).unwrap();
+    scene.update_transforms();
+    let mut culler = Culler::new(&scene);
+    let mut fb = Framebuffer::new(1280, 720).unwrap();
+    let opts = RenderOptions::default();
+    let pool = rayon::ThreadPoolBuilder::new().build().unwrap();
+    let mut g = c.benchmark_group("dynamic");
+    g.sample_size(20).measurement_time(Duration::from_secs(4)).warm_up_time(Duration::from_secs(1));
+    let mut frame = 0u32;
+    g.bench_function("animate_propagate", |b| {
+        b.iter(|| {
+            frame += 1;
+            scene.animate(frame as f32 / 30.0).unwrap();
+            scene.update_transforms()
+        })
+    });
+    culler.sync(&scene).unwrap();
+    g.bench_function("sync_culler", |b| {
+        b.iter_custom(|n| {
+            let mut spent = Duration::ZERO;
+            for _ in 0..n {
+                frame += 1;
+                scene.animate(frame as f32 / 30.0).unwrap();
+                scene.update_transforms();
+                let t = Instant::now();
+                pool.install(|| culler.sync(&scene).unwrap());
+                spent += t.elapsed();
+            }
+            spent
+        })
+    });
+    let mut k = 0;
+    g.bench_function("hzb_moving", |b| {
+        b.iter(|| {
+            k = (k + 1) % cams.len();
+            frame += 1;
+            scene.animate(frame as f32 / 30.0).unwrap();
+            scene.update_transforms();
+            pool.install(|| {
+                culler.sync(&scene).unwrap();
+                culler.render(&scene, &cams[k], Method::Hzb, &mut fb, &opts).unwrap()
+            })
+        })
+    });
+    g.bench_function("hzb_parked", |b| {
+        b.iter(|| {
+            k = (k + 1) % cams.len();
+            pool.install(|| culler.render(&scene, &cams[k], Method::Hzb, &mut fb, &opts).unwrap())
+        })
+    });
+    g.finish();
+}
+
+criterion_group!(benches, dynamic);
+criterion_main!(benches);
