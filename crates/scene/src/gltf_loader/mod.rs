@@ -35,7 +35,7 @@
 //! The loader does its own bounds-checked parsing of the GLB container, buffers and accessors
 //! on top of `gltf::json` (serde structs), so no input makes it panic.
 
-use std::cell::OnceCell;
+use std::cell::{Cell, OnceCell};
 use std::collections::HashMap;
 use std::path::Path;
 use std::sync::Arc;
@@ -153,6 +153,7 @@ fn load_with_reader(bytes: &[u8], path: &Path, assets: &AssetReader) -> Result<S
         images: vec![None; root.images.len()],
         default_material: None,
         skipped: Vec::new(),
+        unbacked: Cell::new(0),
     };
     loader.scene.warnings = warnings;
     loader.build().map_err(fail)?;
@@ -192,6 +193,8 @@ struct Loader<'a> {
     images: Vec<Option<Option<Arc<Texture>>>>,
     default_material: Option<MaterialId>,
     skipped: Vec<String>,
+    /// Accessor elements filled with zeros so far (accessors without a buffer view).
+    unbacked: Cell<u64>,
 }
 
 fn node_label(root: &json::Root, i: usize) -> String {
