@@ -29,14 +29,22 @@ max_len() {
 }
 
 mkdir -p work
-# The harness's sandboxes (a folder per thread) go here, not into the system temp folder.
-export TMPDIR="$PWD/work/tmp"
+# The harness writes every input to files in a sandbox folder: on a RAM file system when there
+# is one (several times faster than a disk), else under fuzz/work/.
+if [ -d /dev/shm ] && [ -w /dev/shm ]; then
+    TMPDIR=$(mktemp -d /dev/shm/sightline-fuzz.XXXXXX)
+else
+    mkdir -p work/tmp
+    TMPDIR=$(mktemp -d "$PWD/work/tmp/run.XXXXXX")
+fi
+export TMPDIR
+trap 'rm -rf "$TMPDIR"' EXIT
 nice -n 10 cargo +nightly fuzz build -s "$sanitizer"
 
 status=0
 summary=()
 for t in "${targets[@]}"; do
-    mkdir -p "work/corpus/$t" "artifacts/$t" "$TMPDIR"
+    mkdir -p "work/corpus/$t" "artifacts/$t"
     log="work/$t.log"
     args=(-max_total_time="$secs" -max_len="$(max_len "$t")" -timeout=10 -rss_limit_mb=2048
           -dict="dict/$t.dict" -artifact_prefix="artifacts/$t/" -print_final_stats=1)
