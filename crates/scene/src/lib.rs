@@ -38,6 +38,8 @@ pub mod builders;
 mod camera;
 mod error;
 pub mod export;
+#[doc(hidden)]
+pub mod fuzzing;
 pub mod gltf_loader;
 mod graph;
 mod material;

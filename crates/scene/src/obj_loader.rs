@@ -18,7 +18,7 @@
 //!   only, each read once, within a total. A library named twice is read (and merged) once.
 //!
 //! Errors ([`Error::Load`], naming the file): file not found, not a regular file, malformed
-//! lines (the `tobj` error, e.g. "face parse error"), face indices out of range, NaN or
+//! lines (the `tobj` error, e.g. "face parse error"), face indices out of range (also 0, or relative ones reaching before the first element), NaN or
 //! infinite coordinates, an `mtllib` or `map_Kd` that the rules above refuse.
 
 use std::cell::RefCell;
@@ -110,18 +110,25 @@ fn load_with_reader(mut reader: impl BufRead, path: &Path, assets: &AssetReader)
             }
         }
     };
-    // tobj does unchecked index arithmetic on some malformed faces (an overflow panic in debug
-    // builds); turn any panic inside it into an error instead of unwinding through the caller.
+    // tobj does unchecked index arithmetic on face indices that are 0, huge, or relative and
+    // reaching before the first element (an overflow panic in debug builds, a wrong vertex in
+    // release builds): `FaceCheck` refuses those lines before tobj sees them. Any other panic
+    // inside tobj still becomes an error here instead of unwinding through the caller (in
+    // builds that unwind; the fuzz targets treat even a caught panic as a bug).
+    let mut checked = FaceCheck::new(&mut reader);
     let result = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
-        tobj::load_obj_buf(&mut reader, &options, mtl_loader)
+        tobj::load_obj_buf(&mut checked, &options, mtl_loader)
     }));
     if let Some(e) = refused.into_inner() {
         return Err(Error::load(path, e));
     }
+    if let Some(e) = checked.error {
+        return Err(Error::load(path, format!("malformed OBJ: {e}")));
+    }
     let (models, materials) = match result {
         Ok(Ok(loaded)) => loaded,
         Ok(Err(e)) => return Err(Error::load(path, format!("malformed OBJ: {e}"))),
-        Err(_) => return Err(Error::load(path, "malformed OBJ: the parser failed on an invalid face index")),
+        Err(_) => return Err(Error::load(path, "malformed OBJ: the OBJ parser panicked")),
     };
     let materials = materials.unwrap_or_default();
     let mut scene = Scene::new();
@@ -177,6 +184,97 @@ fn build_scene(
         scene.add_node(Some(root), desc)?;
     }
     Ok(())
+}
+
+/// A reader between the OBJ text and tobj that checks the vertex indices of every `f` and `l`
+/// line (the Wavefront OBJ format: 1-based, or negative for "relative to the end of the list
+/// so far") and stops the read at the first bad one, keeping the reason in `error`.
+struct FaceCheck<R> {
+    inner: R,
+    /// The current line, served to tobj.
+    line: Vec<u8>,
+    at: usize,
+    line_no: usize,
+    /// `v`, `vt` and `vn` lines so far.
+    counts: [usize; 3],
+    error: Option<String>,
+}
+
+impl<R: BufRead> FaceCheck<R> {
+    fn new(inner: R) -> Self {
+        FaceCheck { inner, line: Vec::new(), at: 0, line_no: 0, counts: [0; 3], error: None }
+    }
+
+    /// Checks one line, split into words as tobj splits it; `counts` are the `v`, `vt` and
+    /// `vn` lines before it.
+    fn check(line: &str, counts: &mut [usize; 3]) -> std::result::Result<(), String> {
+        let mut words = line.split_whitespace();
+        match words.next() {
+            Some("v") => counts[0] += 1,
+            Some("vt") => counts[1] += 1,
+            Some("vn") => counts[2] += 1,
+            Some("f") | Some("l") => {
+                const KIND: [&str; 3] = ["vertex", "texture coordinate", "normal"];
+                for word in words {
+                    for (k, part) in word.split('/').enumerate().take(3).filter(|(_, p)| !p.is_empty()) {
+                        // Not a number: tobj reports its own parse error.
+                        let Ok(x) = part.parse::<i64>() else { continue };
+                        let count = counts[k];
+                        if x == 0 {
+                            return Err(format!(
+                                "{} index 0 in '{word}' is out of bounds (OBJ indices start at 1)",
+                                KIND[k]
+                            ));
+                        }
+                        if x < 0 && x.unsigned_abs() > count as u64 {
+                            return Err(format!(
+                                "relative {} index {x} in '{word}' is out of bounds: it reaches before the first one ({count} so far)",
+                                KIND[k]
+                            ));
+                        }
+                        if x > u32::MAX as i64 {
+                            return Err(format!("{} index {x} in '{word}' is out of bounds", KIND[k]));
+                        }
+                    }
+                }
+            }
+            _ => {}
+        }
+        Ok(())
+    }
+}
+
+impl<R: BufRead> std::io::Read for FaceCheck<R> {
+    fn read(&mut self, buf: &mut [u8]) -> std::io::Result<usize> {
+        let n = std::io::Read::read(&mut self.fill_buf()?, buf)?;
+        self.consume(n);
+        Ok(n)
+    }
+}
+
+impl<R: BufRead> BufRead for FaceCheck<R> {
+    fn fill_buf(&mut self) -> std::io::Result<&[u8]> {
+        if self.at == self.line.len() && self.error.is_none() {
+            self.line.clear();
+            self.at = 0;
+            self.inner.read_until(b'\n', &mut self.line)?;
+            self.line_no += 1;
+            // A line that is not UTF-8 goes through unchecked: tobj refuses it.
+            if let Ok(text) = std::str::from_utf8(&self.line) {
+                if let Err(e) = Self::check(text, &mut self.counts) {
+                    self.error = Some(format!("line {}: {e}", self.line_no));
+                }
+            }
+        }
+        if let Some(e) = &self.error {
+            return Err(std::io::Error::new(std::io::ErrorKind::InvalidData, e.clone()));
+        }
+        Ok(&self.line[self.at..])
+    }
+
+    fn consume(&mut self, n: usize) {
+        self.at = (self.at + n).min(self.line.len());
+    }
 }
 
 /// Converts a tobj material; `textures` caches decoded textures by file, so many materials
@@ -273,5 +371,34 @@ mod tests {
         assert_eq!(mats[1].diffuse_texture.as_deref(), Some("tex.png"));
         assert_eq!(w.len(), 1, "{w:?}");
         assert!(w[0].contains("line 6"), "{w:?}");
+    }
+
+    fn face_error(obj: &str) -> Option<String> {
+        let mut r = FaceCheck::new(obj.as_bytes());
+        let mut sink = Vec::new();
+        let _ = std::io::Read::read_to_end(&mut r, &mut sink);
+        if r.error.is_none() {
+            assert_eq!(sink, obj.as_bytes(), "the text passes through unchanged");
+        }
+        r.error
+    }
+
+    #[test]
+    fn face_indices_that_tobj_cannot_take_are_refused() {
+        let tri = "v 0 0 0\nv 1 0 0\nv 0 1 0\nvt 0 0\nvn 0 0 1\n";
+        for ok in ["f 1 2 3", "f -3 -2 -1", "f 1/1/1 2/-1/-1 3//1", "l 1 2", "f 1 2 x", "f 1 2 3 9"] {
+            assert_eq!(face_error(&format!("{tri}{ok}\n")), None, "{ok}");
+        }
+        for (bad, why) in [
+            ("f 1//-11 2 3", "line 6: relative normal index -11"),
+            ("f 1/-3 2 3", "relative texture coordinate index -3"),
+            ("f -4 2 3", "relative vertex index -4"),
+            ("f 1/0 2 3", "texture coordinate index 0"),
+            ("l 1 0", "vertex index 0"),
+            ("f 1//9000000000000000000 2 3", "normal index 9000000000000000000 in '1//9000000000000000000' is out"),
+        ] {
+            let e = face_error(&format!("{tri}{bad}\n")).unwrap_or_default();
+            assert!(e.contains(why), "{bad}: {e}");
+        }
     }
 }

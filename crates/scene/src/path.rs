@@ -48,9 +48,15 @@ impl CameraKey {
 
 /// Reads a camera path JSON file.
 pub fn read_path(path: &Path) -> Result<Vec<CameraKey>> {
-    let text = std::fs::read_to_string(path).map_err(|e| Error::load(path, e.to_string()))?;
+    let bytes = std::fs::read(path).map_err(|e| Error::load(path, e.to_string()))?;
+    parse_path(&bytes, path)
+}
+
+/// Parses camera path JSON from memory (what [`read_path`] does after reading the file);
+/// `path` names the file in messages.
+pub fn parse_path(bytes: &[u8], path: &Path) -> Result<Vec<CameraKey>> {
     let keys: Vec<CameraKey> =
-        serde_json::from_str(&text).map_err(|e| Error::load(path, format!("not a camera path: {e}")))?;
+        serde_json::from_slice(bytes).map_err(|e| Error::load(path, format!("not a camera path: {e}")))?;
     if keys.is_empty() {
         return Err(Error::load(path, "camera path has no frames"));
     }

@@ -196,9 +196,9 @@ fn read_component(b: &[u8], at: usize, c: ComponentType, normalized: bool) -> Op
     Some(v)
 }
 
-/// Accessors larger than this without buffer data (all zeros) are refused, so a bogus count
-/// cannot allocate gigabytes.
-const MAX_UNBACKED_ELEMENTS: u64 = 1 << 24;
+/// At most this many accessor elements without buffer data (all zeros) are made per load, so
+/// a few bytes of JSON cannot allocate gigabytes (one accessor, or many).
+pub(super) const MAX_UNBACKED_ELEMENTS: u64 = 1 << 24;
 
 impl<'a> Loader<'a> {
     /// Loads buffer `i` (called once per buffer, when a view of it is first read).
@@ -285,9 +285,13 @@ impl<'a> Loader<'a> {
         let mut out;
         match a.buffer_view {
             None => {
-                if count > MAX_UNBACKED_ELEMENTS {
-                    return Err(format!("{what} accessor {i} has no buffer view but {count} elements"));
+                let total = self.unbacked.get().saturating_add(count);
+                if total > MAX_UNBACKED_ELEMENTS {
+                    return Err(format!(
+                        "{what} accessor {i} has no buffer view but {count} elements; a load fills at most {MAX_UNBACKED_ELEMENTS} elements with zeros in all"
+                    ));
                 }
+                self.unbacked.set(total);
                 out = vec![0.0; count as usize * dims];
             }
             Some(v) => {

@@ -40,7 +40,7 @@
 //! The loader does its own bounds-checked parsing of the GLB container, buffers and accessors
 //! on top of `gltf::json` (serde structs), so no input makes it panic.
 
-use std::cell::OnceCell;
+use std::cell::{Cell, OnceCell};
 use std::collections::HashMap;
 use std::path::Path;
 use std::sync::Arc;
@@ -160,6 +160,7 @@ fn load_with_reader(bytes: &[u8], path: &Path, assets: &AssetReader) -> Result<S
         default_material: None,
         skipped: Vec::new(),
         node_ids: vec![None; root.nodes.len()],
+        unbacked: Cell::new(0),
     };
     loader.scene.warnings = warnings;
     loader.build().map_err(fail)?;
@@ -202,6 +203,8 @@ struct Loader<'a> {
     skipped: Vec<String>,
     /// The scene node made for each glTF node (`None`: not in the loaded scene).
     node_ids: Vec<Option<NodeId>>,
+    /// Accessor elements filled with zeros so far (accessors without a buffer view).
+    unbacked: Cell<u64>,
 }
 
 fn node_label(root: &json::Root, i: usize) -> String {

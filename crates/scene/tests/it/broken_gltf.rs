@@ -336,3 +336,25 @@ fn unreadable_gltf_names_the_file() {
     let e = err_text(load(tmp_dir("gone").join("gone.glb")));
     assert_mentions(&e, &["gone.glb", "file not found"]);
 }
+
+/// Accessors without a buffer view are zeros: a few bytes of JSON. Many of them must not add
+/// up to gigabytes (eight of 2^24 − 1 elements once took 2.2 GB and 4 s for a 762-byte file).
+#[test]
+fn zero_filled_accessors_are_capped_per_load() {
+    let dir = tmp_dir("unbacked");
+    let unbacked = |count: u64, prims: usize| {
+        move |d: &mut serde_json::Value| {
+            d["accessors"] = (0..prims)
+                .map(|_| serde_json::json!({"componentType": 5126, "count": count, "type": "VEC3"}))
+                .collect();
+            d["meshes"][0]["primitives"] =
+                (0..prims).map(|i| serde_json::json!({"attributes": {"POSITION": i}})).collect();
+        }
+    };
+    // One small one loads: zeros, one degenerate triangle.
+    let s = load(tiny_gltf(&dir, "small.gltf", &[], unbacked(3, 1))).unwrap();
+    assert_eq!(s.stats().degenerate_triangles, 1);
+    // Two that each fit the cap but together do not.
+    let path = tiny_gltf(&dir, "many.gltf", &[], unbacked(9_000_000, 2));
+    assert_mentions(&err_text(load(&path)), &["many.gltf", "accessor 1", "no buffer view", "in all"]);
+}

@@ -1,6 +1,6 @@
 //! The scene crate's integration tests, one binary, so that cargo compiles and links one
 //! test executable per package instead of one per file: the scene graph, the loaders and the
-//! exporter, broken glTF files, hostile asset references, loader fuzzing, and an ignored 10^6-triangle round
+//! exporter, broken glTF files, hostile asset references, loader fuzzing, the fuzz corpus replayed, and an ignored 10^6-triangle round
 //! trip.
 //!
 //! proptest keeps the regression seeds of a module `m` of this binary in
@@ -10,6 +10,7 @@
 
 mod animation;
 mod broken_gltf;
+mod fuzz_replay;
 mod graph;
 mod hostile_assets;
 mod loader_fuzz;
