@@ -5,11 +5,17 @@
 //! ancestor is handled before its descendants, and *propagates* each dirty subtree with an
 //! explicit stack (no recursion: a 100,000-level chain must not overflow the thread stack).
 //! Subtrees with no dirty node are never visited, so static parts of a scene cost nothing.
+//!
+//! The module is split by idea: [`edit`] holds the edits (add, move, reparent, remove),
+//! [`propagate`] the propagation, and this file the types and the read side.
 
 use glam::Affine3A;
 use slotmap::{new_key_type, SlotMap};
 
 use crate::{Aabb, Error, Material, Mesh, Result, Transform};
+
+mod edit;
+mod propagate;
 
 new_key_type! {
     /// Handle of a node; stays valid across removals of other nodes.
@@ -226,7 +232,7 @@ impl Scene {
     pub fn try_node(&self, id: NodeId) -> Result<&Node> {
         self.nodes.get(id).ok_or(Error::StaleNode(id))
     }
-    fn node_mut(&mut self, id: NodeId) -> Result<&mut Node> {
+    pub(crate) fn node_mut(&mut self, id: NodeId) -> Result<&mut Node> {
         self.nodes.get_mut(id).ok_or(Error::StaleNode(id))
     }
     /// Root nodes in insertion order.
@@ -238,170 +244,6 @@ impl Scene {
         self.depth_first().find(|&id| self.nodes[id].name == name)
     }
 
-    /// Adds a node under `parent` (or as a root), returning its handle.
-    ///
-    /// Errors on a stale parent, stale mesh/material handles or a non-finite transform.
-    pub fn add_node(&mut self, parent: Option<NodeId>, desc: NodeDesc) -> Result<NodeId> {
-        crate::transform::validate_affine(&desc.local, &format!("node '{}'", desc.name))?;
-        if let Some(m) = desc.mesh {
-            self.try_mesh(m)?;
-        }
-        if let Some(m) = desc.material {
-            self.materials.get(m).ok_or(Error::StaleMaterial(m))?;
-        }
-        let depth = match parent {
-            Some(p) => self.try_node(p)?.depth + 1,
-            None => 0,
-        };
-        let id = self.nodes.insert(Node {
-            name: desc.name,
-            parent,
-            children: Vec::new(),
-            parent_from_local: desc.local,
-            world_from_local: Affine3A::IDENTITY,
-            mesh: desc.mesh,
-            material: desc.material,
-            world_aabb: Aabb::EMPTY,
-            depth,
-            dirty: true,
-        });
-        match parent {
-            Some(p) => self.nodes[p].children.push(id),
-            None => self.roots.push(id),
-        }
-        self.dirty.push(id);
-        Ok(id)
-    }
-
-    fn mark_dirty(&mut self, id: NodeId) {
-        let n = &mut self.nodes[id];
-        if !n.dirty {
-            n.dirty = true;
-            self.dirty.push(id);
-        }
-    }
-
-    /// Sets a node's local transform from translation, rotation and scale.
-    pub fn set_local_transform(&mut self, id: NodeId, t: Transform) -> Result<()> {
-        let m = t.to_affine(&format!("node {id:?}"))?;
-        self.set_local_matrix(id, m)
-    }
-
-    /// Sets a node's local transform from a matrix (errors on NaN/inf).
-    pub fn set_local_matrix(&mut self, id: NodeId, m: Affine3A) -> Result<()> {
-        let name = &self.try_node(id)?.name;
-        crate::transform::validate_affine(&m, &format!("node '{name}'"))?;
-        self.node_mut(id)?.parent_from_local = m;
-        self.mark_dirty(id);
-        Ok(())
-    }
-
-    /// Sets or clears a node's mesh.
-    pub fn set_mesh(&mut self, id: NodeId, mesh: Option<MeshId>) -> Result<()> {
-        if let Some(m) = mesh {
-            self.try_mesh(m)?;
-        }
-        self.node_mut(id)?.mesh = mesh;
-        self.mark_dirty(id); // world bounds change
-        Ok(())
-    }
-
-    /// Sets or clears a node's own material (its subtree inherits it).
-    pub fn set_material(&mut self, id: NodeId, material: Option<MaterialId>) -> Result<()> {
-        if let Some(m) = material {
-            self.materials.get(m).ok_or(Error::StaleMaterial(m))?;
-        }
-        self.node_mut(id)?.material = material;
-        Ok(())
-    }
-
-    /// `world_from_local` computed now from the local transforms of the node and its
-    /// ancestors, whatever the dirty state.
-    pub fn world_from_local_now(&self, id: NodeId) -> Result<Affine3A> {
-        let mut m = Affine3A::IDENTITY;
-        let mut cur = Some(id);
-        while let Some(c) = cur {
-            let n = self.try_node(c)?;
-            m = n.parent_from_local * m;
-            cur = n.parent;
-        }
-        Ok(m)
-    }
-
-    /// Moves `child` under `parent` (`None`: make it a root), keeping its local or world
-    /// transform. Refuses to make a node its own ancestor.
-    pub fn set_parent(&mut self, child: NodeId, parent: Option<NodeId>, keep: Keep) -> Result<()> {
-        self.try_node(child)?;
-        if let Some(p) = parent {
-            let mut cur = Some(p);
-            while let Some(c) = cur {
-                if c == child {
-                    return Err(Error::Cycle { child, parent: p });
-                }
-                cur = self.try_node(c)?.parent;
-            }
-        }
-        if keep == Keep::World {
-            let world = self.world_from_local_now(child)?;
-            let parent_world = match parent {
-                Some(p) => self.world_from_local_now(p)?,
-                None => Affine3A::IDENTITY,
-            };
-            let det = parent_world.matrix3.determinant();
-            if det.abs() < 1e-12 || !det.is_finite() {
-                return Err(Error::InvalidTransform {
-                    what: format!("new parent of node '{}'", self.nodes[child].name),
-                    why: "its world matrix is singular, so the child's world transform cannot be kept".into(),
-                });
-            }
-            self.nodes[child].parent_from_local = parent_world.inverse() * world;
-        }
-        // Unlink from the old place, link into the new one.
-        match self.nodes[child].parent {
-            Some(old) => self.nodes[old].children.retain(|&c| c != child),
-            None => self.roots.retain(|&c| c != child),
-        }
-        let base_depth = match parent {
-            Some(p) => {
-                self.nodes[p].children.push(child);
-                self.nodes[p].depth + 1
-            }
-            None => {
-                self.roots.push(child);
-                0
-            }
-        };
-        self.nodes[child].parent = parent;
-        // Depths of the whole subtree change by the same amount.
-        let mut stack = vec![(child, base_depth)];
-        while let Some((id, d)) = stack.pop() {
-            let n = &mut self.nodes[id];
-            n.depth = d;
-            stack.extend(n.children.iter().map(|&c| (c, d + 1)));
-        }
-        self.mark_dirty(child);
-        Ok(())
-    }
-
-    /// Removes a node and its whole subtree; returns how many nodes were removed.
-    /// Their handles become stale; every other handle stays valid.
-    pub fn remove_node(&mut self, id: NodeId) -> Result<usize> {
-        let parent = self.try_node(id)?.parent;
-        match parent {
-            Some(p) => self.nodes[p].children.retain(|&c| c != id),
-            None => self.roots.retain(|&c| c != id),
-        }
-        let mut stack = vec![id];
-        let mut removed = 0;
-        while let Some(n) = stack.pop() {
-            if let Some(node) = self.nodes.remove(n) {
-                stack.extend(node.children);
-                removed += 1;
-            }
-        }
-        Ok(removed)
-    }
-
     /// Depth-first pre-order over all nodes: roots in order, children in order. This order
     /// defines the flattened triangle order (and so triangle IDs).
     pub fn depth_first(&self) -> impl Iterator<Item = NodeId> + '_ {
@@ -411,79 +253,6 @@ impl Scene {
             stack.extend(self.nodes[id].children.iter().rev());
             Some(id)
         })
-    }
-
-    // ---- propagation --------------------------------------------------------------------
-
-    /// True when some node's world transform is out of date.
-    pub fn needs_update(&self) -> bool {
-        !self.dirty.is_empty()
-    }
-
-    /// Recomputes the world transforms and world bounds of every dirty subtree; returns how
-    /// many nodes were recomputed. Untouched subtrees are not visited.
-    pub fn update_transforms(&mut self) -> usize {
-        let mut dirty = std::mem::take(&mut self.dirty);
-        // Collect: drop removed nodes; order: ancestors first, so each subtree is walked once.
-        dirty.retain(|&id| self.nodes.get(id).is_some_and(|n| n.dirty));
-        dirty.sort_unstable_by_key(|&id| self.nodes[id].depth);
-        // The walk's stack holds one entry per level (a node, its world transform and the
-        // next child to visit), not one per pending node: a parent of 10^6 children costs
-        // no 10^6-entry stack.
-        let mut stack: Vec<(NodeId, Affine3A, usize)> = Vec::new();
-        let mut visited = 0;
-        for id in dirty {
-            let node = &self.nodes[id];
-            if !node.dirty {
-                continue; // handled with a dirty ancestor
-            }
-            let parent_world = node.parent.map_or(Affine3A::IDENTITY, |p| self.nodes[p].world_from_local);
-            let (world, _) = self.update_node(id, &parent_world);
-            visited += 1;
-            stack.push((id, world, 0));
-            // Propagate.
-            while let Some(&(parent, parent_world, next)) = stack.last() {
-                let children = &self.nodes[parent].children;
-                let Some(&child) = children.get(next) else {
-                    stack.pop();
-                    continue;
-                };
-                // The last child takes its parent's place (a chain keeps a one-entry stack).
-                if next + 1 == children.len() {
-                    stack.pop();
-                } else if let Some(top) = stack.last_mut() {
-                    top.2 += 1;
-                }
-                let (mut world, mut n) = self.update_node(child, &parent_world);
-                visited += 1;
-                // Down a chain of only children without the stack.
-                let mut node = child;
-                while n == 1 {
-                    node = self.nodes[node].children[0];
-                    (world, n) = self.update_node(node, &world);
-                    visited += 1;
-                }
-                if n > 1 {
-                    stack.push((node, world, 0));
-                }
-            }
-        }
-        visited
-    }
-
-    /// Sets a node's world transform and bounds from its parent's world transform; returns
-    /// the new world transform and the node's number of children.
-    #[inline]
-    fn update_node(&mut self, id: NodeId, parent_world: &Affine3A) -> (Affine3A, usize) {
-        let node = &mut self.nodes[id];
-        let world = *parent_world * node.parent_from_local;
-        node.world_from_local = world;
-        node.dirty = false;
-        node.world_aabb = match node.mesh.and_then(|m| self.meshes.get(m)) {
-            Some(mesh) => mesh.aabb().transformed(&world),
-            None => Aabb::EMPTY,
-        };
-        (world, node.children.len())
     }
 
     // ---- the flattened view -------------------------------------------------------------
