@@ -31,6 +31,7 @@
 // `!(x > 0.0)` is how this code says "not positive, or NaN": the negated comparison is the point.
 #![allow(clippy::neg_cmp_op_on_partial_ord)]
 
+mod angle;
 pub mod assets;
 mod bounds;
 pub mod builders;
@@ -50,9 +51,10 @@ mod stats;
 mod transform;
 pub mod views;
 
+pub use angle::Angle;
 pub use assets::LoadOptions;
 pub use bounds::Aabb;
-pub use camera::{projection_onto_plane, Camera, View};
+pub use camera::{projection_onto_plane, Camera, LookAt, View};
 pub use error::{Error, Result};
 pub use graph::{Instance, Keep, MaterialId, MeshId, Node, NodeDesc, NodeId, Scene, SceneCamera};
 pub use material::{Material, Texture};

@@ -464,7 +464,7 @@ impl Loader<'_> {
             (Checked::Valid(json::camera::Type::Perspective), Some(p), _) => {
                 let far = p.zfar.unwrap_or(DEFAULT_FAR.max(p.znear * 1.0e4));
                 let aspect = p.aspect_ratio.unwrap_or(DEFAULT_ASPECT);
-                Projection::perspective(p.yfov, aspect, p.znear, far).map_err(|e| e.to_string())
+                Projection::perspective(crate::Angle::radians(p.yfov), aspect, p.znear, far).map_err(|e| e.to_string())
             }
             (Checked::Valid(json::camera::Type::Orthographic), _, Some(o)) => {
                 Projection::orthographic(-o.xmag.abs(), o.xmag.abs(), -o.ymag.abs(), o.ymag.abs(), o.znear, o.zfar)

@@ -9,6 +9,7 @@
 #![forbid(unsafe_code)]
 
 mod broken_gltf;
+mod cameras;
 mod graph;
 mod hostile_assets;
 mod loader_fuzz;
