@@ -56,7 +56,10 @@ pub use assets::LoadOptions;
 pub use bounds::Aabb;
 pub use camera::{projection_onto_plane, Camera, LookAt, View};
 pub use error::{Error, Result};
-pub use graph::{Instance, Keep, MaterialId, MeshId, Node, NodeDesc, NodeId, Scene, SceneCamera};
+pub use graph::{
+    Changes, Instance, Keep, MaterialId, MeshId, Node, NodeDesc, NodeId, Removed, Scene, SceneCamera, SceneDelta,
+    SceneId, SceneStamp,
+};
 pub use material::{Material, Texture};
 pub use mesh::Mesh;
 pub use projection::Projection;

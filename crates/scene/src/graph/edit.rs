@@ -1,10 +1,22 @@
 //! Edits of the hierarchy: adding nodes, setting local transforms, meshes and materials,
-//! reparenting and removing subtrees. Each edit marks what it touches dirty for propagation.
+//! reparenting and removing subtrees. Each edit marks what it touches dirty for propagation,
+//! or (a removal, a reparent) notes for the next change report what propagation cannot see:
+//! until [`Scene::update_transforms`] runs, [`Scene::needs_update`] is true after any edit.
 
 use glam::Affine3A;
 
 use super::{Keep, Node, NodeDesc, NodeId, Scene};
-use crate::{Aabb, Error, MaterialId, MeshId, Result, Transform};
+use crate::{Aabb, Error, MaterialId, MeshId, Result, SceneCamera, Transform};
+
+/// What [`Scene::remove_node`] removed.
+#[derive(Debug, Clone)]
+pub struct Removed {
+    /// Number of nodes removed (the node and its whole subtree).
+    pub nodes: usize,
+    /// The cameras that sat on removed nodes, taken out of [`Scene::cameras`] (so no camera
+    /// ever refers to a dead node).
+    pub cameras: Vec<SceneCamera>,
+}
 
 impl Scene {
     /// Adds a node under `parent` (or as a root), returning its handle.
@@ -33,6 +45,8 @@ impl Scene {
             world_aabb: Aabb::EMPTY,
             depth,
             dirty: true,
+            material_in_effect: None,
+            drawn: None,
         });
         match parent {
             Some(p) => self.nodes[p].children.push(id),
@@ -52,8 +66,14 @@ impl Scene {
 
     /// Sets a node's local transform from translation, rotation and scale.
     pub fn set_local_transform(&mut self, id: NodeId, t: Transform) -> Result<()> {
-        let m = t.to_affine(&format!("node {id:?}"))?;
+        let m = t.to_affine(&format!("node '{}'", self.try_node(id)?.name))?;
         self.set_local_matrix(id, m)
+    }
+
+    /// Renames a node.
+    pub fn set_name(&mut self, id: NodeId, name: impl Into<String>) -> Result<()> {
+        self.node_mut(id)?.name = name.into();
+        Ok(())
     }
 
     /// Sets a node's local transform from a matrix (errors on NaN/inf).
@@ -65,7 +85,8 @@ impl Scene {
         Ok(())
     }
 
-    /// Sets or clears a node's mesh.
+    /// Sets or clears a node's mesh. The next change report lists the node as added, removed,
+    /// or both (a swap).
     pub fn set_mesh(&mut self, id: NodeId, mesh: Option<MeshId>) -> Result<()> {
         if let Some(m) = mesh {
             self.try_mesh(m)?;
@@ -75,12 +96,14 @@ impl Scene {
         Ok(())
     }
 
-    /// Sets or clears a node's own material (its subtree inherits it).
+    /// Sets or clears a node's own material (its subtree inherits it). Propagation works out
+    /// the material in effect below it, so the subtree is marked for the next update.
     pub fn set_material(&mut self, id: NodeId, material: Option<MaterialId>) -> Result<()> {
         if let Some(m) = material {
             self.materials.get(m).ok_or(Error::StaleMaterial(m))?;
         }
         self.node_mut(id)?.material = material;
+        self.mark_dirty(id);
         Ok(())
     }
 
@@ -141,20 +164,27 @@ impl Scene {
             }
         };
         self.nodes[child].parent = parent;
-        // Depths of the whole subtree change by the same amount.
+        // Depths of the whole subtree change by the same amount; a drawn node in it moves in
+        // the flattened order.
         let mut stack = vec![(child, base_depth)];
+        let mut draws = false;
         while let Some((id, d)) = stack.pop() {
             let n = &mut self.nodes[id];
             n.depth = d;
+            draws |= n.drawn.is_some();
             stack.extend(n.children.iter().map(|&c| (c, d + 1)));
+        }
+        if draws {
+            self.pending.order_changed = true;
+            self.forget_order();
         }
         self.mark_dirty(child);
         Ok(())
     }
 
-    /// Removes a node and its whole subtree; returns how many nodes were removed.
-    /// Their handles become stale; every other handle stays valid.
-    pub fn remove_node(&mut self, id: NodeId) -> Result<usize> {
+    /// Removes a node and its whole subtree, and the cameras on them (returned in
+    /// [`Removed::cameras`]). Their handles become stale; every other handle stays valid.
+    pub fn remove_node(&mut self, id: NodeId) -> Result<Removed> {
         let parent = self.try_node(id)?.parent;
         match parent {
             Some(p) => self.nodes[p].children.retain(|&c| c != id),
@@ -162,12 +192,24 @@ impl Scene {
         }
         let mut stack = vec![id];
         let mut removed = 0;
+        let drawn_before = self.pending.removed.len();
         while let Some(n) = stack.pop() {
             if let Some(node) = self.nodes.remove(n) {
+                if node.drawn.is_some() {
+                    self.pending.removed.push(n);
+                }
                 stack.extend(node.children);
                 removed += 1;
             }
         }
-        Ok(removed)
+        if self.pending.removed.len() > drawn_before {
+            self.pending.order_changed = true;
+            self.forget_order();
+        }
+        self.pending.edited = true;
+        let (gone, kept) =
+            std::mem::take(&mut self.cameras).into_iter().partition(|c| !self.nodes.contains_key(c.node));
+        self.cameras = kept;
+        Ok(Removed { nodes: removed, cameras: gone })
     }
 }

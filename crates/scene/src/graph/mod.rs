@@ -6,16 +6,27 @@
 //! explicit stack (no recursion: a 100,000-level chain must not overflow the thread stack).
 //! Subtrees with no dirty node are never visited, so static parts of a scene cost nothing.
 //!
+//! Propagation also records what it changed for the drawn scene (nodes moved, added, removed,
+//! restyled) in a [`Changes`] report, so that consumers follow the scene incrementally
+//! ([`changes`] explains the protocol).
+//!
 //! The module is split by idea: [`edit`] holds the edits (add, move, reparent, remove),
-//! [`propagate`] the propagation, and this file the types and the read side.
+//! [`propagate`] the propagation, [`changes`] the change report and the flattened view, and
+//! this file the types and the read side.
+
+use std::sync::OnceLock;
 
 use glam::Affine3A;
 use slotmap::{new_key_type, SlotMap};
 
 use crate::{Aabb, Error, Material, Mesh, Result, Transform};
 
+mod changes;
 mod edit;
 mod propagate;
+
+pub use changes::{Changes, SceneDelta, SceneId, SceneStamp};
+pub use edit::Removed;
 
 new_key_type! {
     /// Handle of a node; stays valid across removals of other nodes.
@@ -48,6 +59,10 @@ pub struct Node {
     world_aabb: Aabb,
     depth: u32,
     dirty: bool,
+    /// The material in effect (own or inherited), as of the last update.
+    material_in_effect: Option<MaterialId>,
+    /// The mesh drawn as of the last update: what the last change report told consumers.
+    drawn: Option<MeshId>,
 }
 
 impl Node {
@@ -91,9 +106,14 @@ impl Node {
     pub fn depth(&self) -> u32 {
         self.depth
     }
-    /// True when the node's world transform is out of date.
+    /// True when the node's world transform, bounds or material in effect are out of date.
     pub fn is_dirty(&self) -> bool {
         self.dirty
+    }
+    /// The material in effect: the node's own, else the nearest ancestor's (`None`: the
+    /// default material), as of the last update.
+    pub fn material_in_effect(&self) -> Option<MaterialId> {
+        self.material_in_effect
     }
 }
 
@@ -149,7 +169,7 @@ pub struct SceneCamera {
 }
 
 /// One drawn mesh occurrence, as the spatial and render crates consume it.
-#[derive(Debug, Clone, Copy)]
+#[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Instance {
     /// The node that draws it.
     pub node: NodeId,
@@ -159,7 +179,7 @@ pub struct Instance {
     pub world_from_local: Affine3A,
     /// World bounds of the mesh under that transform.
     pub world_aabb: Aabb,
-    /// The inherited material (`None`: the default material).
+    /// The material in effect, own or inherited (`None`: the default material).
     pub material: Option<MaterialId>,
     /// Index of this instance's first triangle in the flattened scene order.
     pub first_triangle: u32,
@@ -168,17 +188,63 @@ pub struct Instance {
 }
 
 /// A scene: nodes, meshes, materials and the cameras a file brought.
-#[derive(Debug, Clone, Default)]
+///
+/// `Clone` copies everything but the identity: the clone gets a new [`SceneId`] (and keeps
+/// the revision and the last change report).
+#[derive(Debug)]
 pub struct Scene {
     nodes: SlotMap<NodeId, Node>,
     roots: Vec<NodeId>,
     meshes: SlotMap<MeshId, Mesh>,
     materials: SlotMap<MaterialId, Material>,
     dirty: Vec<NodeId>,
-    /// Cameras defined by a loaded file.
+    /// Cameras defined by a loaded file. Removing a camera's node removes the camera.
     pub cameras: Vec<SceneCamera>,
     /// Non-fatal problems met while loading (missing textures, skipped primitives, ...).
     pub warnings: Vec<String>,
+    id: SceneId,
+    revision: u64,
+    changes: Changes,
+    pending: changes::Pending,
+    order: OnceLock<changes::Order>,
+}
+
+impl Default for Scene {
+    fn default() -> Self {
+        Self {
+            nodes: SlotMap::default(),
+            roots: Vec::new(),
+            meshes: SlotMap::default(),
+            materials: SlotMap::default(),
+            dirty: Vec::new(),
+            cameras: Vec::new(),
+            warnings: Vec::new(),
+            id: SceneId::next(),
+            revision: 0,
+            changes: Changes::default(),
+            pending: changes::Pending::default(),
+            order: OnceLock::new(),
+        }
+    }
+}
+
+impl Clone for Scene {
+    fn clone(&self) -> Self {
+        Self {
+            nodes: self.nodes.clone(),
+            roots: self.roots.clone(),
+            meshes: self.meshes.clone(),
+            materials: self.materials.clone(),
+            dirty: self.dirty.clone(),
+            cameras: self.cameras.clone(),
+            warnings: self.warnings.clone(),
+            id: SceneId::next(),
+            revision: self.revision,
+            changes: self.changes.clone(),
+            pending: self.pending.clone(),
+            order: self.order.clone(),
+        }
+    }
 }
 
 impl Scene {
@@ -253,39 +319,6 @@ impl Scene {
             stack.extend(self.nodes[id].children.iter().rev());
             Some(id)
         })
-    }
-
-    // ---- the flattened view -------------------------------------------------------------
-
-    /// Every mesh-carrying node in depth-first order with its world transform, bounds,
-    /// inherited material and the index of its first triangle in the flattened order.
-    ///
-    /// Uses the world transforms of the last [`Scene::update_transforms`]; call that first
-    /// after edits.
-    pub fn instances(&self) -> Vec<Instance> {
-        let mut out = Vec::new();
-        let mut first = 0u32;
-        // (node, inherited material)
-        let mut stack: Vec<(NodeId, Option<MaterialId>)> = self.roots.iter().rev().map(|&r| (r, None)).collect();
-        while let Some((id, inherited)) = stack.pop() {
-            let n = &self.nodes[id];
-            let material = n.material.or(inherited);
-            if let Some(mesh) = n.mesh.and_then(|m| self.meshes.get(m).map(|mm| (m, mm))) {
-                let count = mesh.1.triangle_count() as u32;
-                out.push(Instance {
-                    node: id,
-                    mesh: mesh.0,
-                    world_from_local: n.world_from_local,
-                    world_aabb: n.world_aabb,
-                    material,
-                    first_triangle: first,
-                    triangle_count: count,
-                });
-                first = first.saturating_add(count);
-            }
-            stack.extend(n.children.iter().rev().map(|&c| (c, material)));
-        }
-        out
     }
 
     /// World bounds of everything drawn (as of the last update).
