@@ -11,8 +11,9 @@
 //! ([`changes`] explains the protocol).
 //!
 //! The module is split by idea: [`edit`] holds the edits (add, move, reparent, remove),
-//! [`propagate`] the propagation, [`changes`] the change report and the flattened view, and
-//! this file the types and the read side.
+//! [`propagate`] the propagation, [`changes`] the change report and the flattened view,
+//! [`instantiate`] shared subgraphs (a subtree or a whole scene placed many times), and this
+//! file the types and the read side.
 
 use std::sync::OnceLock;
 
@@ -23,10 +24,12 @@ use crate::{Aabb, Error, Material, Mesh, Result, Transform};
 
 mod changes;
 mod edit;
+mod instantiate;
 mod propagate;
 
 pub use changes::{Changes, SceneDelta, SceneId, SceneStamp};
 pub use edit::Removed;
+pub use instantiate::Prefab;
 
 new_key_type! {
     /// Handle of a node; stays valid across removals of other nodes.

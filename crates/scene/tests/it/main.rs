@@ -1,7 +1,8 @@
 //! The scene crate's integration tests, one binary, so that cargo compiles and links one
 //! test executable per package instead of one per file: the scene graph and its change
 //! reports, cameras, the loaders and the exporter, broken glTF files, hostile asset
-//! references, loader fuzzing, and an ignored 10^6-triangle round trip.
+//! references, loader fuzzing, shared subgraphs (instantiate, prefabs, glTF DAGs), and an
+//! ignored 10^6-triangle round trip.
 //!
 //! proptest keeps the regression seeds of a module `m` of this binary in
 //! `tests/proptest-regressions/m.txt` (commit them).
@@ -16,4 +17,5 @@ mod hostile_assets;
 mod loader_fuzz;
 mod loader_perf;
 mod loaders;
+mod shared;
 mod support;
