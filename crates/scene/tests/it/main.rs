@@ -12,6 +12,7 @@
 mod broken_gltf;
 mod cameras;
 mod changes;
+mod changes_replay;
 mod graph;
 mod hostile_assets;
 mod loader_fuzz;
