@@ -202,6 +202,37 @@ impl Scene {
         self.instance_at(node, order.first[i as usize])
     }
 
+    /// The instances the scene describes right now, pending edits included: world matrices
+    /// composed from the local transforms and materials looked up as the walk goes (O(nodes),
+    /// no cache). For readers that must be current without propagating (the OBJ export).
+    pub(crate) fn instances_now(&self) -> Vec<Instance> {
+        let mut out = Vec::new();
+        let mut first = 0u32;
+        let mut stack: Vec<(NodeId, glam::Affine3A, Option<crate::MaterialId>)> =
+            self.roots.iter().rev().map(|&r| (r, glam::Affine3A::IDENTITY, None)).collect();
+        while let Some((id, parent_world, inherited)) = stack.pop() {
+            let n = &self.nodes[id];
+            let world = parent_world * n.parent_from_local;
+            let material = n.material.or(inherited);
+            if let Some((mesh, m)) = n.mesh.and_then(|m| self.meshes.get(m).map(|mm| (m, mm))) {
+                let count = m.triangle_count() as u32;
+                let world_aabb = m.aabb().transformed(&world);
+                out.push(Instance {
+                    node: id,
+                    mesh,
+                    world_from_local: world,
+                    world_aabb,
+                    material,
+                    first_triangle: first,
+                    triangle_count: count,
+                });
+                first = first.saturating_add(count);
+            }
+            stack.extend(n.children.iter().rev().map(|&c| (c, world, material)));
+        }
+        out
+    }
+
     /// Number of drawn nodes (as of the last update).
     pub fn instance_count(&self) -> usize {
         self.order().nodes.len()
