@@ -35,7 +35,7 @@ impl Scene {
             None => 0,
         };
         let id = self.nodes.insert(Node {
-            name: desc.name,
+            name: desc.name.into_boxed_str(),
             parent,
             children: Vec::new(),
             parent_from_local: desc.local,
@@ -72,7 +72,7 @@ impl Scene {
 
     /// Renames a node.
     pub fn set_name(&mut self, id: NodeId, name: impl Into<String>) -> Result<()> {
-        self.node_mut(id)?.name = name.into();
+        self.node_mut(id)?.name = name.into().into_boxed_str();
         Ok(())
     }
 

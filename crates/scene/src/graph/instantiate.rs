@@ -203,7 +203,7 @@ impl Scene {
             let i = nodes.len() as u32;
             index.insert(id, i);
             nodes.push(TemplateNode {
-                name: n.name.clone(),
+                name: n.name.to_string(),
                 parent,
                 local: n.parent_from_local,
                 mesh: n.mesh.and_then(&mut mesh),

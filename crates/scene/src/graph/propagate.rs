@@ -50,17 +50,21 @@ impl Scene {
         changes.order_changed = std::mem::take(&mut self.pending.order_changed);
         self.pending.edited = false;
 
-        let mut dirty = std::mem::take(&mut self.dirty);
-        // Collect: drop removed nodes; order: ancestors first, so each subtree is walked once.
-        dirty.retain(|&id| self.nodes.get(id).is_some_and(|n| n.dirty));
-        dirty.sort_unstable_by_key(|&id| self.nodes[id].depth);
+        let mut marked = std::mem::take(&mut self.dirty);
+        // Collect: drop removed nodes, reading each node's depth once (a sort that looked
+        // nodes up in its comparisons would cost O(n log n) cache misses); order: ancestors
+        // first, so each subtree is walked once. The sort is stable, so nodes of one depth are
+        // handled (and reported) in the order they were marked.
+        let mut dirty: Vec<(u32, NodeId)> =
+            marked.iter().filter_map(|&id| self.nodes.get(id).filter(|n| n.dirty).map(|n| (n.depth, id))).collect();
+        dirty.sort_by_key(|&(depth, _)| depth);
         let mut walk = Walk { nodes: &mut self.nodes, meshes: &self.meshes, changes: &mut changes };
         let mut visited = 0;
         // The walk's stack holds one entry per level (a node, what it passes down and the
         // next child to visit), not one per pending node: a parent of 10^6 children costs
         // no 10^6-entry stack.
         let mut stack: Vec<(NodeId, Frame, usize)> = Vec::new();
-        for &id in &dirty {
+        for &(_, id) in &dirty {
             let node = &walk.nodes[id];
             if !node.dirty {
                 continue; // handled with a dirty ancestor
@@ -99,8 +103,8 @@ impl Scene {
                 }
             }
         }
-        dirty.clear();
-        self.dirty = dirty; // keep the allocation for the next edits
+        marked.clear();
+        self.dirty = marked; // keep the allocation for the next edits
         if changes.order_changed {
             self.forget_order();
         }
