@@ -1,4 +1,5 @@
-//! Scene benchmarks: world-transform propagation over 10^6 nodes (flat and deep), full and
+//! Scene benchmarks: world-transform propagation over 10^6 nodes (flat and deep, and flat
+//! with every node drawing a mesh, so that the change report lists each moved node), full and
 //! after changing 1% of the nodes, and building the 10^6-triangle city.
 
 #![forbid(unsafe_code)]
@@ -7,7 +8,7 @@ use criterion::{criterion_group, criterion_main, BatchSize, Criterion};
 use glam::Vec3;
 use sightline_scene::builders::{city, CityParams};
 use sightline_scene::rng::Rng;
-use sightline_scene::{NodeDesc, NodeId, Scene, Transform};
+use sightline_scene::{shapes, NodeDesc, NodeId, Scene, Transform};
 
 const NODES: usize = 1_000_000;
 
@@ -19,6 +20,21 @@ fn flat() -> (Scene, Vec<NodeId>) {
         .map(|i| {
             s.add_node(Some(root), NodeDesc::new("n").transform(Transform::from_translation(Vec3::X * i as f32)))
                 .unwrap()
+        })
+        .collect();
+    s.update_transforms();
+    (s, ids)
+}
+
+/// One root with 10^6 children, each drawing the same cube.
+fn flat_drawn() -> (Scene, Vec<NodeId>) {
+    let mut s = Scene::new();
+    let cube = s.add_mesh(shapes::cube("cube").unwrap());
+    let root = s.add_node(None, NodeDesc::new("root")).unwrap();
+    let ids = (0..NODES)
+        .map(|i| {
+            let t = Transform::from_translation(Vec3::X * i as f32);
+            s.add_node(Some(root), NodeDesc::new("n").transform(t).mesh(cube)).unwrap()
         })
         .collect();
     s.update_transforms();
@@ -45,7 +61,7 @@ fn deep() -> (Scene, Vec<NodeId>) {
 fn propagate(c: &mut Criterion) {
     let mut g = c.benchmark_group("propagate_1e6");
     g.sample_size(10);
-    for (name, (scene, ids)) in [("flat", flat()), ("deep", deep())] {
+    for (name, (scene, ids)) in [("flat", flat()), ("deep", deep()), ("flat_drawn", flat_drawn())] {
         let roots: Vec<NodeId> = scene.roots().to_vec();
         let mut rng = Rng::new(5);
         let some: Vec<NodeId> = (0..NODES / 100).map(|_| ids[rng.below(ids.len() as u32) as usize]).collect();
@@ -71,7 +87,10 @@ fn propagate(c: &mut Criterion) {
                     }
                     s
                 },
-                |s| s.update_transforms(),
+                |s| {
+                    s.update_transforms();
+                    s.changes().moved.len()
+                },
                 BatchSize::LargeInput,
             )
         });

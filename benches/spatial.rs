@@ -11,7 +11,7 @@ use std::time::{Duration, Instant};
 use criterion::{criterion_group, criterion_main, BenchmarkId, Criterion};
 use glam::Vec3;
 use sightline_scene::builders::{city, scatter, CityParams, ScatterParams};
-use sightline_scene::{shapes, Aabb, Camera, Instance, Mesh, NodeDesc, Scene};
+use sightline_scene::{shapes, Aabb, Angle, Camera, Instance, LookAt, Mesh, NodeDesc, Scene};
 use sightline_spatial::{
     BspParams, BspTree, BvhPreset, ClusteredScene, CoherencyCache, CullOptions, Frustum, InstanceBvh, LooseOctree,
     MeshClusters, TriangleBvh, Visible, Visit,
@@ -79,14 +79,16 @@ fn bench(c: &mut Criterion) {
     let aspect = 1280.0 / 720.0;
     let street: Camera = city.layout.street_path(100, 11)[40].camera(aspect).expect("camera");
     let aerial: Camera = city.layout.aerial_path(100)[40].camera(aspect).expect("camera");
-    let cube_cam = Camera::perspective_look_at(
-        Vec3::new(0.0, 10.0, -520.0),
-        Vec3::new(0.0, 0.0, 0.0),
-        Vec3::Y,
-        60.0,
+    let cube_cam = Camera::perspective(
+        &LookAt {
+            eye: Vec3::new(0.0, 10.0, -520.0),
+            target: Vec3::new(0.0, 0.0, 0.0),
+            up: Vec3::Y,
+            fovy: Angle::degrees(60.0),
+            near: 0.1,
+            far: 600.0,
+        },
         aspect,
-        0.1,
-        600.0,
     )
     .expect("camera");
     eprintln!("setup {:.1} s", t.elapsed().as_secs_f64());

@@ -31,7 +31,8 @@ pub mod prelude {
     pub use sightline_scene::builders::{boxfield, city, BoxfieldParams, CityParams};
     pub use sightline_scene::path::CameraKey;
     pub use sightline_scene::{
-        Aabb, Camera, Instance, Keep, Material, Mesh, MeshId, NodeDesc, NodeId, Projection, Scene, Transform, View,
+        load_into, load_prefab, Aabb, Angle, Camera, Instance, Keep, LoadOptions, LookAt, Material, Mesh, MeshId,
+        NodeDesc, NodeId, Prefab, Projection, Scene, Transform, View,
     };
 }
 

@@ -11,7 +11,7 @@ use anyhow::Result;
 use glam::{Affine3A, Vec3};
 use sightline::render::csg::{classic_demo, CsgObject};
 use sightline::render::{output, Framebuffer, RayCaster, RaycastOptions};
-use sightline::scene::{shapes, Camera, Material, NodeDesc, Projection, Scene, Transform, View};
+use sightline::scene::{shapes, Angle, Camera, Material, NodeDesc, Projection, Scene, Transform, View};
 
 /// Renders [`classic_demo`] (colored, standing on a ground plane, with hard shadows, seen
 /// from above and aside) into a new framebuffer of the given size.
@@ -26,7 +26,7 @@ pub fn render_classic_demo(width: u32, height: u32) -> Result<Framebuffer> {
     let caster = RayCaster::build(&scene)?.with_csg(vec![object]);
     let view = View::look_at(Vec3::new(3.2, 2.6, 4.0), Vec3::new(0.0, -0.2, 0.0), Vec3::Y)?;
     let aspect = width as f32 / height.max(1) as f32;
-    let camera = Camera::new(view, Projection::perspective(0.75, aspect, 0.1, 100.0)?)?;
+    let camera = Camera::new(view, Projection::perspective(Angle::radians(0.75), aspect, 0.1, 100.0)?)?;
     let mut fb = Framebuffer::new(width, height)?;
     let opts = RaycastOptions { shadows: true, background: [40, 44, 52, 255], ..RaycastOptions::default() };
     caster.render(&camera, &opts, &mut fb)?;

@@ -381,11 +381,11 @@ mod tests {
             let window_z =
                 |near: f32, d: f32| (far as f64 * (d as f64 - near as f64)) / (d as f64 * (far - near) as f64);
             let ok_near = (far as f64 / (f.max_depth_ratio() * 0.5)) as f32;
-            let p = Projection::perspective(1.0, 1.0, ok_near, far).unwrap();
+            let p = Projection::perspective(sightline_scene::Angle::degrees(60.0), 1.0, ok_near, far).unwrap();
             assert!(f.check_resolves(&p).is_ok(), "{f:?} near {ok_near}");
             assert!(f.key(window_z(ok_near, far / 2.0) as f32) < f.key(1.0), "{f:?}: halfway still resolves");
             let bad_near = ok_near / 64.0;
-            let p = Projection::perspective(1.0, 1.0, bad_near, far).unwrap();
+            let p = Projection::perspective(sightline_scene::Angle::degrees(60.0), 1.0, bad_near, far).unwrap();
             assert!(matches!(f.check_resolves(&p), Err(crate::Error::DepthRange { .. })), "{f:?} near {bad_near}");
             assert_eq!(f.key(window_z(bad_near, far / 2.0) as f32), f.key(1.0), "{f:?}: halfway rounds to far");
             let ortho = Projection::orthographic(-1.0, 1.0, -1.0, 1.0, 1e-9, far).unwrap();

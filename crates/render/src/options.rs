@@ -92,13 +92,14 @@ pub enum Wireframe {
 /// ```
 /// use glam::Vec3;
 /// use sightline_render::{draw_all, Framebuffer, RenderOptions, Renderer, ShadingMode};
-/// use sightline_scene::{shapes, Camera, NodeDesc, Scene};
+/// use sightline_scene::{shapes, Angle, Camera, LookAt, NodeDesc, Scene};
 ///
 /// let mut scene = Scene::new();
 /// let cube = scene.add_mesh(shapes::cube("cube")?);
 /// scene.add_node(None, NodeDesc::new("cube").mesh(cube))?;
 /// scene.update_transforms();
-/// let camera = Camera::perspective_look_at(Vec3::new(2.0, 1.5, 3.0), Vec3::ZERO, Vec3::Y, 45.0, 4.0 / 3.0, 0.1, 100.0)?;
+/// let look = LookAt { eye: Vec3::new(2.0, 1.5, 3.0), fovy: Angle::degrees(45.0), far: 100.0, ..LookAt::default() };
+/// let camera = Camera::perspective(&look, 4.0 / 3.0)?;
 ///
 /// let instances = scene.instances();
 /// let items = draw_all(&instances); // or clusters, in any order, in batches via `draw`

@@ -44,6 +44,10 @@ pub struct LoadOptions {
     /// generous default of [`DEFAULT_BUDGET_FACTOR`] × the sizes of the distinct files
     /// involved + [`DEFAULT_BUDGET_BASE`].
     pub max_total_bytes: Option<u64>,
+    /// The most scene nodes one load may create. A glTF node reached along several paths
+    /// (a shared subgraph) becomes one copy per path, so a small file can ask for very many;
+    /// past this count the load fails, naming the limit. `None`: [`DEFAULT_MAX_NODES`].
+    pub max_nodes: Option<usize>,
 }
 
 impl LoadOptions {
@@ -58,7 +62,16 @@ impl LoadOptions {
         self.max_total_bytes = Some(bytes);
         self
     }
+
+    /// Caps the scene nodes one load may create.
+    pub fn max_nodes(mut self, nodes: usize) -> Self {
+        self.max_nodes = Some(nodes);
+        self
+    }
 }
+
+/// The default cap on the nodes one load may create (see [`LoadOptions::max_nodes`]).
+pub const DEFAULT_MAX_NODES: usize = 1 << 20;
 
 /// The default total-read cap is this many times the sizes of the files involved…
 pub const DEFAULT_BUDGET_FACTOR: u64 = 4;

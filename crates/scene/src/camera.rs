@@ -1,5 +1,7 @@
 //! Cameras: a look-at view (the u, v, w camera frame of Shirley & Marschner, *Fundamentals of
-//! Computer Graphics*, "Viewing") and a projection.
+//! Computer Graphics*, "Viewing") and a projection. The everyday perspective camera is
+//! described by a [`LookAt`] with named fields (the field of view an [`Angle`], so its unit is
+//! in the type).
 //!
 //! View space is right-handed with the camera at the origin looking down −z:
 //! `w = −gaze/|gaze|`, `u = up × w / |up × w|`, `v = w × u` (gluLookAt's basis).
@@ -8,7 +10,7 @@
 
 use glam::{Affine3A, DMat4, DVec3, Mat4, Vec2, Vec3};
 
-use crate::{Error, Projection, Result};
+use crate::{Angle, Error, Projection, Result};
 
 /// A camera position and orientation: eye plus the orthonormal basis u (right), v (up),
 /// w (backwards, opposite to the gaze).
@@ -80,6 +82,74 @@ impl View {
     }
 }
 
+/// A perspective camera described by what a person says: where the eye is, what it looks at,
+/// which way is up, how wide it sees, and the depth range.
+///
+/// ```
+/// use glam::Vec3;
+/// use sightline_scene::{Angle, Camera, LookAt};
+/// let look = LookAt { eye: Vec3::new(0.0, 2.0, 10.0), fovy: Angle::degrees(50.0), ..LookAt::default() };
+/// let camera = Camera::perspective(&look, 16.0 / 9.0)?;
+/// # Ok::<(), sightline_scene::Error>(())
+/// ```
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct LookAt {
+    /// Center of projection.
+    pub eye: Vec3,
+    /// A point on the line of sight.
+    pub target: Vec3,
+    /// The approximate up direction (not parallel to `target − eye`).
+    pub up: Vec3,
+    /// Vertical field of view, in (0°, 180°).
+    pub fovy: Angle,
+    /// Near plane distance, > 0.
+    pub near: f32,
+    /// Far plane distance, > near.
+    pub far: f32,
+}
+
+impl Default for LookAt {
+    /// From (0, 0, 1) towards the origin, +y up, 60° vertical field of view, depth 0.1 to 1000.
+    fn default() -> Self {
+        Self { eye: Vec3::Z, target: Vec3::ZERO, up: Vec3::Y, fovy: Angle::degrees(60.0), near: 0.1, far: 1000.0 }
+    }
+}
+
+impl LookAt {
+    /// From `eye` towards `target`, with the other fields as [`LookAt::default`].
+    pub fn new(eye: Vec3, target: Vec3) -> Self {
+        Self { eye, target, ..Self::default() }
+    }
+
+    /// Checks every field; the error names the field and what is wrong with it.
+    pub fn validate(&self) -> Result<()> {
+        let bad = |why: String| Err(Error::InvalidCamera(format!("LookAt.{why}")));
+        for (name, v) in [("eye", self.eye), ("target", self.target), ("up", self.up)] {
+            if !v.is_finite() {
+                return bad(format!("{name} = {v} is not finite"));
+            }
+        }
+        let gaze = self.target - self.eye;
+        if gaze == Vec3::ZERO {
+            return bad(format!("target = eye = {}: there is no view direction", self.eye));
+        }
+        if View::look_along(self.eye, gaze, self.up).is_err() {
+            return bad(format!("up = {} is zero or parallel to the view direction {gaze}", self.up));
+        }
+        let fovy = self.fovy.to_degrees();
+        if !(fovy > 0.0 && fovy < 180.0) {
+            return bad(format!("fovy = {fovy} degrees is not in (0, 180)"));
+        }
+        if !(self.near > 0.0 && self.near.is_finite()) {
+            return bad(format!("near = {} must be > 0 (and finite) for a perspective camera", self.near));
+        }
+        if !(self.far > self.near && self.far.is_finite()) {
+            return bad(format!("far = {} must be finite and greater than near = {}", self.far, self.near));
+        }
+        Ok(())
+    }
+}
+
 /// A view plus a projection: everything needed to map world points to clip space.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Camera {
@@ -96,17 +166,17 @@ impl Camera {
         Ok(Self { view, projection })
     }
 
-    /// The usual perspective camera: look-at view and a symmetric vertical field of view.
-    pub fn perspective_look_at(
-        eye: Vec3,
-        target: Vec3,
-        up: Vec3,
-        fovy_deg: f32,
-        aspect: f32,
-        near: f32,
-        far: f32,
-    ) -> Result<Self> {
-        Self::new(View::look_at(eye, target, up)?, Projection::perspective(fovy_deg.to_radians(), aspect, near, far)?)
+    /// The usual perspective camera: a [`LookAt`] seen through a viewport of `aspect` =
+    /// width / height. Errors name the [`LookAt`] field that is wrong, or the aspect.
+    pub fn perspective(look: &LookAt, aspect: f32) -> Result<Self> {
+        look.validate()?;
+        if !(aspect > 0.0 && aspect.is_finite()) {
+            return Err(Error::InvalidCamera(format!(
+                "aspect = {aspect} must be positive and finite (zero-size viewport?)"
+            )));
+        }
+        let view = View::look_at(look.eye, look.target, look.up)?;
+        Self::new(view, Projection::perspective(look.fovy, aspect, look.near, look.far)?)
     }
 
     /// `clip_from_world` in f64 (product formed in double precision).
@@ -191,7 +261,11 @@ mod tests {
     #[test]
     fn rays_hit_the_projected_point() {
         let cams = [
-            Camera::perspective_look_at(Vec3::new(1.0, 2.0, 3.0), Vec3::ZERO, Vec3::Y, 50.0, 1.5, 0.1, 100.0).unwrap(),
+            Camera::perspective(
+                &LookAt { eye: Vec3::new(1.0, 2.0, 3.0), fovy: Angle::degrees(50.0), far: 100.0, ..LookAt::default() },
+                1.5,
+            )
+            .unwrap(),
             Camera::new(
                 View::look_at(Vec3::new(1.0, 2.0, 3.0), Vec3::ZERO, Vec3::Y).unwrap(),
                 Projection::orthographic(-2.0, 3.0, -1.0, 2.0, 0.5, 50.0).unwrap(),

@@ -49,6 +49,14 @@ pub enum Error {
         /// What is wrong.
         why: String,
     },
+    /// A [`Prefab`](crate::Prefab) placed in a scene other than the one it was added to.
+    #[error(
+        "prefab '{prefab}' belongs to another scene (its meshes and materials live there): add it to this scene with Scene::add_prefab"
+    )]
+    ForeignPrefab {
+        /// The prefab's name.
+        prefab: String,
+    },
     /// A builder called with parameters it cannot honour.
     #[error("invalid builder parameters: {0}")]
     InvalidParams(String),

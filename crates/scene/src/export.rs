@@ -21,25 +21,22 @@ use crate::{Error, Result, Scene};
 /// Writes the flattened world-space scene as one OBJ object to `w`.
 ///
 /// World transforms are taken from the last [`Scene::update_transforms`]; if the scene has
-/// un-propagated edits, each instance's transform is recomputed from its ancestors instead, so
-/// the output is always current. Fails with `InvalidData` when a world position is NaN or
+/// un-propagated edits, the instances, their transforms and their order are worked out from
+/// the tree as it is now instead, so the output is always current. Fails with `InvalidData` when a world position is NaN or
 /// infinite (a transform overflowed), since such a file could not be read back.
 pub fn write_obj(scene: &Scene, w: &mut impl Write) -> std::io::Result<()> {
-    let instances = scene.instances();
+    // With un-propagated edits, the scene as it is now (not as of the last update).
+    let stale = scene.needs_update();
+    let instances = if stale { scene.instances_now() } else { scene.instances() };
     let triangles: u64 = instances.iter().map(|i| i.triangle_count as u64).sum();
     writeln!(w, "# sightline scene export: {} instances, {triangles} triangles, world space", instances.len())?;
-    let stale = scene.needs_update();
     let mut line = String::with_capacity(1 << 16);
     let mut base: u64 = 1;
     for inst in &instances {
         let Some(mesh) = scene.mesh(inst.mesh) else {
             continue;
         };
-        let world: Affine3A = if stale {
-            scene.world_from_local_now(inst.node).unwrap_or(inst.world_from_local)
-        } else {
-            inst.world_from_local
-        };
+        let world: Affine3A = inst.world_from_local;
         for &p in mesh.positions() {
             let q: Vec3 = world.transform_point3(p);
             if !q.is_finite() {

@@ -31,6 +31,7 @@
 // `!(x > 0.0)` is how this code says "not positive, or NaN": the negated comparison is the point.
 #![allow(clippy::neg_cmp_op_on_partial_ord)]
 
+mod angle;
 pub mod animation;
 pub mod assets;
 mod bounds;
@@ -53,12 +54,16 @@ mod stats;
 mod transform;
 pub mod views;
 
+pub use angle::Angle;
 pub use animation::Animation;
 pub use assets::LoadOptions;
 pub use bounds::Aabb;
-pub use camera::{projection_onto_plane, Camera, View};
+pub use camera::{projection_onto_plane, Camera, LookAt, View};
 pub use error::{Error, Result};
-pub use graph::{Instance, Keep, MaterialId, MeshId, Node, NodeDesc, NodeId, Scene, SceneCamera};
+pub use graph::{
+    Changes, Instance, Keep, MaterialId, MeshId, Node, NodeDesc, NodeId, Prefab, Removed, Scene, SceneCamera,
+    SceneDelta, SceneId, SceneStamp,
+};
 pub use material::{Material, Texture};
 pub use mesh::Mesh;
 pub use projection::Projection;
@@ -84,4 +89,45 @@ pub fn load_with(path: impl AsRef<std::path::Path>, options: &LoadOptions) -> Re
     };
     scene.update_transforms();
     Ok(scene)
+}
+
+/// Loads a file (as [`load_with`]) into `scene` as a [`Prefab`] named after the file: its
+/// meshes and materials are added once, its warnings appended to `scene.warnings`; place it
+/// with [`Scene::instantiate_prefab`] as many times as needed.
+///
+/// ```no_run
+/// use glam::Vec3;
+/// use sightline_scene::*;
+/// let mut scene = Scene::new();
+/// let tree = load_prefab(&mut scene, "tree.glb", &LoadOptions::default())?;
+/// let forest = scene.add_node(None, NodeDesc::new("forest"))?;
+/// for i in 0..1000 {
+///     let at = Transform::from_translation(Vec3::new((i % 40) as f32 * 5.0, 0.0, (i / 40) as f32 * 5.0));
+///     scene.instantiate_prefab(&tree, Some(forest), at)?;
+/// }
+/// scene.update_transforms();
+/// # Ok::<(), sightline_scene::Error>(())
+/// ```
+pub fn load_prefab(scene: &mut Scene, path: impl AsRef<std::path::Path>, options: &LoadOptions) -> Result<Prefab> {
+    let path = path.as_ref();
+    let loaded = load_with(path, options)?;
+    let name = path.file_name().map_or_else(|| "model".into(), |n| n.to_string_lossy().into_owned());
+    Ok(scene.add_prefab_owned(loaded).with_name(name))
+}
+
+/// Loads a file (as [`load_with`]) and places it once in `scene` under `parent` (`None`: as
+/// a root): a new node named after the file holds the file's nodes; the file's meshes,
+/// materials, cameras and warnings join the scene. Returns the new node. Call
+/// [`Scene::update_transforms`] before drawing.
+pub fn load_into(
+    scene: &mut Scene,
+    path: impl AsRef<std::path::Path>,
+    parent: Option<NodeId>,
+    options: &LoadOptions,
+) -> Result<NodeId> {
+    if let Some(p) = parent {
+        scene.try_node(p)?;
+    }
+    let prefab = load_prefab(scene, path, options)?;
+    scene.instantiate_prefab(&prefab, parent, Transform::IDENTITY)
 }

@@ -9,7 +9,7 @@ use serde::{Deserialize, Serialize};
 
 use crate::builders::CityLayout;
 use crate::rng::Rng;
-use crate::{Aabb, Camera, Error, Result};
+use crate::{Aabb, Angle, Camera, Error, LookAt, Result};
 
 /// Eye height of the street walk.
 pub const EYE_HEIGHT: f32 = 1.7;
@@ -32,17 +32,33 @@ pub struct CameraKey {
 }
 
 impl CameraKey {
+    /// The key as a [`LookAt`].
+    pub fn look_at(&self) -> LookAt {
+        LookAt {
+            eye: Vec3::from(self.eye),
+            target: Vec3::from(self.target),
+            up: Vec3::from(self.up),
+            fovy: Angle::degrees(self.fovy_deg),
+            near: self.near,
+            far: self.far,
+        }
+    }
+
+    /// The key of a [`LookAt`] (the field of view written in degrees).
+    pub fn from_look_at(look: &LookAt) -> Self {
+        Self {
+            eye: look.eye.to_array(),
+            target: look.target.to_array(),
+            up: look.up.to_array(),
+            fovy_deg: look.fovy.to_degrees(),
+            near: look.near,
+            far: look.far,
+        }
+    }
+
     /// The perspective camera of this key for a viewport of the given aspect (width / height).
     pub fn camera(&self, aspect: f32) -> Result<Camera> {
-        Camera::perspective_look_at(
-            Vec3::from(self.eye),
-            Vec3::from(self.target),
-            Vec3::from(self.up),
-            self.fovy_deg,
-            aspect,
-            self.near,
-            self.far,
-        )
+        Camera::perspective(&self.look_at(), aspect)
     }
 }
 

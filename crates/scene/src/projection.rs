@@ -15,7 +15,7 @@
 
 use glam::{DMat4, DVec2, DVec3, DVec4};
 
-use crate::{Error, Result};
+use crate::{Angle, Error, Result};
 
 /// A projection from view space to clip space. Construct with the checked functions.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -58,9 +58,10 @@ pub enum Projection {
 }
 
 impl Projection {
-    /// A symmetric perspective projection from a vertical field of view (radians) and an
-    /// aspect ratio (width / height).
-    pub fn perspective(fovy: f32, aspect: f32, near: f32, far: f32) -> Result<Self> {
+    /// A symmetric perspective projection from a vertical field of view and an aspect ratio
+    /// (width / height).
+    pub fn perspective(fovy: Angle, aspect: f32, near: f32, far: f32) -> Result<Self> {
+        let fovy = fovy.to_radians();
         if !(fovy > 0.0 && fovy < std::f32::consts::PI) {
             return Err(Error::InvalidCamera(format!(
                 "vertical field of view {} degrees is not in (0, 180)",
@@ -241,7 +242,7 @@ mod tests {
     #[test]
     fn near_zero_is_named_as_the_cause() {
         for near in [0.0, -0.0, -1.0] {
-            let e = Projection::perspective(1.0, 1.5, near, 100.0).unwrap_err().to_string();
+            let e = Projection::perspective(Angle::radians(1.0), 1.5, near, 100.0).unwrap_err().to_string();
             assert!(e.contains("near") && e.contains("> 0"), "{e}");
             assert!(!e.contains("empty window"), "{e}");
         }
@@ -268,7 +269,7 @@ mod tests {
 
     #[test]
     fn perspective_preserves_depth_order() {
-        let p = Projection::perspective(1.0, 1.5, 0.1, 1000.0).unwrap().clip_from_view_f64();
+        let p = Projection::perspective(Angle::radians(1.0), 1.5, 0.1, 1000.0).unwrap().clip_from_view_f64();
         let dir = DVec3::new(0.3, -0.2, -1.0);
         let mut last = -2.0;
         for k in 1..2000 {
@@ -282,11 +283,11 @@ mod tests {
 
     #[test]
     fn invalid_projections_are_errors() {
-        assert!(Projection::perspective(1.0, 1.0, 0.0, 10.0).is_err());
-        assert!(Projection::perspective(1.0, 1.0, -1.0, 10.0).is_err());
-        assert!(Projection::perspective(1.0, 1.0, 10.0, 10.0).is_err());
-        assert!(Projection::perspective(1.0, 0.0, 1.0, 10.0).is_err());
-        assert!(Projection::perspective(f32::NAN, 1.0, 1.0, 10.0).is_err());
+        assert!(Projection::perspective(Angle::radians(1.0), 1.0, 0.0, 10.0).is_err());
+        assert!(Projection::perspective(Angle::radians(1.0), 1.0, -1.0, 10.0).is_err());
+        assert!(Projection::perspective(Angle::radians(1.0), 1.0, 10.0, 10.0).is_err());
+        assert!(Projection::perspective(Angle::radians(1.0), 0.0, 1.0, 10.0).is_err());
+        assert!(Projection::perspective(Angle::radians(f32::NAN), 1.0, 1.0, 10.0).is_err());
         assert!(Projection::orthographic(1.0, 1.0, 0.0, 1.0, 0.0, 1.0).is_err());
         assert!(Projection::oblique(-1.0, 1.0, -1.0, 1.0, 0.0, 1.0, 0.0, 0.0).is_err());
     }

@@ -8,7 +8,7 @@
 
 use glam::Vec3;
 
-use crate::{Aabb, Camera, Error, Projection, Result, View};
+use crate::{Aabb, Angle, Camera, Error, Projection, Result, View};
 
 /// Which axonometric view.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -101,8 +101,8 @@ impl Multiview {
         let c = bounds.center();
         let r = (bounds.extent().length() * 0.5).max(1e-3);
         let dir = Vec3::new(1.0, 0.8, 1.2).normalize();
-        let fovy = 40f32.to_radians();
-        let dist = r / (fovy * 0.5).sin();
+        let fovy = Angle::degrees(40.0);
+        let dist = r / (fovy.to_radians() * 0.5).sin();
         let view = View::look_at(c + dir * dist, c, Vec3::Y)?;
         let perspective =
             Camera::new(view, Projection::perspective(fovy, aspect, (dist - r).max(dist * 1e-3), dist + r)?)?;

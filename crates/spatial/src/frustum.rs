@@ -214,7 +214,8 @@ mod tests {
     fn cams() -> Vec<Camera> {
         let view = View::look_at(Vec3::new(1.0, 2.0, 5.0), Vec3::ZERO, Vec3::Y).unwrap();
         vec![
-            Camera::new(view, Projection::perspective(1.0, 1.5, 0.5, 40.0).unwrap()).unwrap(),
+            Camera::new(view, Projection::perspective(sightline_scene::Angle::radians(1.0), 1.5, 0.5, 40.0).unwrap())
+                .unwrap(),
             Camera::new(view, Projection::frustum(-0.1, 0.4, -0.3, 0.2, 0.5, 40.0).unwrap()).unwrap(),
             Camera::new(view, Projection::orthographic(-2.0, 3.0, -1.0, 2.0, 0.5, 20.0).unwrap()).unwrap(),
             Camera::new(view, Projection::cabinet(-2.0, 2.0, -2.0, 2.0, 0.5, 20.0, 0.5).unwrap()).unwrap(),

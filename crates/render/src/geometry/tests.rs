@@ -116,14 +116,16 @@ fn random_position(rng: &mut sightline_scene::rng::Rng) -> Vec3 {
 #[test]
 fn transform_is_the_same_on_every_level() {
     let mut rng = sightline_scene::rng::Rng::new(11);
-    let cam = sightline_scene::Camera::perspective_look_at(
-        Vec3::new(0.5, 1.0, 8.0),
-        Vec3::ZERO,
-        Vec3::Y,
-        60.0,
+    let cam = sightline_scene::Camera::perspective(
+        &sightline_scene::LookAt {
+            eye: Vec3::new(0.5, 1.0, 8.0),
+            target: Vec3::ZERO,
+            up: Vec3::Y,
+            fovy: sightline_scene::Angle::degrees(60.0),
+            near: 0.5,
+            far: 100.0,
+        },
         1.5,
-        0.5,
-        100.0,
     )
     .unwrap();
     for round in 0..300 {
@@ -163,14 +165,16 @@ fn tri_bits(t: &Tri) -> ([i32; 3], [i32; 3], [u32; 3], u32, [u16; 4], u32) {
 #[test]
 fn process_is_the_same_on_every_level() {
     let mut rng = sightline_scene::rng::Rng::new(12);
-    let cam = sightline_scene::Camera::perspective_look_at(
-        Vec3::new(0.0, 0.5, 5.0),
-        Vec3::ZERO,
-        Vec3::Y,
-        70.0,
+    let cam = sightline_scene::Camera::perspective(
+        &sightline_scene::LookAt {
+            eye: Vec3::new(0.0, 0.5, 5.0),
+            target: Vec3::ZERO,
+            up: Vec3::Y,
+            fovy: sightline_scene::Angle::degrees(70.0),
+            near: 1.0,
+            far: 100.0,
+        },
         1.5,
-        1.0,
-        100.0,
     )
     .unwrap();
     let vp = Viewport::new(320, 200, true);

@@ -212,7 +212,8 @@ mod tests {
     fn rays_equal_the_cameras_own() {
         let view = View::look_at(Vec3::new(1.0, 2.0, 5.0), Vec3::ZERO, Vec3::Y).unwrap();
         let cams = [
-            Camera::new(view, Projection::perspective(1.0, 1.0, 0.1, 100.0).unwrap()).unwrap(),
+            Camera::new(view, Projection::perspective(sightline_scene::Angle::radians(1.0), 1.0, 0.1, 100.0).unwrap())
+                .unwrap(),
             Camera::new(view, Projection::orthographic(-2.0, 2.0, -2.0, 2.0, 0.5, 50.0).unwrap()).unwrap(),
             Camera::new(view, Projection::cabinet(-2.0, 2.0, -2.0, 2.0, 0.5, 50.0, 0.5).unwrap()).unwrap(),
         ];
@@ -237,7 +238,7 @@ mod tests {
     fn packets_hold_the_pixel_rays() {
         let view = View::look_at(Vec3::new(1.0, 2.0, 5.0), Vec3::ZERO, Vec3::Y).unwrap();
         for p in [
-            Projection::perspective(1.0, 1.3, 0.1, 100.0).unwrap(),
+            Projection::perspective(sightline_scene::Angle::radians(1.0), 1.3, 0.1, 100.0).unwrap(),
             Projection::cavalier(-2.0, 2.0, -2.0, 2.0, 0.5, 50.0, 0.3).unwrap(),
         ] {
             let cam = Camera::new(view, p).unwrap();

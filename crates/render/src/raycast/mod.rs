@@ -28,14 +28,15 @@
 //! ```
 //! use glam::Vec3;
 //! use sightline_render::{Framebuffer, RayCaster, RaycastOptions};
-//! use sightline_scene::{shapes, Camera, NodeDesc, Scene};
+//! use sightline_scene::{shapes, Angle, Camera, LookAt, NodeDesc, Scene};
 //!
 //! let mut scene = Scene::new();
 //! let cube = scene.add_mesh(shapes::cube("cube")?);
 //! scene.add_node(None, NodeDesc::new("cube").mesh(cube))?;
 //! scene.update_transforms();
 //! let caster = RayCaster::build(&scene)?;
-//! let camera = Camera::perspective_look_at(Vec3::new(2.0, 1.5, 3.0), Vec3::ZERO, Vec3::Y, 50.0, 1.0, 0.1, 100.0)?;
+//! let look = LookAt { eye: Vec3::new(2.0, 1.5, 3.0), fovy: Angle::degrees(50.0), far: 100.0, ..LookAt::default() };
+//! let camera = Camera::perspective(&look, 1.0)?;
 //! let mut fb = Framebuffer::new(64, 64)?;
 //! let stats = caster.render(&camera, &RaycastOptions::default(), &mut fb)?;
 //! assert!(stats.hits > 0 && fb.ids.iter().all(|&id| id <= 12));

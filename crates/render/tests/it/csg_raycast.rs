@@ -5,7 +5,7 @@ use glam::{Affine3A, Quat, Vec3};
 use sightline_render::csg::{classic_demo, Csg, CsgObject, CsgScratch, Shape};
 use sightline_render::raycast::HitTarget;
 use sightline_render::{Framebuffer, RayCaster, RaycastOptions};
-use sightline_scene::{shapes, Camera, NodeDesc, Scene, Transform};
+use sightline_scene::{shapes, Angle, Camera, LookAt, NodeDesc, Scene, Transform};
 
 use crate::support::pixel_ndc;
 
@@ -156,7 +156,18 @@ fn csg_solids_render_with_meshes_with_ids_above_the_triangles() {
     .unwrap();
     let caster = RayCaster::build(&scene).unwrap().with_csg(vec![solid]);
     assert_eq!(caster.csg_id(0), 25);
-    let cam = Camera::perspective_look_at(Vec3::new(0.0, 1.5, 6.0), Vec3::ZERO, Vec3::Y, 50.0, 1.5, 0.1, 50.0).unwrap();
+    let cam = Camera::perspective(
+        &LookAt {
+            eye: Vec3::new(0.0, 1.5, 6.0),
+            target: Vec3::ZERO,
+            up: Vec3::Y,
+            fovy: Angle::degrees(50.0),
+            near: 0.1,
+            far: 50.0,
+        },
+        1.5,
+    )
+    .unwrap();
     let mut fb = Framebuffer::new(96, 64).unwrap();
     caster.render(&cam, &RaycastOptions { shadows: true, ..RaycastOptions::default() }, &mut fb).unwrap();
     let csg_px = fb.ids.iter().filter(|&&i| i == 25).count();

@@ -7,7 +7,7 @@ use sightline_render::{
     draw_all, render_scene, Antialias, DrawItem, Framebuffer, RenderOptions, Renderer, ShadeOptions, ShadingMode,
     Wireframe,
 };
-use sightline_scene::{shapes, Camera, Material, NodeDesc, Scene};
+use sightline_scene::{shapes, Angle, Camera, LookAt, Material, NodeDesc, Scene};
 
 use crate::support::{self, one_node_scene};
 
@@ -80,8 +80,18 @@ fn quad_scene(material: Material) -> (Scene, Camera) {
     let mat = s.add_material(material);
     s.add_node(None, NodeDesc::new("q").mesh(m).material(mat)).unwrap();
     s.update_transforms();
-    let cam =
-        Camera::perspective_look_at(Vec3::new(0.0, 2.0, 0.01), Vec3::ZERO, Vec3::Y, 60.0, 1.0, 0.1, 10.0).unwrap();
+    let cam = Camera::perspective(
+        &LookAt {
+            eye: Vec3::new(0.0, 2.0, 0.01),
+            target: Vec3::ZERO,
+            up: Vec3::Y,
+            fovy: Angle::degrees(60.0),
+            near: 0.1,
+            far: 10.0,
+        },
+        1.0,
+    )
+    .unwrap();
     (s, cam)
 }
 
@@ -149,7 +159,18 @@ fn shading_modes_differ_where_they_should() {
     // A box with per-face normals, seen from a corner: flat, Gouraud and per-pixel agree
     // on flat faces; all are lit (not background) and the default material is grey.
     let s = one_node_scene("c", shapes::cube("c").unwrap());
-    let cam = Camera::perspective_look_at(Vec3::new(1.5, 1.2, 2.0), Vec3::ZERO, Vec3::Y, 50.0, 1.0, 0.1, 10.0).unwrap();
+    let cam = Camera::perspective(
+        &LookAt {
+            eye: Vec3::new(1.5, 1.2, 2.0),
+            target: Vec3::ZERO,
+            up: Vec3::Y,
+            fovy: Angle::degrees(50.0),
+            near: 0.1,
+            far: 10.0,
+        },
+        1.0,
+    )
+    .unwrap();
     let img = |mode| {
         let mut fb = Framebuffer::new(48, 48).unwrap();
         let mut o = RenderOptions::default();

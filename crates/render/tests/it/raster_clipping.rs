@@ -4,7 +4,7 @@
 
 use glam::{DVec3, Vec3};
 use sightline_render::{render_scene, Framebuffer, RenderOptions};
-use sightline_scene::{Camera, Mesh, Scene};
+use sightline_scene::{Angle, Camera, LookAt, Mesh, Scene};
 
 use crate::support::{one_node_scene, pixel_ndc};
 
@@ -71,7 +71,11 @@ fn check(tri: [Vec3; 3], cam: &Camera) -> usize {
 }
 
 fn camera(near: f32, far: f32) -> Camera {
-    Camera::perspective_look_at(Vec3::ZERO, Vec3::NEG_Z, Vec3::Y, 60.0, W as f32 / H as f32, near, far).unwrap()
+    Camera::perspective(
+        &LookAt { eye: Vec3::ZERO, target: Vec3::NEG_Z, up: Vec3::Y, fovy: Angle::degrees(60.0), near, far },
+        W as f32 / H as f32,
+    )
+    .unwrap()
 }
 
 #[test]

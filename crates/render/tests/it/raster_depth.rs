@@ -3,7 +3,7 @@
 
 use glam::{Affine3A, Quat, Vec3};
 use sightline_render::{render_scene, DepthFormat, Framebuffer, RenderOptions};
-use sightline_scene::{Camera, Mesh, NodeDesc, Scene};
+use sightline_scene::{Angle, Camera, LookAt, Mesh, NodeDesc, Scene};
 
 fn scene() -> Scene {
     let mut s = Scene::new();
@@ -28,7 +28,18 @@ fn scene() -> Scene {
 
 /// (pixels showing the far quad, pixels showing the near quad).
 fn fight(format: DepthFormat) -> (usize, usize) {
-    let cam = Camera::perspective_look_at(Vec3::ZERO, Vec3::NEG_Z, Vec3::Y, 30.0, 4.0 / 3.0, 20.0, 200.0).unwrap();
+    let cam = Camera::perspective(
+        &LookAt {
+            eye: Vec3::ZERO,
+            target: Vec3::NEG_Z,
+            up: Vec3::Y,
+            fovy: Angle::degrees(30.0),
+            near: 20.0,
+            far: 200.0,
+        },
+        4.0 / 3.0,
+    )
+    .unwrap();
     let mut fb = Framebuffer::new(128, 96).unwrap();
     let opts = RenderOptions { depth_format: format, ..RenderOptions::ids_only() };
     render_scene(&scene(), &cam, &mut fb, &opts).unwrap();

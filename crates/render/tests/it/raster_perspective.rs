@@ -7,7 +7,7 @@ use std::sync::Arc;
 use glam::{Vec2, Vec3};
 use sightline_render::texture::{Filter, Wrap};
 use sightline_render::{render_scene, Framebuffer, RenderOptions, ShadeOptions};
-use sightline_scene::{Camera, Material, Mesh, NodeDesc, Scene, Texture};
+use sightline_scene::{Angle, Camera, LookAt, Material, Mesh, NodeDesc, Scene, Texture};
 
 use crate::support::pixel_ndc;
 
@@ -47,14 +47,16 @@ fn scene() -> Scene {
 /// Largest texel error over pixels whose reference hit lies well inside the quad.
 fn max_texel_error(perspective_correct: bool) -> (i32, usize) {
     let scene = scene();
-    let cam = Camera::perspective_look_at(
-        Vec3::new(0.0, 1.0, 0.0),
-        Vec3::new(0.0, 0.75, -10.0),
-        Vec3::Y,
-        60.0,
+    let cam = Camera::perspective(
+        &LookAt {
+            eye: Vec3::new(0.0, 1.0, 0.0),
+            target: Vec3::new(0.0, 0.75, -10.0),
+            up: Vec3::Y,
+            fovy: Angle::degrees(60.0),
+            near: 0.1,
+            far: 200.0,
+        },
         W as f32 / H as f32,
-        0.1,
-        200.0,
     )
     .unwrap();
     let mut fb = Framebuffer::new(W, H).unwrap();

@@ -3,7 +3,7 @@
 
 use glam::{Affine3A, Vec3, Vec4};
 use sightline_render::{render_scene, DrawItem, Framebuffer, RenderOptions, Renderer};
-use sightline_scene::{shapes, Camera, NodeDesc, Scene};
+use sightline_scene::{shapes, Angle, Camera, LookAt, NodeDesc, Scene};
 
 use crate::support::one_node_scene;
 
@@ -74,8 +74,18 @@ fn huge_transforms_and_tiny_framebuffers_through_the_scene() {
         s.add_node(None, NodeDesc::new(format!("n{k}")).matrix(m).mesh(cube)).unwrap();
     }
     s.update_transforms();
-    let cam =
-        Camera::perspective_look_at(Vec3::new(0.3, 0.2, 3.0), Vec3::ZERO, Vec3::Y, 60.0, 1.0, 0.1, 100.0).unwrap();
+    let cam = Camera::perspective(
+        &LookAt {
+            eye: Vec3::new(0.3, 0.2, 3.0),
+            target: Vec3::ZERO,
+            up: Vec3::Y,
+            fovy: Angle::degrees(60.0),
+            near: 0.1,
+            far: 100.0,
+        },
+        1.0,
+    )
+    .unwrap();
     for (w, h) in [(1, 1), (1, 7), (33, 1), (40, 30)] {
         let mut fb = Framebuffer::new(w, h).unwrap();
         fb.count_depth_tests(true);
@@ -95,8 +105,18 @@ fn huge_transforms_and_tiny_framebuffers_through_the_scene() {
 fn invalid_draw_items_are_errors() {
     let s = one_node_scene("n", shapes::cube("c").unwrap());
     let inst = s.instances();
-    let cam =
-        Camera::perspective_look_at(Vec3::new(0.0, 0.0, 3.0), Vec3::ZERO, Vec3::Y, 60.0, 1.0, 0.1, 100.0).unwrap();
+    let cam = Camera::perspective(
+        &LookAt {
+            eye: Vec3::new(0.0, 0.0, 3.0),
+            target: Vec3::ZERO,
+            up: Vec3::Y,
+            fovy: Angle::degrees(60.0),
+            near: 0.1,
+            far: 100.0,
+        },
+        1.0,
+    )
+    .unwrap();
     let mut fb = Framebuffer::new(8, 8).unwrap();
     let mut r = Renderer::new();
     let opts = RenderOptions::default();
@@ -123,8 +143,18 @@ fn a_failed_render_does_not_spoil_later_batches() {
     s.add_node(None, NodeDesc::new("far").matrix(far).mesh(cube)).unwrap();
     s.update_transforms();
     let inst = s.instances();
-    let cam =
-        Camera::perspective_look_at(Vec3::new(0.5, 0.7, 3.0), Vec3::ZERO, Vec3::Y, 60.0, 1.0, 0.1, 100.0).unwrap();
+    let cam = Camera::perspective(
+        &LookAt {
+            eye: Vec3::new(0.5, 0.7, 3.0),
+            target: Vec3::ZERO,
+            up: Vec3::Y,
+            fovy: Angle::degrees(60.0),
+            near: 0.1,
+            far: 100.0,
+        },
+        1.0,
+    )
+    .unwrap();
     let opts = RenderOptions::ids_only();
     let mut r = Renderer::new();
     let near = [DrawItem::whole(0, &inst[0])];

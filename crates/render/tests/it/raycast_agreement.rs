@@ -4,7 +4,7 @@
 
 use glam::{Quat, Vec3};
 use sightline_render::{render_scene, Framebuffer, RayCaster, RaycastOptions, RenderOptions};
-use sightline_scene::{Camera, Mesh, NodeDesc, Projection, Scene, Transform, View};
+use sightline_scene::{Angle, Camera, LookAt, Mesh, NodeDesc, Projection, Scene, Transform, View};
 
 use crate::support::small_city;
 
@@ -115,9 +115,18 @@ fn raycast_gltf_asset() {
     let both_sides = RenderOptions { backface_culling: false, ..RenderOptions::default() };
     for (k, dir) in [Vec3::new(1.0, 0.8, 1.3), Vec3::new(-1.2, 0.4, 0.7), Vec3::new(0.3, -1.0, -0.9)].iter().enumerate()
     {
-        let cam =
-            Camera::perspective_look_at(c + dir.normalize() * r * 1.2, c, Vec3::Y, 50.0, aspect, r * 0.01, r * 10.0)
-                .unwrap();
+        let cam = Camera::perspective(
+            &LookAt {
+                eye: c + dir.normalize() * r * 1.2,
+                target: c,
+                up: Vec3::Y,
+                fovy: Angle::degrees(50.0),
+                near: r * 0.01,
+                far: r * 10.0,
+            },
+            aspect,
+        )
+        .unwrap();
         if k < 2 {
             // (From below, the single-sided triangles all face away.)
             check(&format!("nested.gltf camera {k}"), &scene, &cam, &RenderOptions::default());
@@ -166,7 +175,11 @@ fn raycast_intersecting_triangles() {
     let aspect = W as f32 / H as f32;
     let opts = RenderOptions { backface_culling: false, ..RenderOptions::default() };
     for (k, eye) in [Vec3::new(0.0, 1.0, 9.0), Vec3::new(7.0, -3.0, 4.0)].iter().enumerate() {
-        let cam = Camera::perspective_look_at(*eye, Vec3::ZERO, Vec3::Y, 60.0, aspect, 0.1, 50.0).unwrap();
+        let cam = Camera::perspective(
+            &LookAt { eye: *eye, target: Vec3::ZERO, up: Vec3::Y, fovy: Angle::degrees(60.0), near: 0.1, far: 50.0 },
+            aspect,
+        )
+        .unwrap();
         check(&format!("intersecting triangles {k}"), &scene, &cam, &opts);
     }
 }

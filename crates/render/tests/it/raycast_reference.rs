@@ -6,7 +6,7 @@
 use glam::{DMat4, DVec2, DVec4, Quat, Vec3};
 use sightline_render::{Framebuffer, RayCaster, RaycastOptions};
 use sightline_scene::builders::{city, CityParams};
-use sightline_scene::{Camera, Mesh, NodeDesc, Projection, Scene, Transform, View};
+use sightline_scene::{Angle, Camera, LookAt, Mesh, NodeDesc, Projection, Scene, Transform, View};
 
 const W: u32 = 96;
 const H: u32 = 64;
@@ -139,7 +139,11 @@ fn raycast_matches_brute_force_on_transformed_instances() {
     let aspect = W as f32 / H as f32;
     for (k, eye) in [Vec3::new(1.0, 4.0, 9.0), Vec3::new(-6.0, -3.0, 5.0), Vec3::new(0.5, 9.0, 0.3)].iter().enumerate()
     {
-        let cam = Camera::perspective_look_at(*eye, Vec3::ZERO, Vec3::Y, 55.0, aspect, 0.5, 40.0).unwrap();
+        let cam = Camera::perspective(
+            &LookAt { eye: *eye, target: Vec3::ZERO, up: Vec3::Y, fovy: Angle::degrees(55.0), near: 0.5, far: 40.0 },
+            aspect,
+        )
+        .unwrap();
         check(&format!("instances {k}"), &scene, &cam, true);
         check(&format!("instances {k}, both sides"), &scene, &cam, false);
     }

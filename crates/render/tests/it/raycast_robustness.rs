@@ -4,7 +4,7 @@
 use glam::{Affine3A, Vec3};
 use sightline_render::csg::{Csg, CsgObject};
 use sightline_render::{Framebuffer, RayCaster, RaycastOptions};
-use sightline_scene::{shapes, Camera, Mesh, NodeDesc, Projection, Scene, Transform, View};
+use sightline_scene::{shapes, Angle, Camera, LookAt, Mesh, NodeDesc, Projection, Scene, Transform, View};
 
 use crate::support::one_node_scene;
 
@@ -69,9 +69,18 @@ fn raycast_degenerate_triangles_are_never_hit() {
         }
     }
     // And the renderer draws nothing.
-    let cam =
-        Camera::perspective_look_at(Vec3::new(0.5, 0.5, 4.0), Vec3::new(0.5, 0.5, 0.0), Vec3::Y, 60.0, 1.0, 0.1, 10.0)
-            .unwrap();
+    let cam = Camera::perspective(
+        &LookAt {
+            eye: Vec3::new(0.5, 0.5, 4.0),
+            target: Vec3::new(0.5, 0.5, 0.0),
+            up: Vec3::Y,
+            fovy: Angle::degrees(60.0),
+            near: 0.1,
+            far: 10.0,
+        },
+        1.0,
+    )
+    .unwrap();
     let mut fb = Framebuffer::new(32, 32).unwrap();
     caster.render(&cam, &RaycastOptions { backface_culling: false, ..RaycastOptions::default() }, &mut fb).unwrap();
     assert!(fb.ids.iter().all(|&i| i == 0));
@@ -86,11 +95,15 @@ fn raycast_odd_scenes_and_frames_do_not_panic() {
     assert_eq!(nothing.instance_count(), 0);
     let view = View::look_at(Vec3::new(0.3, 2.0, 3.0), Vec3::ZERO, Vec3::Y).unwrap();
     let cams = [
-        Camera::new(view, Projection::perspective(1.2, 1.0, 1e-4, 1e7).unwrap()).unwrap(),
+        Camera::new(view, Projection::perspective(Angle::radians(1.2), 1.0, 1e-4, 1e7).unwrap()).unwrap(),
         Camera::new(view, Projection::orthographic(-2.0, 2.0, -2.0, 2.0, 0.0, 10.0).unwrap()).unwrap(),
         Camera::new(view, Projection::cavalier(-2.0, 2.0, -2.0, 2.0, 0.0, 10.0, 0.4).unwrap()).unwrap(),
         // Inside the flattened cube's plane, looking along it.
-        Camera::perspective_look_at(Vec3::ZERO, Vec3::X, Vec3::Y, 90.0, 1.0, 0.1, 10.0).unwrap(),
+        Camera::perspective(
+            &LookAt { eye: Vec3::ZERO, target: Vec3::X, up: Vec3::Y, fovy: Angle::degrees(90.0), near: 0.1, far: 10.0 },
+            1.0,
+        )
+        .unwrap(),
     ];
     for (w, h) in [(1, 1), (1, 17), (9, 1), (13, 11)] {
         for cam in &cams {
@@ -104,8 +117,18 @@ fn raycast_odd_scenes_and_frames_do_not_panic() {
         }
     }
     // The flattened cube is drawn from above (a square at y = 0).
-    let top =
-        Camera::perspective_look_at(Vec3::new(0.0, 3.0, 0.01), Vec3::ZERO, Vec3::Y, 40.0, 1.0, 0.1, 10.0).unwrap();
+    let top = Camera::perspective(
+        &LookAt {
+            eye: Vec3::new(0.0, 3.0, 0.01),
+            target: Vec3::ZERO,
+            up: Vec3::Y,
+            fovy: Angle::degrees(40.0),
+            near: 0.1,
+            far: 10.0,
+        },
+        1.0,
+    )
+    .unwrap();
     let mut fb = Framebuffer::new(16, 16).unwrap();
     caster.render(&top, &RaycastOptions::default(), &mut fb).unwrap();
     assert!(fb.ids.iter().any(|&i| i != 0));

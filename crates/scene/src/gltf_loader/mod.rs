@@ -3,7 +3,11 @@
 //! What is loaded:
 //!
 //! * The node hierarchy of the default scene (else scene 0, else every node that is nobody's
-//!   child), with TRS or matrix transforms. Each glTF node becomes one scene node. A glTF mesh
+//!   child), with TRS or matrix transforms. Each glTF node becomes one scene node per path that
+//!   reaches it: a node listed as the child of two parents (a shared subgraph, which the
+//!   glTF 2.0 specification does not allow but files do contain) loads as two copies of its
+//!   subtree, sharing their meshes. The copies count against [`LoadOptions::max_nodes`], so
+//!   a small file cannot ask for exponentially many. A glTF mesh
 //!   with one drawable primitive is drawn by the node itself; with several, by one child node
 //!   per primitive. Converted meshes are cached per (mesh, primitive), so glTF instancing stays
 //!   instancing in the mesh store.
@@ -28,8 +32,9 @@
 //!
 //! Errors ([`Error::Load`], naming the file and the problem): unreadable file, wrong magic,
 //! truncated GLB, invalid JSON, missing or short buffers that the scene uses, accessors
-//! reading past their buffer views, indices out of range, NaN/infinite transforms, a node graph
-//! that is not a forest (a node reached twice, a cycle), a required extension this loader does
+//! reading past their buffer views, indices out of range, NaN/infinite transforms, a cycle in the
+//! node graph (a node its own ancestor), more nodes than [`LoadOptions::max_nodes`] once
+//! shared subgraphs are expanded, a required extension this loader does
 //! not support, a buffer or image URI that the rules above refuse (outside the folder, not a
 //! regular file, over the total).
 //! Warnings (in [`Scene::warnings`], the scene still loads): a missing or undecodable
@@ -84,7 +89,7 @@ pub fn load_gltf(path: &Path) -> Result<Scene> {
 pub fn load_gltf_with(path: &Path, options: &LoadOptions) -> Result<Scene> {
     let assets = AssetReader::new(path, options).map_err(|e| Error::load(path, e))?;
     let bytes = assets.read_main().map_err(|e| Error::load(path, e))?;
-    load_with_reader(&bytes, path, &assets)
+    load_with_reader(&bytes, path, &assets, options)
 }
 
 /// Loads glTF or GLB from memory. `path` names the file in messages, decides whether the bytes
@@ -97,10 +102,10 @@ pub fn load_gltf_bytes(bytes: &[u8], path: &Path) -> Result<Scene> {
 /// [`load_gltf_bytes`] with options.
 pub fn load_gltf_bytes_with(bytes: &[u8], path: &Path, options: &LoadOptions) -> Result<Scene> {
     let assets = AssetReader::new(path, options).map_err(|e| Error::load(path, e))?;
-    load_with_reader(bytes, path, &assets)
+    load_with_reader(bytes, path, &assets, options)
 }
 
-fn load_with_reader(bytes: &[u8], path: &Path, assets: &AssetReader) -> Result<Scene> {
+fn load_with_reader(bytes: &[u8], path: &Path, assets: &AssetReader, options: &LoadOptions) -> Result<Scene> {
     let fail = |why: String| Error::load(path, why);
     let is_glb_name = path.extension().is_some_and(|e| e.eq_ignore_ascii_case("glb"));
     let (json_bytes, bin) = if bytes.starts_with(b"glTF") {
@@ -161,6 +166,7 @@ fn load_with_reader(bytes: &[u8], path: &Path, assets: &AssetReader) -> Result<S
         skipped: Vec::new(),
         node_ids: vec![None; root.nodes.len()],
         unbacked: Cell::new(0),
+        max_nodes: options.max_nodes.unwrap_or(crate::assets::DEFAULT_MAX_NODES),
     };
     loader.scene.warnings = warnings;
     loader.build().map_err(fail)?;
@@ -205,6 +211,8 @@ struct Loader<'a> {
     node_ids: Vec<Option<NodeId>>,
     /// Accessor elements filled with zeros so far (accessors without a buffer view).
     unbacked: Cell<u64>,
+    /// The most scene nodes this load may create.
+    max_nodes: usize,
 }
 
 fn node_label(root: &json::Root, i: usize) -> String {
@@ -237,18 +245,37 @@ impl Loader<'_> {
                 }
             },
         };
-        let mut visited = vec![false; root.nodes.len()];
-        // (glTF node, parent scene node, does the parent pass a material down?)
-        let mut stack: Vec<(usize, Option<NodeId>, bool, String)> =
-            roots.iter().rev().map(|&n| (n, None, false, "the scene".to_string())).collect();
-        while let Some((i, parent, inherits, referrer)) = stack.pop() {
+        // A depth-first walk of the node graph as a DAG: a node reached again along another
+        // path is loaded again; one reached again below itself is a cycle. `path` holds the
+        // glTF nodes from the scene root to the current one (`on_path` flags them).
+        let mut on_path = vec![false; root.nodes.len()];
+        let mut path: Vec<usize> = Vec::new();
+        // (glTF node, depth, parent scene node, does the parent pass a material down?)
+        let mut stack: Vec<(usize, usize, Option<NodeId>, bool, String)> =
+            roots.iter().rev().map(|&n| (n, 0, None, false, "the scene".to_string())).collect();
+        while let Some((i, depth, parent, inherits, referrer)) = stack.pop() {
             let node = root.nodes.get(i).ok_or_else(|| format!("{referrer} lists node {i}, which does not exist"))?;
-            if std::mem::replace(&mut visited[i], true) {
+            while path.len() > depth {
+                if let Some(left) = path.pop() {
+                    on_path[left] = false;
+                }
+            }
+            if on_path[i] {
                 return Err(format!(
-                    "{} is reached twice (from {referrer}): the node graph has a cycle or a node with two parents",
+                    "{} is its own ancestor (reached again from {referrer}): the node graph has a cycle",
                     node_label(root, i)
                 ));
             }
+            if self.scene.node_count() >= self.max_nodes {
+                return Err(format!(
+                    "more than {} nodes once shared nodes are expanded (reached {} from {referrer}); \
+                     the limit is LoadOptions::max_nodes",
+                    self.max_nodes,
+                    node_label(root, i)
+                ));
+            }
+            on_path[i] = true;
+            path.push(i);
             let label = node_label(root, i);
             let name = node.name.clone().unwrap_or_else(|| format!("node {i}"));
             let local = match node.matrix {
@@ -294,7 +321,7 @@ impl Loader<'_> {
                 self.camera(c.value(), id, &label);
             }
             for c in node.children.iter().flatten().rev() {
-                stack.push((c.value(), Some(id), passes, label.clone()));
+                stack.push((c.value(), depth + 1, Some(id), passes, label.clone()));
             }
         }
         Ok(())
@@ -478,7 +505,7 @@ impl Loader<'_> {
             (Checked::Valid(json::camera::Type::Perspective), Some(p), _) => {
                 let far = p.zfar.unwrap_or(DEFAULT_FAR.max(p.znear * 1.0e4));
                 let aspect = p.aspect_ratio.unwrap_or(DEFAULT_ASPECT);
-                Projection::perspective(p.yfov, aspect, p.znear, far).map_err(|e| e.to_string())
+                Projection::perspective(crate::Angle::radians(p.yfov), aspect, p.znear, far).map_err(|e| e.to_string())
             }
             (Checked::Valid(json::camera::Type::Orthographic), _, Some(o)) => {
                 Projection::orthographic(-o.xmag.abs(), o.xmag.abs(), -o.ymag.abs(), o.ymag.abs(), o.znear, o.zfar)

@@ -78,7 +78,7 @@ fn a_chain_100000_deep_propagates_without_recursion() {
             let instances = s.instances();
             assert!(instances.is_empty());
             assert_eq!(s.depth_first().count(), 100_000);
-            assert_eq!(s.remove_node(first.unwrap()).unwrap(), 100_000);
+            assert_eq!(s.remove_node(first.unwrap()).unwrap().nodes, 100_000);
         })
         .unwrap();
     handle.join().unwrap();
@@ -145,7 +145,7 @@ fn removing_a_subtree_invalidates_exactly_its_handles() {
     let gone_kids: Vec<_> = (0..5).map(|i| s.add_node(Some(gone), NodeDesc::new(format!("k{i}"))).unwrap()).collect();
     let grandkid = s.add_node(Some(gone_kids[2]), NodeDesc::new("gk")).unwrap();
     let keep_kid = s.add_node(Some(keep), NodeDesc::new("kk")).unwrap();
-    assert_eq!(s.remove_node(gone).unwrap(), 7);
+    assert_eq!(s.remove_node(gone).unwrap().nodes, 7);
     for id in gone_kids.iter().chain([&gone, &grandkid]) {
         assert!(s.node(*id).is_none());
         assert!(matches!(s.try_node(*id), Err(Error::StaleNode(_))));

@@ -283,7 +283,13 @@ fn export_of_the_gltf_asset_matches_and_sees_unpropagated_edits() {
     let mut scene = load(asset("nested.gltf")).unwrap();
     let arm = scene.find("arm").unwrap();
     scene.set_local_transform(arm, Transform::from_translation(Vec3::new(0.0, 0.0, 3.0))).unwrap();
-    // Not propagated yet: the exporter must still use the current transforms.
+    // A node added and one removed, not propagated either.
+    let mesh = scene.node(scene.find("twin").unwrap()).unwrap().mesh().unwrap();
+    scene
+        .add_node(Some(arm), NodeDesc::new("extra").mesh(mesh).transform(Transform::from_translation(Vec3::Y)))
+        .unwrap();
+    scene.remove_node(scene.find("leaf").unwrap()).unwrap();
+    // Not propagated yet: the exporter must still use the current transforms and nodes.
     let mut bytes = Vec::new();
     write_obj(&scene, &mut bytes).unwrap();
     scene.update_transforms();

@@ -1,7 +1,8 @@
 //! The scene crate's integration tests, one binary, so that cargo compiles and links one
-//! test executable per package instead of one per file: the scene graph, the loaders and the
-//! exporter, broken glTF files, hostile asset references, loader fuzzing, the fuzz corpus replayed, and an ignored 10^6-triangle round
-//! trip.
+//! test executable per package instead of one per file: the scene graph and its change
+//! reports, cameras, the loaders and the exporter, broken glTF files, hostile asset
+//! references, loader fuzzing, shared subgraphs (instantiate, prefabs, glTF DAGs), animation, the fuzz corpus replayed, and an
+//! ignored 10^6-triangle round trip.
 //!
 //! proptest keeps the regression seeds of a module `m` of this binary in
 //! `tests/proptest-regressions/m.txt` (commit them).
@@ -10,10 +11,14 @@
 
 mod animation;
 mod broken_gltf;
+mod cameras;
+mod changes;
+mod changes_replay;
 mod fuzz_replay;
 mod graph;
 mod hostile_assets;
 mod loader_fuzz;
 mod loader_perf;
 mod loaders;
+mod shared;
 mod support;

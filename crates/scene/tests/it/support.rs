@@ -1,5 +1,5 @@
 //! Fixtures shared by the modules of this test binary: the assets folder, error-message
-//! checks, a minimal OBJ.
+//! checks, a minimal OBJ, a one-triangle glTF written from JSON.
 
 use std::path::{Path, PathBuf};
 
@@ -49,4 +49,54 @@ pub fn world_triangles(scene: &Scene) -> Vec<[Vec3; 3]> {
         }
     }
     out
+}
+
+/// Standard base64 (with padding), for data URIs.
+pub fn base64(bytes: &[u8]) -> String {
+    const A: &[u8] = b"ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789+/";
+    let mut s = String::new();
+    for c in bytes.chunks(3) {
+        let n = (c[0] as u32) << 16 | (*c.get(1).unwrap_or(&0) as u32) << 8 | *c.get(2).unwrap_or(&0) as u32;
+        for k in 0..4 {
+            if k <= c.len() {
+                s.push(A[(n >> (18 - 6 * k) & 63) as usize] as char);
+            } else {
+                s.push('=');
+            }
+        }
+    }
+    s
+}
+
+/// A one-triangle glTF with an embedded buffer: `positions` then u16 `indices`; `edit`
+/// changes the JSON before it is written.
+pub fn tiny_gltf(dir: &Path, name: &str, indices: &[u16], edit: impl FnOnce(&mut serde_json::Value)) -> PathBuf {
+    let mut buf = Vec::new();
+    for p in [[0.0f32, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]] {
+        for c in p {
+            buf.extend(c.to_le_bytes());
+        }
+    }
+    for i in indices {
+        buf.extend(i.to_le_bytes());
+    }
+    let mut doc = serde_json::json!({
+        "asset": {"version": "2.0"},
+        "scenes": [{"nodes": [0]}],
+        "nodes": [{"name": "holder", "mesh": 0}],
+        "meshes": [{"name": "tri", "primitives": [{"attributes": {"POSITION": 0}, "indices": 1}]}],
+        "accessors": [
+            {"bufferView": 0, "componentType": 5126, "count": 3, "type": "VEC3", "min": [0,0,0], "max": [1,1,0]},
+            {"bufferView": 1, "componentType": 5123, "count": indices.len(), "type": "SCALAR"}
+        ],
+        "bufferViews": [
+            {"buffer": 0, "byteOffset": 0, "byteLength": 36},
+            {"buffer": 0, "byteOffset": 36, "byteLength": 2 * indices.len()}
+        ],
+        "buffers": [{"byteLength": buf.len(), "uri": format!("data:application/octet-stream;base64,{}", base64(&buf))}]
+    });
+    edit(&mut doc);
+    let path = dir.join(name);
+    std::fs::write(&path, serde_json::to_string_pretty(&doc).unwrap()).unwrap();
+    path
 }

@@ -1,7 +1,7 @@
 use super::*;
 use glam::{Mat4, Vec4};
 use sightline_scene::rng::Rng;
-use sightline_scene::Camera;
+use sightline_scene::{Angle, Camera, LookAt};
 
 /// A tiny reference rasterizer: pixel-center coverage (either facing), window depth
 /// interpolated in screen space. `depth_test = false` is the painter's algorithm.
@@ -70,7 +70,18 @@ fn bsp_painter_matches_z_buffer_and_centroid_sort_does_not() {
     assert!(s.triangles_out >= 5 + s.splits);
     let (w, h) = (128usize, 128usize);
     for eye in [Vec3::new(1.0, 0.3, 9.0), Vec3::new(0.5, -1.5, 7.0), Vec3::new(1.2, 0.0, -8.0)] {
-        let cam = Camera::perspective_look_at(eye, Vec3::new(1.2, 0.0, 0.0), Vec3::Y, 40.0, 1.0, 0.5, 50.0).unwrap();
+        let cam = Camera::perspective(
+            &LookAt {
+                eye,
+                target: Vec3::new(1.2, 0.0, 0.0),
+                up: Vec3::Y,
+                fovy: Angle::degrees(40.0),
+                near: 0.5,
+                far: 50.0,
+            },
+            1.0,
+        )
+        .unwrap();
         let m = cam.clip_from_world();
         let refs: Vec<([Vec3; 3], u32)> = tris.iter().enumerate().map(|(i, t)| (*t, i as u32 + 1)).collect();
         let zbuf = raster(&refs, &m, w, h, true);

@@ -302,14 +302,16 @@ mod tests {
         }
         assert!(seen.iter().all(|&s| s == 1));
         // A camera close to a corner of the big mesh sees only part of it.
-        let cam = sightline_scene::Camera::perspective_look_at(
-            Vec3::new(1.0, 3.0, 1.0),
-            Vec3::new(5.0, 2.0, 5.0),
-            Vec3::Y,
-            40.0,
+        let cam = sightline_scene::Camera::perspective(
+            &sightline_scene::LookAt {
+                eye: Vec3::new(1.0, 3.0, 1.0),
+                target: Vec3::new(5.0, 2.0, 5.0),
+                up: Vec3::Y,
+                fovy: sightline_scene::Angle::degrees(40.0),
+                near: 0.1,
+                far: 10.0,
+            },
             1.0,
-            0.1,
-            10.0,
         )
         .unwrap();
         let mut out = Vec::new();

@@ -342,7 +342,7 @@ impl Bvh {
 mod tests {
     use super::*;
     use crate::BvhPreset;
-    use sightline_scene::Camera;
+    use sightline_scene::{Angle, Camera, LookAt};
 
     fn grid_boxes() -> Vec<Aabb> {
         let mut v = Vec::new();
@@ -359,14 +359,16 @@ mod tests {
     fn cull_variants_agree_with_brute_force() {
         let boxes = grid_boxes();
         let bvh = Bvh::build(&boxes, BvhPreset::Fast, 4);
-        let cam = Camera::perspective_look_at(
-            Vec3::new(0.0, 5.0, 0.0),
-            Vec3::new(10.0, 0.0, 10.0),
-            Vec3::Y,
-            50.0,
+        let cam = Camera::perspective(
+            &LookAt {
+                eye: Vec3::new(0.0, 5.0, 0.0),
+                target: Vec3::new(10.0, 0.0, 10.0),
+                up: Vec3::Y,
+                fovy: Angle::degrees(50.0),
+                near: 0.1,
+                far: 30.0,
+            },
             1.5,
-            0.1,
-            30.0,
         )
         .unwrap();
         let f = Frustum::from_camera(&cam);

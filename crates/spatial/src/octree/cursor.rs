@@ -124,7 +124,7 @@ mod tests {
     use super::*;
     use crate::Visit;
     use sightline_scene::rng::Rng;
-    use sightline_scene::Camera;
+    use sightline_scene::{Angle, Camera, LookAt};
 
     /// Batch after batch, with boxes skipped along the way, the cursor visits and emits
     /// exactly what the one-call walk does, in the same order.
@@ -144,7 +144,11 @@ mod tests {
                 .into_iter()
                 .enumerate()
         {
-            let cam = Camera::perspective_look_at(eye, target, Vec3::Y, 60.0, 16.0 / 9.0, 0.1, 500.0).unwrap();
+            let cam = Camera::perspective(
+                &LookAt { eye, target, up: Vec3::Y, fovy: Angle::degrees(60.0), near: 0.1, far: 500.0 },
+                16.0 / 9.0,
+            )
+            .unwrap();
             let frustum = Frustum::from_camera(&cam);
             // Skip a pseudo-random quarter of the boxes asked about (the same ones both ways).
             let skip = |b: &Aabb| ((b.min.x * 7.3 + b.max.z * 3.1).abs() as u32).is_multiple_of(4);

@@ -1,7 +1,7 @@
 use super::*;
 use crate::{Containment, CullOptions, FrontToBack, Frustum, FrustumCull, Visit};
 use sightline_scene::rng::Rng;
-use sightline_scene::Camera;
+use sightline_scene::{Angle, Camera, LookAt};
 
 fn random_box(rng: &mut Rng) -> Aabb {
     let c = Vec3::new(rng.range(-100.0, 100.0), rng.range(-20.0, 20.0), rng.range(-100.0, 100.0));
@@ -79,8 +79,18 @@ fn frustum_cull_matches_brute_force_and_front_to_back_starts_near() {
     let boxes: Vec<Aabb> = (0..2000).map(|_| random_box(&mut rng)).collect();
     let t = LooseOctree::from_boxes(&boxes, 7);
     t.validate().unwrap();
-    let cam =
-        Camera::perspective_look_at(Vec3::new(-80.0, 5.0, -80.0), Vec3::ZERO, Vec3::Y, 50.0, 1.5, 0.5, 90.0).unwrap();
+    let cam = Camera::perspective(
+        &LookAt {
+            eye: Vec3::new(-80.0, 5.0, -80.0),
+            target: Vec3::ZERO,
+            up: Vec3::Y,
+            fovy: Angle::degrees(50.0),
+            near: 0.5,
+            far: 90.0,
+        },
+        1.5,
+    )
+    .unwrap();
     let f = Frustum::from_camera(&cam);
     let brute: Vec<u32> =
         (0..boxes.len() as u32).filter(|&i| f.classify(&boxes[i as usize]) != Containment::Outside).collect();
@@ -127,8 +137,18 @@ fn bad_boxes_follow_the_rule() {
     t.insert(3, Aabb::new(Vec3::splat(1e6), Vec3::splat(1e6 + 1.0)));
     t.validate().unwrap();
     assert_eq!(t.len(), 4);
-    let cam =
-        Camera::perspective_look_at(Vec3::new(0.0, 0.0, 5.0), Vec3::ZERO, Vec3::Y, 60.0, 1.0, 0.1, 100.0).unwrap();
+    let cam = Camera::perspective(
+        &LookAt {
+            eye: Vec3::new(0.0, 0.0, 5.0),
+            target: Vec3::ZERO,
+            up: Vec3::Y,
+            fovy: Angle::degrees(60.0),
+            near: 0.1,
+            far: 100.0,
+        },
+        1.0,
+    )
+    .unwrap();
     let mut out = Vec::new();
     t.cull(&Frustum::from_camera(&cam), &mut out);
     let mut ids: Vec<u32> = out.iter().map(|v| v.index).collect();
@@ -138,14 +158,16 @@ fn bad_boxes_follow_the_rule() {
     t.update(2, Aabb::new(Vec3::NAN, Vec3::NAN));
     t.validate().unwrap();
     // Looking away from everything: nothing but the unbounded object.
-    let away = Camera::perspective_look_at(
-        Vec3::new(0.0, 0.0, 5.0),
-        Vec3::new(0.0, 0.0, 10.0),
-        Vec3::Y,
-        60.0,
+    let away = Camera::perspective(
+        &LookAt {
+            eye: Vec3::new(0.0, 0.0, 5.0),
+            target: Vec3::new(0.0, 0.0, 10.0),
+            up: Vec3::Y,
+            fovy: Angle::degrees(60.0),
+            near: 0.1,
+            far: 100.0,
+        },
         1.0,
-        0.1,
-        100.0,
     )
     .unwrap();
     out.clear();

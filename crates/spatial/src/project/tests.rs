@@ -2,10 +2,21 @@
 
 use super::*;
 use glam::Vec3;
-use sightline_scene::Camera;
+use sightline_scene::{Angle, Camera, LookAt};
 
 fn cam() -> Camera {
-    Camera::perspective_look_at(Vec3::new(0.0, 0.0, 5.0), Vec3::ZERO, Vec3::Y, 60.0, 1.5, 0.5, 100.0).unwrap()
+    Camera::perspective(
+        &LookAt {
+            eye: Vec3::new(0.0, 0.0, 5.0),
+            target: Vec3::ZERO,
+            up: Vec3::Y,
+            fovy: Angle::degrees(60.0),
+            near: 0.5,
+            far: 100.0,
+        },
+        1.5,
+    )
+    .unwrap()
 }
 
 #[test]
@@ -94,7 +105,10 @@ fn random_matrix(rng: &mut sightline_scene::rng::Rng, k: u32) -> Option<Mat4> {
             let eye = Vec3::new(rng.range(-5.0, 5.0), rng.range(-5.0, 5.0), rng.range(-5.0, 5.0));
             let target = eye + Vec3::new(rng.range(-1.0, 1.0), rng.range(-1.0, 1.0), rng.range(-1.0, 1.0));
             let near = [1e-4, 0.1, 1.0][rng.below(3) as usize];
-            let c = Camera::perspective_look_at(eye, target, Vec3::Y, rng.range(10.0, 120.0), 1.7, near, 500.0);
+            let c = Camera::perspective(
+                &LookAt { eye, target, up: Vec3::Y, fovy: Angle::degrees(rng.range(10.0, 120.0)), near, far: 500.0 },
+                1.7,
+            );
             c.ok().map(|c| c.clip_from_world())
         }
     }

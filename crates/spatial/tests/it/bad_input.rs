@@ -2,11 +2,22 @@
 //! scenes, zero-area triangles, stale meshes.
 
 use glam::{Affine3A, Vec3};
-use sightline_scene::{shapes, Aabb, Camera, Mesh, NodeDesc, Scene, Transform};
+use sightline_scene::{shapes, Aabb, Angle, Camera, LookAt, Mesh, NodeDesc, Scene, Transform};
 use sightline_spatial::*;
 
 fn cam() -> Camera {
-    Camera::perspective_look_at(Vec3::new(0.0, 2.0, 10.0), Vec3::ZERO, Vec3::Y, 60.0, 1.5, 0.1, 100.0).unwrap()
+    Camera::perspective(
+        &LookAt {
+            eye: Vec3::new(0.0, 2.0, 10.0),
+            target: Vec3::ZERO,
+            up: Vec3::Y,
+            fovy: Angle::degrees(60.0),
+            near: 0.1,
+            far: 100.0,
+        },
+        1.5,
+    )
+    .unwrap()
 }
 
 #[test]
@@ -50,14 +61,16 @@ fn nan_boxes_are_always_visible_and_empty_boxes_never() {
     inst[0].world_aabb = Aabb::new(Vec3::NAN, Vec3::NAN);
     inst[1].world_from_local = Affine3A::from_translation(Vec3::NAN);
     inst[1].world_aabb = Aabb::new(Vec3::new(f32::NEG_INFINITY, 0.0, 0.0), Vec3::INFINITY);
-    let away = Camera::perspective_look_at(
-        Vec3::new(0.0, 2.0, 10.0),
-        Vec3::new(0.0, 2.0, 20.0),
-        Vec3::Y,
-        60.0,
+    let away = Camera::perspective(
+        &LookAt {
+            eye: Vec3::new(0.0, 2.0, 10.0),
+            target: Vec3::new(0.0, 2.0, 20.0),
+            up: Vec3::Y,
+            fovy: Angle::degrees(60.0),
+            near: 0.1,
+            far: 100.0,
+        },
         1.5,
-        0.1,
-        100.0,
     )
     .unwrap();
     for c in [cam(), away] {

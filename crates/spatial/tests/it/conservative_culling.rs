@@ -6,7 +6,7 @@
 
 use glam::{EulerRot, Quat, Vec2, Vec3};
 use proptest::prelude::*;
-use sightline_scene::{shapes, Camera, Instance, NodeDesc, Projection, Scene, Transform, View};
+use sightline_scene::{shapes, Angle, Camera, Instance, NodeDesc, Projection, Scene, Transform, View};
 use sightline_spatial::*;
 
 const W: usize = 48;
@@ -74,7 +74,7 @@ fn camera(eye: [f32; 3], target: [f32; 3], fov: f32, near: f32, depth: f32, kind
     let aspect = W as f32 / H as f32;
     let far = near + depth;
     let projection = match kind {
-        0 | 1 => Projection::perspective(fov.to_radians(), aspect, near, far).ok()?,
+        0 | 1 => Projection::perspective(Angle::degrees(fov), aspect, near, far).ok()?,
         2 => Projection::orthographic(-6.0 * aspect, 6.0 * aspect, -6.0, 6.0, near, far).ok()?,
         _ => Projection::cabinet(-6.0 * aspect, 6.0 * aspect, -6.0, 6.0, near, far, 0.6).ok()?,
     };

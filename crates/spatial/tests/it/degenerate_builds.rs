@@ -6,7 +6,7 @@
 //! reports — so they fail on such a build without timing anything.
 
 use glam::{Affine3A, Vec3};
-use sightline_scene::{Aabb, Camera};
+use sightline_scene::{Aabb, Angle, Camera, LookAt};
 use sightline_spatial::bvh::wide::{InstanceRecord, WideBlas, WideTlas};
 use sightline_spatial::*;
 
@@ -37,16 +37,15 @@ fn culled(bvh: &Bvh, frustum: &Frustum) -> Vec<u32> {
 
 /// Looks at the origin from the front, seeing part of the row along +x.
 fn frustum() -> Frustum {
-    let cam = Camera::perspective_look_at(
-        Vec3::new(40.0, 3.0, 30.0),
-        Vec3::new(40.0, 0.0, 0.0),
-        Vec3::Y,
-        60.0,
-        1.5,
-        0.1,
-        500.0,
-    )
-    .expect("a valid camera");
+    let look = LookAt {
+        eye: Vec3::new(40.0, 3.0, 30.0),
+        target: Vec3::new(40.0, 0.0, 0.0),
+        up: Vec3::Y,
+        fovy: Angle::degrees(60.0),
+        near: 0.1,
+        far: 500.0,
+    };
+    let cam = Camera::perspective(&look, 1.5).expect("a valid camera");
     Frustum::from_camera(&cam)
 }
 

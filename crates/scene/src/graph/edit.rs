@@ -1,0 +1,218 @@
+//! Edits of the hierarchy: adding nodes, setting local transforms, meshes and materials,
+//! reparenting and removing subtrees. Each edit marks what it touches dirty for propagation,
+//! or (a removal, a reparent) notes for the next change report what propagation cannot see:
+//! until [`Scene::update_transforms`] runs, [`Scene::needs_update`] is true after any edit.
+
+use glam::Affine3A;
+
+use super::{Keep, Node, NodeDesc, NodeId, Scene};
+use crate::{Aabb, Error, MaterialId, MeshId, Result, SceneCamera, Transform};
+
+/// What [`Scene::remove_node`] removed.
+#[derive(Debug, Clone)]
+pub struct Removed {
+    /// Number of nodes removed (the node and its whole subtree).
+    pub nodes: usize,
+    /// The cameras that sat on removed nodes, taken out of [`Scene::cameras`] (so no camera
+    /// ever refers to a dead node).
+    pub cameras: Vec<SceneCamera>,
+}
+
+impl Scene {
+    /// Adds a node under `parent` (or as a root), returning its handle.
+    ///
+    /// Errors on a stale parent, stale mesh/material handles or a non-finite transform.
+    pub fn add_node(&mut self, parent: Option<NodeId>, desc: NodeDesc) -> Result<NodeId> {
+        crate::transform::validate_affine(&desc.local, &format!("node '{}'", desc.name))?;
+        if let Some(m) = desc.mesh {
+            self.try_mesh(m)?;
+        }
+        if let Some(m) = desc.material {
+            self.materials.get(m).ok_or(Error::StaleMaterial(m))?;
+        }
+        let depth = match parent {
+            Some(p) => self.try_node(p)?.depth + 1,
+            None => 0,
+        };
+        let id = self.nodes.insert(Node {
+            name: desc.name.into_boxed_str(),
+            parent,
+            children: Vec::new(),
+            parent_from_local: desc.local,
+            world_from_local: Affine3A::IDENTITY,
+            mesh: desc.mesh,
+            material: desc.material,
+            world_aabb: Aabb::EMPTY,
+            depth,
+            dirty: true,
+            material_in_effect: None,
+            drawn: None,
+        });
+        match parent {
+            Some(p) => self.nodes[p].children.push(id),
+            None => self.roots.push(id),
+        }
+        self.dirty.push(id);
+        Ok(id)
+    }
+
+    pub(crate) fn mark_dirty(&mut self, id: NodeId) {
+        let n = &mut self.nodes[id];
+        if !n.dirty {
+            n.dirty = true;
+            self.dirty.push(id);
+        }
+    }
+
+    /// Sets a node's local transform from translation, rotation and scale.
+    pub fn set_local_transform(&mut self, id: NodeId, t: Transform) -> Result<()> {
+        let m = t.to_affine(&format!("node '{}'", self.try_node(id)?.name))?;
+        self.set_local_matrix(id, m)
+    }
+
+    /// Renames a node.
+    pub fn set_name(&mut self, id: NodeId, name: impl Into<String>) -> Result<()> {
+        self.node_mut(id)?.name = name.into().into_boxed_str();
+        Ok(())
+    }
+
+    /// Sets a node's local transform from a matrix (errors on NaN/inf).
+    pub fn set_local_matrix(&mut self, id: NodeId, m: Affine3A) -> Result<()> {
+        let name = &self.try_node(id)?.name;
+        crate::transform::validate_affine(&m, &format!("node '{name}'"))?;
+        self.node_mut(id)?.parent_from_local = m;
+        self.mark_dirty(id);
+        Ok(())
+    }
+
+    /// Sets or clears a node's mesh. The next change report lists the node as added, removed,
+    /// or both (a swap).
+    pub fn set_mesh(&mut self, id: NodeId, mesh: Option<MeshId>) -> Result<()> {
+        if let Some(m) = mesh {
+            self.try_mesh(m)?;
+        }
+        self.node_mut(id)?.mesh = mesh;
+        self.mark_dirty(id); // world bounds change
+        Ok(())
+    }
+
+    /// Sets or clears a node's own material (its subtree inherits it). Propagation works out
+    /// the material in effect below it, so the subtree is marked for the next update.
+    pub fn set_material(&mut self, id: NodeId, material: Option<MaterialId>) -> Result<()> {
+        if let Some(m) = material {
+            self.materials.get(m).ok_or(Error::StaleMaterial(m))?;
+        }
+        self.node_mut(id)?.material = material;
+        self.mark_dirty(id);
+        Ok(())
+    }
+
+    /// `world_from_local` computed now from the local transforms of the node and its
+    /// ancestors, whatever the dirty state.
+    pub fn world_from_local_now(&self, id: NodeId) -> Result<Affine3A> {
+        let mut m = Affine3A::IDENTITY;
+        let mut cur = Some(id);
+        while let Some(c) = cur {
+            let n = self.try_node(c)?;
+            m = n.parent_from_local * m;
+            cur = n.parent;
+        }
+        Ok(m)
+    }
+
+    /// Moves `child` under `parent` (`None`: make it a root), keeping its local or world
+    /// transform. Refuses to make a node its own ancestor.
+    pub fn set_parent(&mut self, child: NodeId, parent: Option<NodeId>, keep: Keep) -> Result<()> {
+        self.try_node(child)?;
+        if let Some(p) = parent {
+            let mut cur = Some(p);
+            while let Some(c) = cur {
+                if c == child {
+                    return Err(Error::Cycle { child, parent: p });
+                }
+                cur = self.try_node(c)?.parent;
+            }
+        }
+        if keep == Keep::World {
+            let world = self.world_from_local_now(child)?;
+            let parent_world = match parent {
+                Some(p) => self.world_from_local_now(p)?,
+                None => Affine3A::IDENTITY,
+            };
+            let det = parent_world.matrix3.determinant();
+            if det.abs() < 1e-12 || !det.is_finite() {
+                return Err(Error::InvalidTransform {
+                    what: format!("new parent of node '{}'", self.nodes[child].name),
+                    why: "its world matrix is singular, so the child's world transform cannot be kept".into(),
+                });
+            }
+            self.nodes[child].parent_from_local = parent_world.inverse() * world;
+        }
+        // Unlink from the old place, link into the new one.
+        match self.nodes[child].parent {
+            Some(old) => self.nodes[old].children.retain(|&c| c != child),
+            None => self.roots.retain(|&c| c != child),
+        }
+        let base_depth = match parent {
+            Some(p) => {
+                self.nodes[p].children.push(child);
+                self.nodes[p].depth + 1
+            }
+            None => {
+                self.roots.push(child);
+                0
+            }
+        };
+        self.nodes[child].parent = parent;
+        // Depths of the whole subtree change by the same amount; a drawn node in it moves in
+        // the flattened order.
+        let mut stack = vec![(child, base_depth)];
+        let mut draws = false;
+        while let Some((id, d)) = stack.pop() {
+            let n = &mut self.nodes[id];
+            n.depth = d;
+            draws |= n.drawn.is_some();
+            stack.extend(n.children.iter().map(|&c| (c, d + 1)));
+        }
+        if draws {
+            self.pending.order_changed = true;
+            self.forget_order();
+        }
+        self.mark_dirty(child);
+        Ok(())
+    }
+
+    /// Removes a node and its whole subtree, and the cameras on them (returned in
+    /// [`Removed::cameras`]) and the animation channels aimed at them. Their handles become
+    /// stale; every other handle stays valid.
+    pub fn remove_node(&mut self, id: NodeId) -> Result<Removed> {
+        let parent = self.try_node(id)?.parent;
+        match parent {
+            Some(p) => self.nodes[p].children.retain(|&c| c != id),
+            None => self.roots.retain(|&c| c != id),
+        }
+        let mut stack = vec![id];
+        let mut removed = 0;
+        let drawn_before = self.pending.removed.len();
+        while let Some(n) = stack.pop() {
+            if let Some(node) = self.nodes.remove(n) {
+                if node.drawn.is_some() {
+                    self.pending.removed.push(n);
+                }
+                stack.extend(node.children);
+                removed += 1;
+            }
+        }
+        if self.pending.removed.len() > drawn_before {
+            self.pending.order_changed = true;
+            self.forget_order();
+        }
+        self.pending.edited = true;
+        let (gone, kept) =
+            std::mem::take(&mut self.cameras).into_iter().partition(|c| !self.nodes.contains_key(c.node));
+        self.cameras = kept;
+        // Animation channels aimed into the removed subtree go with it.
+        self.drop_dead_animation_channels();
+        Ok(Removed { nodes: removed, cameras: gone })
+    }
+}

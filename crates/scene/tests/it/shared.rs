@@ -1,0 +1,244 @@
+//! Shared subgraphs: a subtree or a whole scene placed many times without copying meshes
+//! (instantiate, prefabs, load_into), and glTF files whose node graph is a DAG.
+
+use glam::{Affine3A, Quat, Vec3};
+use sightline_scene::*;
+
+use crate::support::{assert_mentions, asset, err_text, tiny_gltf, tmp_dir, world_triangles};
+
+fn close(a: Vec3, b: Vec3) -> bool {
+    (a - b).abs().max_element() < 1e-4
+}
+
+/// A robot: "body" (cube, red) with an "arm" group holding a "hand" (cube), a camera on the
+/// hand; and a separate "ground" root.
+fn robot() -> (Scene, NodeId, NodeId) {
+    let mut s = Scene::new();
+    let cube = s.add_mesh(shapes::cube("cube").unwrap());
+    let red = s.add_material(Material::color("red", [1.0, 0.0, 0.0]));
+    let body = s
+        .add_node(None, NodeDesc::new("body").mesh(cube).material(red).transform(Transform::from_translation(Vec3::Y)))
+        .unwrap();
+    let arm = s.add_node(Some(body), NodeDesc::new("arm").transform(Transform::from_translation(Vec3::X))).unwrap();
+    let hand = s.add_node(Some(arm), NodeDesc::new("hand").mesh(cube)).unwrap();
+    s.add_node(None, NodeDesc::new("ground").mesh(cube)).unwrap();
+    let projection = Projection::perspective(Angle::degrees(40.0), 1.0, 0.1, 10.0).unwrap();
+    s.cameras.push(SceneCamera { name: "hand cam".into(), node: hand, projection });
+    s.update_transforms();
+    (s, body, hand)
+}
+
+fn origin(s: &Scene, n: NodeId) -> Vec3 {
+    s.node(n).unwrap().world_matrix().translation.into()
+}
+
+#[test]
+fn instantiate_copies_nodes_and_shares_meshes() {
+    let (mut s, body, _) = robot();
+    let (meshes, materials, nodes) = (s.meshes().count(), s.materials().count(), s.node_count());
+    let at = Transform::from_translation(Vec3::new(0.0, 0.0, 5.0));
+    let copy = s.instantiate(body, None, at).unwrap();
+    assert_eq!((s.meshes().count(), s.materials().count()), (meshes, materials), "nothing heavy is copied");
+    assert_eq!(s.node_count(), nodes + 3);
+    assert!(s.needs_update());
+    s.update_transforms();
+    assert_eq!(s.changes().added.len(), 2, "body and hand copies");
+    let n = s.node(copy).unwrap();
+    assert_eq!(
+        (n.name(), n.mesh(), n.material()),
+        ("body", s.node(body).unwrap().mesh(), s.node(body).unwrap().material())
+    );
+    assert!(close(origin(&s, copy), Vec3::new(0.0, 0.0, 5.0)), "the copy takes the given transform");
+    let hand_copy = s.node(s.node(copy).unwrap().children()[0]).unwrap().children()[0];
+    assert!(close(origin(&s, hand_copy), Vec3::new(1.0, 0.0, 5.0)));
+    assert_eq!(s.instance(hand_copy).unwrap().material, s.node(body).unwrap().material(), "inherited in the copy");
+    // The camera on the hand came along, on the copy's hand.
+    assert_eq!(s.cameras.len(), 2);
+    assert_eq!(s.cameras[1].node, hand_copy);
+    // The copies are independent: moving one leaves the other.
+    s.set_local_transform(copy, Transform::IDENTITY).unwrap();
+    s.update_transforms();
+    assert!(close(origin(&s, body), Vec3::Y));
+}
+
+#[test]
+fn instantiate_under_its_own_subtree_copies_the_subtree_as_it_was() {
+    let (mut s, body, hand) = robot();
+    let before = s.node_count();
+    let copy = s.instantiate(body, Some(hand), Transform::from_translation(Vec3::Z)).unwrap();
+    assert_eq!(s.node_count(), before + 3);
+    assert_eq!(s.node(copy).unwrap().parent(), Some(hand));
+    s.update_transforms();
+    assert!(close(origin(&s, copy), Vec3::new(1.0, 1.0, 1.0)));
+}
+
+#[test]
+fn bad_instantiations_change_nothing() {
+    let (mut s, body, hand) = robot();
+    let before = (s.node_count(), s.revision(), s.cameras.len());
+    let gone = s.add_node(None, NodeDesc::new("gone")).unwrap();
+    s.remove_node(gone).unwrap();
+    s.update_transforms();
+    let before = (before.0, before.1 + 1, before.2);
+    assert!(matches!(s.instantiate(gone, None, Transform::IDENTITY), Err(Error::StaleNode(_))));
+    assert!(matches!(s.instantiate(body, Some(gone), Transform::IDENTITY), Err(Error::StaleNode(_))));
+    let e = s.instantiate(hand, None, Transform::from_translation(Vec3::NAN)).unwrap_err();
+    assert_mentions(&e.to_string(), &["copy of node 'hand'", "NaN"]);
+    assert_eq!((s.node_count(), s.revision(), s.cameras.len()), before);
+    assert!(!s.needs_update());
+}
+
+#[test]
+fn a_prefab_is_added_once_and_placed_many_times() {
+    let (model, _, _) = robot();
+    let mut s = Scene::new();
+    let crowd =
+        s.add_node(None, NodeDesc::new("crowd").transform(Transform::from_translation(Vec3::X * 100.0))).unwrap();
+    let prefab = s.add_prefab(&model).with_name("robot");
+    assert_eq!(prefab.node_count(), 4);
+    assert_eq!(s.meshes().count(), 1, "one cube, used by three nodes");
+    assert_eq!(s.materials().count(), 1);
+    let placed: Vec<NodeId> = (0..10)
+        .map(|i| {
+            let at =
+                Transform::from_translation(Vec3::Z * i as f32).with_rotation(Quat::from_rotation_y(0.1 * i as f32));
+            s.instantiate_prefab(&prefab, Some(crowd), at).unwrap()
+        })
+        .collect();
+    assert_eq!(s.meshes().count(), 1, "placing copies no mesh");
+    assert_eq!(s.node_count(), 1 + 10 * 5);
+    assert_eq!(s.cameras.len(), 10);
+    s.update_transforms();
+    assert_eq!(s.instances().len(), 30);
+    // Each placement's world triangles are the model's under the placement's transform.
+    let model_tris = world_triangles(&model);
+    let tris = world_triangles(&s);
+    for (k, &p) in placed.iter().enumerate() {
+        let m = s.node(p).unwrap().world_matrix();
+        assert_eq!(s.node(p).unwrap().name(), "robot");
+        for (t, want) in tris[k * model_tris.len()..].iter().zip(&model_tris) {
+            for c in 0..3 {
+                assert!(close(t[c], m.transform_point3(want[c])), "placement {k}");
+            }
+        }
+    }
+    // Moving the parent moves every placement's drawn nodes.
+    s.set_local_transform(crowd, Transform::IDENTITY).unwrap();
+    s.update_transforms();
+    assert_eq!(s.changes().moved.len(), 30);
+    // A prefab belongs to its scene: a clone is another scene.
+    let mut other = s.clone();
+    let e = other.instantiate_prefab(&prefab, None, Transform::IDENTITY).unwrap_err();
+    assert!(matches!(e, Error::ForeignPrefab { .. }));
+    assert_mentions(&e.to_string(), &["prefab 'robot'", "another scene", "add_prefab"]);
+}
+
+#[test]
+fn instantiate_from_places_a_whole_scene_once() {
+    let (mut model, _, _) = robot();
+    model.warnings.push("robot.gltf: a warning".into());
+    let mut s = Scene::new();
+    let root = s.instantiate_from(&model, None, Transform::from_scale(Vec3::splat(2.0))).unwrap();
+    assert_eq!(s.roots(), &[root]);
+    assert_eq!(s.node(root).unwrap().children().len(), 2, "body and ground");
+    s.update_transforms();
+    let want: Vec<[Vec3; 3]> = world_triangles(&model)
+        .iter()
+        .map(|t| t.map(|p| Affine3A::from_scale(Vec3::splat(2.0)).transform_point3(p)))
+        .collect();
+    let got = world_triangles(&s);
+    assert_eq!(got.len(), want.len());
+    assert!(got.iter().zip(&want).all(|(a, b)| (0..3).all(|c| close(a[c], b[c]))));
+    let (_, red) = s.materials().next().unwrap();
+    assert_eq!(red.name, "red");
+    assert_eq!(s.warnings, model.warnings, "the model's warnings came along");
+}
+
+#[test]
+fn load_into_places_a_file_under_a_parent() {
+    let mut s = Scene::new();
+    let parent =
+        s.add_node(None, NodeDesc::new("shelf").transform(Transform::from_translation(Vec3::Y * 3.0))).unwrap();
+    let opts = LoadOptions::default();
+    let node = load_into(&mut s, asset("nested.gltf"), Some(parent), &opts).unwrap();
+    assert_eq!(s.node(node).unwrap().name(), "nested.gltf");
+    assert_eq!(s.node(node).unwrap().parent(), Some(parent));
+    assert_eq!(s.cameras.len(), 1, "the file's camera came along");
+    s.update_transforms();
+    let file = load(asset("nested.gltf")).unwrap();
+    let want: Vec<[Vec3; 3]> = world_triangles(&file).iter().map(|t| t.map(|p| p + Vec3::Y * 3.0)).collect();
+    let got = world_triangles(&s);
+    assert!(!got.is_empty() && got.len() == want.len());
+    assert!(got.iter().zip(&want).all(|(a, b)| (0..3).all(|c| close(a[c], b[c]))));
+    // A prefab of the file places it again without adding meshes.
+    let meshes = s.meshes().count();
+    let prefab = load_prefab(&mut s, asset("nested.gltf"), &opts).unwrap();
+    let meshes_after_prefab = s.meshes().count();
+    assert_eq!(meshes_after_prefab, 2 * meshes, "one load adds the file's meshes once");
+    for i in 0..3 {
+        s.instantiate_prefab(&prefab, None, Transform::from_translation(Vec3::X * i as f32)).unwrap();
+    }
+    assert_eq!(s.meshes().count(), meshes_after_prefab);
+    // A stale parent is refused before the file is read; a missing file names itself.
+    s.remove_node(parent).unwrap();
+    let count = s.node_count();
+    assert!(matches!(load_into(&mut s, asset("nested.gltf"), Some(parent), &opts), Err(Error::StaleNode(_))));
+    let e = load_into(&mut s, asset("missing.gltf"), None, &opts).unwrap_err();
+    assert_mentions(&e.to_string(), &["missing.gltf"]);
+    assert_eq!(s.node_count(), count);
+}
+
+#[test]
+fn a_gltf_node_with_two_parents_loads_as_two_instances_of_one_mesh() {
+    let dir = tmp_dir("shared-node");
+    let path = tiny_gltf(&dir, "shared_node.gltf", &[0, 1, 2], |d| {
+        d["nodes"] = serde_json::json!([
+            {"name": "left", "children": [2]},
+            {"name": "right", "translation": [5, 0, 0], "children": [2]},
+            {"name": "wheel", "mesh": 0, "translation": [0, 1, 0], "camera": 0}
+        ]);
+        d["scenes"] = serde_json::json!([{"nodes": [0, 1]}]);
+        d["cameras"] =
+            serde_json::json!([{"type": "perspective", "perspective": {"yfov": 0.8, "znear": 0.1, "zfar": 50}}]);
+    });
+    let s = load(&path).unwrap();
+    assert_eq!(s.node_count(), 4);
+    assert_eq!(s.meshes().count(), 1, "one mesh, shared");
+    let inst = s.instances();
+    assert_eq!(inst.len(), 2);
+    assert_eq!(inst[0].mesh, inst[1].mesh);
+    assert_ne!(inst[0].node, inst[1].node);
+    assert!(close(inst[0].world_from_local.translation.into(), Vec3::Y));
+    assert!(close(inst[1].world_from_local.translation.into(), Vec3::new(5.0, 1.0, 0.0)));
+    assert!(inst.iter().all(|i| s.node(i.node).unwrap().name() == "wheel"));
+    assert_eq!(s.cameras.len(), 2, "one camera per copy of its node");
+    assert_ne!(s.cameras[0].node, s.cameras[1].node);
+}
+
+#[test]
+fn an_exponential_gltf_dag_stops_at_the_node_limit() {
+    let dir = tmp_dir("dag-bomb");
+    // Node k has node k+1 twice as its child: 2^40 paths reach the last node.
+    let layers = 40;
+    let path = tiny_gltf(&dir, "bomb.gltf", &[0, 1, 2], |d| {
+        let mut nodes: Vec<serde_json::Value> =
+            (0..layers).map(|k| serde_json::json!({"children": [k + 1, k + 1]})).collect();
+        nodes.push(serde_json::json!({"mesh": 0}));
+        d["nodes"] = serde_json::Value::Array(nodes);
+    });
+    let opts = LoadOptions::default().max_nodes(10_000);
+    let e = err_text(load_with(&path, &opts));
+    assert_mentions(&e, &["bomb.gltf", "more than 10000 nodes", "LoadOptions::max_nodes"]);
+    // Ten layers (2^11 - 1 nodes) fit in a limit of 4096.
+    let path = tiny_gltf(&dir, "small.gltf", &[0, 1, 2], |d| {
+        let mut nodes: Vec<serde_json::Value> =
+            (0..10).map(|k| serde_json::json!({"children": [k + 1, k + 1]})).collect();
+        nodes.push(serde_json::json!({"mesh": 0}));
+        d["nodes"] = serde_json::Value::Array(nodes);
+    });
+    let s = load_with(&path, &LoadOptions::default().max_nodes(4096)).unwrap();
+    assert_eq!(s.node_count(), 2047);
+    assert_eq!(s.instances().len(), 1024);
+    assert_eq!(s.meshes().count(), 1);
+    assert!(load_with(&path, &LoadOptions::default().max_nodes(2000)).is_err());
+}
