@@ -40,6 +40,11 @@ pub enum Error {
         "the scene has edits whose world transforms are not propagated yet: call Scene::update_transforms before rendering"
     )]
     NotPropagated,
+    /// A culler or ray caster handed a scene other than the one it was built for.
+    #[error(
+        "this culler or ray caster was built for another scene (a clone is another scene): build one for this scene"
+    )]
+    WrongScene,
     /// Writing an output file failed.
     #[error("{path}: {why}")]
     Output {

@@ -45,7 +45,7 @@ mod walk;
 use std::time::Instant;
 
 use serde::Serialize;
-use sightline_scene::{Aabb, Camera, Instance, Scene};
+use sightline_scene::{Aabb, Camera, Instance, Scene, SceneStamp};
 use sightline_spatial::{BoxProjector, ClusteredScene, LooseOctree, Visible};
 
 pub use crate::hzb::{DepthPyramid, Level, Rect, TilePyramid};
@@ -148,6 +148,8 @@ pub struct Culler {
 /// hold the renderer's [`Session`] and this at once).
 #[derive(Debug)]
 struct Clusters {
+    /// The scene and revision the state follows.
+    stamp: SceneStamp,
     instances: Vec<Instance>,
     /// Instance index by the node that draws it.
     node_instance: update::NodeInstance,
@@ -233,11 +235,18 @@ impl Culler {
     /// Brings the culling state up to date with `scene` after edits: moved instances are
     /// refitted, added or removed ones rebuild the world side (see the `update` module).
     /// `scene` must have been propagated ([`Scene::update_transforms`]).
+    ///
+    /// [`Culler::render`] calls it first, so a frame is never drawn from stale state. A
+    /// culler serves the scene it was built for: another scene (a clone is another scene
+    /// too) is an error; build a culler for it.
     pub fn sync(&mut self, scene: &Scene) -> Result<SyncOutcome> {
+        if scene.id() != self.c.stamp.scene {
+            return Err(Error::WrongScene);
+        }
         if scene.needs_update() {
             return Err(Error::NotPropagated);
         }
-        Ok(self.c.sync_by_comparison(scene))
+        Ok(self.c.sync(scene))
     }
 
     /// The instances the culler was built for.
@@ -274,6 +283,7 @@ impl Culler {
         opts: &RenderOptions,
     ) -> Result<(CullStats, FrameStats)> {
         opts.depth_format.check_resolves(&camera.projection)?;
+        self.sync(scene)?;
         let t0 = Instant::now();
         let mut cs = CullStats { clusters: self.c.clustered.item_count() as u64, ..Default::default() };
         let mut opts = *opts;

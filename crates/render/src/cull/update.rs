@@ -17,7 +17,7 @@
 
 use std::collections::HashMap;
 
-use sightline_scene::{NodeId, Scene};
+use sightline_scene::{NodeId, Scene, SceneDelta};
 use sightline_spatial::{ClusteredScene, LooseOctree, RefitOutcome};
 
 use super::{cone, ClusterDraw, Clusters, SceneMeshlets, OCTREE_DEPTH};
@@ -69,6 +69,7 @@ impl Clusters {
             .collect();
         let node_instance = instances.iter().enumerate().map(|(i, inst)| (inst.node, i as u32)).collect();
         Clusters {
+            stamp: scene.stamp(),
             instances,
             node_instance,
             clustered,
@@ -141,6 +142,8 @@ pub(super) type NodeInstance = HashMap<NodeId, u32>;
 pub enum SyncOutcome {
     /// Nothing had changed.
     Unchanged,
+    /// Only materials changed (shading reads them; nothing spatial moved).
+    Restyled,
     /// Instances moved: their boxes, cones and octree entries followed, and the cluster BVH
     /// was refitted or rebuilt.
     Moved {
@@ -155,33 +158,30 @@ pub enum SyncOutcome {
 }
 
 impl Clusters {
-    /// Follows `scene` by comparing its instances with ours: the same nodes drawing the same
-    /// meshes with the same materials in the same order means only transforms may differ
-    /// (moved instances); anything else rebuilds.
-    pub(super) fn sync_by_comparison(&mut self, scene: &Scene) -> SyncOutcome {
-        let now = scene.instances();
-        let same_drawing = now.len() == self.instances.len()
-            && now.iter().zip(&self.instances).all(|(a, b)| {
-                a.node == b.node
-                    && a.mesh == b.mesh
-                    && a.material == b.material
-                    && a.first_triangle == b.first_triangle
-                    && a.triangle_count == b.triangle_count
-            });
-        if !same_drawing {
-            let reuse = (std::mem::take(&mut self.clustered), std::mem::take(&mut self.meshlets));
-            *self = Clusters::build(scene, Some(reuse));
-            return SyncOutcome::Rebuilt;
-        }
-        let moved: Vec<NodeId> = now
-            .iter()
-            .zip(&self.instances)
-            .filter(|(a, b)| a.world_from_local != b.world_from_local || a.world_aabb != b.world_aabb)
-            .map(|(a, _)| a.node)
-            .collect();
-        match self.move_nodes(scene, &moved) {
-            Some(bvh) => SyncOutcome::Moved { instances: moved.len(), bvh },
-            None => SyncOutcome::Unchanged,
-        }
+    /// Follows `scene` from the revision last synced to: the change report when it covers
+    /// exactly that step and only moved (or restyled) instances; a rebuild otherwise.
+    pub(super) fn sync(&mut self, scene: &Scene) -> SyncOutcome {
+        let outcome = match scene.delta_since(self.stamp) {
+            SceneDelta::UpToDate => SyncOutcome::Unchanged,
+            SceneDelta::Apply(ch) if !ch.order_changed && ch.added.is_empty() && ch.removed.is_empty() => {
+                for id in &ch.restyled {
+                    if let (Some(&i), Some(now)) = (self.node_instance.get(id), scene.instance(*id)) {
+                        self.instances[i as usize].material = now.material;
+                    }
+                }
+                match self.move_nodes(scene, &ch.moved) {
+                    Some(bvh) => SyncOutcome::Moved { instances: ch.moved.len(), bvh },
+                    None if ch.restyled.is_empty() => SyncOutcome::Unchanged,
+                    None => SyncOutcome::Restyled,
+                }
+            }
+            _ => {
+                let reuse = (std::mem::take(&mut self.clustered), std::mem::take(&mut self.meshlets));
+                *self = Clusters::build(scene, Some(reuse));
+                SyncOutcome::Rebuilt
+            }
+        };
+        self.stamp = scene.stamp();
+        outcome
     }
 }
