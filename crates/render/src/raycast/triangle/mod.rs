@@ -40,8 +40,9 @@
 //!
 //! Packets: for a perspective packet the relative vertices `a`, `b`, `c` are the same for
 //! every lane and computed once per triangle ([`shared_setup`]); when all the lanes of a
-//! chunk share one axis permutation (the common case), the triangle is permuted once, and
-//! the lanes run the same straight-line arithmetic that LLVM vectorizes. Mixed chunks
+//! chunk share one axis permutation (the common case), the triangle is permuted once (once
+//! per packet when every chunk shares the same one), and the lanes run the same
+//! straight-line arithmetic that LLVM vectorizes. Mixed chunks
 //! permute per lane. Either way a lane computes the same values, bit for bit.
 //!
 //! Facing: `cull` selects what is kept: 0 keeps both sides, +1 keeps det < 0 (front faces),
@@ -50,17 +51,31 @@
 
 use glam::Vec3A;
 
-use super::packet::{Hits, Rays, CHUNK, NO_GID};
+use super::packet::{Hits, Rays, CHUNK, MIXED, NO_GID};
 use super::shear::AXES;
 use super::{mn, mx};
 
 /// A triangle's vertices relative to a ray origin: `[v0 − o, v1 − o, v2 − o]`.
 pub(crate) type Rel = [[f32; 3]; 3];
 
-/// Prepares `tri` for rays starting at `o`.
+/// A triangle prepared for the rays of a packet from one shared origin.
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct Shared {
+    /// The vertices relative to the origin.
+    rel: Rel,
+    /// The permutation `permuted` was made for ([`MIXED`]: none).
+    p: u8,
+    /// `rel` permuted by `p`, for the chunks whose lanes all use `p`.
+    permuted: Rel,
+}
+
+/// Prepares `tri` for rays starting at `o`, permuted once for permutation `p` (the one the
+/// packet's chunks are expected to share; [`MIXED`] for none).
 #[inline(always)]
-pub(crate) fn shared_setup(tri: &[Vec3A; 3], o: Vec3A) -> Rel {
-    tri.map(|v| (v - o).to_array())
+pub(crate) fn shared_setup(tri: &[Vec3A; 3], o: Vec3A, p: u8) -> Shared {
+    let rel = tri.map(|v| (v - o).to_array());
+    let permuted = AXES.get(p as usize).map_or(rel, |&k| permute(&rel, k));
+    Shared { rel, p, permuted }
 }
 
 /// `rel` with each vertex's axes in the order `[kx, ky, kz]`.
@@ -237,7 +252,11 @@ fn uniform(rays: &Rays, job: &Job) -> Option<[usize; 3]> {
 /// replace the lanes' records. Returns the lanes hit. With `ANY`, a hit closes the lane
 /// (t = −∞) instead.
 #[inline(always)]
-pub(crate) fn intersect_shared<const ANY: bool>(rel: &Rel, rays: &Rays, hits: &mut Hits, job: Job) -> u64 {
+pub(crate) fn intersect_shared<const ANY: bool>(s: &Shared, rays: &Rays, hits: &mut Hits, job: Job) -> u64 {
+    if rays.uniform[job.c] == s.p && s.p != MIXED {
+        return lanes::<ANY>(|_| s.permuted, rays, hits, job);
+    }
+    let rel = &s.rel;
     match uniform(rays, &job) {
         Some(k) => {
             let p = permute(rel, k);

@@ -25,7 +25,7 @@ fn both_kernels_agree_on_t_and_barycentrics() {
     let o = Vec3A::new(0.5, 0.25, 1.0);
     let d = Vec3A::new(0.0, 0.0, -1.0);
     let (mut r, mut h) = one_ray(o, d);
-    let s = shared_setup(&tri, o);
+    let s = shared_setup(&tri, o, r.uniform[0]);
     assert_eq!(intersect_shared::<false>(&s, &r, &mut h, job(7, 3)), 1);
     let (t, l1, l2) = (h.t[0][0], h.e1[0][0] / h.det[0][0], h.e2[0][0] / h.det[0][0]);
     assert!((t - 3.0).abs() < 1e-6 && (l1 - 0.25).abs() < 1e-6 && (l2 - 0.125).abs() < 1e-6);
@@ -53,7 +53,7 @@ fn shared_edges_are_watertight() {
     let t0 = [q[0], q[1], q[2]];
     let t1 = [q[0], q[2], q[3]];
     let o = Vec3A::new(0.01, 0.02, 0.5);
-    let (s0, s1) = (shared_setup(&t0, o), shared_setup(&t1, o));
+    let (s0, s1) = (shared_setup(&t0, o, MIXED), shared_setup(&t1, o, MIXED));
     let mut misses = 0;
     for k in 1..4000 {
         let a = k as f32 / 4000.0;
@@ -79,7 +79,7 @@ fn degenerate_triangles_and_rays_miss() {
         for tri in [flat, point] {
             let (r, mut h) = one_ray(o, d);
             assert_eq!(intersect_general::<false>(&tri, &r, &mut h, job(0, 0)), 0);
-            let s = shared_setup(&tri, o);
+            let s = shared_setup(&tri, o, r.uniform[0]);
             assert_eq!(intersect_shared::<false>(&s, &r, &mut h, job(0, 0)), 0);
         }
     }
@@ -125,7 +125,7 @@ type Kernel<'k> = &'k dyn Fn(&[Vec3A; 3], &Rays, &mut Hits, Job) -> u64;
 /// The shared-origin kernel (prepares the triangle for the packet's origin).
 fn shared_kernel(tri: &[Vec3A; 3], rays: &Rays, hits: &mut Hits, job: Job) -> u64 {
     let o = rays.shared.expect("a shared origin");
-    intersect_shared::<false>(&shared_setup(tri, o), rays, hits, job)
+    intersect_shared::<false>(&shared_setup(tri, o, rays.uniform[0]), rays, hits, job)
 }
 
 /// The per-lane-origin kernel.
@@ -277,7 +277,7 @@ fn a_zero_edge_function_is_decided_exactly() {
     for a in sides {
         let tri = [a, b, c];
         let (r, mut h) = one_ray(Vec3A::ZERO, Vec3A::NEG_Z);
-        let m = intersect_shared::<false>(&shared_setup(&tri, Vec3A::ZERO), &r, &mut h, job(0, 0));
+        let m = intersect_shared::<false>(&shared_setup(&tri, Vec3A::ZERO, MIXED), &r, &mut h, job(0, 0));
         let (r, mut h2) = one_ray(Vec3A::ZERO, Vec3A::NEG_Z);
         assert_eq!(m, intersect_general::<false>(&tri, &r, &mut h2, job(0, 0)));
         hit.push(m == 1);
@@ -347,9 +347,19 @@ fn run_kernels(cases: &[([Vec3A; 3], Rays)]) -> Vec<Record> {
                 for c in 0..CHUNKS {
                     let job = Job { c, bits: 0xFFFF ^ (1 << c), inst: 3, prim: 9, gid: 5, cull };
                     let m = match kernel {
-                        0 => intersect_shared::<false>(&shared_setup(tri, rays.shared.unwrap()), rays, &mut hits, job),
+                        0 => intersect_shared::<false>(
+                            &shared_setup(tri, rays.shared.unwrap(), rays.uniform[0]),
+                            rays,
+                            &mut hits,
+                            job,
+                        ),
                         1 => intersect_general::<false>(tri, rays, &mut hits, job),
-                        2 => intersect_shared::<true>(&shared_setup(tri, rays.shared.unwrap()), rays, &mut hits, job),
+                        2 => intersect_shared::<true>(
+                            &shared_setup(tri, rays.shared.unwrap(), MIXED),
+                            rays,
+                            &mut hits,
+                            job,
+                        ),
                         _ => intersect_general::<true>(tri, rays, &mut hits, job),
                     };
                     lanes |= m << (c * CHUNK);
@@ -402,8 +412,9 @@ fn kernels_are_bit_identical_on_every_simd_level() {
     }
 }
 
-/// A chunk whose lanes share one axis permutation takes the uniform path; the same lanes
-/// in a chunk with one odd lane take the per-lane path; both record the same bits.
+/// A chunk whose lanes share one axis permutation takes the uniform path (with the triangle
+/// permuted ahead for the packet or not); the same lanes in a chunk with one odd lane take
+/// the per-lane path; all record the same bits.
 #[test]
 fn uniform_and_mixed_chunks_agree() {
     let mut mixed_seen = 0;
@@ -421,13 +432,14 @@ fn uniform_and_mixed_chunks_agree() {
         mixed_seen += 1;
         for any in [false, true] {
             let mut out = Vec::new();
-            for r in [&rays, &odd] {
+            // Uniform, prepared for its permutation; uniform, not prepared; mixed.
+            for (r, p) in [(&rays, rays.uniform[0]), (&rays, MIXED), (&odd, rays.uniform[0])] {
                 let mut hits = Hits::new();
                 for i in 0..LANES {
                     hits.open(i, 0.0, f32::INFINITY);
                 }
                 let job = Job { c: 0, bits: 0x7FFF, inst: 1, prim: 2, gid: 3, cull: 0.0 };
-                let rel = shared_setup(&tri, r.shared.unwrap());
+                let rel = shared_setup(&tri, r.shared.unwrap(), p);
                 let m = match any {
                     false => {
                         intersect_shared::<false>(&rel, r, &mut hits, job)
@@ -439,6 +451,7 @@ fn uniform_and_mixed_chunks_agree() {
                 out.push((m, first(&hits.t), first(&hits.e1), first(&hits.e2), first(&hits.det)));
             }
             assert_eq!(out[0], out[1]);
+            assert_eq!(out[0], out[2]);
         }
     }
     assert!(mixed_seen > 50, "only {mixed_seen} cases made a mixed chunk");
