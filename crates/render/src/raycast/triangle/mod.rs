@@ -195,8 +195,9 @@ pub(crate) struct Job {
 /// vertices. Closer hits replace the lanes' records; returns the lanes hit.
 ///
 /// Three passes: the edge functions of every lane (straight-line code, vectorized) and an
-/// exit when no active lane's signs agree (most calls); the exact recomputation of lanes
-/// with a zero edge function (rare); then depth, facing and the record update.
+/// exit when no active lane's signs agree on a triangle facing the way `cull` keeps (most
+/// calls); the exact recomputation of lanes with a zero edge function (rare); then depth,
+/// facing and the record update.
 #[inline(always)]
 fn lanes<const ANY: bool>(fetch: impl Fn(usize) -> Rel, rays: &Rays, hits: &mut Hits, job: Job) -> u64 {
     let c = job.c;
@@ -209,10 +210,15 @@ fn lanes<const ANY: bool>(fetch: impl Fn(usize) -> Rel, rays: &Rays, hits: &mut 
             ek[j] = v;
         }
         let on = (job.bits >> j) & 1 != 0;
-        zero |= (ej[0] == 0.0) | (ej[1] == 0.0) | (ej[2] == 0.0);
+        let z = (ej[0] == 0.0) | (ej[1] == 0.0) | (ej[2] == 0.0);
+        zero |= z;
+        // The facing test of `inside`, final unless an edge function is zero (its exact
+        // value moves det).
+        let det = ej[0] + ej[1] + ej[2];
+        let facing = z | ((det != 0.0) & (det * job.cull <= 0.0));
         // Zeros pass here; the exact signs below can only turn a zero into a sign, so a
         // lane that fails now fails for good.
-        any |= same_signs(ej) & on;
+        any |= same_signs(ej) & facing & on;
     }
     if !any {
         return 0;
