@@ -11,7 +11,7 @@
 use glam::{DVec2, DVec3, Vec3A};
 use sightline_scene::Camera;
 
-use super::packet::{safe_recip, Beam, Hits, Rays, CHUNK, CHUNKS, TILE};
+use super::packet::{Beam, Hits, Rays, CHUNK, CHUNKS, TILE};
 
 /// Per-frame ray generator.
 #[derive(Debug, Clone)]
@@ -101,7 +101,7 @@ impl CameraRays {
         (o.as_vec3().into(), d.as_vec3().into())
     }
 
-    /// Fills the 8 × 8 packet whose top-left pixel is (x0, y0): rays, reciprocals and
+    /// Fills the 8 × 8 packet whose top-left pixel is (x0, y0): rays, reciprocals, shears and
     /// near–far intervals. Returns the mask of lanes inside the image with a valid
     /// interval; the other lanes get empty intervals.
     #[inline(always)]
@@ -136,11 +136,9 @@ impl CameraRays {
         let mut mask = 0u64;
         for c in 0..CHUNKS {
             let mut m = 0u64;
+            rays.derive_chunk(c);
             for j in 0..CHUNK {
                 let d = [rays.d[0][c][j], rays.d[1][c][j], rays.d[2][c][j]];
-                for (r, &da) in rays.r.iter_mut().zip(&d) {
-                    r[c][j] = safe_recip(da);
-                }
                 let dg = g.x * d[0] as f64 + g.y * d[1] as f64 + g.z * d[2] as f64;
                 let og = if self.perspective {
                     0.0

@@ -18,7 +18,8 @@
 //!
 //! What is visible matches the rasterizer: only the part of each ray between the near and
 //! far planes counts (by view depth), back faces are dropped when the rasterizer drops them,
-//! triangles are tested watertight (a ray never slips between two triangles of a mesh), and
+//! triangles are tested watertight (Woop, Benthin & Wald 2013: a ray through a shared edge
+//! or vertex of a mesh hits one of its triangles, never none), and
 //! of two surfaces at the same depth the one with the smaller ID wins, as under a LESS depth
 //! test with triangles drawn in ID order.
 //!
@@ -49,6 +50,7 @@ mod camera;
 mod isa;
 mod packet;
 mod render;
+mod shear;
 mod trace;
 mod traverse;
 mod triangle;

@@ -12,6 +12,8 @@
 
 use glam::{Affine3A, Vec3A, Vec4};
 
+use super::shear::shear_of;
+
 /// Lanes per chunk.
 pub(crate) const CHUNK: usize = 16;
 /// Chunks per packet.
@@ -44,6 +46,20 @@ pub(crate) fn safe_recip(d: f32) -> f32 {
     1.0 / m
 }
 
+/// `Rays::uniform` of a chunk whose lanes do not share one permutation.
+pub(crate) const MIXED: u8 = u8::MAX;
+
+/// The permutation every lane of `perm` has, or [`MIXED`].
+#[inline(always)]
+fn uniform_perm(perm: &[u8; CHUNK]) -> u8 {
+    let p = perm[0];
+    if perm.iter().fold(true, |all, &q| all & (q == p)) {
+        p
+    } else {
+        MIXED
+    }
+}
+
 /// Bit mask of the lanes of chunk `c` inside `mask`.
 #[inline(always)]
 pub(crate) fn chunk_bits(mask: u64, c: usize) -> u64 {
@@ -59,6 +75,12 @@ pub(crate) struct Rays {
     pub d: [Lf; 3],
     /// Safe reciprocals of the directions.
     pub r: [Lf; 3],
+    /// Shear constants `Sx`, `Sy`, `Sz` of the watertight triangle test ([`shear_of`]).
+    pub s: [Lf; 3],
+    /// Axis permutation of each lane (an index into [`super::shear::AXES`]).
+    pub perm: [[u8; CHUNK]; CHUNKS],
+    /// Per chunk, the permutation all its lanes share, or [`MIXED`].
+    pub uniform: [u8; CHUNKS],
     /// The common origin when every lane starts at the same point.
     pub shared: Option<Vec3A>,
 }
@@ -70,6 +92,9 @@ impl Rays {
             o: [[[0.0; CHUNK]; CHUNKS]; 3],
             d: [[[0.0; CHUNK]; CHUNKS]; 3],
             r: [[[0.0; CHUNK]; CHUNKS]; 3],
+            s: [[[f32::NAN; CHUNK]; CHUNKS]; 3],
+            perm: [[0; CHUNK]; CHUNKS],
+            uniform: [0; CHUNKS],
             shared: None,
         }
     }
@@ -81,8 +106,31 @@ impl Rays {
         for a in 0..3 {
             self.o[a][c][j] = o[a];
             self.d[a][c][j] = d[a];
-            self.r[a][c][j] = safe_recip(d[a]);
         }
+        self.derive_lane(c, j);
+        self.uniform[c] = uniform_perm(&self.perm[c]);
+    }
+
+    /// Computes lane (c, j)'s reciprocals and shear from its direction.
+    #[inline(always)]
+    fn derive_lane(&mut self, c: usize, j: usize) {
+        let d = [self.d[0][c][j], self.d[1][c][j], self.d[2][c][j]];
+        let (p, sh) = shear_of(d);
+        for a in 0..3 {
+            self.r[a][c][j] = safe_recip(d[a]);
+            self.s[a][c][j] = sh[a];
+        }
+        self.perm[c][j] = p as u8;
+    }
+
+    /// Computes the reciprocals, shears and permutations of chunk `c` from its directions
+    /// (after the directions of a whole chunk are written).
+    #[inline(always)]
+    pub fn derive_chunk(&mut self, c: usize) {
+        for j in 0..CHUNK {
+            self.derive_lane(c, j);
+        }
+        self.uniform[c] = uniform_perm(&self.perm[c]);
     }
 
     /// Origin of lane `i`.
@@ -100,7 +148,8 @@ impl Rays {
     }
 
     /// Writes into `out` the lanes of `mask`'s chunks mapped by `m` (a `local_from_world`
-    /// matrix): origins as points, directions as vectors, so t is unchanged.
+    /// matrix): origins as points, directions as vectors, so t is unchanged; reciprocals and
+    /// shears follow the mapped directions.
     #[inline(always)]
     pub fn transform_into(&self, m: &Affine3A, mask: u64, out: &mut Rays) {
         let a = m.matrix3.to_cols_array();
@@ -129,16 +178,11 @@ impl Rays {
             let (dx, dy, dz) = (&self.d[0][c], &self.d[1][c], &self.d[2][c]);
             for j in 0..CHUNK {
                 let (x, y, z) = (dx[j], dy[j], dz[j]);
-                let lx = a[0] * x + a[3] * y + a[6] * z;
-                let ly = a[1] * x + a[4] * y + a[7] * z;
-                let lz = a[2] * x + a[5] * y + a[8] * z;
-                out.d[0][c][j] = lx;
-                out.d[1][c][j] = ly;
-                out.d[2][c][j] = lz;
-                out.r[0][c][j] = safe_recip(lx);
-                out.r[1][c][j] = safe_recip(ly);
-                out.r[2][c][j] = safe_recip(lz);
+                out.d[0][c][j] = a[0] * x + a[3] * y + a[6] * z;
+                out.d[1][c][j] = a[1] * x + a[4] * y + a[7] * z;
+                out.d[2][c][j] = a[2] * x + a[5] * y + a[8] * z;
             }
+            out.derive_chunk(c);
         }
     }
 }

@@ -48,13 +48,15 @@ fn leaf<const ANY: bool>(
 ) -> u64 {
     let mut done = 0u64;
     let end = first.saturating_add(count).min(blas.tris().len() as u32);
+    // The axis permutation of the first active chunk: usually every chunk's.
+    let common = rays.uniform[(mask.trailing_zeros() as usize / CHUNK).min(CHUNKS - 1)];
     for k in first..end {
         let tri = &blas.tris()[k as usize];
         let gid = first_id.wrapping_add(blas.bvh().order()[k as usize]);
         let mut got = 0u64;
         match rays.shared {
             Some(o) => {
-                let s = shared_setup(tri, o);
+                let s = shared_setup(tri, o, common);
                 for c in 0..CHUNKS {
                     let bits = chunk_bits(mask, c);
                     if bits != 0 {

@@ -16,4 +16,5 @@ mod raycast_agreement;
 mod raycast_determinism;
 mod raycast_reference;
 mod raycast_robustness;
+mod raycast_watertight;
 mod support;
