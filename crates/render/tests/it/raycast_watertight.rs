@@ -7,7 +7,7 @@ use glam::{Affine3A, Quat, Vec3};
 use sightline_render::raycast::SimdLevel;
 use sightline_render::{Framebuffer, RayCaster, RaycastOptions};
 use sightline_scene::rng::Rng;
-use sightline_scene::{Camera, Mesh, NodeDesc, Scene};
+use sightline_scene::{Angle, Camera, LookAt, Mesh, NodeDesc, Scene};
 
 use crate::support::{assert_bit_identical, pixel_ndc};
 
@@ -71,16 +71,15 @@ fn roof_under_the_pixels(cam: &Camera) -> (Vec<Vec3>, Vec<u32>) {
 #[test]
 fn raycast_roof_under_the_pixel_rays_has_no_pinholes() {
     let eye = Vec3::new(173.3, 137.0, -91.7);
-    let cam = Camera::perspective_look_at(
+    let look = LookAt {
         eye,
-        eye + Vec3::new(-0.4, -0.5, 1.0),
-        Vec3::Y,
-        40.0,
-        W as f32 / H as f32,
-        1.0,
-        2000.0,
-    )
-    .unwrap();
+        target: eye + Vec3::new(-0.4, -0.5, 1.0),
+        up: Vec3::Y,
+        fovy: Angle::degrees(40.0),
+        near: 1.0,
+        far: 2000.0,
+    };
+    let cam = Camera::perspective(&look, W as f32 / H as f32).unwrap();
     let (p, idx) = roof_under_the_pixels(&cam);
     let placements = [
         Affine3A::IDENTITY,
