@@ -85,7 +85,7 @@ fn bench(c: &mut Criterion) {
             for (mode, opts) in [("ids", RaycastOptions::ids_only()), ("shaded", RaycastOptions::default())] {
                 let label = format!("{name}/{mode}/{threads}t");
                 pool.install(|| {
-                    let s = caster.render(camera, &opts, &mut fb).expect("render");
+                    let s = caster.render(scene, camera, &mut fb, &opts).expect("render");
                     eprintln!(
                         "{label}: {} hits of {} rays, {:.1} ms, {:.2} Mrays/s",
                         s.hits,
@@ -95,7 +95,7 @@ fn bench(c: &mut Criterion) {
                     );
                 });
                 group.bench_function(&label, |b| {
-                    pool.install(|| b.iter(|| caster.render(camera, &opts, &mut fb).expect("render").hits))
+                    pool.install(|| b.iter(|| caster.render(scene, camera, &mut fb, &opts).expect("render").hits))
                 });
             }
         }

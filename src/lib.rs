@@ -27,7 +27,7 @@ pub use sightline_spatial as spatial;
 /// The everyday types.
 pub mod prelude {
     pub use glam::{Affine3A, Mat4, Quat, Vec2, Vec3};
-    pub use sightline_render::Framebuffer;
+    pub use sightline_render::{Framebuffer, Method, RenderOptions, Visibility, World};
     pub use sightline_scene::builders::{boxfield, city, BoxfieldParams, CityParams};
     pub use sightline_scene::path::CameraKey;
     pub use sightline_scene::{

@@ -31,6 +31,7 @@ pub fn run(a: &BenchArgs) -> Result<()> {
         walk: a.walk.clone(),
         method: WalkMethod::All,
         verify: true,
+        animate: false,
         min_agreement: 99.5,
         size: a.size,
         backface_culling: super::common::OnOff::On,

@@ -29,7 +29,7 @@ pub fn render_classic_demo(width: u32, height: u32) -> Result<Framebuffer> {
     let camera = Camera::new(view, Projection::perspective(Angle::radians(0.75), aspect, 0.1, 100.0)?)?;
     let mut fb = Framebuffer::new(width, height)?;
     let opts = RaycastOptions { shadows: true, background: [40, 44, 52, 255], ..RaycastOptions::default() };
-    caster.render(&camera, &opts, &mut fb)?;
+    caster.render(&scene, &camera, &mut fb, &opts)?;
     Ok(fb)
 }
 

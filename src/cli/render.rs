@@ -115,7 +115,7 @@ pub fn run(a: &RenderArgs) -> Result<()> {
                 let caster = super::with_spinner("building BVHs", || RayCaster::build(&loaded.scene))?;
                 let mut ro = RaycastOptions::from_render(&opts);
                 ro.shadows = a.shadows;
-                let st = caster.render(&camera, &ro, &mut fb)?;
+                let st = caster.render(&loaded.scene, &camera, &mut fb, &ro)?;
                 println!("BVH build        {:>10.1} ms", caster.build_ms());
                 println!("primary rays     {:>10}", st.primary_rays);
                 println!("shadow rays      {:>10}", st.shadow_rays);

@@ -42,6 +42,10 @@ pub struct WalkArgs {
     /// Also render every frame with brute force and compare triangle IDs; a mismatch fails the run
     #[arg(long)]
     pub verify: bool,
+    /// Play the scene's animations along the walk: frame f shows time f / 30 s (always on
+    /// for `city+traffic:N`)
+    #[arg(long)]
+    pub animate: bool,
     /// With --verify: the least share of pixels (percent) on which ray casting must give the
     /// rasterizer's triangle ID on every frame; a frame below it fails the run
     #[arg(long, value_name = "PERCENT", default_value_t = 99.5, value_parser = percent_arg)]
@@ -122,10 +126,10 @@ fn methods(m: WalkMethod) -> Vec<(&'static str, Option<Method>)> {
 
 pub fn run(a: &WalkArgs) -> Result<()> {
     common::check_outputs(a.out.as_deref().as_slice(), a.json.as_deref().as_slice())?;
-    let loaded = super::load_scene(&a.walk.scene)?;
+    let mut loaded = super::load_scene(&a.walk.scene)?;
     let keys = common::path_keys(&loaded, a.walk.path.as_deref(), a.walk.frames)?;
     let opts = a.look.options(a.backface_culling);
-    let records = common::with_threads(a.threads, || walk(&loaded, &keys, a, &opts))??;
+    let records = common::with_threads(a.threads, || walk(&mut loaded, &keys, a, &opts))??;
     let summaries = summarize(&records, a);
     // With the summary on standard output, the table goes to standard error.
     if a.json.as_deref().is_some_and(common::is_stdout) {
@@ -176,15 +180,19 @@ fn percent_arg(s: &str) -> std::result::Result<f64, String> {
 }
 
 fn walk(
-    loaded: &sightline::LoadedScene,
+    loaded: &mut sightline::LoadedScene,
     keys: &[sightline::scene::path::CameraKey],
     a: &WalkArgs,
     opts: &RenderOptions,
 ) -> Result<Vec<FrameRecord>> {
-    let scene = &loaded.scene;
+    let animate = a.animate || matches!(a.walk.scene.scene, sightline::SceneSpec::CityTraffic(_));
+    if animate {
+        common::pose(&mut loaded.scene, 0.0)?;
+    }
+    let scene = &mut loaded.scene;
     let list = methods(a.method);
     let needs_raster = list.iter().any(|m| m.1.is_some()) || a.verify;
-    let (mut culler, caster) = super::with_spinner("building BVHs", || -> Result<_> {
+    let (mut culler, mut caster) = super::with_spinner("building BVHs", || -> Result<_> {
         let culler = needs_raster.then(|| {
             let mut c = Culler::new(scene);
             c.first_batch = a.first_batch.max(1);
@@ -203,6 +211,15 @@ fn walk(
     let mut rc_opts = RaycastOptions::from_render(opts);
     rc_opts.shadows = false;
     for (f, key) in keys.iter().enumerate() {
+        if animate {
+            // Frame f shows time f / 30 s; the culler follows in its render call, the ray
+            // caster here (a moved vehicle costs a TLAS rebuild, never a BLAS).
+            common::pose(scene, f as f32 / 30.0)?;
+            if let Some(c) = &mut caster {
+                c.sync(scene)?;
+            }
+        }
+        let scene = &*scene;
         let cam = key.camera(a.size.aspect()).with_context(|| format!("frame {f} of the path"))?;
         let mut have_reference = false;
         if a.verify {
@@ -215,7 +232,7 @@ fn walk(
             let (cs, rs) = match method {
                 Some(m) => culler.as_mut().unwrap().render(scene, &cam, *m, &mut fb, opts)?,
                 None => {
-                    let st = caster.as_ref().unwrap().render(&cam, &rc_opts, &mut fb)?;
+                    let st = caster.as_ref().unwrap().render(scene, &cam, &mut fb, &rc_opts)?;
                     let cs = CullStats { ms_total: st.ms_total, ..Default::default() };
                     (cs, FrameStats::default())
                 }

@@ -45,6 +45,9 @@ pub enum Error {
         "this culler or ray caster was built for another scene (a clone is another scene): build one for this scene"
     )]
     WrongScene,
+    /// A ray caster handed its scene after edits it has not followed yet.
+    #[error("the scene changed since the ray caster was built or synced: call RayCaster::sync first")]
+    NotSynced,
     /// Writing an output file failed.
     #[error("{path}: {why}")]
     Output {

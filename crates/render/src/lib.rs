@@ -33,9 +33,11 @@ mod stats;
 pub mod texture;
 mod tiling;
 pub mod wire;
+mod world;
 
 pub use error::{Error, Result};
 pub use framebuffer::{triangle_id, Framebuffer, MAX_SIZE};
+pub use world::{FrameReport, Visibility, World};
 
 pub use cull::{
     compare_ids, BoxVisibility, CullStats, Culler, Method, Mismatch, OccluderPass, OcclusionQueries, SyncOutcome,

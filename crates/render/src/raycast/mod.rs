@@ -39,7 +39,7 @@
 //! let look = LookAt { eye: Vec3::new(2.0, 1.5, 3.0), fovy: Angle::degrees(50.0), far: 100.0, ..LookAt::default() };
 //! let camera = Camera::perspective(&look, 1.0)?;
 //! let mut fb = Framebuffer::new(64, 64)?;
-//! let stats = caster.render(&camera, &RaycastOptions::default(), &mut fb)?;
+//! let stats = caster.render(&scene, &camera, &mut fb, &RaycastOptions::default())?;
 //! assert!(stats.hits > 0 && fb.ids.iter().all(|&id| id <= 12));
 //! let hit = caster.intersect(Vec3::new(0.0, 0.0, 5.0), Vec3::NEG_Z, 0.0, f32::INFINITY).unwrap();
 //! assert_eq!(hit.t, 4.5);
@@ -59,7 +59,7 @@ use std::time::Instant;
 
 use glam::{Vec2, Vec3};
 use rayon::prelude::*;
-use sightline_scene::{Camera, Instance, MeshId, Scene};
+use sightline_scene::{Camera, Instance, MeshId, Scene, SceneStamp};
 
 use crate::csg::CsgObject;
 use crate::shading::ShadeOptions;
@@ -113,7 +113,7 @@ impl RaycastOptions {
 }
 
 /// What a ray cast frame cost.
-#[derive(Debug, Clone, Copy, Default, PartialEq)]
+#[derive(Debug, Clone, Copy, Default, PartialEq, serde::Serialize)]
 pub struct RaycastStats {
     /// Primary rays cast (one per pixel).
     pub primary_rays: u64,
@@ -159,23 +159,56 @@ pub enum HitTarget {
 
 /// A scene prepared for ray casting: BLASes, instances and the TLAS, plus CSG solids.
 ///
-/// Holds the scene it was built from (for meshes and materials at shading time); rebuild
-/// after the scene changes.
+/// Built for one scene; the scene is handed to every frame (meshes and materials are read at
+/// shading time). After edits, [`RayCaster::sync`] follows them: the BLAS of every mesh still
+/// drawn is kept and only the instances and the TLAS over them are made anew, so moving
+/// objects costs a TLAS build, never a BLAS build. A frame of a scene the caster is not synced
+/// to is refused, never drawn stale.
 #[derive(Debug, Clone)]
-pub struct RayCaster<'s> {
-    scene: &'s Scene,
+pub struct RayCaster {
+    stamp: SceneStamp,
     instances: Vec<Instance>,
     blases: Vec<WideBlas>,
+    /// The mesh of each shared BLAS (the first `blas_meshes.len()` BLASes); the rest are
+    /// private BLASes of instances with singular transforms.
+    blas_meshes: Vec<MeshId>,
     tlas: WideTlas,
     csg: Vec<CsgObject>,
     triangle_count: u32,
     build_ms: f64,
 }
 
-impl<'s> RayCaster<'s> {
+impl RayCaster {
     /// Builds the acceleration structures for `scene` (world transforms must be up to
     /// date). BLASes are built in parallel over meshes.
-    pub fn build(scene: &'s Scene) -> Result<Self> {
+    pub fn build(scene: &Scene) -> Result<Self> {
+        if scene.needs_update() {
+            return Err(crate::Error::NotPropagated);
+        }
+        Ok(Self::build_reusing(scene, std::collections::HashMap::new()))
+    }
+
+    /// Follows `scene` after edits (see the type's docs); `Ok(false)` when it was up to date.
+    pub fn sync(&mut self, scene: &Scene) -> Result<bool> {
+        if scene.id() != self.stamp.scene {
+            return Err(crate::Error::WrongScene);
+        }
+        if scene.needs_update() {
+            return Err(crate::Error::NotPropagated);
+        }
+        if scene.stamp() == self.stamp {
+            return Ok(false);
+        }
+        let n = self.blas_meshes.len();
+        let known =
+            std::mem::take(&mut self.blas_meshes).into_iter().zip(std::mem::take(&mut self.blases).into_iter().take(n));
+        let csg = std::mem::take(&mut self.csg);
+        *self = Self::build_reusing(scene, known.collect());
+        self.csg = csg;
+        Ok(true)
+    }
+
+    fn build_reusing(scene: &Scene, mut known: std::collections::HashMap<MeshId, WideBlas>) -> Self {
         let t0 = Instant::now();
         let instances = scene.instances();
         let triangle_count =
@@ -202,8 +235,12 @@ impl<'s> RayCaster<'s> {
             });
             blas_of_instance.push(Some(b));
         }
-        let mut blases: Vec<WideBlas> =
-            mesh_ids.par_iter().map(|&m| scene.mesh(m).map_or_else(WideBlas::empty, WideBlas::from_mesh)).collect();
+        let reused: Vec<Option<WideBlas>> = mesh_ids.iter().map(|m| known.remove(m)).collect();
+        let mut blases: Vec<WideBlas> = mesh_ids
+            .par_iter()
+            .zip(reused)
+            .map(|(&m, done)| done.unwrap_or_else(|| scene.mesh(m).map_or_else(WideBlas::empty, WideBlas::from_mesh)))
+            .collect();
         let placed: Vec<WideBlas> = placed_jobs
             .par_iter()
             .map(|&i| {
@@ -227,15 +264,16 @@ impl<'s> RayCaster<'s> {
         }
         blases.extend(placed);
         let tlas = WideTlas::build(records, &blases);
-        Ok(Self {
-            scene,
+        Self {
+            stamp: scene.stamp(),
             instances,
             blases,
+            blas_meshes: mesh_ids,
             tlas,
             csg: Vec::new(),
             triangle_count,
             build_ms: t0.elapsed().as_secs_f64() * 1e3,
-        })
+        }
     }
 
     /// Adds CSG solids drawn with the meshes; object `k` gets ID `triangle_count() + 1 + k`.
@@ -279,14 +317,25 @@ impl<'s> RayCaster<'s> {
         self.build_ms
     }
 
-    /// The scene this caster was built from.
-    pub fn scene(&self) -> &'s Scene {
-        self.scene
-    }
-
-    /// Clears `fb` and ray casts the frame seen by `camera` into it.
-    pub fn render(&self, camera: &Camera, opts: &RaycastOptions, fb: &mut Framebuffer) -> Result<RaycastStats> {
-        render::render(self, camera, opts, fb)
+    /// Clears `fb` and ray casts the frame of `scene` seen by `camera` into it. `scene`
+    /// must be the one the caster was built for, as of its last [`RayCaster::sync`].
+    pub fn render(
+        &self,
+        scene: &Scene,
+        camera: &Camera,
+        fb: &mut Framebuffer,
+        opts: &RaycastOptions,
+    ) -> Result<RaycastStats> {
+        if scene.id() != self.stamp.scene {
+            return Err(crate::Error::WrongScene);
+        }
+        if scene.needs_update() {
+            return Err(crate::Error::NotPropagated);
+        }
+        if scene.stamp() != self.stamp {
+            return Err(crate::Error::NotSynced);
+        }
+        render::render(self, scene, camera, opts, fb)
     }
 
     /// The nearest surface (triangle of either facing, or CSG solid) on `origin + t·dir`

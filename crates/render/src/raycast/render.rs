@@ -15,7 +15,7 @@ use std::time::Instant;
 
 use glam::{DAffine3, DMat4, DVec3, DVec4, Vec3, Vec3A};
 use rayon::prelude::*;
-use sightline_scene::{Camera, Material};
+use sightline_scene::{Camera, Material, Scene};
 
 use super::camera::CameraRays;
 #[cfg(target_arch = "x86_64")]
@@ -32,8 +32,9 @@ use crate::{Framebuffer, Result};
 const CACHE: usize = 256;
 
 /// Per-frame constants.
-struct CastFrame<'a, 's> {
-    caster: &'a RayCaster<'s>,
+struct CastFrame<'a> {
+    caster: &'a RayCaster,
+    scene: &'a Scene,
     camera: &'a Camera,
     gen: CameraRays,
     opts: &'a RaycastOptions,
@@ -83,7 +84,8 @@ fn to_f64(m: &glam::Affine3A) -> DAffine3 {
 
 /// Renders a frame (see the module docs).
 pub(crate) fn render(
-    caster: &RayCaster<'_>,
+    caster: &RayCaster,
+    scene: &Scene,
     camera: &Camera,
     opts: &RaycastOptions,
     fb: &mut Framebuffer,
@@ -93,11 +95,11 @@ pub(crate) fn render(
     let (width, height) = (fb.width(), fb.height());
     fb.clear(opts.background);
     let default = Material::default();
-    let scene = caster.scene;
     let clip: DMat4 = camera.clip_from_world_f64();
     let world_f64: Vec<DAffine3> = caster.tlas.instances().iter().map(|r| to_f64(&r.world_from_blas)).collect();
     let frame = CastFrame {
         caster,
+        scene,
         camera,
         gen: CameraRays::new(camera, width, height),
         opts,
@@ -177,7 +179,7 @@ macro_rules! isa_packet {
     ($name:ident, $isa:ty, $features:literal) => {
         #[cfg(target_arch = "x86_64")]
         #[target_feature(enable = $features)]
-        fn $name<'a>(f: &CastFrame<'a, '_>, band: &mut Band<'a>, x0: u32, y0: u32, out: &mut Out<'_>) {
+        fn $name<'a>(f: &CastFrame<'a>, band: &mut Band<'a>, x0: u32, y0: u32, out: &mut Out<'_>) {
             f.packet_impl::<$isa>(band, x0, y0, out)
         }
     };
@@ -186,7 +188,7 @@ macro_rules! isa_packet {
 isa_packet!(packet_avx512, Avx512, "avx512f,avx512bw,avx512dq,avx512vl,avx2,bmi1,bmi2,lzcnt,popcnt");
 isa_packet!(packet_avx2, Avx2, "avx2,bmi1,bmi2,lzcnt,popcnt");
 
-impl<'a> CastFrame<'a, '_> {
+impl<'a> CastFrame<'a> {
     /// Casts, resolves and writes the packet at (x0, y0) on the resolved SIMD level.
     fn packet(&self, band: &mut Band<'a>, x0: u32, y0: u32, out: &mut Out<'_>) {
         match self.simd {
@@ -413,7 +415,7 @@ impl<'a> CastFrame<'a, '_> {
             let caster = self.caster;
             let r = caster.tlas.instances().get(rec)?;
             let inst = caster.instances.get(r.scene_index as usize)?;
-            let mesh = caster.scene.mesh(inst.mesh)?;
+            let mesh = self.scene.mesh(inst.mesh)?;
             let ish = self.shading.get(r.scene_index as usize)?;
             let tri = id.checked_sub(1 + inst.first_triangle)? as usize;
             let opts = if shadowed { &self.dark } else { &self.opts.shading };

@@ -169,7 +169,7 @@ fn csg_solids_render_with_meshes_with_ids_above_the_triangles() {
     )
     .unwrap();
     let mut fb = Framebuffer::new(96, 64).unwrap();
-    caster.render(&cam, &RaycastOptions { shadows: true, ..RaycastOptions::default() }, &mut fb).unwrap();
+    caster.render(&scene, &cam, &mut fb, &RaycastOptions { shadows: true, ..RaycastOptions::default() }).unwrap();
     let csg_px = fb.ids.iter().filter(|&&i| i == 25).count();
     let tri_px = fb.ids.iter().filter(|&&i| (1..=24).contains(&i)).count();
     assert!(csg_px > 200 && tri_px > 200, "{csg_px} CSG and {tri_px} triangle pixels");

@@ -31,7 +31,7 @@ fn compare(scene: &Scene, camera: &Camera, opts: &RenderOptions) -> Agreement {
     render_scene(scene, camera, &mut a, opts).unwrap();
     let caster = RayCaster::build(scene).unwrap();
     let mut b = Framebuffer::new(W, H).unwrap();
-    caster.render(camera, &RaycastOptions::from_render(opts), &mut b).unwrap();
+    caster.render(scene, camera, &mut b, &RaycastOptions::from_render(opts)).unwrap();
     let (mut same, mut both, mut close, mut color_close) = (0usize, 0usize, 0usize, 0usize);
     let mut depth_max = 0f32;
     for i in 0..a.len() {

@@ -9,10 +9,16 @@ use sightline_scene::builders::{city, CityParams};
 
 use crate::support::assert_bit_identical;
 
-fn frame(caster: &RayCaster, cam: &sightline_scene::Camera, opts: &RaycastOptions, threads: usize) -> Framebuffer {
+fn frame(
+    caster: &RayCaster,
+    scene: &sightline_scene::Scene,
+    cam: &sightline_scene::Camera,
+    opts: &RaycastOptions,
+    threads: usize,
+) -> Framebuffer {
     let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap();
     let mut fb = Framebuffer::new(203, 117).unwrap();
-    pool.install(|| caster.render(cam, opts, &mut fb)).unwrap();
+    pool.install(|| caster.render(scene, cam, &mut fb, opts)).unwrap();
     fb
 }
 
@@ -33,11 +39,11 @@ fn raycast_is_deterministic_across_threads_and_simd_levels() {
         [c.layout.street_path(20, 1)[5].camera(aspect).unwrap(), c.layout.aerial_path(8)[3].camera(aspect).unwrap()];
     for cam in &cams {
         let opts = RaycastOptions { shadows: true, ..RaycastOptions::default() };
-        let reference = frame(&caster, cam, &RaycastOptions { simd: SimdLevel::Portable, ..opts }, 1);
+        let reference = frame(&caster, &c.scene, cam, &RaycastOptions { simd: SimdLevel::Portable, ..opts }, 1);
         assert!(reference.ids.iter().any(|&i| i != 0));
         for simd in [SimdLevel::Portable, SimdLevel::Avx2, SimdLevel::Avx512, SimdLevel::Auto] {
             for threads in [1, 2, 3] {
-                let f = frame(&caster, cam, &RaycastOptions { simd, ..opts }, threads);
+                let f = frame(&caster, &c.scene, cam, &RaycastOptions { simd, ..opts }, threads);
                 assert_bit_identical(&reference, &f, &format!("{simd:?} with {threads} threads"));
             }
         }

@@ -74,7 +74,7 @@ fn check(name: &str, scene: &Scene, cam: &Camera, cull: bool) {
     let caster = RayCaster::build(scene).unwrap();
     let mut fb = Framebuffer::new(W, H).unwrap();
     let opts = RaycastOptions { backface_culling: cull, ..RaycastOptions::ids_only() };
-    caster.render(cam, &opts, &mut fb).unwrap();
+    caster.render(scene, cam, &mut fb, &opts).unwrap();
     let (ids, depth) = reference(scene, cam, cull);
     let same = ids.iter().zip(&fb.ids).filter(|(a, b)| a == b).count();
     let mut worst = 0f64;

@@ -82,7 +82,9 @@ fn raycast_degenerate_triangles_are_never_hit() {
     )
     .unwrap();
     let mut fb = Framebuffer::new(32, 32).unwrap();
-    caster.render(&cam, &RaycastOptions { backface_culling: false, ..RaycastOptions::default() }, &mut fb).unwrap();
+    caster
+        .render(&scene, &cam, &mut fb, &RaycastOptions { backface_culling: false, ..RaycastOptions::default() })
+        .unwrap();
     assert!(fb.ids.iter().all(|&i| i == 0));
 }
 
@@ -107,10 +109,10 @@ fn raycast_odd_scenes_and_frames_do_not_panic() {
     ];
     for (w, h) in [(1, 1), (1, 17), (9, 1), (13, 11)] {
         for cam in &cams {
-            for c in [&caster, &nothing] {
+            for (c, scene) in [(&caster, &scene), (&nothing, &empty)] {
                 let mut fb = Framebuffer::new(w, h).unwrap();
                 let opts = RaycastOptions { shadows: true, ..RaycastOptions::default() };
-                let s = c.render(cam, &opts, &mut fb).unwrap();
+                let s = c.render(scene, cam, &mut fb, &opts).unwrap();
                 assert_eq!(s.primary_rays, (w * h) as u64);
                 assert!(fb.depth.iter().all(|d| (0.0..=1.0).contains(d)));
             }
@@ -130,7 +132,7 @@ fn raycast_odd_scenes_and_frames_do_not_panic() {
     )
     .unwrap();
     let mut fb = Framebuffer::new(16, 16).unwrap();
-    caster.render(&top, &RaycastOptions::default(), &mut fb).unwrap();
+    caster.render(&scene, &top, &mut fb, &RaycastOptions::default()).unwrap();
     assert!(fb.ids.iter().any(|&i| i != 0));
 }
 

@@ -95,7 +95,9 @@ fn raycast_roof_under_the_pixel_rays_has_no_pinholes() {
             let mut frames = Vec::new();
             for simd in SimdLevel::all_available() {
                 let mut fb = Framebuffer::new(W, H).unwrap();
-                caster.render(&cam, &RaycastOptions { shadows, simd, ..RaycastOptions::default() }, &mut fb).unwrap();
+                caster
+                    .render(&scene, &cam, &mut fb, &RaycastOptions { shadows, simd, ..RaycastOptions::default() })
+                    .unwrap();
                 let holes = fb.ids.iter().filter(|&&id| id == 0).count();
                 assert_eq!(holes, 0, "placement {k}, shadows {shadows}, {simd:?}: {holes} pinholes");
                 frames.push(fb);

@@ -1,0 +1,162 @@
+//! The one object a program holds: a scene, the structures that decide what is visible in
+//! it, and the state carried from frame to frame.
+//!
+//! A program is: build or load a scene, change it, and [`World::render`] each frame with a
+//! chosen visibility method. Edits go through [`World::scene_mut`] (or [`World::animate`]);
+//! the next frame propagates them and brings the culler and the ray caster up to date (moved
+//! instances are refitted, added or removed ones rebuild what they must), so a frame is never
+//! drawn from a stale scene and nothing has to be rebuilt by hand. Each structure is built on
+//! first use: a program that only rasterizes never builds the ray caster's BVHs.
+//!
+//! ```
+//! use glam::Vec3;
+//! use sightline_render::{Framebuffer, Method, RenderOptions, Visibility, World};
+//! use sightline_scene::{shapes, Angle, Camera, LookAt, NodeDesc, Scene, Transform};
+//!
+//! let mut scene = Scene::new();
+//! let cube = scene.add_mesh(shapes::cube("cube")?);
+//! let node = scene.add_node(None, NodeDesc::new("cube").mesh(cube))?;
+//! let mut world = World::new(scene);
+//! let look = LookAt { eye: Vec3::new(2.0, 1.5, 3.0), fovy: Angle::degrees(50.0), far: 100.0, ..LookAt::default() };
+//! let camera = Camera::perspective(&look, 1.0)?;
+//! let mut fb = Framebuffer::new(64, 64)?;
+//! world.render(&camera, Method::Hzb, &mut fb, &RenderOptions::default())?;
+//! // Move the cube: the next frame sees it moved, whatever the method.
+//! world.scene_mut().set_local_transform(node, Transform::from_translation(Vec3::X))?;
+//! let report = world.render(&camera, Visibility::RayCast, &mut fb, &RenderOptions::default())?;
+//! assert!(report.ms_total >= 0.0 && fb.ids.iter().any(|&id| id != 0));
+//! # Ok::<(), Box<dyn std::error::Error>>(())
+//! ```
+
+use std::path::Path;
+
+use serde::Serialize;
+use sightline_scene::{Camera, Scene};
+
+use crate::{CullStats, Culler, FrameStats, Framebuffer, Method, RayCaster, RaycastOptions, RaycastStats};
+use crate::{RenderOptions, Result};
+
+/// How a frame decides visibility: a rasterizing culling method, or ray casting.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+pub enum Visibility {
+    /// Rasterization with a culling method (brute force included).
+    Cull(Method),
+    /// One primary ray per pixel through the two-level BVH.
+    RayCast,
+}
+
+impl From<Method> for Visibility {
+    fn from(m: Method) -> Self {
+        Visibility::Cull(m)
+    }
+}
+
+impl Visibility {
+    /// Every method: the culling methods, then ray casting.
+    pub fn all() -> Vec<Visibility> {
+        Method::ALL.iter().map(|&m| Visibility::Cull(m)).chain([Visibility::RayCast]).collect()
+    }
+
+    /// The name used on the command line.
+    pub fn name(self) -> &'static str {
+        match self {
+            Visibility::Cull(m) => m.name(),
+            Visibility::RayCast => "raycast",
+        }
+    }
+}
+
+/// What one frame did.
+#[derive(Debug, Clone, Default, Serialize)]
+pub struct FrameReport {
+    /// Wall time of the frame, milliseconds, bringing the structures up to date included.
+    pub ms_total: f64,
+    /// Culling counters (rasterizing methods).
+    pub cull: Option<CullStats>,
+    /// Rasterizer counters (rasterizing methods).
+    pub raster: Option<FrameStats>,
+    /// Ray counts (ray casting).
+    pub rays: Option<RaycastStats>,
+}
+
+/// A scene with its culler and ray caster (see the module docs).
+#[derive(Debug)]
+pub struct World {
+    scene: Scene,
+    culler: Option<Culler>,
+    caster: Option<RayCaster>,
+}
+
+impl World {
+    /// A world around `scene` (edits still pending are propagated by the first frame).
+    pub fn new(scene: Scene) -> World {
+        World { scene, culler: None, caster: None }
+    }
+
+    /// Loads a glTF, GLB or OBJ file (see `sightline_scene::load`).
+    pub fn load(path: impl AsRef<Path>) -> Result<World> {
+        Ok(World::new(sightline_scene::load(path)?))
+    }
+
+    /// The scene.
+    pub fn scene(&self) -> &Scene {
+        &self.scene
+    }
+
+    /// The scene, to edit: move, add, remove, reparent, instantiate. The next frame follows.
+    pub fn scene_mut(&mut self) -> &mut Scene {
+        &mut self.scene
+    }
+
+    /// Gives the scene back.
+    pub fn into_scene(self) -> Scene {
+        self.scene
+    }
+
+    /// Poses the scene's animations at time `t` (seconds); the next frame shows the pose.
+    pub fn animate(&mut self, t: f32) -> Result<usize> {
+        Ok(self.scene.animate(t)?)
+    }
+
+    /// The culler, built for the scene as it is now on first use.
+    pub fn culler(&mut self) -> &mut Culler {
+        self.scene.update_transforms();
+        let scene = &self.scene;
+        self.culler.get_or_insert_with(|| Culler::new(scene))
+    }
+
+    /// Renders the scene seen by `camera` with `method` into `fb` (every plane written);
+    /// pending edits are propagated and the structures brought up to date first.
+    pub fn render(
+        &mut self,
+        camera: &Camera,
+        method: impl Into<Visibility>,
+        fb: &mut Framebuffer,
+        opts: &RenderOptions,
+    ) -> Result<FrameReport> {
+        let t0 = std::time::Instant::now();
+        self.scene.update_transforms();
+        let mut report = FrameReport::default();
+        match method.into() {
+            Visibility::Cull(m) => {
+                let scene = &self.scene;
+                let culler = self.culler.get_or_insert_with(|| Culler::new(scene));
+                let (cs, fs) = culler.render(scene, camera, m, fb, opts)?;
+                report.cull = Some(cs);
+                report.raster = Some(fs);
+            }
+            Visibility::RayCast => {
+                let caster = match &mut self.caster {
+                    Some(c) => {
+                        c.sync(&self.scene)?;
+                        c
+                    }
+                    slot => slot.insert(RayCaster::build(&self.scene)?),
+                };
+                report.rays = Some(caster.render(&self.scene, camera, fb, &RaycastOptions::from_render(opts))?);
+            }
+        }
+        report.ms_total = t0.elapsed().as_secs_f64() * 1e3;
+        Ok(report)
+    }
+}
