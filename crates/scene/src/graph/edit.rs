@@ -66,8 +66,20 @@ impl Scene {
 
     /// Sets a node's local transform from translation, rotation and scale.
     pub fn set_local_transform(&mut self, id: NodeId, t: Transform) -> Result<()> {
-        let m = t.to_affine(&format!("node '{}'", self.try_node(id)?.name))?;
+        self.try_node(id)?;
+        // The message names the node only when there is one to write: no allocation per edit.
+        let m = t.to_affine("").map_err(|e| self.name_in(id, e))?;
         self.set_local_matrix(id, m)
+    }
+
+    /// `e` with the node's name as the object it is about.
+    fn name_in(&self, id: NodeId, e: Error) -> Error {
+        match (e, self.nodes.get(id)) {
+            (Error::InvalidTransform { why, .. }, Some(n)) => {
+                Error::InvalidTransform { what: format!("node '{}'", n.name), why }
+            }
+            (e, _) => e,
+        }
     }
 
     /// Renames a node.
@@ -78,8 +90,8 @@ impl Scene {
 
     /// Sets a node's local transform from a matrix (errors on NaN/inf).
     pub fn set_local_matrix(&mut self, id: NodeId, m: Affine3A) -> Result<()> {
-        let name = &self.try_node(id)?.name;
-        crate::transform::validate_affine(&m, &format!("node '{name}'"))?;
+        self.try_node(id)?;
+        crate::transform::validate_affine(&m, "").map_err(|e| self.name_in(id, e))?;
         self.node_mut(id)?.parent_from_local = m;
         self.mark_dirty(id);
         Ok(())

@@ -53,18 +53,24 @@ impl Scene {
         let mut marked = std::mem::take(&mut self.dirty);
         // Collect: drop removed nodes, reading each node's depth once (a sort that looked
         // nodes up in its comparisons would cost O(n log n) cache misses); order: ancestors
-        // first, so each subtree is walked once. The sort is stable, so nodes of one depth are
-        // handled (and reported) in the order they were marked.
-        let mut dirty: Vec<(u32, NodeId)> =
-            marked.iter().filter_map(|&id| self.nodes.get(id).filter(|n| n.dirty).map(|n| (n.depth, id))).collect();
-        dirty.sort_by_key(|&(depth, _)| depth);
+        // first, so each subtree is walked once, and nodes of one depth in the order they were
+        // marked (so reports are in that order).
+        let mut dirty = std::mem::take(&mut self.scratch);
+        dirty.clear();
+        dirty.extend(
+            marked
+                .iter()
+                .enumerate()
+                .filter_map(|(seq, &id)| self.nodes.get(id).filter(|n| n.dirty).map(|n| (n.depth, seq as u32, id))),
+        );
+        dirty.sort_unstable_by_key(|&(depth, seq, _)| (depth, seq));
         let mut walk = Walk { nodes: &mut self.nodes, meshes: &self.meshes, changes: &mut changes };
         let mut visited = 0;
         // The walk's stack holds one entry per level (a node, what it passes down and the
         // next child to visit), not one per pending node: a parent of 10^6 children costs
         // no 10^6-entry stack.
         let mut stack: Vec<(NodeId, Frame, usize)> = Vec::new();
-        for &(_, id) in &dirty {
+        for &(_, _, id) in &dirty {
             let node = &walk.nodes[id];
             if !node.dirty {
                 continue; // handled with a dirty ancestor
@@ -104,7 +110,8 @@ impl Scene {
             }
         }
         marked.clear();
-        self.dirty = marked; // keep the allocation for the next edits
+        self.dirty = marked; // keep the allocations for the next update
+        self.scratch = dirty;
         if changes.order_changed {
             self.forget_order();
         }
@@ -117,7 +124,7 @@ impl Scene {
 impl Walk<'_> {
     /// Recomputes one node from what its parent passes down, records the change a consumer
     /// must hear about, and returns what the node passes down and its number of children.
-    #[inline]
+    #[inline(always)]
     fn visit(&mut self, id: NodeId, parent: &Frame) -> (Frame, usize) {
         let node = &mut self.nodes[id];
         let world = parent.world * node.parent_from_local;
