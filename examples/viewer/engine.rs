@@ -13,7 +13,7 @@
 
 use std::time::Instant;
 
-use anyhow::{bail, Context, Result};
+use anyhow::{bail, Result};
 use glam::{DVec2, Vec3, Vec4};
 use sightline::render::hzb::DepthPyramid;
 use sightline::render::{self, BoxVisibility, Culler, DrawItem, RayCaster, RaycastOptions, RenderOptions};
@@ -144,12 +144,17 @@ impl Engine {
     /// own that it may read from.
     pub fn load(spec: &SceneSpec, allowed_roots: &[std::path::PathBuf]) -> Result<Engine> {
         let options = sightline::scene::LoadOptions { allowed_roots: allowed_roots.to_vec(), ..Default::default() };
-        let loaded = spec.load_with(&options).with_context(|| format!("loading the scene {}", describe(spec)))?;
+        // The loader's errors name the file.
+        let loaded = spec.load_with(&options)?;
         let bounds = loaded.scene.world_aabb();
+        if bounds.is_empty() {
+            bail!("the scene {} has no triangles to draw", describe(spec));
+        }
         // NaN lengths fail the `<` too.
         let placeable = bounds.extent().length() < 1e30;
         if !bounds.is_finite() || !placeable {
-            bail!("the scene {} has nothing to draw (bounds {bounds:?})", describe(spec));
+            let (lo, hi) = (bounds.min, bounds.max);
+            bail!("the scene {} is too large to place a camera in (bounds {lo} to {hi})", describe(spec));
         }
         // Kept for the whole run: the ray caster (built on first use) borrows the scene.
         let loaded: &'static LoadedScene = Box::leak(Box::new(loaded));
@@ -426,7 +431,8 @@ fn orbit_pose(b: &Aabb, aspect: f32, turn: f32) -> Pose {
 /// The scene as a user named it.
 pub fn describe(spec: &SceneSpec) -> String {
     match spec {
-        SceneSpec::City(n) => format!("city ({n} triangles)"),
+        SceneSpec::City(n) if *n == sightline::DEFAULT_CITY_TRIANGLES => "city".into(),
+        SceneSpec::City(n) => format!("city:{n}"),
         SceneSpec::Boxfield => "boxfield".into(),
         SceneSpec::File(p) => p.display().to_string(),
     }
