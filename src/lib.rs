@@ -11,7 +11,7 @@
 //!
 //! `use sightline::prelude::*;` brings the everyday types into scope. [`SceneSpec`] parses
 //! the `--scene` argument of the command-line program (`city`, `city:TRIS`, `city+traffic:N`,
-//! `boxfield` or a file).
+//! `boxfield` or a file). [`hud`] burns a few lines of text (a frame's readout) into an image.
 
 #![forbid(unsafe_code)]
 #![warn(missing_docs)]
@@ -19,6 +19,7 @@
 use std::path::PathBuf;
 
 pub mod boxfield;
+pub mod hud;
 
 pub use sightline_render as render;
 pub use sightline_scene as scene;

@@ -4,7 +4,9 @@
 //! * `cli`: the built program's usage errors;
 //! * `culling`: every culling method draws exactly the brute-force triangle IDs;
 //! * `culling_proptest`: conservative frustum culling, property-tested against the rasterizer;
-//! * `occlusion`: occlusion queries against the z-pyramid, and the pyramid's exactness.
+//! * `occlusion`: occlusion queries against the z-pyramid, and the pyramid's exactness;
+//! * `viewer`: the interactive viewer in a real (virtual) window draws what `render` draws;
+//! * `walkthrough`: the headless walkthrough writes its frames, GIF and CSV.
 //!
 //! proptest keeps the regression seeds of a module `m` of this binary in
 //! `tests/proptest-regressions/m.txt` (commit them).
@@ -17,3 +19,5 @@ mod culling_proptest;
 mod moving;
 mod occlusion;
 mod support;
+mod viewer;
+mod walkthrough;

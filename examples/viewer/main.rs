@@ -1,0 +1,133 @@
+//! An interactive window onto any scene: fly or walk through it, switch the visibility
+//! method and the picture live, and read what each frame cost.
+//!
+//! The window is winit's, its pixels go through softbuffer (no GPU anywhere): each frame is
+//! rendered by the engine into its framebuffer, then written once into the window's buffer —
+//! converted from RGBA to the window's 0RGB words, or mapped from depth, IDs, depth-test
+//! counts or a z-pyramid level, in the same pass — with the readout drawn over it
+//! (`sightline::hud`). The modules: `engine` (every call into sightline), `fly` (the camera
+//! controller), `views` (the pictures), `app` (the window and its events).
+//!
+//! `--screenshot FILE --after-frames N` draws N frames, reads the window's pixels back from
+//! the X server and saves them as PNG, then exits: what a test compares with
+//! `sightline render` of the same camera.
+
+#![forbid(unsafe_code)]
+
+mod app;
+mod engine;
+mod fly;
+mod views;
+
+use std::path::PathBuf;
+
+use clap::Parser;
+use glam::Vec3;
+use sightline::SceneSpec;
+
+use engine::Method;
+use views::View;
+
+/// The keys, for `--help` and the README.
+pub const KEYS: &str = "\
+Keys:
+  W A S D          move forward / left / back / right
+  Q E              down / up (fly mode)
+  mouse drag       look around (left or right button held)
+  arrow keys       look around
+  C                capture the mouse for looking (C or Esc releases it)
+  Shift / Ctrl     move 5x faster / 5x slower; mouse wheel: change the speed
+  G                walk mode on/off (eye height above the ground, moves stay level)
+  1 2 3 4 5        method: brute, frustum, hzb, octree-hzb, raycast
+  V / Shift+V      next / previous view: color, depth, ids, complexity, culling, hzb
+  + / -            z-pyramid level shown in the hzb view
+  K                culling view: freeze the classifying camera (fly out to see its frustum)
+  L                wireframe: edges of the triangles the frame shows, over the color view
+  H                readout on/off
+  F12 or P         save a screenshot (viewer-NNNN.png in the current folder)
+  R or Home        back to the start camera
+  Esc              release the mouse, or quit";
+
+/// An interactive window onto a scene (winit + softbuffer, drawn on the CPU).
+#[derive(Debug, Parser)]
+#[command(name = "viewer", after_help = KEYS)]
+pub struct Args {
+    /// Scene: a .gltf/.glb/.obj file, `city` (default, ≥ 10^6 triangles), `city:TRIS`, or `boxfield`
+    #[arg(short, long, default_value = "city", value_name = "SCENE")]
+    pub scene: SceneSpec,
+    /// Let a scene file read from DIR too (repeatable)
+    #[arg(long = "allow-asset-root", value_name = "DIR")]
+    pub allow_asset_roots: Vec<PathBuf>,
+    /// Visibility method at the start (keys 1–5 switch it)
+    #[arg(short, long, value_enum, default_value = "hzb")]
+    pub method: Method,
+    /// Picture at the start (V switches it)
+    #[arg(long, value_enum, default_value = "color")]
+    pub view: View,
+    /// Eye position x,y,z (with --target; default: the street walk's start in a city, a
+    /// three-quarter view of anything else)
+    #[arg(long, value_parser = parse_vec3, allow_hyphen_values = true, requires = "target")]
+    pub eye: Option<Vec3>,
+    /// Point looked at x,y,z (with --eye)
+    #[arg(long, value_parser = parse_vec3, allow_hyphen_values = true, requires = "eye")]
+    pub target: Option<Vec3>,
+    /// Vertical field of view in degrees (with --eye)
+    #[arg(long, default_value_t = 60.0, requires = "eye")]
+    pub fov: f32,
+    /// Near plane distance (with --eye; default 0.1)
+    #[arg(long, requires = "eye")]
+    pub near: Option<f32>,
+    /// Far plane distance (with --eye; default: past the scene)
+    #[arg(long, requires = "eye")]
+    pub far: Option<f32>,
+    /// Initial window size (inner, in pixels)
+    #[arg(long, default_value = "1280x720", value_parser = parse_size)]
+    pub size: (u32, u32),
+    /// Save the window's pixels to this PNG after --after-frames frames, then exit
+    #[arg(long, value_name = "FILE.png")]
+    pub screenshot: Option<PathBuf>,
+    /// Frames to draw before --screenshot is taken
+    #[arg(long, value_name = "N", default_value_t = 3, requires = "screenshot")]
+    pub after_frames: u32,
+    /// No readout over the picture
+    #[arg(long)]
+    pub no_hud: bool,
+    /// Start with the wireframe on
+    #[arg(long)]
+    pub wireframe: bool,
+    /// Worker threads (default: all cores)
+    #[arg(short = 'j', long, value_parser = clap::value_parser!(u16).range(1..=256))]
+    pub threads: Option<u16>,
+}
+
+fn parse_vec3(s: &str) -> Result<Vec3, String> {
+    let v: Vec<f32> = s.split(',').map(|c| c.trim().parse::<f32>()).collect::<Result<_, _>>().unwrap_or_default();
+    match v.as_slice() {
+        [x, y, z] if v.iter().all(|c| c.is_finite()) => Ok(Vec3::new(*x, *y, *z)),
+        _ => Err(format!("'{s}': expected three finite numbers x,y,z")),
+    }
+}
+
+fn parse_size(s: &str) -> Result<(u32, u32), String> {
+    let bad = || format!("'{s}': expected WIDTHxHEIGHT, each 1 to 8192, e.g. 1280x720");
+    let (w, h) = s.split_once(['x', 'X']).ok_or_else(bad)?;
+    let (w, h) = (w.trim().parse::<u32>().map_err(|_| bad())?, h.trim().parse::<u32>().map_err(|_| bad())?);
+    if w == 0 || h == 0 || w > 8192 || h > 8192 {
+        return Err(bad());
+    }
+    Ok((w, h))
+}
+
+fn main() {
+    let args = Args::parse();
+    if let Some(p) = &args.screenshot {
+        if !p.extension().is_some_and(|e| e.eq_ignore_ascii_case("png")) {
+            eprintln!("error: --screenshot {}: give a .png file", p.display());
+            std::process::exit(2);
+        }
+    }
+    if let Err(e) = app::run(args) {
+        eprintln!("error: {e:#}");
+        std::process::exit(1);
+    }
+}

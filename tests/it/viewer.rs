@@ -1,0 +1,127 @@
+//! The interactive viewer (`examples/viewer`) in a real window: started under an X virtual
+//! framebuffer (`xvfb-run`), it draws a few frames, reads the window's pixels back and saves
+//! them; they must be the pixels `sightline render` writes for the same scene, camera and
+//! size, and not a blank picture. Without a display it must fail with one clear line.
+//!
+//! The window tests need `xvfb-run` (`.ci/run` installs it). Where it is missing they fail,
+//! saying so, unless `SIGHTLINE_SKIP_WINDOW_TESTS=1` is set.
+
+use std::path::{Path, PathBuf};
+use std::process::Command;
+
+const EYE: &str = "60,40,70";
+const TARGET: &str = "0,0,0";
+const SIZE: &str = "160x90";
+
+/// The example binary cargo built beside this test: `<target>/<profile>/examples/viewer`
+/// (the test runs from `<target>/<profile>/deps`).
+fn viewer_binary() -> PathBuf {
+    let exe = std::env::current_exe().expect("the test knows its own path");
+    let profile_dir = exe.parent().and_then(Path::parent).expect("the test runs from <target>/<profile>/deps");
+    let viewer = profile_dir.join("examples").join(format!("viewer{}", std::env::consts::EXE_SUFFIX));
+    assert!(
+        viewer.is_file(),
+        "{} is missing: `cargo test` builds the examples; after a narrower command run `cargo build --example viewer`",
+        viewer.display()
+    );
+    viewer
+}
+
+fn skip_window_tests() -> bool {
+    if std::env::var("SIGHTLINE_SKIP_WINDOW_TESTS").is_ok_and(|v| v == "1") {
+        eprintln!("SIGHTLINE_SKIP_WINDOW_TESTS=1: the viewer's window test is skipped");
+        return true;
+    }
+    let found = Command::new("sh").args(["-c", "command -v xvfb-run"]).output().is_ok_and(|o| o.status.success());
+    assert!(
+        found,
+        "xvfb-run is not installed, so the viewer cannot be tested in a window: install it \
+         (apt-get install xvfb xauth) or set SIGHTLINE_SKIP_WINDOW_TESTS=1 to skip this test"
+    );
+    false
+}
+
+fn temp_dir(name: &str) -> PathBuf {
+    let dir = std::env::temp_dir().join(format!("sightline-{name}-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).expect("a temp folder");
+    dir
+}
+
+fn rgba(path: &Path) -> image::RgbaImage {
+    image::open(path).unwrap_or_else(|e| panic!("{}: {e}", path.display())).to_rgba8()
+}
+
+#[test]
+fn the_viewer_screenshot_is_the_headless_render_of_the_same_camera() {
+    if skip_window_tests() {
+        return;
+    }
+    let dir = temp_dir("viewer");
+    let shot = dir.join("shot.png");
+    let camera = ["--scene", "boxfield", "--eye", EYE, "--target", TARGET, "--size", SIZE];
+    // A 24-bit screen: xvfb-run's default depth of 8 bits has no true-colour visual.
+    let out = Command::new("xvfb-run")
+        .args(["-a", "-s", "-screen 0 640x480x24"])
+        .arg(viewer_binary())
+        .args(camera)
+        .args(["--no-hud", "--after-frames", "3", "--screenshot"])
+        .arg(&shot)
+        .output()
+        .expect("xvfb-run starts");
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "the viewer failed under xvfb-run: {err}");
+    assert!(err.contains("read back from the window"), "the screenshot is the window's pixels: {err}");
+
+    let render_dir = dir.join("render");
+    let out = Command::new(env!("CARGO_BIN_EXE_sightline"))
+        .arg("render")
+        .args(camera)
+        .arg("--out")
+        .arg(&render_dir)
+        .output()
+        .expect("the program starts");
+    assert!(out.status.success(), "render failed: {}", String::from_utf8_lossy(&out.stderr));
+
+    let (window, headless) = (rgba(&shot), rgba(&render_dir.join("color.png")));
+    assert_eq!(window.dimensions(), (160, 90), "the window has the size asked for");
+    assert_eq!(window.dimensions(), headless.dimensions());
+    let differ: Vec<(u32, u32)> = window
+        .enumerate_pixels()
+        .filter(|(x, y, p)| headless.get_pixel(*x, *y) != *p)
+        .map(|(x, y, _)| (x, y))
+        .collect();
+    if let Some(&(x, y)) = differ.first() {
+        panic!(
+            "{} of {} pixels differ from the headless render, first at ({x}, {y}): window {:?}, render {:?}",
+            differ.len(),
+            160 * 90,
+            window.get_pixel(x, y),
+            headless.get_pixel(x, y)
+        );
+    }
+    // Not blank: the field of boxes covers a good part of the picture, its faces in
+    // several shades (flat shading: one per face direction, besides the sky).
+    let sky = *window.get_pixel(0, 0);
+    let covered = window.pixels().filter(|p| **p != sky).count();
+    let mut shades: Vec<[u8; 4]> = window.pixels().map(|p| p.0).collect();
+    shades.sort_unstable();
+    shades.dedup();
+    assert!(covered > 160 * 90 / 4, "only {covered} pixels differ from the sky");
+    assert!(shades.len() >= 4, "only {} colours", shades.len());
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+#[test]
+fn without_a_display_the_viewer_says_so_in_one_line() {
+    let out = Command::new(viewer_binary())
+        .args(["--scene", "boxfield", "--size", "64x36"])
+        .env_remove("DISPLAY")
+        .env_remove("WAYLAND_DISPLAY")
+        .output()
+        .expect("the viewer starts");
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(1), "{err}");
+    assert_eq!(err.trim().lines().count(), 1, "one line: {err}");
+    assert!(err.contains("display") && !err.contains("panicked"), "{err}");
+}
