@@ -178,3 +178,8 @@ mod tests {
         assert!(moved >= 20 + 4, "{moved} instances moved in one frame");
     }
 }
+
+/// The README's library example, compiled and run as a doctest.
+#[doc = include_str!("../README.md")]
+#[cfg(doctest)]
+pub struct ReadmeDoctests;
