@@ -166,13 +166,18 @@ fn a_removed_target_is_reported_and_can_be_dropped() {
     let b = scene.add_node(None, NodeDesc::new("b")).unwrap();
     let up = Sampler::new(vec![0.0, 1.0], vec![Vec3::ZERO, Vec3::Y], Interpolation::Linear).unwrap();
     scene.animations.push(
-        Animation::new("lift").with_channel(a, Curve::Translation(up.clone())).with_channel(b, Curve::Translation(up)),
+        Animation::new("lift")
+            .with_channel(a, Curve::Translation(up.clone()))
+            .with_channel(b, Curve::Translation(up.clone())),
     );
+    // Removing a node removes the channels aimed at it; the others play on.
     scene.remove_node(a).unwrap();
-    let e = scene.animate(0.5).unwrap_err().to_string();
-    assert!(e.contains("'lift'") && e.contains("channel 0 (translation)"), "{e}");
-    // The live channel was still applied.
+    assert_eq!(scene.animate(0.5).unwrap(), 1);
     assert_vec(scene.node(b).unwrap().local_transform().translation, [0.0, 0.5, 0.0], "b");
+    // A channel aimed at a stale handle afterwards is reported, and can be dropped.
+    scene.animations.push(Animation::new("late").with_channel(a, Curve::Translation(up)));
+    let e = scene.animate(0.5).unwrap_err().to_string();
+    assert!(e.contains("'late'") && e.contains("channel 0 (translation)"), "{e}");
     assert_eq!(scene.drop_dead_animation_channels(), 1);
     assert_eq!(scene.animate(1.0).unwrap(), 1);
 }
