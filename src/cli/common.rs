@@ -230,7 +230,7 @@ pub fn path_keys(loaded: &LoadedScene, path: Option<&Path>, frames: Option<usize
 }
 
 /// The camera of `render`: `--eye/--target` when given, else frame `frame` of `--path`, else
-/// the first frame of the scene's street path.
+/// the whole scene framed from its three-quarter view.
 pub struct CameraChoice<'a> {
     pub eye: Option<Vec3>,
     pub target: Option<Vec3>,
@@ -257,6 +257,18 @@ impl CameraChoice<'_> {
                     far: self.far.unwrap_or(reach.max(1.0) * 1.5),
                 };
                 Ok(key.camera(size.aspect())?)
+            }
+            (None, None) if self.path.is_none() => {
+                // No camera given: the whole scene from its three-quarter view.
+                let b = loaded.scene.world_aabb();
+                let fovy = sightline::scene::Angle::degrees(self.fov);
+                let mut cam = sightline::scene::views::framing_camera(&b, fovy, size.aspect())?;
+                if self.near.is_some() || self.far.is_some() {
+                    let (near, far) =
+                        (self.near.unwrap_or(cam.projection.near()), self.far.unwrap_or(cam.projection.far()));
+                    cam.projection = sightline::scene::Projection::perspective(fovy, size.aspect(), near, far)?;
+                }
+                Ok(cam)
             }
             (None, None) => {
                 let keys = path_keys(loaded, self.path.map(|p| p.as_path()), None)?;

@@ -109,6 +109,15 @@ impl Cli {
             Command::Render(a) if a.shadows && a.method == render::FrameMethod::Raster => {
                 Some("--shadows needs --method raycast: the rasterizer draws no shadows".into())
             }
+            Command::Render(a)
+                if a.projection != render::ProjectionArg::Perspective
+                    && (a.eye.is_some() || a.path.is_some() || a.fov.is_some()) =>
+            {
+                Some(format!(
+                    "--projection {:?} frames the whole scene itself: --eye, --path and --fov go with --projection perspective",
+                    a.projection
+                ).to_lowercase())
+            }
             Command::Csg { out, .. } if !out.extension().is_some_and(|e| e.eq_ignore_ascii_case("png")) => {
                 Some(format!("--out {}: csg writes a PNG image; give a .png file", out.display()))
             }

@@ -48,6 +48,12 @@ pub struct RenderArgs {
     /// Image size
     #[arg(long, default_value = "1280x720")]
     pub size: Size,
+    /// Projection. Without --eye or --path every projection frames the whole scene:
+    /// perspective from a three-quarter view, orthographic along that direction, cavalier and
+    /// cabinet from the front, the axonometric presets, and multiview (top, front, side and
+    /// perspective in a 2×2 grid). Only perspective takes --eye or --path
+    #[arg(long, value_enum, default_value = "perspective")]
+    pub projection: ProjectionArg,
     /// Animation time in seconds: the scene's animations (glTF animations, the traffic and
     /// cranes of `city+traffic:N`) are posed at this time before the frame is drawn
     #[arg(long, value_name = "SECONDS", value_parser = common::time_arg)]
@@ -80,6 +86,64 @@ pub struct RenderArgs {
     pub look: Look,
 }
 
+/// `render --projection`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+pub enum ProjectionArg {
+    Perspective,
+    Orthographic,
+    Cavalier,
+    Cabinet,
+    Isometric,
+    Dimetric,
+    Trimetric,
+    Multiview,
+}
+
+/// The cameras of a parallel `--projection` framing `bounds` (four for multiview, each for
+/// a quarter of the image).
+fn parallel_cameras(
+    p: ProjectionArg,
+    bounds: &sightline::scene::Aabb,
+    aspect: f32,
+) -> Result<Vec<sightline::scene::Camera>> {
+    use sightline::scene::views::{self, Axonometric, Multiview};
+    let axo = |kind: Axonometric| kind.camera(bounds, aspect);
+    let cams = match p {
+        ProjectionArg::Perspective => Vec::new(),
+        ProjectionArg::Orthographic => {
+            vec![views::parallel_camera(bounds, views::three_quarter_direction(), Vec3::Y, aspect)?]
+        }
+        ProjectionArg::Cavalier => vec![views::oblique_camera(bounds, 1.0, aspect)?],
+        ProjectionArg::Cabinet => vec![views::oblique_camera(bounds, 0.5, aspect)?],
+        ProjectionArg::Isometric => vec![axo(Axonometric::Isometric)?],
+        ProjectionArg::Dimetric => vec![axo(Axonometric::Dimetric { fy: 0.5 })?],
+        ProjectionArg::Trimetric => {
+            vec![axo(Axonometric::Trimetric { fx: 0.9, fy: 0.8, fz: (2.0f32 - 0.81 - 0.64).sqrt() })?]
+        }
+        ProjectionArg::Multiview => {
+            let m = Multiview::new(bounds, aspect)?;
+            vec![m.top, m.perspective, m.front, m.side]
+        }
+    };
+    Ok(cams)
+}
+
+/// Copies `part` into quadrant `q` (0 top left, 1 top right, 2 bottom left, 3 bottom right)
+/// of `fb`, whose sides are at least twice `part`'s.
+fn blit_quadrant(part: &Framebuffer, q: usize, fb: &mut Framebuffer) {
+    let (pw, ph, w) = (part.width() as usize, part.height() as usize, fb.width() as usize);
+    let (x0, y0) = ((q % 2) * pw, (q / 2) * ph);
+    for y in 0..ph {
+        let (src, dst) = (y * pw..(y + 1) * pw, (y0 + y) * w + x0..(y0 + y) * w + x0 + pw);
+        fb.color[dst.clone()].copy_from_slice(&part.color[src.clone()]);
+        fb.depth[dst.clone()].copy_from_slice(&part.depth[src.clone()]);
+        fb.ids[dst.clone()].copy_from_slice(&part.ids[src.clone()]);
+        if let (Some(d), Some(s)) = (&mut fb.depth_tests, &part.depth_tests) {
+            d[dst].copy_from_slice(&s[src]);
+        }
+    }
+}
+
 pub fn run(a: &RenderArgs) -> Result<()> {
     let files: Vec<&std::path::Path> =
         [&a.id_out, &a.depth_out, &a.json].into_iter().flatten().map(|p| p.as_path()).collect();
@@ -98,24 +162,59 @@ pub fn run(a: &RenderArgs) -> Result<()> {
         path: a.path.as_ref(),
         frame: a.frame,
     };
-    let camera = choice.camera(&loaded, a.size)?;
+    let parallel = parallel_cameras(a.projection, &loaded.scene.world_aabb(), a.size.aspect())
+        .context("framing the scene for --projection")?;
+    let camera = match parallel.first() {
+        Some(&c) if a.projection != ProjectionArg::Multiview => c,
+        _ => choice.camera(&loaded, a.size)?,
+    };
     let opts = a.look.options(a.backface_culling);
     let mut fb = Framebuffer::new(a.size.width, a.size.height)?;
-    fb.count_depth_tests(a.out.is_some() && a.method == FrameMethod::Raster);
-    let counters = common::with_threads(a.threads, || -> Result<serde_json::Value> {
+    let counting = a.out.is_some() && a.method == FrameMethod::Raster;
+    fb.count_depth_tests(counting);
+    if a.projection == ProjectionArg::Multiview {
+        // Four views, each framed for a quarter of the image.
+        let (qw, qh) = ((a.size.width / 2).max(1), (a.size.height / 2).max(1));
+        let cams = parallel_cameras(a.projection, &loaded.scene.world_aabb(), qw as f32 / qh as f32)?;
+        fb.clear(opts.background);
+        let mut part = Framebuffer::new(qw, qh)?;
+        part.count_depth_tests(counting);
+        let mut views = Vec::new();
+        for (q, cam) in cams.iter().enumerate() {
+            let v = common::with_threads(a.threads, || draw(&loaded.scene, cam, &mut part, a, &opts))??;
+            blit_quadrant(&part, q, &mut fb);
+            views.push(v);
+        }
+        return write_outputs(&fb, a, &serde_json::json!({ "views": views }));
+    }
+    let counters = common::with_threads(a.threads, || draw(&loaded.scene, &camera, &mut fb, a, &opts))??;
+    write_outputs(&fb, a, &counters)
+}
+
+/// One frame of `scene` with the method `a` asks for; its counters as JSON.
+fn draw(
+    scene: &sightline::scene::Scene,
+    camera: &sightline::scene::Camera,
+    fb: &mut Framebuffer,
+    a: &RenderArgs,
+    opts: &sightline::render::RenderOptions,
+) -> Result<serde_json::Value> {
+    let (camera, opts) = (*camera, *opts);
+    let loaded_scene = scene;
+    {
         match a.method {
             FrameMethod::Raster => {
-                let instances = loaded.scene.instances();
+                let instances = loaded_scene.instances();
                 let items = sightline::render::draw_all(&instances);
-                let stats = Renderer::new().render(&loaded.scene, &instances, &items, &camera, &mut fb, &opts)?;
+                let stats = Renderer::new().render(loaded_scene, &instances, &items, &camera, fb, &opts)?;
                 print_raster(&stats);
                 Ok(serde_json::to_value(stats)?)
             }
             FrameMethod::Raycast => {
-                let caster = super::with_spinner("building BVHs", || RayCaster::build(&loaded.scene))?;
+                let caster = super::with_spinner("building BVHs", || RayCaster::build(loaded_scene))?;
                 let mut ro = RaycastOptions::from_render(&opts);
                 ro.shadows = a.shadows;
-                let st = caster.render(&loaded.scene, &camera, &mut fb, &ro)?;
+                let st = caster.render(loaded_scene, &camera, fb, &ro)?;
                 println!("BVH build        {:>10.1} ms", caster.build_ms());
                 println!("primary rays     {:>10}", st.primary_rays);
                 println!("shadow rays      {:>10}", st.shadow_rays);
@@ -128,8 +227,7 @@ pub fn run(a: &RenderArgs) -> Result<()> {
                 }))
             }
         }
-    })??;
-    write_outputs(&fb, a, &counters)
+    }
 }
 
 fn print_raster(s: &sightline::render::FrameStats) {

@@ -131,3 +131,34 @@ fn short_options_json_and_out_mean_the_same_on_every_command() {
     }
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+/// Every projection of `render` reaches a picture of the whole scene without camera options;
+/// parallel projections refuse the perspective camera's options instead of ignoring them.
+#[test]
+fn every_projection_frames_the_whole_scene() {
+    let dir = std::env::temp_dir().join(format!("sightline-cli-proj-{}", std::process::id()));
+    let npy = dir.join("ids.npy");
+    std::fs::create_dir_all(&dir).unwrap();
+    for p in ["perspective", "orthographic", "cavalier", "cabinet", "isometric", "dimetric", "trimetric", "multiview"] {
+        let (code, err) = run(&[
+            "render",
+            "-s",
+            concat!(env!("CARGO_MANIFEST_DIR"), "/assets/nested.gltf"),
+            "--projection",
+            p,
+            "--size",
+            "64x36",
+            "--id-out",
+            npy.to_str().unwrap(),
+        ]);
+        assert_eq!(code, Some(0), "{p}: {err}");
+        // uint32 IDs after a 128-byte .npy header: some pixel shows a triangle.
+        let bytes = std::fs::read(&npy).unwrap();
+        let ids = bytes[128..].chunks(4).map(|c| u32::from_le_bytes([c[0], c[1], c[2], c[3]]));
+        assert!(ids.filter(|&i| i != 0).count() > 20, "{p}: the scene is in the picture");
+    }
+    let (code, err) = run(&["render", "--projection", "isometric", "--eye", "1,1,1", "--target", "0,0,0"]);
+    assert_eq!(code, Some(2), "{err}");
+    assert!(err.contains("--projection perspective"), "{err}");
+    let _ = std::fs::remove_dir_all(&dir);
+}

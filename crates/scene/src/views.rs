@@ -79,6 +79,70 @@ pub fn parallel_camera(bounds: &Aabb, toward_viewer: Vec3, up: Vec3, aspect: f32
     Camera::new(view, Projection::orthographic(-hw, hw, -hh, hh, 0.0, 4.0 * r)?)
 }
 
+/// The direction from a scene's center to the eye of its three-quarter view: front-right,
+/// 45° around the vertical from +z, 28° above the horizon.
+pub fn three_quarter_direction() -> Vec3 {
+    let (azimuth, elevation) = (std::f32::consts::FRAC_PI_4, 28f32.to_radians());
+    Vec3::new(azimuth.sin() * elevation.cos(), elevation.sin(), azimuth.cos() * elevation.cos())
+}
+
+/// A perspective camera that sees the whole of `bounds` from its three-quarter view
+/// ([`three_quarter_direction`]): the box's bounding sphere fits inside both the vertical and
+/// the horizontal field of view (`fovy` vertical, at aspect ratio `aspect`), and the near and
+/// far planes enclose it.
+pub fn framing_camera(bounds: &Aabb, fovy: Angle, aspect: f32) -> Result<Camera> {
+    if !bounds.is_finite() || !(bounds.extent().length() < 1e30) {
+        return Err(Error::InvalidCamera(format!(
+            "cannot frame the scene: its bounds (min {}, max {}) are empty or not finite",
+            bounds.min, bounds.max
+        )));
+    }
+    if !(aspect > 0.0 && aspect.is_finite()) {
+        return Err(Error::InvalidCamera(format!("aspect ratio {aspect} is not a positive number")));
+    }
+    let c = bounds.center();
+    let r = (bounds.extent().length() * 0.5).max(1e-3);
+    let half_y = fovy.to_radians() * 0.5;
+    let half_x = (half_y.tan() * aspect).atan();
+    let dist = r / half_y.min(half_x).sin() * 1.05;
+    let eye = c + three_quarter_direction() * dist;
+    let near = ((dist - r) * 0.9).max(dist * 1e-3);
+    Camera::new(View::look_at(eye, c, Vec3::Y)?, Projection::perspective(fovy, aspect, near, (dist + r) * 1.5)?)
+}
+
+/// An oblique parallel camera (cavalier when `receding` is 1, cabinet when 0.5) that looks
+/// at the front (+z side) of `bounds`, receding lines drawn at 45° up and to the right, the
+/// window grown by the receding depth so that the whole box is seen.
+pub fn oblique_camera(bounds: &Aabb, receding: f32, aspect: f32) -> Result<Camera> {
+    if !bounds.is_finite() {
+        return Err(Error::InvalidCamera("cannot frame an empty or non-finite box".into()));
+    }
+    let c = bounds.center();
+    let e = bounds.extent().max(Vec3::splat(1e-3)) * 0.5;
+    let view = View::look_along(c + Vec3::Z * (2.0 * e.z + 1.0), Vec3::NEG_Z, Vec3::Y)?;
+    // A point d behind the front moves by receding·d·(cos 45°, sin 45°) on screen.
+    let shift = receding * 2.0 * e.z * std::f32::consts::FRAC_1_SQRT_2;
+    let (mut hw, mut hh) = (e.x + shift * 0.5, e.y + shift * 0.5);
+    if hw / hh < aspect {
+        hw = hh * aspect;
+    } else {
+        hh = hw / aspect;
+    }
+    // The shear is measured from the eye's plane: the box's center, 2·e.z + 1 in front of
+    // the eye, lands that much off the axis.
+    let k = receding * std::f32::consts::FRAC_1_SQRT_2;
+    let (cx, cy) = (k * (2.0 * e.z + 1.0), k * (2.0 * e.z + 1.0));
+    let phi = std::f32::consts::FRAC_PI_4;
+    let (l, r, b, t) = (cx - hw, cx + hw, cy - hh, cy + hh);
+    let (near, far) = (1.0, 4.0 * e.z + 2.0);
+    let projection = if receding >= 0.75 {
+        Projection::cavalier(l, r, b, t, near, far, phi)?
+    } else {
+        Projection::cabinet(l, r, b, t, near, far, phi)?
+    };
+    Camera::new(view, projection)
+}
+
 /// The multiview set of CAD programs.
 #[derive(Debug, Clone, Copy)]
 pub struct Multiview {
