@@ -74,7 +74,8 @@ enum Command {
     Path {
         #[command(flatten)]
         scene: SceneArg,
-        /// Street walk at eye height, or a flight above the roofs
+        /// Street walk at eye height, a flight above the roofs, an orbit around the scene, or a
+        /// flight through it
         #[arg(long, value_enum, default_value = "street")]
         kind: path::PathKind,
         /// Number of frames, at most 1,000,000

@@ -13,13 +13,22 @@ pub enum PathKind {
     Street,
     /// A flight above the roofs
     Aerial,
+    /// One turn around the scene at the three-quarter view's height, looking at its center
+    Orbit,
+    /// A flight through the scene, corner to corner over its center at a third of its height
+    Fly,
 }
 
 pub fn run(scene: &SceneArg, kind: PathKind, frames: usize, out: &Path) -> Result<()> {
     anyhow::ensure!(frames > 0, "--frames must be at least 1");
     super::common::check_outputs(&[], &[out])?;
     let loaded = super::load_scene(scene)?;
-    let keys = loaded.path(matches!(kind, PathKind::Street), frames)?;
+    let bounds = loaded.scene.world_aabb();
+    let keys = match kind {
+        PathKind::Street | PathKind::Aerial => loaded.path(matches!(kind, PathKind::Street), frames)?,
+        PathKind::Orbit => sightline::scene::path::orbit_path(&bounds, frames)?,
+        PathKind::Fly => sightline::scene::path::fly_path(&bounds, frames)?,
+    };
     sightline::scene::path::write_path(out, &keys)?;
     println!("wrote {} frames to {}", keys.len(), out.display());
     Ok(())

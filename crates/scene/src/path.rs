@@ -217,23 +217,7 @@ fn aerial(bounds: &Aabb, height: f32, frames: usize) -> Vec<CameraKey> {
 /// horizontally (so the first frames see the whole scene, even a flat one); `aerial` circles
 /// above it.
 pub fn generic_path(bounds: &Aabb, street: bool, frames: usize) -> Result<Vec<CameraKey>> {
-    let (lo, hi) = (bounds.min, bounds.max);
-    let (finite, nan) = (lo.is_finite() && hi.is_finite(), lo.is_nan() || hi.is_nan());
-    if !finite && !nan && !bounds.is_empty() {
-        return Err(Error::InvalidParams(format!(
-            "scene bounds are not finite (min {lo}, max {hi}): a coordinate or transform overflowed f32"
-        )));
-    }
-    if !bounds.is_finite() {
-        return Err(Error::InvalidParams("cannot make a camera path for an empty scene".into()));
-    }
-    // The camera is placed from the extent and its length: both must stay finite with room
-    // for the path's arithmetic.
-    if !(bounds.extent().length() < 1e30 && bounds.center().is_finite()) {
-        return Err(Error::InvalidParams(format!(
-            "scene bounds (min {lo}, max {hi}) are too large to place a camera in f32; scale the scene down"
-        )));
-    }
+    placeable(bounds)?;
     let e = bounds.extent().max(Vec3::splat(1e-3));
     if !street {
         return Ok(aerial(bounds, e.y * 1.5 + e.length() * 0.2, frames));
@@ -253,9 +237,105 @@ pub fn generic_path(bounds: &Aabb, street: bool, frames: usize) -> Result<Vec<Ca
     }))
 }
 
+/// One turn around any scene: the eye circles its center at the three-quarter view's height
+/// (28° above the horizon) and at the distance where its bounding sphere fits a 60° view,
+/// looking at the center, starting front-right.
+pub fn orbit_path(bounds: &Aabb, frames: usize) -> Result<Vec<CameraKey>> {
+    placeable(bounds)?;
+    let c = bounds.center();
+    let r = (bounds.extent().length() * 0.5).max(1e-3);
+    let dist = r / 30f32.to_radians().sin() * 1.05;
+    let elevation = 28f32.to_radians();
+    let frames = frames.max(1);
+    Ok((0..frames)
+        .map(|i| {
+            let azimuth = std::f32::consts::FRAC_PI_4 + std::f32::consts::TAU * i as f32 / frames as f32;
+            let dir = Vec3::new(azimuth.sin() * elevation.cos(), elevation.sin(), azimuth.cos() * elevation.cos());
+            CameraKey {
+                eye: (c + dir * dist).into(),
+                target: c.into(),
+                up: [0.0, 1.0, 0.0],
+                fovy_deg: 60.0,
+                near: ((dist - r) * 0.9).max(dist * 1e-3),
+                far: (dist + r) * 1.5,
+            }
+        })
+        .collect())
+}
+
+/// A flight through any scene: in from outside its front-left corner, over its center at a
+/// third of its height, and out past the back-right corner, looking ahead.
+pub fn fly_path(bounds: &Aabb, frames: usize) -> Result<Vec<CameraKey>> {
+    placeable(bounds)?;
+    let (lo, e, c) = (bounds.min, bounds.extent().max(Vec3::splat(1e-3)), bounds.center());
+    let y = lo.y + e.y / 3.0;
+    let reach = e.length() * 0.5;
+    let line = Polyline(vec![
+        Vec3::new(lo.x - reach * 0.5, y + e.y * 0.5, bounds.max.z + reach),
+        Vec3::new(c.x, y, c.z),
+        Vec3::new(bounds.max.x + reach * 0.5, y + e.y * 0.5, lo.z - reach),
+    ]);
+    let far = e.length() * 3.0;
+    Ok(sample(&line, frames, e.length() * 0.05, |eye, target| CameraKey {
+        eye: eye.into(),
+        target: target.into(),
+        up: [0.0, 1.0, 0.0],
+        fovy_deg: 60.0,
+        near: (far * 1e-5).max(1e-3),
+        far,
+    }))
+}
+
+/// Scene bounds a camera can be placed around: not empty, finite, and small enough for the
+/// path's arithmetic in f32.
+fn placeable(bounds: &Aabb) -> Result<()> {
+    let (lo, hi) = (bounds.min, bounds.max);
+    let (finite, nan) = (lo.is_finite() && hi.is_finite(), lo.is_nan() || hi.is_nan());
+    if !finite && !nan && !bounds.is_empty() {
+        return Err(Error::InvalidParams(format!(
+            "scene bounds are not finite (min {lo}, max {hi}): a coordinate or transform overflowed f32"
+        )));
+    }
+    if !bounds.is_finite() {
+        return Err(Error::InvalidParams("cannot make a camera path for an empty scene".into()));
+    }
+    // The camera is placed from the extent and its length: both must stay finite with room
+    // for the path's arithmetic.
+    if !(bounds.extent().length() < 1e30 && bounds.center().is_finite()) {
+        return Err(Error::InvalidParams(format!(
+            "scene bounds (min {lo}, max {hi}) are too large to place a camera in f32; scale the scene down"
+        )));
+    }
+    Ok(())
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// The orbit keeps the whole bounding sphere inside a 60° cone around its line of sight
+    /// on every frame and goes once around; the flight passes over the center.
+    #[test]
+    fn orbit_sees_the_whole_scene_and_fly_crosses_it() {
+        let b = Aabb::new(Vec3::new(-3.0, 0.0, -1.0), Vec3::new(5.0, 2.0, 9.0));
+        let (c, r) = (b.center(), b.extent().length() * 0.5);
+        let keys = orbit_path(&b, 16).unwrap();
+        assert_eq!(keys.len(), 16);
+        for k in &keys {
+            let eye = Vec3::from(k.eye);
+            let d = (eye - c).length();
+            assert!((r / d).asin() <= 30f32.to_radians(), "the sphere fits the view");
+            assert!(k.near < d - r && k.far > d + r, "near and far enclose the scene");
+            assert_eq!(Vec3::from(k.target), c);
+        }
+        let first = Vec3::from(keys[0].eye) - c;
+        let half = Vec3::from(keys[8].eye) - c;
+        assert!((first.x + half.x).abs() < 1e-3 && (first.z + half.z).abs() < 1e-3, "half a turn apart");
+        let fly = fly_path(&b, 21).unwrap();
+        let mid = Vec3::from(fly[10].eye);
+        assert!((mid.x - c.x).abs() < 1.0 && (mid.z - c.z).abs() < 1.0, "over the center half way: {mid}");
+        assert!(orbit_path(&Aabb::EMPTY, 4).is_err() && fly_path(&Aabb::EMPTY, 4).is_err());
+    }
 
     #[test]
     fn huge_or_overflowed_bounds_are_named_as_the_cause() {
