@@ -173,6 +173,15 @@ fn moves_refit_additions_rebuild_and_stale_scenes_are_refused() {
     // The group node and its three children moved.
     assert!(matches!(culler.sync(&st.scene).unwrap(), SyncOutcome::Moved { instances: 4, .. }));
     check_frame(&st.scene, &mut culler, "group moved");
+    // Many moves without an octree frame in between: the octree catches up (or is rebuilt,
+    // once the moves outnumber the clusters) when its walk next runs.
+    for i in 0..200 {
+        let t = Transform::from_translation(Vec3::new((i % 7) as f32 - 3.0, 0.0, -8.0 - (i % 5) as f32));
+        st.scene.set_local_transform(group, t).unwrap();
+        st.scene.update_transforms();
+        culler.sync(&st.scene).unwrap();
+    }
+    check_frame(&st.scene, &mut culler, "group moved 200 times");
     st.add(None, [0.0, 0.0, 2.0], false);
     st.scene.update_transforms();
     assert_eq!(culler.sync(&st.scene).unwrap(), SyncOutcome::Rebuilt);

@@ -164,6 +164,8 @@ struct Clusters {
     /// such as boxes) cost no load of their cone.
     cone_can_cull: Vec<u64>,
     octree: LooseOctree,
+    /// Clusters that moved since the octree was last brought up to date.
+    octree_pending: Vec<u32>,
     visible: Vec<Visible>,
     /// Two-pass state: the clusters found visible in the last frame drawn with it.
     last_visible: Vec<u32>,
@@ -322,6 +324,7 @@ impl Culler {
                     self.c.hzb_walk(&mut session, &mut f, &frustum, Source::Bvh, walk, batching)
                 }
                 Method::OctreeHzb => {
+                    self.c.settle_octree();
                     let walk = Walk { first_batch: batching.first, skip: None, test: true };
                     self.c.hzb_walk(&mut session, &mut f, &frustum, Source::Octree, walk, batching)
                 }

@@ -3,7 +3,8 @@
 //! Rigid motion is the common change (vehicles drive, a crane turns): clusters and meshlets
 //! are mesh-local and stay; what moves is the world side — each moved instance's transform
 //! in its per-cluster draw records, its clusters' world boxes, their entries in the loose
-//! octree and their normal cones — and the BVH over all cluster boxes is refitted bottom-up,
+//! octree (moved when the octree walk next runs, so that the other methods do not pay for
+//! it) and their normal cones — and the BVH over all cluster boxes is refitted bottom-up,
 //! or rebuilt once refitting has let its SAH cost grow past `REBUILD_RATIO` times that of a
 //! fresh build (the rule of Wald, Boulos and Shirley 2007, "Ray tracing deformable scenes
 //! using dynamic bounding volume hierarchies": refit while the tree stays good, rebuild when
@@ -79,6 +80,7 @@ impl Clusters {
             cones,
             cone_can_cull,
             octree,
+            octree_pending: Vec::new(),
             visible: Vec::new(),
             last_visible: Vec::new(),
             drawn_in: Vec::new(),
@@ -101,7 +103,14 @@ impl Clusters {
                 let k = item as usize;
                 let b = self.clustered.item_box(item, &self.instances);
                 self.item_boxes[k] = b;
-                self.octree.update(item, b);
+                // The octree serves one method only: its entries move when that method
+                // draws next (`settle_octree`), not on every frame of the others.
+                self.octree_pending.push(item);
+                if self.octree_pending.len() > self.item_boxes.len() {
+                    // More moves than clusters: rebuilding is cheaper than the list.
+                    self.octree_pending.clear();
+                    self.octree_pending.push(u32::MAX);
+                }
                 self.draws[k].world_from_local = self.instances[i as usize].world_from_local.to_cols_array();
                 // A cone that can cull is recomputed for the new pose; one that cannot stays
                 // unable to (conservative: at worst a cluster that could be dropped is drawn).
@@ -116,6 +125,24 @@ impl Clusters {
             }
         }
         moved.then(|| self.clustered.refit_boxes(&self.item_boxes))
+    }
+}
+
+impl Clusters {
+    /// Moves the octree entries of clusters that moved since the octree was last used.
+    pub(super) fn settle_octree(&mut self) {
+        let mut pending = std::mem::take(&mut self.octree_pending);
+        if pending.first() == Some(&u32::MAX) {
+            self.octree = LooseOctree::from_boxes(&self.item_boxes, OCTREE_DEPTH);
+            pending.clear();
+        }
+        pending.sort_unstable();
+        pending.dedup();
+        for &item in &pending {
+            self.octree.update(item, self.item_boxes[item as usize]);
+        }
+        pending.clear();
+        self.octree_pending = pending;
     }
 }
 
