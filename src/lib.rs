@@ -18,6 +18,7 @@
 
 use std::path::PathBuf;
 
+pub mod args;
 pub mod boxfield;
 pub mod hud;
 

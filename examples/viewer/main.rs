@@ -66,10 +66,10 @@ pub struct Args {
     pub view: View,
     /// Eye position x,y,z (with --target; default: the street walk's start in a city, a
     /// three-quarter view of anything else)
-    #[arg(long, value_parser = parse_vec3, allow_hyphen_values = true, requires = "target")]
+    #[arg(long, value_parser = sightline::args::parse_vec3, allow_hyphen_values = true, requires = "target")]
     pub eye: Option<Vec3>,
     /// Point looked at x,y,z (with --eye)
-    #[arg(long, value_parser = parse_vec3, allow_hyphen_values = true, requires = "eye")]
+    #[arg(long, value_parser = sightline::args::parse_vec3, allow_hyphen_values = true, requires = "eye")]
     pub target: Option<Vec3>,
     /// Vertical field of view in degrees (with --eye)
     #[arg(long, default_value_t = 60.0, requires = "eye")]
@@ -81,7 +81,7 @@ pub struct Args {
     #[arg(long, requires = "eye")]
     pub far: Option<f32>,
     /// Initial window size (inner, in pixels)
-    #[arg(long, default_value = "1280x720", value_parser = parse_size)]
+    #[arg(long, default_value = "1280x720", value_parser = sightline::args::parse_size)]
     pub size: (u32, u32),
     /// Save the window's pixels to this PNG after --after-frames frames, then exit
     #[arg(long, value_name = "FILE.png")]
@@ -98,24 +98,6 @@ pub struct Args {
     /// Worker threads (default: all cores)
     #[arg(short = 'j', long, value_parser = clap::value_parser!(u16).range(1..=256))]
     pub threads: Option<u16>,
-}
-
-fn parse_vec3(s: &str) -> Result<Vec3, String> {
-    let v: Vec<f32> = s.split(',').map(|c| c.trim().parse::<f32>()).collect::<Result<_, _>>().unwrap_or_default();
-    match v.as_slice() {
-        [x, y, z] if v.iter().all(|c| c.is_finite()) => Ok(Vec3::new(*x, *y, *z)),
-        _ => Err(format!("'{s}': expected three finite numbers x,y,z")),
-    }
-}
-
-fn parse_size(s: &str) -> Result<(u32, u32), String> {
-    let bad = || format!("'{s}': expected WIDTHxHEIGHT, each 1 to 8192, e.g. 1280x720");
-    let (w, h) = s.split_once(['x', 'X']).ok_or_else(bad)?;
-    let (w, h) = (w.trim().parse::<u32>().map_err(|_| bad())?, h.trim().parse::<u32>().map_err(|_| bad())?);
-    if w == 0 || h == 0 || w > 8192 || h > 8192 {
-        return Err(bad());
-    }
-    Ok((w, h))
 }
 
 fn main() {

@@ -42,7 +42,7 @@ struct Args {
     #[arg(short = 'n', long, default_value_t = 120, value_parser = clap::value_parser!(u32).range(1..=100_000))]
     frames: u32,
     /// Frame size
-    #[arg(long, default_value = "1280x720", value_parser = parse_size)]
+    #[arg(long, default_value = "1280x720", value_parser = sightline::args::parse_size)]
     size: (u32, u32),
     /// Output folder
     #[arg(short, long, value_name = "DIR", default_value = "walkthrough-out")]
@@ -62,16 +62,6 @@ struct Args {
     /// Worker threads (default: all cores)
     #[arg(short = 'j', long, value_parser = clap::value_parser!(u16).range(1..=256))]
     threads: Option<u16>,
-}
-
-fn parse_size(s: &str) -> Result<(u32, u32), String> {
-    let bad = || format!("'{s}': expected WIDTHxHEIGHT, each 1 to 8192, e.g. 1280x720");
-    let (w, h) = s.split_once(['x', 'X']).ok_or_else(bad)?;
-    let (w, h) = (w.trim().parse::<u32>().map_err(|_| bad())?, h.trim().parse::<u32>().map_err(|_| bad())?);
-    if w == 0 || h == 0 || w > 8192 || h > 8192 {
-        return Err(bad());
-    }
-    Ok((w, h))
 }
 
 fn main() {

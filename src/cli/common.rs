@@ -20,12 +20,7 @@ pub struct Size {
 impl std::str::FromStr for Size {
     type Err = String;
     fn from_str(s: &str) -> Result<Self, String> {
-        let (w, h) = s.split_once(['x', 'X']).ok_or_else(|| format!("'{s}': expected WIDTHxHEIGHT, e.g. 1280x720"))?;
-        let p = |v: &str| v.trim().parse::<u32>().map_err(|_| format!("'{s}': expected WIDTHxHEIGHT, e.g. 1280x720"));
-        let (width, height) = (p(w)?, p(h)?);
-        if width == 0 || height == 0 || width > 8192 || height > 8192 {
-            return Err(format!("'{s}': each side must be between 1 and 8192"));
-        }
+        let (width, height) = sightline::args::parse_size(s)?;
         Ok(Size { width, height })
     }
 }
@@ -36,18 +31,7 @@ impl Size {
     }
 }
 
-/// `x,y,z`.
-pub fn parse_vec3(s: &str) -> Result<Vec3, String> {
-    let v: Vec<f32> = s
-        .split(',')
-        .map(|c| c.trim().parse::<f32>())
-        .collect::<Result<_, _>>()
-        .map_err(|_| format!("'{s}': expected x,y,z"))?;
-    match v.as_slice() {
-        [x, y, z] if v.iter().all(|c| c.is_finite()) => Ok(Vec3::new(*x, *y, *z)),
-        _ => Err(format!("'{s}': expected three finite numbers x,y,z")),
-    }
-}
+pub use sightline::args::parse_vec3;
 
 /// `on|off`.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]

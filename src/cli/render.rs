@@ -171,6 +171,12 @@ pub fn run(a: &RenderArgs) -> Result<()> {
     let opts = a.look.options(a.backface_culling);
     let mut fb = Framebuffer::new(a.size.width, a.size.height)?;
     let counting = a.out.is_some() && a.method == FrameMethod::Raster;
+    let caster = (a.method == FrameMethod::Raycast)
+        .then(|| {
+            super::with_spinner("building BVHs", || common::with_threads(a.threads, || RayCaster::build(&loaded.scene)))
+        })
+        .transpose()?
+        .transpose()?;
     fb.count_depth_tests(counting);
     if a.projection == ProjectionArg::Multiview {
         // Four views, each framed for a quarter of the image.
@@ -181,53 +187,48 @@ pub fn run(a: &RenderArgs) -> Result<()> {
         part.count_depth_tests(counting);
         let mut views = Vec::new();
         for (q, cam) in cams.iter().enumerate() {
-            let v = common::with_threads(a.threads, || draw(&loaded.scene, cam, &mut part, a, &opts))??;
+            let v =
+                common::with_threads(a.threads, || draw(&loaded.scene, caster.as_ref(), cam, &mut part, a, &opts))??;
             blit_quadrant(&part, q, &mut fb);
             views.push(v);
         }
         return write_outputs(&fb, a, &serde_json::json!({ "views": views }));
     }
-    let counters = common::with_threads(a.threads, || draw(&loaded.scene, &camera, &mut fb, a, &opts))??;
+    let counters =
+        common::with_threads(a.threads, || draw(&loaded.scene, caster.as_ref(), &camera, &mut fb, a, &opts))??;
     write_outputs(&fb, a, &counters)
 }
 
-/// One frame of `scene` with the method `a` asks for; its counters as JSON.
+/// One frame of `scene`: rasterized, or ray cast with `caster` (built once per run, even
+/// for the four views of multiview); its counters as JSON.
 fn draw(
     scene: &sightline::scene::Scene,
+    caster: Option<&RayCaster>,
     camera: &sightline::scene::Camera,
     fb: &mut Framebuffer,
     a: &RenderArgs,
     opts: &sightline::render::RenderOptions,
 ) -> Result<serde_json::Value> {
-    let (camera, opts) = (*camera, *opts);
-    let loaded_scene = scene;
-    {
-        match a.method {
-            FrameMethod::Raster => {
-                let instances = loaded_scene.instances();
-                let items = sightline::render::draw_all(&instances);
-                let stats = Renderer::new().render(loaded_scene, &instances, &items, &camera, fb, &opts)?;
-                print_raster(&stats);
-                Ok(serde_json::to_value(stats)?)
-            }
-            FrameMethod::Raycast => {
-                let caster = super::with_spinner("building BVHs", || RayCaster::build(loaded_scene))?;
-                let mut ro = RaycastOptions::from_render(&opts);
-                ro.shadows = a.shadows;
-                let st = caster.render(loaded_scene, &camera, fb, &ro)?;
-                println!("BVH build        {:>10.1} ms", caster.build_ms());
-                println!("primary rays     {:>10}", st.primary_rays);
-                println!("shadow rays      {:>10}", st.shadow_rays);
-                println!("hits             {:>10}", st.hits);
-                println!("frame            {:>10.2} ms", st.ms_total);
-                println!("Mrays/s          {:>10.2}", st.primary_rays as f64 / st.ms_total / 1e3);
-                Ok(serde_json::json!({
-                    "build_ms": caster.build_ms(), "primary_rays": st.primary_rays, "shadow_rays": st.shadow_rays,
-                    "hits": st.hits, "ms_total": st.ms_total,
-                }))
-            }
-        }
-    }
+    let Some(caster) = caster else {
+        let instances = scene.instances();
+        let items = sightline::render::draw_all(&instances);
+        let stats = Renderer::new().render(scene, &instances, &items, camera, fb, opts)?;
+        print_raster(&stats);
+        return Ok(serde_json::to_value(stats)?);
+    };
+    let mut ro = RaycastOptions::from_render(opts);
+    ro.shadows = a.shadows;
+    let st = caster.render(scene, camera, fb, &ro)?;
+    println!("BVH build        {:>10.1} ms", caster.build_ms());
+    println!("primary rays     {:>10}", st.primary_rays);
+    println!("shadow rays      {:>10}", st.shadow_rays);
+    println!("hits             {:>10}", st.hits);
+    println!("frame            {:>10.2} ms", st.ms_total);
+    println!("Mrays/s          {:>10.2}", st.primary_rays as f64 / st.ms_total / 1e3);
+    Ok(serde_json::json!({
+        "build_ms": caster.build_ms(), "primary_rays": st.primary_rays, "shadow_rays": st.shadow_rays,
+        "hits": st.hits, "ms_total": st.ms_total,
+    }))
 }
 
 fn print_raster(s: &sightline::render::FrameStats) {

@@ -227,14 +227,7 @@ pub fn generic_path(bounds: &Aabb, street: bool, frames: usize) -> Result<Vec<Ca
     let start = bounds.min.z - (e.z * 0.1).max(e.length() * 0.5);
     let line = Polyline(vec![Vec3::new(c.x, y, start), Vec3::new(c.x, y, bounds.max.z)]);
     let far = e.length() * 2.0;
-    Ok(sample(&line, frames, e.z * 0.1, |eye, target| CameraKey {
-        eye: eye.into(),
-        target: target.into(),
-        up: [0.0, 1.0, 0.0],
-        fovy_deg: 60.0,
-        near: (far * 1e-5).max(1e-3),
-        far,
-    }))
+    Ok(sample(&line, frames, e.z * 0.1, |eye, target| looking_ahead(eye, target, far)))
 }
 
 /// One turn around any scene: the eye circles its center at the three-quarter view's height
@@ -276,14 +269,20 @@ pub fn fly_path(bounds: &Aabb, frames: usize) -> Result<Vec<CameraKey>> {
         Vec3::new(bounds.max.x + reach * 0.5, y + e.y * 0.5, lo.z - reach),
     ]);
     let far = e.length() * 3.0;
-    Ok(sample(&line, frames, e.length() * 0.05, |eye, target| CameraKey {
+    Ok(sample(&line, frames, e.length() * 0.05, |eye, target| looking_ahead(eye, target, far)))
+}
+
+/// A key of a path through a scene of any size: 60° view, +y up, near plane a 10^-5 of the
+/// far one (at least 10^-3).
+fn looking_ahead(eye: Vec3, target: Vec3, far: f32) -> CameraKey {
+    CameraKey {
         eye: eye.into(),
         target: target.into(),
         up: [0.0, 1.0, 0.0],
         fovy_deg: 60.0,
         near: (far * 1e-5).max(1e-3),
         far,
-    }))
+    }
 }
 
 /// Scene bounds a camera can be placed around: not empty, finite, and small enough for the

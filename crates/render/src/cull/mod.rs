@@ -166,6 +166,8 @@ struct Clusters {
     octree: LooseOctree,
     /// Clusters that moved since the octree was last brought up to date.
     octree_pending: Vec<u32>,
+    /// More clusters moved than there are: rebuild the octree instead of moving entries.
+    octree_rebuild: bool,
     visible: Vec<Visible>,
     /// Two-pass state: the clusters found visible in the last frame drawn with it.
     last_visible: Vec<u32>,

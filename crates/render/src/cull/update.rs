@@ -81,6 +81,7 @@ impl Clusters {
             cone_can_cull,
             octree,
             octree_pending: Vec::new(),
+            octree_rebuild: false,
             visible: Vec::new(),
             last_visible: Vec::new(),
             drawn_in: Vec::new(),
@@ -99,19 +100,22 @@ impl Clusters {
             inst.world_from_local = node.world_matrix();
             inst.world_aabb = node.world_aabb();
             moved = true;
+            let cols = inst.world_from_local.to_cols_array();
             for item in self.clustered.instance_items(i) {
                 let k = item as usize;
                 let b = self.clustered.item_box(item, &self.instances);
                 self.item_boxes[k] = b;
                 // The octree serves one method only: its entries move when that method
                 // draws next (`settle_octree`), not on every frame of the others.
-                self.octree_pending.push(item);
-                if self.octree_pending.len() > self.item_boxes.len() {
-                    // More moves than clusters: rebuilding is cheaper than the list.
-                    self.octree_pending.clear();
-                    self.octree_pending.push(u32::MAX);
+                if !self.octree_rebuild {
+                    self.octree_pending.push(item);
+                    if self.octree_pending.len() > self.item_boxes.len() {
+                        // More moves than clusters: rebuilding is cheaper than the list.
+                        self.octree_pending.clear();
+                        self.octree_rebuild = true;
+                    }
                 }
-                self.draws[k].world_from_local = self.instances[i as usize].world_from_local.to_cols_array();
+                self.draws[k].world_from_local = cols;
                 // A cone that can cull is recomputed for the new pose; one that cannot stays
                 // unable to (conservative: at worst a cluster that could be dropped is drawn).
                 if self.cone_can_cull[k / 64] >> (k % 64) & 1 != 0 {
@@ -131,11 +135,11 @@ impl Clusters {
 impl Clusters {
     /// Moves the octree entries of clusters that moved since the octree was last used.
     pub(super) fn settle_octree(&mut self) {
-        let mut pending = std::mem::take(&mut self.octree_pending);
-        if pending.first() == Some(&u32::MAX) {
+        if std::mem::take(&mut self.octree_rebuild) {
             self.octree = LooseOctree::from_boxes(&self.item_boxes, OCTREE_DEPTH);
-            pending.clear();
+            return;
         }
+        let mut pending = std::mem::take(&mut self.octree_pending);
         pending.sort_unstable();
         pending.dedup();
         for &item in &pending {
