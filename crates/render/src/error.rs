@@ -48,6 +48,19 @@ pub enum Error {
     /// A ray caster handed its scene after edits it has not followed yet.
     #[error("the scene changed since the ray caster was built or synced: call RayCaster::sync first")]
     NotSynced,
+    /// A visibility method whose cost grows faster than the triangle count, handed more
+    /// triangles than it is allowed to take.
+    #[error(
+        "{method} takes at most {limit} triangles and this scene has {triangles}: use a smaller scene (e.g. city:{limit}) or another method"
+    )]
+    TooLarge {
+        /// The method's name.
+        method: &'static str,
+        /// Triangles in the scene.
+        triangles: usize,
+        /// The most the method takes.
+        limit: usize,
+    },
     /// Writing an output file failed.
     #[error("{path}: {why}")]
     Output {

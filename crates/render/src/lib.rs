@@ -32,6 +32,7 @@ pub mod shading;
 mod stats;
 pub mod texture;
 mod tiling;
+pub mod visibility;
 pub mod wire;
 mod world;
 
