@@ -1,8 +1,11 @@
 //! Scene benchmarks: world-transform propagation over 10^6 nodes (flat and deep, and flat
 //! with every node drawing a mesh, so that the change report lists each moved node), full and
-//! after changing 1% of the nodes, and building the 10^6-triangle city.
+//! after changing 1% of the nodes (on a fresh clone, and edited in place frame after frame as an
+//! animation would), and building the 10^6-triangle city.
 
 #![forbid(unsafe_code)]
+
+use std::time::{Duration, Instant};
 
 use criterion::{criterion_group, criterion_main, BatchSize, Criterion};
 use glam::Vec3;
@@ -61,7 +64,7 @@ fn deep() -> (Scene, Vec<NodeId>) {
 fn propagate(c: &mut Criterion) {
     let mut g = c.benchmark_group("propagate_1e6");
     g.sample_size(10);
-    for (name, (scene, ids)) in [("flat", flat()), ("deep", deep()), ("flat_drawn", flat_drawn())] {
+    for (name, (mut scene, ids)) in [("flat", flat()), ("deep", deep()), ("flat_drawn", flat_drawn())] {
         let roots: Vec<NodeId> = scene.roots().to_vec();
         let mut rng = Rng::new(5);
         let some: Vec<NodeId> = (0..NODES / 100).map(|_| ids[rng.below(ids.len() as u32) as usize]).collect();
@@ -93,6 +96,25 @@ fn propagate(c: &mut Criterion) {
                 },
                 BatchSize::LargeInput,
             )
+        });
+        // As in a frame loop: the same scene edited in place (an animation setting 1% of
+        // the local transforms), only the propagation timed.
+        let mut frame = 0u32;
+        g.bench_function(format!("{name}/one_percent_per_frame"), |b| {
+            b.iter_custom(|n| {
+                let mut spent = Duration::ZERO;
+                for _ in 0..n {
+                    frame += 1;
+                    let t = Transform::from_translation(Vec3::splat(frame as f32));
+                    for &id in &some {
+                        scene.set_local_transform(id, t).unwrap();
+                    }
+                    let start = Instant::now();
+                    scene.update_transforms();
+                    spent += start.elapsed();
+                }
+                spent
+            })
         });
     }
     g.finish();

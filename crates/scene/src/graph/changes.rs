@@ -134,6 +134,8 @@ pub(crate) struct Pending {
     pub(crate) order_changed: bool,
     /// Some edit (a removal) needs an update although no node is dirty.
     pub(crate) edited: bool,
+    /// A reparent changed depths, so the depths recorded with the dirty marks may be stale.
+    pub(crate) depths_changed: bool,
 }
 
 /// The flattened order: drawn nodes depth-first, with their first triangle.

@@ -52,7 +52,7 @@ impl Scene {
             Some(p) => self.nodes[p].children.push(id),
             None => self.roots.push(id),
         }
-        self.dirty.push(id);
+        self.dirty.push((depth, id));
         Ok(id)
     }
 
@@ -60,7 +60,7 @@ impl Scene {
         let n = &mut self.nodes[id];
         if !n.dirty {
             n.dirty = true;
-            self.dirty.push(id);
+            self.dirty.push((n.depth, id));
         }
     }
 
@@ -186,6 +186,7 @@ impl Scene {
             draws |= n.drawn.is_some();
             stack.extend(n.children.iter().map(|&c| (c, d + 1)));
         }
+        self.pending.depths_changed = true;
         if draws {
             self.pending.order_changed = true;
             self.forget_order();

@@ -203,7 +203,9 @@ pub struct Scene {
     roots: Vec<NodeId>,
     meshes: SlotMap<MeshId, Mesh>,
     materials: SlotMap<MaterialId, Material>,
-    dirty: Vec<NodeId>,
+    /// Nodes marked dirty since the last update, with their depth when marked (so that
+    /// ordering them reads no node).
+    dirty: Vec<(u32, NodeId)>,
     /// Cameras defined by a loaded file. Removing a camera's node removes the camera.
     pub cameras: Vec<SceneCamera>,
     /// Animations of node transforms (from a file or a builder); see [`Scene::animate`].

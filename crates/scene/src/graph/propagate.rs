@@ -51,18 +51,17 @@ impl Scene {
         self.pending.edited = false;
 
         let mut marked = std::mem::take(&mut self.dirty);
-        // Collect: drop removed nodes, reading each node's depth once (a sort that looked
-        // nodes up in its comparisons would cost O(n log n) cache misses); order: ancestors
-        // first, so each subtree is walked once, and nodes of one depth in the order they were
-        // marked (so reports are in that order).
+        // Order: ancestors first, so each subtree is walked once, and nodes of one depth in
+        // the order they were marked (so reports are in that order). The depths recorded
+        // with the marks are used unless a reparent changed depths since; nodes removed or
+        // already clean are skipped in the walk below, so ordering reads no node.
         let mut dirty = std::mem::take(&mut self.scratch);
         dirty.clear();
-        dirty.extend(
-            marked
-                .iter()
-                .enumerate()
-                .filter_map(|(seq, &id)| self.nodes.get(id).filter(|n| n.dirty).map(|n| (n.depth, seq as u32, id))),
-        );
+        let redepth = std::mem::take(&mut self.pending.depths_changed);
+        dirty.extend(marked.iter().enumerate().map(|(seq, &(depth, id))| {
+            let depth = if redepth { self.nodes.get(id).map_or(depth, |n| n.depth) } else { depth };
+            (depth, seq as u32, id)
+        }));
         dirty.sort_unstable_by_key(|&(depth, seq, _)| (depth, seq));
         let mut walk = Walk { nodes: &mut self.nodes, meshes: &self.meshes, changes: &mut changes };
         let mut visited = 0;
@@ -70,8 +69,17 @@ impl Scene {
         // next child to visit), not one per pending node: a parent of 10^6 children costs
         // no 10^6-entry stack.
         let mut stack: Vec<(NodeId, Frame, usize)> = Vec::new();
-        for &(_, _, id) in &dirty {
-            let node = &walk.nodes[id];
+        for (k, &(_, _, id)) in dirty.iter().enumerate() {
+            // Scattered edits are bound by cache misses on the nodes, and one node's visit
+            // is too long for the processor to reach the next node's loads on its own: so
+            // every `TOUCH_AHEAD` nodes, the next batch is read in a short loop whose loads
+            // overlap.
+            if k % TOUCH_AHEAD == 0 {
+                walk.touch(dirty[k..].iter().take(TOUCH_AHEAD).map(|&(_, _, id)| id));
+            }
+            let Some(node) = walk.nodes.get(id) else {
+                continue; // removed since it was marked
+            };
             if !node.dirty {
                 continue; // handled with a dirty ancestor
             }
@@ -121,7 +129,37 @@ impl Scene {
     }
 }
 
+/// How many dirty nodes are read ahead at once (see the walk).
+const TOUCH_AHEAD: usize = 32;
+
 impl Walk<'_> {
+    /// Reads the cache lines a visit of each node needs (its local and world matrices, its
+    /// bounds and flags, its parent's world matrix), with loads independent from node to
+    /// node, and returns nothing of use: a portable prefetch.
+    #[inline(never)]
+    fn touch(&self, ids: impl Iterator<Item = NodeId>) {
+        let mut sink = 0u32;
+        for id in ids {
+            if let Some(n) = self.nodes.get(id) {
+                // One field from each end of each wide field: whatever the layout, every
+                // cache line of the node a visit uses is read.
+                sink ^= n.parent_from_local.matrix3.x_axis.x.to_bits()
+                    ^ n.parent_from_local.translation.x.to_bits()
+                    ^ n.world_from_local.matrix3.x_axis.x.to_bits()
+                    ^ n.world_from_local.translation.x.to_bits()
+                    ^ n.world_aabb.min.x.to_bits()
+                    ^ n.world_aabb.max.z.to_bits()
+                    ^ n.children.len() as u32
+                    ^ n.mesh.is_some() as u32
+                    ^ n.drawn.is_some() as u32;
+                if let Some(p) = n.parent.and_then(|p| self.nodes.get(p)) {
+                    sink ^= p.world_from_local.translation.x.to_bits();
+                }
+            }
+        }
+        std::hint::black_box(sink);
+    }
+
     /// Recomputes one node from what its parent passes down, records the change a consumer
     /// must hear about, and returns what the node passes down and its number of children.
     #[inline(always)]
