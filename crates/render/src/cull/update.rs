@@ -16,10 +16,9 @@
 //! new place as this frame's first occluders (drawing more than needed never changes the
 //! picture), and every other cluster is tested against the pyramid as usual.
 
-use std::collections::HashMap;
-
 use sightline_scene::{NodeId, Scene, SceneDelta};
 use sightline_spatial::{ClusteredScene, LooseOctree, RefitOutcome};
+use slotmap::SecondaryMap;
 
 use super::{cone, ClusterDraw, Clusters, SceneMeshlets, OCTREE_DEPTH};
 
@@ -95,7 +94,7 @@ impl Clusters {
     pub(super) fn move_nodes(&mut self, scene: &Scene, nodes: &[NodeId]) -> Option<RefitOutcome> {
         let mut moved = false;
         for id in nodes {
-            let (Some(&i), Some(node)) = (self.node_instance.get(id), scene.node(*id)) else { continue };
+            let (Some(&i), Some(node)) = (self.node_instance.get(*id), scene.node(*id)) else { continue };
             let inst = &mut self.instances[i as usize];
             inst.world_from_local = node.world_matrix();
             inst.world_aabb = node.world_aabb();
@@ -165,8 +164,8 @@ fn cone_input<'a>(
     }
 }
 
-/// Instance index by the node that draws it.
-pub(super) type NodeInstance = HashMap<NodeId, u32>;
+/// Instance index by the node that draws it (indexed by the node's slot: no hashing).
+pub(super) type NodeInstance = SecondaryMap<NodeId, u32>;
 
 /// What [`super::Culler::sync`] did to follow the scene.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -196,7 +195,7 @@ impl Clusters {
             SceneDelta::UpToDate => SyncOutcome::Unchanged,
             SceneDelta::Apply(ch) if !ch.order_changed && ch.added.is_empty() && ch.removed.is_empty() => {
                 for id in &ch.restyled {
-                    if let (Some(&i), Some(now)) = (self.node_instance.get(id), scene.instance(*id)) {
+                    if let (Some(&i), Some(now)) = (self.node_instance.get(*id), scene.instance(*id)) {
                         self.instances[i as usize].material = now.material;
                     }
                 }

@@ -5,10 +5,16 @@
 //! marked dirty (and whatever else the scene records about edits happens) exactly as for an
 //! edit made by hand.
 
-use glam::{Affine3A, Quat, Vec3};
+use std::ops::Range;
 
-use super::{Animation, Channel, Curve};
+use glam::{Affine3A, Quat, Vec3};
+use rayon::prelude::*;
+
+use super::{Animation, Curve};
 use crate::{Error, NodeId, Result, Scene, Transform};
+
+/// From this many node poses on, they are sampled on several threads.
+const PARALLEL_POSES: usize = 1024;
 
 /// The components of one node's TRS set by consecutive channels; `None`: keep the node's.
 #[derive(Default)]
@@ -70,38 +76,64 @@ impl Animation {
     /// Errors: a non-finite `t`; a channel aimed at a node no longer in `scene` (the other
     /// channels are still applied, the error names the first such channel).
     pub fn apply(&self, scene: &mut Scene, t: f32) -> Result<usize> {
-        if !t.is_finite() {
-            return Err(Error::Animation { name: self.name.clone(), why: format!("time {t} is not finite") });
+        play(std::slice::from_ref(self), scene, t)
+    }
+
+    /// The runs of consecutive channels with one target: each makes one node's pose.
+    fn runs(&self) -> impl Iterator<Item = Range<usize>> + '_ {
+        let mut first = 0;
+        std::iter::from_fn(move || {
+            let target = self.channels.get(first)?.target;
+            let run = self.channels[first..].iter().take_while(|c| c.target == target).count();
+            first += run;
+            Some(first - run..first)
+        })
+    }
+}
+
+/// Plays `animations` in order at time `t`: every node pose is sampled first (in parallel
+/// when there are many: each curve is its own allocation, so a scene of many animated
+/// objects is bound by cache misses that threads overlap), then the poses are laid over
+/// the nodes' current transforms and set one after another, in the animations' order, so
+/// that a later animation wins exactly where it sets a component.
+fn play(animations: &[Animation], scene: &mut Scene, t: f32) -> Result<usize> {
+    let mut first_error = None;
+    if !t.is_finite() {
+        let Some(a) = animations.first() else { return Ok(0) };
+        return Err(Error::Animation { name: a.name.clone(), why: format!("time {t} is not finite") });
+    }
+    let jobs: Vec<(usize, Range<usize>)> =
+        animations.iter().enumerate().flat_map(|(k, a)| a.runs().map(move |r| (k, r))).collect();
+    let sample = |(k, r): &(usize, Range<usize>)| {
+        let a = &animations[*k];
+        let t = a.local_time(t);
+        let mut pose = Pose::default();
+        for c in &a.channels[r.clone()] {
+            pose.sample(&c.curve, t);
         }
-        let t = self.local_time(t);
-        let mut first_error = None;
-        let mut set = 0;
-        let mut rest: &[Channel] = &self.channels;
-        let mut index = 0;
-        while let Some(first) = rest.first() {
-            let target = first.target;
-            let run = rest.iter().take_while(|c| c.target == target).count();
-            let mut pose = Pose::default();
-            for c in &rest[..run] {
-                pose.sample(&c.curve, t);
+        pose
+    };
+    let poses: Vec<Pose> = if jobs.len() >= PARALLEL_POSES {
+        jobs.par_iter().with_min_len(PARALLEL_POSES / 4).map(sample).collect()
+    } else {
+        jobs.iter().map(sample).collect()
+    };
+    let mut set = 0;
+    for ((k, r), pose) in jobs.iter().zip(poses) {
+        let first = &animations[*k].channels[r.start];
+        match pose.over(scene, first.target).and_then(|m| scene.set_local_matrix(first.target, m)) {
+            Ok(()) => set += 1,
+            Err(e) => {
+                first_error.get_or_insert(Error::Animation {
+                    name: animations[*k].name.clone(),
+                    why: format!("channel {} ({}): {e}", r.start, first.curve.property()),
+                });
             }
-            let result = pose.over(scene, target).and_then(|m| scene.set_local_matrix(target, m));
-            match result {
-                Ok(()) => set += 1,
-                Err(e) => {
-                    first_error.get_or_insert(Error::Animation {
-                        name: self.name.clone(),
-                        why: format!("channel {index} ({}): {e}", first.curve.property()),
-                    });
-                }
-            }
-            rest = &rest[run..];
-            index += run;
         }
-        match first_error {
-            Some(e) => Err(e),
-            None => Ok(set),
-        }
+    }
+    match first_error {
+        Some(e) => Err(e),
+        None => Ok(set),
     }
 }
 
@@ -116,21 +148,9 @@ impl Scene {
     /// returned.
     pub fn animate(&mut self, t: f32) -> Result<usize> {
         let animations = std::mem::take(&mut self.animations);
-        let mut first_error = None;
-        let mut set = 0;
-        for a in &animations {
-            match a.apply(self, t) {
-                Ok(n) => set += n,
-                Err(e) => {
-                    first_error.get_or_insert(e);
-                }
-            }
-        }
+        let result = play(&animations, self, t);
         self.animations = animations;
-        match first_error {
-            Some(e) => Err(e),
-            None => Ok(set),
-        }
+        result
     }
 
     /// The longest [`Animation::duration`] of the scene's animations (0 without any).
