@@ -4,6 +4,8 @@
 //!   propagating the changed world transforms (the scene's share of a moving frame).
 //! * `dynamic/sync_culler`: bringing the culler's spatial structures up to date with one
 //!   such step (moved cluster boxes, octree entries, cones, BVH refit): the engine's share.
+//! * `dynamic/sync_raycaster`: the same for the ray caster (new instance transforms and a TLAS
+//!   refit, or a rebuild once the refitted tree has degraded).
 //! * `dynamic/hzb_moving` against `dynamic/hzb_parked`: an `hzb` street frame while the
 //!   vehicles move (everything above included) and the same frames with them parked.
 
@@ -12,7 +14,7 @@
 use std::time::{Duration, Instant};
 
 use criterion::{criterion_group, criterion_main, Criterion};
-use sightline::render::{Culler, Framebuffer, Method, RenderOptions};
+use sightline::render::{Culler, Framebuffer, Method, RayCaster, RenderOptions};
 use sightline::scene::builders::{city_with_traffic, TrafficParams};
 
 const VEHICLES: u32 = 10_000;
@@ -53,6 +55,23 @@ fn dynamic(c: &mut Criterion) {
             spent
         })
     });
+    let mut caster = RayCaster::build(&scene).unwrap();
+    g.bench_function("sync_raycaster", |b| {
+        b.iter_custom(|n| {
+            let mut spent = Duration::ZERO;
+            for _ in 0..n {
+                frame += 1;
+                scene.animate(frame as f32 / 30.0).unwrap();
+                scene.update_transforms();
+                let t = Instant::now();
+                pool.install(|| caster.sync(&scene).unwrap());
+                spent += t.elapsed();
+            }
+            spent
+        })
+    });
+    drop(caster);
+    culler.sync(&scene).unwrap();
     let mut k = 0;
     g.bench_function("hzb_moving", |b| {
         b.iter(|| {

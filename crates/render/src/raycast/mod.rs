@@ -59,7 +59,8 @@ use std::time::Instant;
 
 use glam::{Vec2, Vec3};
 use rayon::prelude::*;
-use sightline_scene::{Camera, Instance, MeshId, Scene, SceneStamp};
+use sightline_scene::{Camera, Instance, MeshId, NodeId, Scene, SceneDelta, SceneStamp};
+use slotmap::SecondaryMap;
 
 use crate::csg::CsgObject;
 use crate::shading::ShadeOptions;
@@ -160,10 +161,13 @@ pub enum HitTarget {
 /// A scene prepared for ray casting: BLASes, instances and the TLAS, plus CSG solids.
 ///
 /// Built for one scene; the scene is handed to every frame (meshes and materials are read at
-/// shading time). After edits, [`RayCaster::sync`] follows them: the BLAS of every mesh still
-/// drawn is kept and only the instances and the TLAS over them are made anew, so moving
-/// objects costs a TLAS build, never a BLAS build. A frame of a scene the caster is not synced
-/// to is refused, never drawn stale.
+/// shading time). After edits, [`RayCaster::sync`] follows them: when instances only moved
+/// (or changed material), their records take the new transforms and the TLAS is refitted,
+/// or rebuilt once refitting has let its SAH cost grow past
+/// [`REBUILD_RATIO`](sightline_spatial::REBUILD_RATIO) times a fresh build's; when what is
+/// drawn changed, the instances and the TLAS are made anew, keeping the BLAS of every mesh
+/// still drawn. Either way a BLAS is built once per mesh. A frame of a scene the caster is
+/// not synced to is refused, never drawn stale.
 #[derive(Debug, Clone)]
 pub struct RayCaster {
     stamp: SceneStamp,
@@ -173,6 +177,10 @@ pub struct RayCaster {
     /// private BLASes of instances with singular transforms.
     blas_meshes: Vec<MeshId>,
     tlas: WideTlas,
+    /// Scene instance index → its position in `tlas.instances()` (`u32::MAX`: none).
+    record_of: Vec<u32>,
+    /// Instance index by the node that draws it.
+    node_instance: SecondaryMap<NodeId, u32>,
     csg: Vec<CsgObject>,
     triangle_count: u32,
     build_ms: f64,
@@ -196,8 +204,15 @@ impl RayCaster {
         if scene.needs_update() {
             return Err(crate::Error::NotPropagated);
         }
-        if scene.stamp() == self.stamp {
-            return Ok(false);
+        match scene.delta_since(self.stamp) {
+            SceneDelta::UpToDate => return Ok(false),
+            SceneDelta::Apply(ch) if !ch.order_changed && ch.added.is_empty() && ch.removed.is_empty() => {
+                if self.follow_moves(scene, &ch.moved, &ch.restyled) {
+                    self.stamp = scene.stamp();
+                    return Ok(true);
+                }
+            }
+            _ => {}
         }
         let n = self.blas_meshes.len();
         let known =
@@ -206,6 +221,42 @@ impl RayCaster {
         *self = Self::build_reusing(scene, known.collect());
         self.csg = csg;
         Ok(true)
+    }
+
+    /// Moves the instances of `moved` to their nodes' world transforms and refits the TLAS;
+    /// takes the new materials of `restyled`. False when a move cannot be followed this way
+    /// (a transform became singular, or a private world-space BLAS moved): rebuild then.
+    fn follow_moves(&mut self, scene: &Scene, moved: &[NodeId], restyled: &[NodeId]) -> bool {
+        for id in restyled {
+            if let (Some(&i), Some(now)) = (self.node_instance.get(*id), scene.instance(*id)) {
+                self.instances[i as usize].material = now.material;
+            }
+        }
+        let shared = self.blas_meshes.len() as u32;
+        let mut any = false;
+        for id in moved {
+            let (Some(&i), Some(node)) = (self.node_instance.get(*id), scene.node(*id)) else { continue };
+            let inst = &mut self.instances[i as usize];
+            inst.world_from_local = node.world_matrix();
+            inst.world_aabb = node.world_aabb();
+            let r = self.record_of[i as usize];
+            if r == u32::MAX {
+                if inst.triangle_count > 0 {
+                    return false; // no record: it had a singular transform and a private BLAS
+                }
+                continue; // draws nothing
+            }
+            if self.tlas.instances()[r as usize].blas >= shared
+                || !self.tlas.set_transform(r as usize, inst.world_from_local)
+            {
+                return false;
+            }
+            any = true;
+        }
+        if any {
+            self.tlas.refit(&self.blases);
+        }
+        true
     }
 
     fn build_reusing(scene: &Scene, mut known: std::collections::HashMap<MeshId, WideBlas>) -> Self {
@@ -264,12 +315,19 @@ impl RayCaster {
         }
         blases.extend(placed);
         let tlas = WideTlas::build(records, &blases);
+        let mut record_of = vec![u32::MAX; instances.len()];
+        for (r, rec) in tlas.instances().iter().enumerate() {
+            record_of[rec.scene_index as usize] = r as u32;
+        }
+        let node_instance = instances.iter().enumerate().map(|(i, inst)| (inst.node, i as u32)).collect();
         Self {
             stamp: scene.stamp(),
             instances,
             blases,
             blas_meshes: mesh_ids,
             tlas,
+            record_of,
+            node_instance,
             csg: Vec::new(),
             triangle_count,
             build_ms: t0.elapsed().as_secs_f64() * 1e3,

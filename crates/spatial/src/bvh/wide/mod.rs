@@ -18,9 +18,11 @@
 //! This module holds the data structure and its builder only; casting rays through it
 //! (packets, traversal, triangle tests) is the ray caster's business in `sightline-render`.
 //! Unlike [`crate::Bvh`] (binary, for culling and front-to-back order), a wide BVH has no
-//! refit and no rule for unbounded boxes: every box it is built from must be finite.
+//! rule for unbounded boxes: every box it is built from must be finite. It can be refitted
+//! to moved primitives (`refit`), which the instance level uses when instances move.
 
 mod blas;
+mod refit;
 mod tlas;
 
 pub use blas::WideBlas;

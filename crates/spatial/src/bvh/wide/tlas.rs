@@ -13,6 +13,7 @@ use obvhs::aabb::Aabb as ObAabb;
 
 use super::blas::WideBlas;
 use super::{WideBuildParams, WideBvh};
+use crate::{RefitOutcome, REBUILD_RATIO};
 
 /// One placed BLAS.
 ///
@@ -51,30 +52,57 @@ pub struct WideTlas {
     instances: Vec<InstanceRecord>,
     /// The tree over world boxes.
     bvh: WideBvh,
+    /// The tree's SAH cost right after its last build (refits are measured against it).
+    build_cost: f32,
 }
 
 impl WideTlas {
     /// Builds the BVH over the instances' world boxes (BLAS bounds mapped by
     /// `world_from_blas`). Records of empty or missing BLASes are dropped.
     pub fn build(records: Vec<InstanceRecord>, blases: &[WideBlas]) -> WideTlas {
-        let mut instances = Vec::with_capacity(records.len());
-        let mut boxes = Vec::with_capacity(records.len());
-        for rec in records {
-            let Some(blas) = blases.get(rec.blas as usize) else {
-                continue;
-            };
-            if blas.tris().is_empty() {
-                continue;
-            }
-            let wb = blas.bounds().transformed(&rec.world_from_blas);
-            // Pad by a relative epsilon: the box must contain every transformed vertex
-            // despite rounding.
-            let pad = (wb.max - wb.min).max(wb.max.abs().max(wb.min.abs())) * 1e-6;
-            boxes.push(ObAabb::new(Vec3A::from(wb.min - pad), Vec3A::from(wb.max + pad)));
-            instances.push(rec);
-        }
+        let instances: Vec<InstanceRecord> = records
+            .into_iter()
+            .filter(|rec| blases.get(rec.blas as usize).is_some_and(|b| !b.tris().is_empty()))
+            .collect();
+        let boxes = world_boxes(&instances, blases);
         let bvh = WideBvh::build_obvhs(&boxes, WideBuildParams::TLAS);
-        WideTlas { instances, bvh }
+        let build_cost = bvh.sah_cost();
+        WideTlas { instances, bvh, build_cost }
+    }
+
+    /// Places instance `i` (of [`WideTlas::instances`], made by [`InstanceRecord::placed`])
+    /// by a new `world_from_local`; the tree follows at the next [`WideTlas::refit`]. Returns
+    /// false, changing nothing, for a transform that cannot be inverted: the caller must
+    /// rebuild then (with a private world-space BLAS for it). An instance made by
+    /// [`InstanceRecord::in_world`] must not be moved this way: its BLAS holds world positions.
+    pub fn set_transform(&mut self, i: usize, world_from_local: Affine3A) -> bool {
+        let Some(rec) = self.instances.get_mut(i) else { return false };
+        if !invertible(&world_from_local) {
+            return false;
+        }
+        *rec = InstanceRecord::placed(rec.blas, rec.scene_index, rec.first_id, world_from_local);
+        true
+    }
+
+    /// Refits the tree to the instances' current transforms, or rebuilds it when refitting
+    /// has let its SAH cost grow past [`REBUILD_RATIO`] times that of the last build.
+    pub fn refit(&mut self, blases: &[WideBlas]) -> RefitOutcome {
+        let boxes = world_boxes(&self.instances, blases);
+        let ratio = if self.bvh.refit(&boxes) {
+            if self.build_cost > 0.0 {
+                self.bvh.sah_cost() / self.build_cost
+            } else {
+                1.0
+            }
+        } else {
+            f32::INFINITY
+        };
+        if ratio <= REBUILD_RATIO {
+            return RefitOutcome::Refitted { cost_ratio: ratio };
+        }
+        self.bvh = WideBvh::build_obvhs(&boxes, WideBuildParams::TLAS);
+        self.build_cost = self.bvh.sah_cost();
+        RefitOutcome::Rebuilt { cost_ratio: ratio }
     }
 
     /// The instances kept (in the order given to [`WideTlas::build`]); the BVH's primitive
@@ -89,6 +117,19 @@ impl WideTlas {
     pub fn bvh(&self) -> &WideBvh {
         &self.bvh
     }
+}
+
+/// The world boxes of `instances` (their BLAS bounds mapped by `world_from_blas`), padded
+/// by a relative epsilon so that each contains every transformed vertex despite rounding.
+fn world_boxes(instances: &[InstanceRecord], blases: &[WideBlas]) -> Vec<ObAabb> {
+    instances
+        .iter()
+        .map(|rec| {
+            let wb = blases[rec.blas as usize].bounds().transformed(&rec.world_from_blas);
+            let pad = (wb.max - wb.min).max(wb.max.abs().max(wb.min.abs())) * 1e-6;
+            ObAabb::new(Vec3A::from(wb.min - pad), Vec3A::from(wb.max + pad))
+        })
+        .collect()
 }
 
 impl InstanceRecord {
