@@ -206,11 +206,16 @@ impl RayCaster {
         }
         match scene.delta_since(self.stamp) {
             SceneDelta::UpToDate => return Ok(false),
-            SceneDelta::Apply(ch) if !ch.order_changed && ch.added.is_empty() && ch.removed.is_empty() => {
-                if self.follow_moves(scene, &ch.moved, &ch.restyled) {
-                    self.stamp = scene.stamp();
-                    return Ok(true);
-                }
+            // Only moves and material changes: follow them in place unless a move needs a
+            // rebuild.
+            SceneDelta::Apply(ch)
+                if !ch.order_changed
+                    && ch.added.is_empty()
+                    && ch.removed.is_empty()
+                    && self.follow_moves(scene, &ch.moved, &ch.restyled) =>
+            {
+                self.stamp = scene.stamp();
+                return Ok(true);
             }
             _ => {}
         }
