@@ -55,7 +55,7 @@ pub struct Look {
     /// Supersampling antialiasing
     #[arg(long, value_enum, default_value = "off")]
     pub aa: AaArg,
-    /// Wireframe drawing (Bresenham lines)
+    /// Wireframe drawing (Bresenham lines); hidden-line: only the edges the depth buffer shows
     #[arg(long, value_enum, default_value = "off")]
     pub wireframe: WireArg,
     /// Depth buffer format
@@ -85,6 +85,7 @@ pub enum WireArg {
     Off,
     Overlay,
     Only,
+    HiddenLine,
 }
 
 #[derive(Debug, Clone, Copy, clap::ValueEnum)]
@@ -114,6 +115,7 @@ impl Look {
             WireArg::Off => Wireframe::Off,
             WireArg::Overlay => Wireframe::Overlay,
             WireArg::Only => Wireframe::Only,
+            WireArg::HiddenLine => Wireframe::HiddenLine,
         };
         o.depth_format = match self.depth_format {
             DepthArg::F32 => DepthFormat::F32,

@@ -61,6 +61,18 @@ pub enum Error {
         /// The most the method takes.
         limit: usize,
     },
+    /// A visibility method that needed more of some bounded resource (splits, windows, …)
+    /// than its limit allows: the input is degenerate or far harder than the method is
+    /// meant for.
+    #[error("{method} gave up: the scene needs more than {limit} {what}; use another method for this scene")]
+    LimitExceeded {
+        /// The method's name.
+        method: &'static str,
+        /// What ran out.
+        what: &'static str,
+        /// The bound.
+        limit: u64,
+    },
     /// Writing an output file failed.
     #[error("{path}: {why}")]
     Output {

@@ -85,6 +85,10 @@ pub enum Wireframe {
     Overlay,
     /// Only the edges, on the background (depth and IDs stay cleared).
     Only,
+    /// Hidden-line removal: the edges drawn over the shaded image where they are not
+    /// hidden, each line pixel depth-tested against the filled depth buffer (see
+    /// [`crate::wire`] for the tolerance), so back and hidden edges disappear.
+    HiddenLine,
 }
 
 /// How a frame is rendered.

@@ -7,12 +7,35 @@
 //!
 //! Triangle edges are first clipped against the near plane in clip space (a segment with an
 //! end behind the eye has no sensible projection), then projected, clipped in 2D to the
-//! pixel-center rectangle, rounded to pixel centers and drawn. Lines are not depth-tested.
+//! pixel-center rectangle, rounded to pixel centers and drawn. Lines are not depth-tested,
+//! except in hidden-line mode.
+//!
+//! # Hidden lines
+//!
+//! [`Wireframe::HiddenLine`] draws the edges over the filled frame and keeps a line pixel
+//! only where the edge is the visible surface there: the pixel shows the edge's own
+//! triangle, or the edge's window depth (linear along the projected segment, as window
+//! depth is on any projected line) is not farther than the depth buffer's by more than a
+//! tolerance: the image-space form of hidden-line removal by a depth buffer (Foley, van
+//! Dam, Feiner & Hughes, *Computer Graphics: Principles and Practice*, 2nd ed., 1990,
+//! §15.3 and §15.4). The tolerance is what `glPolygonOffset(1, 4)` would add:
+//!
+//! * slope-scaled: a Bresenham pixel centre lies up to half a pixel off the edge across the
+//!   line (along its minor axis), where the neighbour triangle sharing the edge may already
+//!   be nearer than the edge by half a pixel's depth change. That change is measured in the
+//!   depth buffer itself, between the pixel and its neighbours across the line that show the
+//!   same triangle, so grazing surfaces get the larger tolerance they need and surfaces
+//!   facing the viewer almost none;
+//! * constant: 4 units in the last place of the stored depth, for the rounding of the
+//!   rasterizer's f32 depth plane against the line's f64 interpolation.
+//!
+//! An occluder nearer than that hides the edge: edges behind a surface more than a pixel's
+//! depth change in front of them disappear.
 
-use glam::{DVec2, Vec4};
+use glam::{DVec2, DVec3, Vec4};
 use sightline_scene::{Camera, Instance, Scene};
 
-use crate::options::{DrawItem, RenderOptions};
+use crate::options::{DrawItem, RenderOptions, Wireframe};
 use crate::{Error, Framebuffer, Result};
 
 /// Calls `plot` for each pixel of the Bresenham line from (x0, y0) to (x1, y1), ends
@@ -114,9 +137,54 @@ pub fn draw_line(color: &mut [[u8; 4]], width: u32, height: u32, a: DVec2, b: DV
     });
 }
 
+/// Draws the line between window points `a`, `b` (x, y in pixels, z window depth) of an edge
+/// of triangle `id` into `fb.color`, where the depth buffer shows it (see the module doc).
+pub fn draw_visible_line(fb: &mut Framebuffer, a: DVec3, b: DVec3, id: u32, rgba: [u8; 4]) {
+    let (w, h) = (fb.width(), fb.height());
+    let half = DVec2::splat(0.5);
+    let max = DVec2::new(w as f64 - 1.0, h as f64 - 1.0);
+    let (a2, b2) = (a.truncate(), b.truncate());
+    let Some((p, q)) = clip_segment(a2 - half, b2 - half, max) else {
+        return;
+    };
+    let d = b2 - a2;
+    let len2 = d.length_squared();
+    // Neighbours across the line: along y for a line running mostly along x, and so on.
+    let across: [(i64, i64); 2] = if d.x.abs() >= d.y.abs() { [(0, -1), (0, 1)] } else { [(-1, 0), (1, 0)] };
+    let (x0, y0) = (p.x.round() as i32, p.y.round() as i32);
+    let (x1, y1) = (q.x.round() as i32, q.y.round() as i32);
+    bresenham(x0, y0, x1, y1, |x, y| {
+        if x < 0 || y < 0 || x >= w as i32 || y >= h as i32 {
+            return;
+        }
+        let i = fb.index(x as u32, y as u32);
+        let visible = fb.ids[i] == id || {
+            let c = DVec2::new(x as f64 + 0.5, y as f64 + 0.5);
+            let t = if len2 > 0.0 { ((c - a2).dot(d) / len2).clamp(0.0, 1.0) } else { 0.0 };
+            let z = a.z + (b.z - a.z) * t;
+            let stored = fb.depth[i];
+            let mut slope = 0.0f32;
+            for (dx, dy) in across {
+                let (nx, ny) = (x as i64 + dx, y as i64 + dy);
+                if nx >= 0 && ny >= 0 && nx < w as i64 && ny < h as i64 {
+                    let j = fb.index(nx as u32, ny as u32);
+                    if fb.ids[j] == fb.ids[i] {
+                        slope = slope.max((fb.depth[j] - stored).abs());
+                    }
+                }
+            }
+            let ulp = f32::from_bits(stored.to_bits() + 1) - stored;
+            z <= stored as f64 + 0.5 * slope as f64 + 4.0 * ulp as f64
+        };
+        if visible {
+            fb.color[i] = rgba;
+        }
+    });
+}
+
 /// Clips a clip-space segment to the near plane (`z ≥ −w`, and `w > 0`) and projects it to
-/// window coordinates.
-fn project_segment(mut a: Vec4, mut b: Vec4, width: u32, height: u32) -> Option<(DVec2, DVec2)> {
+/// window coordinates (x, y and window depth).
+fn project_segment(mut a: Vec4, mut b: Vec4, width: u32, height: u32) -> Option<(DVec3, DVec3)> {
     // Near plane, then w > 0 (parallel projections have w = 1 and never fail it).
     let planes: [fn(Vec4) -> f32; 2] = [|c| c.z + c.w, |c| c.w - 1e-6];
     for dist in planes {
@@ -131,14 +199,15 @@ fn project_segment(mut a: Vec4, mut b: Vec4, width: u32, height: u32) -> Option<
         }
     }
     let win = |c: Vec4| {
-        let (x, y, w) = (c.x as f64, c.y as f64, c.w as f64);
-        DVec2::new((x / w + 1.0) * 0.5 * width as f64, (1.0 - y / w) * 0.5 * height as f64)
+        let (x, y, z, w) = (c.x as f64, c.y as f64, c.z as f64, c.w as f64);
+        DVec3::new((x / w + 1.0) * 0.5 * width as f64, (1.0 - y / w) * 0.5 * height as f64, (z / w + 1.0) * 0.5)
     };
     Some((win(a), win(b)))
 }
 
 /// Draws the edges of the items' triangles over `fb.color` (back faces skipped when
-/// culling is on).
+/// culling is on); in [`Wireframe::HiddenLine`] mode only where they are visible in the
+/// depth buffer `fb` holds (see the module doc).
 pub fn draw_wireframe(
     scene: &Scene,
     instances: &[Instance],
@@ -160,9 +229,14 @@ pub fn draw_wireframe(
             if opts.backface_culling && crate::clip::facing_det(c) < 0.0 {
                 continue;
             }
+            let id = crate::triangle_id(inst.first_triangle, t as u32);
             for k in 0..3 {
                 if let Some((a, b)) = project_segment(c[k], c[(k + 1) % 3], w, h) {
-                    draw_line(&mut fb.color, w, h, a, b, opts.wire_color);
+                    if opts.wireframe == Wireframe::HiddenLine {
+                        draw_visible_line(fb, a, b, id, opts.wire_color);
+                    } else {
+                        draw_line(&mut fb.color, w, h, a.truncate(), b.truncate(), opts.wire_color);
+                    }
                 }
             }
         }

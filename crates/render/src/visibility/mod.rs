@@ -1,5 +1,6 @@
 //! The visibility lab: hidden-surface algorithms other than the z-buffer, each drawing the
-//! same view into the same [`Framebuffer`] so they can be compared pixel for pixel.
+//! same view into the same [`Framebuffer`](crate::Framebuffer) so they can be compared
+//! pixel for pixel.
 //!
 //! Sutherland, Sproull & Schumacker ("A Characterization of Ten Hidden-Surface Algorithms",
 //! 1974) sorted the classic methods by where they sort: in object space (the painter's
@@ -9,8 +10,9 @@
 //! triangles in the engine's triangle-ID order ([`Soup`]), with the z-buffer as referee.
 //!
 //! Every method follows one contract:
-//! - it takes a [`Soup`], a [`Camera`] and a [`Framebuffer`], and writes `fb.ids` (0 =
-//!   background, else 1 + the triangle's index in the soup, the ID the rasterizer writes)
+//! - it takes a [`Soup`], a [`Camera`](sightline_scene::Camera) and a
+//!   [`Framebuffer`](crate::Framebuffer), and writes `fb.ids` (0 = background, else 1 + the
+//!   triangle's index in the soup, the ID the rasterizer writes)
 //!   and, where it knows it, `fb.depth` (window depth of the visible surface at the pixel
 //!   centre, 1.0 where empty); colour is left to [`crate::shade_pass`], which shades from the
 //!   IDs, so images differ only where visibility differs;
@@ -18,7 +20,19 @@
 //!   right agrees with the z-buffer everywhere but on ties;
 //! - it returns [`Counters`] that say what the algorithm did (comparisons, splits, windows, …);
 //! - a method whose cost grows faster than the triangle count refuses a soup larger than
-//!   its limit with [`Error::TooLarge`](crate::Error::TooLarge) instead of running for an hour.
+//!   its limit with [`Error::TooLarge`] instead of running for an hour.
+//!
+//! The methods here: [`painter`] (depth sort with the Newell–Newell–Sancha tests, and the
+//! plain centroid sort beside it) and [`bsp`] (the autopartition walked back to front, or
+//! front to back with a coverage mask). They scan-convert through `scan`, which hands out
+//! the rasterizer's own pixels for a triangle or a piece of one.
+
+pub mod bsp;
+pub mod painter;
+pub(crate) mod polygon;
+pub(crate) mod scan;
+
+pub use bsp::{BspMode, BspRenderer};
 
 use glam::Vec3;
 use sightline_scene::Scene;

@@ -10,11 +10,15 @@
 //! so degenerate inputs that make very deep trees cannot overflow the thread stack.
 //!
 //! Traversal for any eye: back-to-front (the painter's order: far side, node, near side) and
-//! front-to-back (near side, node, far side).
+//! front-to-back (near side, node, far side). The eye may be a point or, for parallel
+//! projections, a direction (a homogeneous point with w = 0); a walk can stop early
+//! ([`BspTree::visit`]).
 
 pub mod split;
 
-use glam::{Affine3A, Vec3};
+use std::ops::ControlFlow;
+
+use glam::{Affine3A, Vec3, Vec4};
 use sightline_scene::{Aabb, Mesh};
 
 use crate::Plane;
@@ -64,6 +68,15 @@ pub struct BspStats {
     pub triangles_in: usize,
     /// Triangles stored (inputs plus the extra pieces of splits).
     pub triangles_out: usize,
+}
+
+/// The order of a walk, as seen from the eye.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum BspOrder {
+    /// Far side, node, near side: the painter's order.
+    BackToFront,
+    /// Near side, node, far side.
+    FrontToBack,
 }
 
 #[derive(Debug, Clone, Copy)]
@@ -184,33 +197,54 @@ impl BspTree {
     /// Appends stored-triangle indices in back-to-front order for `eye` (painter's order:
     /// drawing them in this order with no depth test gives the visible surface).
     pub fn back_to_front(&self, eye: Vec3, out: &mut Vec<u32>) {
-        self.walk(eye, false, out);
+        self.visit(eye.extend(1.0), BspOrder::BackToFront, |r| {
+            out.extend(r);
+            ControlFlow::Continue(())
+        });
     }
 
     /// Appends stored-triangle indices in front-to-back order for `eye`.
     pub fn front_to_back(&self, eye: Vec3, out: &mut Vec<u32>) {
-        self.walk(eye, true, out);
+        self.visit(eye.extend(1.0), BspOrder::FrontToBack, |r| {
+            out.extend(r.rev());
+            ControlFlow::Continue(())
+        });
     }
 
-    fn walk(&self, eye: Vec3, near_first: bool, out: &mut Vec<u32>) {
+    /// Walks the tree in `order` as seen from `eye`, a homogeneous point: `(x, y, z, 1)` for
+    /// an eye at a point (perspective), `(d, 0)` for a viewer infinitely far along the
+    /// direction `d` (parallel projections: `d` points from the scene toward the viewer).
+    /// The eye is in front of a node's plane when `n·xyz + d·w > 0`.
+    ///
+    /// `node(range)` gets the stored-triangle indices of each node in turn (the node's
+    /// triangles lie in its plane, so their order among themselves does not matter; the
+    /// range is ascending); it returns [`ControlFlow::Break`] to stop the walk there, e.g.
+    /// when a front-to-back renderer has covered the screen. Returns the nodes visited.
+    /// An explicit stack: no recursion however deep the tree.
+    pub fn visit(
+        &self,
+        eye: Vec4,
+        order: BspOrder,
+        mut node: impl FnMut(std::ops::Range<u32>) -> ControlFlow<()>,
+    ) -> usize {
         if self.nodes.is_empty() {
-            return;
+            return 0;
         }
+        let near_first = order == BspOrder::FrontToBack;
+        let mut visited = 0;
         // (node, emit its own triangles now)
         let mut stack: Vec<(u32, bool)> = vec![(0, false)];
         while let Some((i, emit)) = stack.pop() {
             let n = &self.nodes[i as usize];
             if emit {
-                // Reversed for front-to-back, so the two orders are exact reverses.
-                if near_first {
-                    out.extend((n.first..n.first + n.count).rev());
-                } else {
-                    out.extend(n.first..n.first + n.count);
+                if node(n.first..n.first + n.count).is_break() {
+                    break;
                 }
                 continue;
             }
-            let eye_in_front = n.plane.distance(eye) > 0.0;
-            let (near, far) = if eye_in_front { (n.front, n.back) } else { (n.back, n.front) };
+            visited += 1;
+            let side = n.plane.normal.dot(eye.truncate()) + n.plane.d * eye.w;
+            let (near, far) = if side > 0.0 { (n.front, n.back) } else { (n.back, n.front) };
             let (first, last) = if near_first { (near, far) } else { (far, near) };
             // Pushed in reverse: `first` pops first, then the node, then `last`.
             if last != NONE {
@@ -221,6 +255,7 @@ impl BspTree {
                 stack.push((first, false));
             }
         }
+        visited
     }
 
     /// Heap bytes held.

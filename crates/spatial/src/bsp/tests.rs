@@ -2,6 +2,7 @@ use super::*;
 use glam::{Mat4, Vec4};
 use sightline_scene::rng::Rng;
 use sightline_scene::{Angle, Camera, LookAt};
+use std::ops::ControlFlow;
 
 /// A tiny reference rasterizer: pixel-center coverage (either facing), window depth
 /// interpolated in screen space. `depth_test = false` is the painter's algorithm.
@@ -199,15 +200,20 @@ fn every_input_area_survives_the_build() {
     }
 }
 
+/// `n` copies of one triangle facing +z, stacked `dz` apart in order of increasing z.
+fn stack(n: usize, dz: f32) -> Vec<[Vec3; 3]> {
+    (0..n)
+        .map(|i| {
+            let z = i as f32 * dz;
+            [Vec3::new(0.0, 0.0, z), Vec3::new(1.0, 0.0, z), Vec3::new(0.0, 1.0, z)]
+        })
+        .collect()
+}
+
 #[test]
 fn deep_trees_and_bad_input_do_not_overflow_or_panic() {
     // One candidate, stacked parallel triangles in order: a chain 5000 nodes deep.
-    let tris: Vec<[Vec3; 3]> = (0..5000)
-        .map(|i| {
-            let z = i as f32 * 0.01;
-            [Vec3::new(0.0, 0.0, z), Vec3::new(1.0, 0.0, z), Vec3::new(0.0, 1.0, z)]
-        })
-        .collect();
+    let tris = stack(5000, 0.01);
     let params = BspParams { candidates: 1, ..Default::default() };
     let tree = BspTree::build(&tris, &params);
     assert!(tree.stats().depth >= 2500, "{:?}", tree.stats());
@@ -234,4 +240,42 @@ fn deep_trees_and_bad_input_do_not_overflow_or_panic() {
     empty.back_to_front(Vec3::ZERO, &mut out);
     assert!(out.is_empty());
     let _ = Vec4::ZERO;
+}
+
+#[test]
+fn visits_from_a_direction_and_stop_early() {
+    // Parallel triangles stacked along z: seen from +z far away, or from the direction +z
+    // (a parallel projection), the back-to-front order is by increasing z either way.
+    let tris = stack(50, 0.1);
+    let tree = BspTree::build(&tris, &BspParams::default());
+    let mut by_point = Vec::new();
+    tree.back_to_front(Vec3::new(0.3, 0.3, 1e4), &mut by_point);
+    let mut by_direction = Vec::new();
+    let nodes = tree.visit(Vec4::new(0.0, 0.0, 1.0, 0.0), BspOrder::BackToFront, |r| {
+        by_direction.extend(r);
+        ControlFlow::Continue(())
+    });
+    assert_eq!(by_direction, by_point);
+    assert_eq!(nodes, tree.stats().nodes);
+    let z = |i: u32| tree.triangles()[i as usize].v[0].z;
+    assert!(by_direction.windows(2).all(|w| z(w[0]) <= z(w[1])));
+    // From −z the order flips.
+    let mut from_below = Vec::new();
+    tree.visit(Vec4::new(0.0, 0.0, -1.0, 0.0), BspOrder::BackToFront, |r| {
+        from_below.extend(r);
+        ControlFlow::Continue(())
+    });
+    assert!(from_below.windows(2).all(|w| z(w[0]) >= z(w[1])));
+    // Front to back, stopping after three nodes' triangles.
+    let mut seen = 0;
+    let visited = tree.visit(Vec4::new(0.0, 0.0, 1.0, 0.0), BspOrder::FrontToBack, |r| {
+        seen += r.len();
+        if seen >= 3 {
+            ControlFlow::Break(())
+        } else {
+            ControlFlow::Continue(())
+        }
+    });
+    assert_eq!(seen, 3);
+    assert!(visited < tree.stats().nodes, "{visited}");
 }
