@@ -1,36 +1,71 @@
-//! The walk as an animated GIF: each frame shrunk to the GIF's width by averaging the
-//! pixels each GIF pixel covers (a box filter: no aliasing shimmer on the facades, unlike
-//! picking one pixel), the readout burned in at that size so it stays legible, then reduced
-//! to its own 256-colour palette by NeuQuant (Dekker 1994, "Kohonen neural networks for
-//! optimal colour quantization"; the `gif` crate's quantizer) and LZW-compressed. Frames
-//! are written as they come, so the walk is never held in memory.
+//! Walks as animated GIFs: each frame shrunk to the GIF's width by averaging the pixels each
+//! GIF pixel covers (a box filter: no aliasing shimmer on the facades, unlike picking one
+//! pixel), a readout burned in at that size so it stays legible, then reduced to its own
+//! 256-colour palette by NeuQuant (Dekker, "Kohonen neural networks for optimal colour
+//! quantization", Network: Computation in Neural Systems, 1994; the `gif` crate's quantizer)
+//! and LZW-compressed. Frames are written as they come, so a walk is never held in memory.
+//!
+//! [`GifOut::append_gif`] copies the frames of another GIF written here (palette, indices and
+//! delay as they are, nothing re-quantized): `sightline merge` joins the GIFs of the shards of
+//! a walk into the one a single run writes.
 
 use std::fs::File;
 use std::io::BufWriter;
-use std::path::Path;
+use std::path::{Path, PathBuf};
 
-use anyhow::{Context, Result};
+/// A GIF that could not be written or read.
+#[derive(Debug, thiserror::Error)]
+#[error("{}: {why}", path.display())]
+pub struct GifError {
+    /// The file.
+    pub path: PathBuf,
+    /// What went wrong.
+    pub why: String,
+}
+
+fn err(path: &Path, why: impl std::fmt::Display) -> GifError {
+    GifError { path: path.to_path_buf(), why: why.to_string() }
+}
+
+/// Frames of a walk shown at 30 frames a second: the GIF keeps every `every`-th so that it
+/// holds about 60 frames.
+pub fn every_for(frames: usize) -> usize {
+    frames.div_ceil(60).max(1)
+}
+
+/// Hundredths of a second per GIF frame when it keeps every `every`-th frame of a walk shown
+/// at 30 frames a second (at least 2: viewers slow down shorter delays).
+pub fn delay_for(every: usize) -> u16 {
+    ((every as f64 * 100.0 / 30.0).round().min(u16::MAX as f64) as u16).max(2)
+}
 
 /// An animated GIF being written.
 pub struct GifOut {
     encoder: gif::Encoder<BufWriter<File>>,
+    path: PathBuf,
     width: u32,
     height: u32,
     /// Hundredths of a second per frame.
     delay: u16,
+    /// Frames written so far.
     pub frames: usize,
 }
 
 impl GifOut {
     /// Starts `path` for frames of `src_w × src_h` shrunk to at most `max_width` wide,
     /// `delay` hundredths of a second each, looping forever.
-    pub fn create(path: &Path, src_w: u32, src_h: u32, max_width: u32, delay: u16) -> Result<GifOut> {
+    pub fn create(path: &Path, src_w: u32, src_h: u32, max_width: u32, delay: u16) -> Result<GifOut, GifError> {
         let (width, height) = fit(src_w, src_h, max_width);
-        let file = File::create(path).with_context(|| format!("creating {}", path.display()))?;
-        let mut encoder = gif::Encoder::new(BufWriter::new(file), width as u16, height as u16, &[])
-            .with_context(|| format!("writing {}", path.display()))?;
-        encoder.set_repeat(gif::Repeat::Infinite).context("writing the GIF header")?;
-        Ok(GifOut { encoder, width, height, delay, frames: 0 })
+        let file = File::create(path).map_err(|e| err(path, format!("cannot create: {e}")))?;
+        let mut encoder =
+            gif::Encoder::new(BufWriter::new(file), width as u16, height as u16, &[]).map_err(|e| err(path, e))?;
+        encoder.set_repeat(gif::Repeat::Infinite).map_err(|e| err(path, e))?;
+        Ok(GifOut { encoder, path: path.to_path_buf(), width, height, delay, frames: 0 })
+    }
+
+    /// The GIF's size.
+    pub fn size(&self) -> (u32, u32) {
+        (self.width, self.height)
     }
 
     /// Shrinks an RGBA frame of `src_w × src_h` to the GIF's size, lets `overlay` draw on
@@ -41,16 +76,46 @@ impl GifOut {
         src_w: u32,
         src_h: u32,
         overlay: impl FnOnce(&mut [[u8; 4]], u32, u32),
-    ) -> Result<()> {
+    ) -> Result<(), GifError> {
         let mut small = shrink(rgba, src_w, src_h, self.width, self.height);
         overlay(&mut small, self.width, self.height);
         let mut bytes: Vec<u8> = small.into_iter().flatten().collect();
         // Speed 10: the quantizer's usual trade of quality for time (1 is slowest, 30 fastest).
         let mut frame = gif::Frame::from_rgba_speed(self.width as u16, self.height as u16, &mut bytes, 10);
         frame.delay = self.delay;
-        self.encoder.write_frame(&frame).context("writing a GIF frame")?;
+        self.encoder.write_frame(&frame).map_err(|e| err(&self.path, e))?;
         self.frames += 1;
         Ok(())
+    }
+
+    /// Appends every frame of the GIF at `path` as it is (its own palette and delay); the
+    /// frames must have this GIF's size. Returns how many were appended.
+    pub fn append_gif(&mut self, path: &Path) -> Result<usize, GifError> {
+        let mut opts = gif::DecodeOptions::new();
+        opts.set_color_output(gif::ColorOutput::Indexed);
+        let file = File::open(path).map_err(|e| err(path, format!("cannot open: {e}")))?;
+        let mut d = opts.read_info(std::io::BufReader::new(file)).map_err(|e| err(path, e))?;
+        let mut n = 0;
+        while let Some(frame) = d.read_next_frame().map_err(|e| err(path, e))? {
+            if (frame.width as u32, frame.height as u32) != (self.width, self.height) || frame.palette.is_none() {
+                return Err(err(
+                    path,
+                    format!(
+                        "frame {n} is {}x{} with {} palette; {} is {}x{} with a palette per frame",
+                        frame.width,
+                        frame.height,
+                        if frame.palette.is_some() { "its own" } else { "no" },
+                        self.path.display(),
+                        self.width,
+                        self.height
+                    ),
+                ));
+            }
+            self.encoder.write_frame(frame).map_err(|e| err(&self.path, e))?;
+            self.frames += 1;
+            n += 1;
+        }
+        Ok(n)
     }
 }
 
@@ -108,5 +173,25 @@ mod tests {
             (0..8).map(|i| if i % 2 == 0 { [0, 0, 0, 255] } else { [255, 255, 255, 255] }).collect();
         assert_eq!(shrink(&src, 4, 2, 2, 1), vec![[128, 128, 128, 255]; 2]);
         assert_eq!(shrink(&src, 4, 2, 4, 2), src);
+    }
+
+    #[test]
+    fn appended_frames_are_copied_as_they_are() {
+        let dir = std::env::temp_dir().join(format!("sightline-gif-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let (a, b) = (dir.join("a.gif"), dir.join("b.gif"));
+        let mut one = GifOut::create(&a, 8, 4, 480, 5).unwrap();
+        for k in 0..3u8 {
+            let px: Vec<[u8; 4]> = (0..32).map(|i| [i as u8 * 8, 40 * k, 200, 255]).collect();
+            one.push(&px, 8, 4, |_, _, _| {}).unwrap();
+        }
+        drop(one);
+        let mut two = GifOut::create(&b, 8, 4, 480, 5).unwrap();
+        assert_eq!(two.append_gif(&a).unwrap(), 3);
+        drop(two);
+        assert_eq!(std::fs::read(&a).unwrap(), std::fs::read(&b).unwrap(), "nothing re-quantized");
+        let mut wrong = GifOut::create(&b, 4, 4, 480, 5).unwrap();
+        assert!(wrong.append_gif(&a).unwrap_err().to_string().contains("8x4"));
+        let _ = std::fs::remove_dir_all(&dir);
     }
 }
