@@ -27,6 +27,14 @@ pub fn parse_vec3(s: &str) -> Result<Vec3, String> {
     }
 }
 
+/// Parses a time in seconds (`--time`): a finite number, not negative.
+pub fn parse_time(s: &str) -> Result<f32, String> {
+    match s.trim().parse::<f32>() {
+        Ok(t) if t.is_finite() && t >= 0.0 => Ok(t),
+        _ => Err(format!("'{s}' is not a time in seconds (a finite number ≥ 0)")),
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

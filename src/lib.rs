@@ -11,7 +11,8 @@
 //!
 //! `use sightline::prelude::*;` brings the everyday types into scope. [`SceneSpec`] parses
 //! the `--scene` argument of the command-line program (`city`, `city:TRIS`, `city+traffic:N`,
-//! `boxfield` or a file). [`hud`] burns a few lines of text (a frame's readout) into an image.
+//! `boxfield` or a file). [`hud`] burns a few lines of text (a frame's readout) into an image;
+//! [`gif_out`] writes a walk as an animated GIF.
 
 #![forbid(unsafe_code)]
 #![warn(missing_docs)]
@@ -20,18 +21,24 @@ use std::path::PathBuf;
 
 pub mod args;
 pub mod boxfield;
+pub mod gif_out;
 pub mod hud;
 
 pub use sightline_render as render;
 pub use sightline_scene as scene;
 pub use sightline_spatial as spatial;
 
-/// The everyday types.
+/// The everyday types, and the few functions a program building a scene in code calls: the
+/// builders (`city`, `boxfield`, `scatter`), meshes made in code (`shapes`), loading a file
+/// once to place it many times (`load_prefab`), and writing a frame as PNG
+/// (`write_color_png`). `examples/city_builder.rs` uses nothing else.
 pub mod prelude {
     pub use glam::{Affine3A, Mat4, Quat, Vec2, Vec3};
+    pub use sightline_render::output::write_color_png;
     pub use sightline_render::{Framebuffer, Method, RenderOptions, Visibility, World};
-    pub use sightline_scene::builders::{boxfield, city, BoxfieldParams, CityParams};
+    pub use sightline_scene::builders::{boxfield, city, scatter, BoxfieldParams, CityParams, ScatterParams};
     pub use sightline_scene::path::CameraKey;
+    pub use sightline_scene::shapes;
     pub use sightline_scene::{
         load_into, load_prefab, Aabb, Angle, Camera, Instance, Keep, LoadOptions, LookAt, Material, Mesh, MeshId,
         NodeDesc, NodeId, Prefab, Projection, Scene, Transform, View,
@@ -132,11 +139,18 @@ impl SceneSpec {
     }
 }
 
+/// The street walk through a built-in city with `frames` keys: the path `walk`, `bench` and
+/// `path --kind street` use, and where the viewer starts.
+pub fn street_walk(layout: &scene::builders::CityLayout, frames: usize) -> Vec<scene::path::CameraKey> {
+    // The seed that chooses the turns at the intersections.
+    layout.street_path(frames, 11)
+}
+
 impl LoadedScene {
     /// The camera path of the given kind (`street` or `aerial`) with `frames` keys.
     pub fn path(&self, street: bool, frames: usize) -> Result<Vec<scene::path::CameraKey>, scene::Error> {
         match &self.layout {
-            Some(l) if street => Ok(l.street_path(frames, 11)),
+            Some(l) if street => Ok(street_walk(l, frames)),
             Some(l) => Ok(l.aerial_path(frames)),
             None => scene::path::generic_path(&self.scene.world_aabb(), street, frames),
         }

@@ -5,7 +5,11 @@
 //! work over from a thread outside it), add the view's extras (boxes, wireframe, a pyramid
 //! level), write the view into softbuffer's buffer, draw the readout over it, present.
 //! Redraws are asked for only while something changes (keys held, the mouse looking, a
-//! resize, a toggle), so an idle viewer costs nothing.
+//! resize, a toggle, the scene's animations playing), so an idle viewer costs nothing.
+//!
+//! Animated scenes (`city+traffic:N`, glTF animations) play in real time: each frame poses
+//! the scene at its time (the engine's `World` then brings the culler and the ray caster up
+//! to date), Space pauses and resumes.
 //!
 //! Screenshots read the window's pixels back from the X server (`Surface::fetch`, an X11
 //! GetImage); should that fail, the buffer just presented is saved instead, and the message
@@ -101,11 +105,14 @@ struct App {
     times: Vec<(Method, f64, f64)>,
     key_shot: bool,
     shot_tries: u32,
+    /// Animation time (seconds) and whether it runs; `None` for a scene without animations.
+    anim: Option<(f32, bool)>,
     error: Option<anyhow::Error>,
 }
 
 impl App {
     fn new(args: Args, engine: Engine, fly: Fly, pool: rayon::ThreadPool) -> App {
+        let anim = engine.animated().then_some((args.time, !args.paused));
         App {
             method: args.method,
             view: args.view,
@@ -132,6 +139,7 @@ impl App {
             times: Vec::new(),
             key_shot: false,
             shot_tries: 0,
+            anim,
             error: None,
         }
     }
@@ -176,6 +184,12 @@ impl App {
         }
         if self.fly.update(dt.min(0.1) as f32) {
             self.moved();
+        }
+        if let Some((t, playing)) = &mut self.anim {
+            if *playing && self.frames > 0 {
+                *t += dt.min(0.1) as f32;
+            }
+            self.engine.animate(*t)?;
         }
         let mut fb = match self.fb.take() {
             Some(fb) if fb.width() == w && fb.height() == h => fb,
@@ -332,6 +346,11 @@ impl App {
                 self.moved();
             }
             KeyCode::F12 | KeyCode::KeyP => self.key_shot = true,
+            KeyCode::Space => {
+                if let Some((_, playing)) = &mut self.anim {
+                    *playing = !*playing;
+                }
+            }
             KeyCode::Escape if self.captured => self.capture(false),
             KeyCode::Escape => event_loop.exit(),
             _ => {}
@@ -419,6 +438,12 @@ fn readout(app: &App, ms_render: f64, level: Option<&LevelImage>) -> Vec<String>
         lines.push(format!("boxes: outside {out} (blue)  hidden {hidden} (red)  visible {visible} (green)"));
     }
     lines.push(format!("eye {:.1}, {:.1}, {:.1}  speed {:.1}/s", p.eye.x, p.eye.y, p.eye.z, app.fly.speed));
+    if let Some((t, playing)) = app.anim {
+        lines.push(format!(
+            "time {t:.2} s  {}",
+            if playing { "playing (Space: pause)" } else { "paused (Space: play)" }
+        ));
+    }
     lines
 }
 
@@ -500,7 +525,8 @@ impl ApplicationHandler for App {
     fn about_to_wait(&mut self, _: &ActiveEventLoop) {
         let pending = self.args.screenshot.is_some() || self.key_shot;
         if let Some(g) = &self.gfx {
-            if self.dirty || pending || self.fly.held.any() {
+            let playing = self.anim.is_some_and(|a| a.1);
+            if self.dirty || pending || playing || self.fly.held.any() {
                 g.window.request_redraw();
             }
         }

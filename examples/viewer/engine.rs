@@ -5,6 +5,9 @@
 //! classified as outside the view, hidden, or visible. The rest of both programs only moves
 //! cameras and pixels around, so a change of the library's API touches this file alone.
 //!
+//! A `World` holds the scene with its culler and ray caster: a frame after the scene's
+//! animations moved it ([`Engine::animate`]) brings both up to date before drawing.
+//!
 //! Framing. A scene without a street layout is seen from a three-quarter view (from the
 //! front-right, 28° above the horizon) at the distance where its bounding sphere fits both
 //! the vertical and the horizontal field of view: a sphere of radius r seen under a half
@@ -16,11 +19,12 @@ use std::time::Instant;
 use anyhow::{bail, Result};
 use glam::{DVec2, Vec3, Vec4};
 use sightline::render::hzb::DepthPyramid;
-use sightline::render::{self, BoxVisibility, Culler, DrawItem, RayCaster, RaycastOptions, RenderOptions};
+use sightline::render::{self, BoxVisibility, DrawItem, RenderOptions, Visibility, World};
+use sightline::scene::builders::CityLayout;
 use sightline::scene::path::CameraKey;
+use sightline::scene::Aabb;
 pub use sightline::scene::Camera;
-use sightline::scene::{Aabb, Scene};
-use sightline::{LoadedScene, SceneSpec};
+use sightline::SceneSpec;
 
 /// The frame the engine draws into, and the colour maps of its ID and depth-test pictures.
 pub use sightline::render::output::{heat_color, id_color};
@@ -54,12 +58,19 @@ impl Method {
     }
 
     fn culling(self) -> Option<render::Method> {
+        match self.visibility() {
+            Visibility::Cull(m) => Some(m),
+            Visibility::RayCast => None,
+        }
+    }
+
+    fn visibility(self) -> Visibility {
         match self {
-            Method::Brute => Some(render::Method::Brute),
-            Method::Frustum => Some(render::Method::Frustum),
-            Method::Hzb => Some(render::Method::Hzb),
-            Method::OctreeHzb => Some(render::Method::OctreeHzb),
-            Method::Raycast => None,
+            Method::Brute => render::Method::Brute.into(),
+            Method::Frustum => render::Method::Frustum.into(),
+            Method::Hzb => render::Method::Hzb.into(),
+            Method::OctreeHzb => render::Method::OctreeHzb.into(),
+            Method::Raycast => Visibility::RayCast,
         }
     }
 }
@@ -123,16 +134,17 @@ pub struct LevelImage {
 
 /// A scene and the state that draws it frame after frame.
 pub struct Engine {
-    /// The scene lives as long as the program: the ray caster borrows it.
-    loaded: &'static LoadedScene,
-    culler: Culler,
-    caster: Option<RayCaster>,
+    world: World,
+    /// The street grid of a built-in city (its walk is where the camera starts).
+    layout: Option<CityLayout>,
     opts: RenderOptions,
+    /// Bounds at load time (animations move things within the scene's reach).
     bounds: Aabb,
     triangles: u64,
     /// Each instance's first triangle, to find a triangle ID's instance.
     starts: Vec<u32>,
-    cluster_boxes: Option<Vec<Aabb>>,
+    /// Cluster boxes and the scene revision they were taken at.
+    cluster_boxes: Option<(u64, Vec<Aabb>)>,
 }
 
 /// Box edges as corner pairs (corner bit 0: x, 1: y, 2: z at the max side).
@@ -156,15 +168,17 @@ impl Engine {
             let (lo, hi) = (bounds.min, bounds.max);
             bail!("the scene {} is too large to place a camera in (bounds {lo} to {hi})", describe(spec));
         }
-        // Kept for the whole run: the ray caster (built on first use) borrows the scene.
-        let loaded: &'static LoadedScene = Box::leak(Box::new(loaded));
-        let culler = Culler::new(&loaded.scene);
+        for w in &loaded.scene.warnings {
+            eprintln!("warning: {w}");
+        }
+        let mut world = World::new(loaded.scene);
+        // The culler now, not in the first frame; the ray caster when first asked for.
+        let culler = world.culler();
         let starts: Vec<u32> = culler.instances().iter().map(|i| i.first_triangle).collect();
         let triangles = culler.instances().iter().map(|i| i.triangle_count as u64).sum();
         Ok(Engine {
-            loaded,
-            culler,
-            caster: None,
+            world,
+            layout: loaded.layout,
             opts: RenderOptions::default(),
             bounds,
             triangles,
@@ -173,8 +187,15 @@ impl Engine {
         })
     }
 
-    fn scene(&self) -> &'static Scene {
-        &self.loaded.scene
+    /// True when the scene has animations to play.
+    pub fn animated(&self) -> bool {
+        !self.world.scene().animations.is_empty()
+    }
+
+    /// Poses the scene's animations at `t` seconds; the next frame shows the pose.
+    pub fn animate(&mut self, t: f32) -> Result<()> {
+        self.world.animate(t)?;
+        Ok(())
     }
 
     /// Triangles in the scene.
@@ -185,7 +206,7 @@ impl Engine {
     /// Eye height above the ground for walking: a person's in a city, else 5% of the
     /// scene's height.
     pub fn eye_height(&self) -> f32 {
-        if self.loaded.layout.is_some() {
+        if self.layout.is_some() {
             sightline::scene::path::EYE_HEIGHT
         } else {
             (self.bounds.extent().y * 0.05).max(1e-3)
@@ -200,7 +221,7 @@ impl Engine {
     /// A comfortable flying speed in scene units per second: a brisk run in a city, else
     /// the scene's diagonal in about seven seconds.
     pub fn base_speed(&self) -> f32 {
-        if self.loaded.layout.is_some() {
+        if self.layout.is_some() {
             12.0
         } else {
             (self.bounds.extent().length() * 0.15).max(1e-3)
@@ -210,7 +231,7 @@ impl Engine {
     /// Where the camera starts: the first frame of the street walk in a city, else the
     /// three-quarter view that fits the scene.
     pub fn start_pose(&self, aspect: f32) -> Result<Pose> {
-        if self.loaded.layout.is_some() {
+        if self.layout.is_some() {
             return Ok(self.walk_path(1, aspect)?[0]);
         }
         Ok(orbit_pose(&self.bounds, aspect, 0.0))
@@ -219,8 +240,8 @@ impl Engine {
     /// A walkthrough of `frames` frames: the street walk in a city, else one orbit around
     /// the scene at the framing distance.
     pub fn walk_path(&self, frames: usize, aspect: f32) -> Result<Vec<Pose>> {
-        if self.loaded.layout.is_some() {
-            return Ok(self.loaded.path(true, frames)?.iter().map(Pose::from_key).collect());
+        if let Some(l) = &self.layout {
+            return Ok(sightline::street_walk(l, frames).iter().map(Pose::from_key).collect());
         }
         let n = frames.max(1);
         Ok((0..n).map(|i| orbit_pose(&self.bounds, aspect, std::f32::consts::TAU * i as f32 / n as f32)).collect())
@@ -256,25 +277,15 @@ impl Engine {
     /// `fb` counts them and the method rasterizes).
     pub fn render(&mut self, camera: &Camera, method: Method, fb: &mut Framebuffer) -> Result<FrameInfo> {
         let t = Instant::now();
-        let scene = self.scene();
-        let info = match method.culling() {
-            Some(m) => {
-                let (cs, _) = self.culler.render(scene, camera, m, fb, &self.opts)?;
-                FrameInfo {
-                    ms: 0.0,
-                    triangles_drawn: Some(cs.triangles_drawn),
-                    clusters: Some((cs.clusters_drawn, cs.clusters)),
-                    culled: (cs.culled_by_frustum, cs.culled_by_backface, cs.culled_by_occlusion),
-                }
-            }
+        let report = self.world.render(camera, method.visibility(), fb, &self.opts)?;
+        let info = match report.cull {
+            Some(cs) => FrameInfo {
+                ms: 0.0,
+                triangles_drawn: Some(cs.triangles_drawn),
+                clusters: Some((cs.clusters_drawn, cs.clusters)),
+                culled: (cs.culled_by_frustum, cs.culled_by_backface, cs.culled_by_occlusion),
+            },
             None => {
-                if self.caster.is_none() {
-                    self.caster = Some(RayCaster::build(scene)?);
-                }
-                let caster = self.caster.as_ref().expect("built just above");
-                let mut ro = RaycastOptions::from_render(&self.opts);
-                ro.shadows = false;
-                caster.render(scene, camera, fb, &ro)?;
                 if let Some(c) = &mut fb.depth_tests {
                     c.fill(0); // rays make no depth tests: an empty heat map, not a stale one
                 }
@@ -286,7 +297,7 @@ impl Engine {
 
     /// Draws the edges of the triangles `fb` shows (those with an ID in it) over its
     /// colour; returns how many triangles that was.
-    pub fn draw_visible_edges(&self, camera: &Camera, fb: &mut Framebuffer) -> Result<usize> {
+    pub fn draw_visible_edges(&mut self, camera: &Camera, fb: &mut Framebuffer) -> Result<usize> {
         let n = self.triangles as usize;
         let mut seen = vec![0u64; n.div_ceil(64)];
         for &id in &fb.ids {
@@ -310,7 +321,8 @@ impl Engine {
             }
         }
         let drawn = items.iter().map(|d| d.count as usize).sum();
-        render::wire::draw_wireframe(self.scene(), self.culler.instances(), &items, camera, fb, &self.opts)?;
+        let (culler, scene) = self.world.culler_and_scene();
+        render::wire::draw_wireframe(scene, culler.instances(), &items, camera, fb, &self.opts)?;
         Ok(drawn)
     }
 
@@ -332,17 +344,20 @@ impl Engine {
     /// Every cluster box, classified against the frame `camera` sees at `width × height`:
     /// outside its view, hidden behind the frame's finished depth, or visible.
     pub fn classify_clusters(&mut self, camera: &Camera, width: u32, height: u32) -> Result<ClassifiedBoxes> {
+        let (culler, scene) = self.world.culler_and_scene();
+        let revision = scene.revision();
         let boxes = match self.cluster_boxes.take() {
-            Some(b) => b,
-            None => self.culler.clustered().item_boxes(self.culler.instances()),
+            // Taken again once the scene has moved.
+            Some((r, b)) if r == revision => b,
+            _ => culler.clustered().item_boxes(culler.instances()),
         };
         let probe = Framebuffer::new(width, height)?;
         let mut classes = Vec::new();
         {
-            let (_, _, pass) = self.culler.occluder_pass_with(camera, &probe, &self.opts, true)?;
+            let (_, _, pass) = culler.occluder_pass_with(camera, &probe, &self.opts, true)?;
             pass.test_batch(&boxes, &mut classes);
         }
-        self.cluster_boxes = Some(boxes.clone());
+        self.cluster_boxes = Some((revision, boxes.clone()));
         Ok(ClassifiedBoxes { boxes, classes, camera: *camera })
     }
 

@@ -45,6 +45,7 @@ Keys:
   L                wireframe: edges of the triangles the frame shows, over the color view
   H                readout on/off
   F12 or P         save a screenshot (viewer-NNNN.png in the current folder)
+  Space            pause / play the scene's animations (city+traffic:N, animated glTF)
   R or Home        back to the start camera
   Esc              release the mouse, or quit";
 
@@ -52,9 +53,16 @@ Keys:
 #[derive(Debug, Parser)]
 #[command(name = "viewer", after_help = KEYS)]
 pub struct Args {
-    /// Scene: a .gltf/.glb/.obj file, `city` (default, ≥ 10^6 triangles), `city:TRIS`, or `boxfield`
+    /// Scene: a .gltf/.glb/.obj file, `city` (default, ≥ 10^6 triangles), `city:TRIS`,
+    /// `city+traffic:N` (N vehicles and tower cranes, animated), or `boxfield`
     #[arg(short, long, default_value = "city", value_name = "SCENE")]
     pub scene: SceneSpec,
+    /// Animation time at the start, in seconds (animated scenes play on from it)
+    #[arg(long, value_name = "SECONDS", default_value_t = 0.0, value_parser = sightline::args::parse_time)]
+    pub time: f32,
+    /// Start with the animations paused (Space plays them)
+    #[arg(long)]
+    pub paused: bool,
     /// Let a scene file read from DIR too (repeatable)
     #[arg(long = "allow-asset-root", value_name = "DIR")]
     pub allow_asset_roots: Vec<PathBuf>,

@@ -17,13 +17,13 @@
 #[allow(dead_code, unused_imports)]
 #[path = "../viewer/engine.rs"]
 mod engine;
-mod gif_out;
 
 use std::io::Write;
 use std::path::{Path, PathBuf};
 
 use anyhow::{bail, Context, Result};
 use clap::Parser;
+use sightline::gif_out;
 use sightline::SceneSpec;
 
 use engine::{Engine, FrameInfo, Framebuffer, Method};
@@ -32,9 +32,14 @@ use engine::{Engine, FrameInfo, Framebuffer, Method};
 #[derive(Debug, Parser)]
 #[command(name = "walkthrough")]
 struct Args {
-    /// Scene: a .gltf/.glb/.obj file, `city` (default, ≥ 10^6 triangles), `city:TRIS`, or `boxfield`
+    /// Scene: a .gltf/.glb/.obj file, `city` (default, ≥ 10^6 triangles), `city:TRIS`,
+    /// `city+traffic:N` (N vehicles and tower cranes, animated), or `boxfield`
     #[arg(short, long, default_value = "city", value_name = "SCENE")]
     scene: SceneSpec,
+    /// Play the scene's animations along the walk: frame f shows time f / 30 s (always on
+    /// for `city+traffic:N`)
+    #[arg(long)]
+    animate: bool,
     /// Let a scene file read from DIR too (repeatable)
     #[arg(long = "allow-asset-root", value_name = "DIR")]
     allow_asset_roots: Vec<PathBuf>,
@@ -98,11 +103,11 @@ fn run(a: &Args) -> Result<()> {
         bail!("the scene's camera path has no frames");
     }
     let gif_every = match a.gif_every {
-        0 => (path.len() as u32).div_ceil(60).max(1),
-        k => k,
-    } as usize;
+        0 => gif_out::every_for(path.len()),
+        k => k as usize,
+    };
     // 30 frames a second along the path, whatever the GIF keeps of them.
-    let delay = ((gif_every as f64 * 100.0 / 30.0).round() as u16).max(2);
+    let delay = gif_out::delay_for(gif_every);
     let gif_path = a.out.join("walk.gif");
     let mut gif = gif_out::GifOut::create(&gif_path, w, h, a.gif_width, delay)?;
     let rows = pool.install(|| walk(a, &mut engine, &path, &mut gif, gif_every))?;
@@ -127,7 +132,11 @@ fn walk(
             .unwrap_or_else(|_| indicatif::ProgressStyle::default_bar()),
     );
     let mut rows = Vec::with_capacity(path.len());
+    let animate = a.animate || matches!(a.scene, SceneSpec::CityTraffic(_));
     for (f, pose) in path.iter().enumerate() {
+        if animate {
+            engine.animate(f as f32 / 30.0).with_context(|| format!("posing frame {f}"))?;
+        }
         let camera = engine.camera(pose, w as f32 / h as f32).with_context(|| format!("frame {f} of the path"))?;
         let info = engine.render(&camera, a.method, &mut fb).with_context(|| format!("frame {f}"))?;
         if a.png_every > 0 && f % a.png_every as usize == 0 {

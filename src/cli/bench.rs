@@ -37,7 +37,9 @@ pub fn run(a: &BenchArgs) -> Result<()> {
         backface_culling: super::common::OnOff::On,
         threads: a.threads,
         out: Some(a.out.clone()),
-        png_every: 0,
+        frame_range: None,
+        png_every: None,
+        gif_every: None,
         json: Some(json.clone()),
         first_batch: sightline::render::Culler::DEFAULT_FIRST_BATCH,
         look: super::common::Look {

@@ -1,4 +1,5 @@
-//! Bar charts of benchmark results (plotters), for people who would rather look than read.
+//! Charts of benchmark results (plotters), for people who would rather look than read: bars
+//! of medians, and lines of frame times along a walk.
 
 use std::path::Path;
 
@@ -24,6 +25,17 @@ fn register_font() -> bool {
         false
     })
 }
+
+/// Colours of bars and lines, in turn.
+const PALETTE: [RGBColor; 7] = [
+    RGBColor(76, 114, 176),
+    RGBColor(221, 132, 82),
+    RGBColor(85, 168, 104),
+    RGBColor(196, 78, 82),
+    RGBColor(129, 114, 179),
+    RGBColor(147, 120, 96),
+    RGBColor(218, 139, 195),
+];
 
 /// One bar: label, value, and an optional error bar top (e.g. p95).
 pub struct Bar {
@@ -61,18 +73,9 @@ pub fn bar_chart(path: &Path, title: &str, unit: &str, bars: &[Bar]) -> Result<(
             .draw()
             .map_err(|x| e(&x))?;
     }
-    let palette = [
-        RGBColor(76, 114, 176),
-        RGBColor(221, 132, 82),
-        RGBColor(85, 168, 104),
-        RGBColor(196, 78, 82),
-        RGBColor(129, 114, 179),
-        RGBColor(147, 120, 96),
-        RGBColor(218, 139, 195),
-    ];
     chart
         .draw_series(bars.iter().enumerate().map(|(i, b)| {
-            let c = palette[i % palette.len()];
+            let c = PALETTE[i % PALETTE.len()];
             Rectangle::new([(0.0, SegmentValue::Exact(i)), (b.value, SegmentValue::Exact(i + 1))], c.filled())
         }))
         .map_err(|x| e(&x))?;
@@ -95,6 +98,54 @@ pub fn bar_chart(path: &Path, title: &str, unit: &str, bars: &[Bar]) -> Result<(
                     ("sans-serif", 15),
                 )
             }))
+            .map_err(|x| e(&x))?;
+    }
+    root.present().map_err(|x| e(&x))?;
+    Ok(())
+}
+
+/// Writes a line chart PNG: one named series of (x, y) points per line, with a legend.
+pub fn line_chart(
+    path: &Path,
+    title: &str,
+    x_unit: &str,
+    y_unit: &str,
+    series: &[(String, Vec<(f64, f64)>)],
+) -> Result<()> {
+    let text = register_font();
+    let root = BitMapBackend::new(path, (900, 480)).into_drawing_area();
+    let e = |e: &dyn std::fmt::Display| anyhow!("drawing {}: {e}", path.display());
+    root.fill(&WHITE).map_err(|x| e(&x))?;
+    let points = series.iter().flat_map(|s| s.1.iter());
+    let (x0, x1, y1) =
+        points.fold((f64::INFINITY, f64::NEG_INFINITY, 0.0f64), |(a, b, c), p| (a.min(p.0), b.max(p.0), c.max(p.1)));
+    let (x0, x1) = if x0 <= x1 { (x0, x1.max(x0 + 1.0)) } else { (0.0, 1.0) };
+    let y1 = y1.max(1e-9) * 1.1;
+    let mut builder = ChartBuilder::on(&root);
+    builder.margin(16).x_label_area_size(if text { 40 } else { 10 }).y_label_area_size(if text { 60 } else { 10 });
+    if text {
+        builder.caption(title, ("sans-serif", 22));
+    }
+    let mut chart = builder.build_cartesian_2d(x0..x1, 0.0..y1).map_err(|x| e(&x))?;
+    if text {
+        chart.configure_mesh().x_desc(x_unit).y_desc(y_unit).draw().map_err(|x| e(&x))?;
+    }
+    for (i, (name, pts)) in series.iter().enumerate() {
+        let c = PALETTE[i % PALETTE.len()];
+        let drawn = chart.draw_series(LineSeries::new(pts.iter().copied(), c.stroke_width(2))).map_err(|x| e(&x))?;
+        if text {
+            drawn
+                .label(name.as_str())
+                .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], c.stroke_width(2)));
+        }
+    }
+    if text && !series.is_empty() {
+        chart
+            .configure_series_labels()
+            .background_style(WHITE.mix(0.85))
+            .border_style(BLACK)
+            .label_font(("sans-serif", 15))
+            .draw()
             .map_err(|x| e(&x))?;
     }
     root.present().map_err(|x| e(&x))?;

@@ -226,10 +226,27 @@ pub struct CameraChoice<'a> {
     pub far: Option<f32>,
     pub path: Option<&'a PathBuf>,
     pub frame: usize,
+    /// `--camera N`: the scene file's own camera N.
+    pub file_camera: Option<usize>,
+    /// The scene as the user named it, for messages.
+    pub scene_name: String,
 }
 
 impl CameraChoice<'_> {
     pub fn camera(&self, loaded: &LoadedScene, size: Size) -> Result<Camera> {
+        if let Some(n) = self.file_camera {
+            return match loaded.scene.camera(n, size.aspect()) {
+                Err(sightline::scene::Error::NoSuchCamera { count, .. }) => {
+                    let has = match count {
+                        0 => "no cameras".to_string(),
+                        1 => "1 camera (--camera 0)".to_string(),
+                        c => format!("{c} cameras (--camera 0 to {})", c - 1),
+                    };
+                    bail!("--camera {n}, but {} has {has}", self.scene_name)
+                }
+                c => c.with_context(|| format!("--camera {n} of {}", self.scene_name)),
+            };
+        }
         match (self.eye, self.target) {
             (Some(eye), Some(target)) => {
                 let b = loaded.scene.world_aabb();
@@ -275,13 +292,7 @@ impl CameraChoice<'_> {
     }
 }
 
-/// A time in seconds: finite and not negative.
-pub fn time_arg(s: &str) -> std::result::Result<f32, String> {
-    match s.parse::<f32>() {
-        Ok(t) if t.is_finite() && t >= 0.0 => Ok(t),
-        _ => Err(format!("'{s}' is not a time in seconds (a finite number ≥ 0)")),
-    }
-}
+pub use sightline::args::parse_time as time_arg;
 
 /// Poses the scene's animations at time `t` (seconds) and propagates the transforms.
 pub fn pose(scene: &mut sightline::scene::Scene, t: f32) -> Result<()> {

@@ -15,6 +15,8 @@ pub fn run(scene: &super::SceneArg, json: Option<&Path>) -> Result<()> {
     if let Some(dest) = json {
         let mut v = serde_json::to_value(s)?;
         v["load_ms"] = serde_json::json!(load_ms);
+        v["cameras"] = serde_json::json!(loaded.scene.cameras.len());
+        v["warnings"] = serde_json::json!(loaded.scene.warnings);
         v["bounds"] = serde_json::json!({ "min": b.min.to_array(), "max": b.max.to_array() });
         return super::common::write_json(dest, &v, false);
     }
@@ -28,10 +30,8 @@ pub fn run(scene: &super::SceneArg, json: Option<&Path>) -> Result<()> {
     println!("materials         {:>12}", s.materials);
     println!("vertex bytes      {:>12}", s.vertex_bytes);
     println!("index bytes       {:>12}", s.index_bytes);
+    println!("cameras           {:>12}", loaded.scene.cameras.len());
     println!("bounds            {} .. {}", b.min, b.max);
     println!("built/loaded in   {load_ms:>9.1} ms");
-    for w in &loaded.scene.warnings {
-        eprintln!("warning: {w}");
-    }
     Ok(())
 }

@@ -6,8 +6,11 @@ mod chart;
 mod common;
 mod csg;
 mod info;
+mod merge;
 mod path;
+mod pictures;
 mod render;
+mod report;
 mod walk;
 
 use std::path::PathBuf;
@@ -91,6 +94,9 @@ enum Command {
     Walk(Box<walk::WalkArgs>),
     /// Every method over a path, verified, as a Markdown table and charts
     Bench(Box<bench::BenchArgs>),
+    /// Join the --out folders of the shards of a walk (`walk --frame-range A..B`) into the
+    /// report one run would have written
+    Merge(Box<merge::MergeArgs>),
     /// Render the built-in CSG demo (box ∩ sphere − three cylinders) by ray casting, to PNG
     Csg {
         /// Output PNG file
@@ -112,10 +118,10 @@ impl Cli {
             }
             Command::Render(a)
                 if a.projection != render::ProjectionArg::Perspective
-                    && (a.eye.is_some() || a.path.is_some() || a.fov.is_some()) =>
+                    && (a.eye.is_some() || a.path.is_some() || a.fov.is_some() || a.camera.is_some()) =>
             {
                 Some(format!(
-                    "--projection {:?} frames the whole scene itself: --eye, --path and --fov go with --projection perspective",
+                    "--projection {:?} frames the whole scene itself: --eye, --path, --fov and --camera go with --projection perspective",
                     a.projection
                 ).to_lowercase())
             }
@@ -136,6 +142,7 @@ pub fn run(cli: Cli) -> Result<()> {
         Command::Render(a) => render::run(&a),
         Command::Walk(a) => walk::run(&a),
         Command::Bench(a) => bench::run(&a),
+        Command::Merge(a) => merge::run(&a),
         Command::Csg { out, size } => {
             csg::write_classic_demo_png(&out, size.width, size.height)?;
             println!("wrote {}", out.display());
@@ -144,7 +151,8 @@ pub fn run(cli: Cli) -> Result<()> {
     }
 }
 
-/// Loads a scene with a spinner on the terminal.
+/// Loads a scene with a spinner on the terminal; each loader warning (a skipped primitive,
+/// a missing texture, …) is printed as one line on standard error.
 pub fn load_scene(arg: &SceneArg) -> Result<sightline::LoadedScene> {
     let spec = &arg.scene;
     let options = sightline::scene::LoadOptions { allowed_roots: arg.allow_asset_roots.clone(), ..Default::default() };
@@ -156,7 +164,13 @@ pub fn load_scene(arg: &SceneArg) -> Result<sightline::LoadedScene> {
         Err(sightline::scene::Error::Load { path, why }) if why.contains("outside the asset folder") => {
             anyhow::bail!("{}: {why} (--allow-asset-root DIR allows another folder)", path.display())
         }
-        s => Ok(s?),
+        s => {
+            let s = s?;
+            for w in &s.scene.warnings {
+                eprintln!("warning: {w}");
+            }
+            Ok(s)
+        }
     }
 }
 
@@ -192,7 +206,7 @@ mod tests {
             Command::Render(a) => a.scene.allow_asset_roots,
             Command::Walk(a) => a.walk.scene.allow_asset_roots,
             Command::Bench(a) => a.walk.scene.allow_asset_roots,
-            Command::Csg { .. } => unreachable!(),
+            Command::Csg { .. } | Command::Merge(_) => unreachable!(),
         }
     }
 

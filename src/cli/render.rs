@@ -27,6 +27,11 @@ pub struct RenderArgs {
     /// Frame of the path to render
     #[arg(long, default_value_t = 0)]
     pub frame: usize,
+    /// Render through the scene file's own camera N (glTF cameras, numbered from 0 in the
+    /// order the file's nodes place them; `sightline info` counts them): its position, field
+    /// of view, near and far, the width fitted to --size
+    #[arg(long, value_name = "N", conflicts_with_all = ["path", "eye", "target", "fov", "near", "far"])]
+    pub camera: Option<usize>,
     /// Eye position x,y,z (with --target)
     #[arg(long, value_parser = common::parse_vec3, allow_hyphen_values = true)]
     pub eye: Option<Vec3>,
@@ -161,6 +166,8 @@ pub fn run(a: &RenderArgs) -> Result<()> {
         far: a.far,
         path: a.path.as_ref(),
         frame: a.frame,
+        file_camera: a.camera,
+        scene_name: super::describe(&a.scene.scene),
     };
     let parallel = parallel_cameras(a.projection, &loaded.scene.world_aabb(), a.size.aspect())
         .context("framing the scene for --projection")?;

@@ -1,17 +1,23 @@
 //! `sightline walk`: render a camera path with one or all visibility methods, verify against
 //! brute force, summarize per method (median / p95 ms, triangles drawn, culled shares).
+//!
+//! `--frame-range A..B` renders a shard of the path: frames A to B−1, numbered as in the
+//! whole path (animation time, PNG names and records keep the path's frame numbers). A shard
+//! first renders frame A−1 with every method, untimed and unrecorded, so that the state a
+//! method carries from frame to frame (the `hzb` method's last visible set) and the caches
+//! are warm as they are in one run; `sightline merge` then joins the shards.
 
-use std::io::Write;
 use std::path::PathBuf;
 use std::time::Instant;
 
 use anyhow::{bail, Context, Result};
-use serde::Serialize;
 use sightline::render::{
-    compare_ids, output, CullStats, Culler, FrameStats, Framebuffer, Method, RayCaster, RaycastOptions, RenderOptions,
+    compare_ids, CullStats, Culler, FrameStats, Framebuffer, Method, RayCaster, RaycastOptions, RenderOptions,
 };
 
 use super::common::{self, Look, OnOff, Size};
+use super::pictures::{self, Pictures};
+use super::report::{self, FrameRecord, RunInfo, WalkReport};
 
 /// Methods `walk` can run.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
@@ -59,12 +65,21 @@ pub struct WalkArgs {
     /// Worker threads, 1 to 256 (default: all cores)
     #[arg(short = 'j', long, value_parser = super::common::threads_arg)]
     pub threads: Option<usize>,
-    /// Output folder for per-frame counters (frames.csv) and PNG frames
+    /// Output folder: per-frame counters (frames.csv, frames.json), the summary (walk.json),
+    /// a few PNG frames, the walk as a GIF (walk.gif) and the frame-time chart
     #[arg(short, long, value_name = "DIR")]
     pub out: Option<PathBuf>,
-    /// Write every k-th frame as PNG into --out (0: none)
-    #[arg(long, default_value_t = 0, requires = "out")]
-    pub png_every: usize,
+    /// Render frames A to B-1 of the path only (a shard: `sightline merge` joins the
+    /// shards' --out folders into the report of one run); frames keep the path's numbers
+    #[arg(long, value_name = "A..B", value_parser = frame_range_arg)]
+    pub frame_range: Option<std::ops::Range<usize>>,
+    /// Write every k-th frame of the path as PNG into --out (0: none; default: about four)
+    #[arg(long, requires = "out")]
+    pub png_every: Option<usize>,
+    /// Put every k-th frame of the path into --out's walk.gif (0: no GIF; default: about 60
+    /// frames)
+    #[arg(long, requires = "out")]
+    pub gif_every: Option<usize>,
     /// Summary as JSON into FILE (`-`: standard output)
     #[arg(long, value_name = "FILE")]
     pub json: Option<PathBuf>,
@@ -75,36 +90,16 @@ pub struct WalkArgs {
     pub look: Look,
 }
 
-/// One rendered frame of one method.
-#[derive(Debug, Clone, Serialize)]
-pub struct FrameRecord {
-    pub frame: usize,
-    pub method: &'static str,
-    pub ms: f64,
-    pub triangles_drawn: u64,
-    pub cull: CullStats,
-    pub raster: FrameStats,
-    pub verified: Option<bool>,
-    /// Share of pixels whose ID equals brute force's (ray casting is checked this way: it
-    /// decides visibility differently, so it agrees on ≥ 99.5% rather than exactly).
-    pub agreement: Option<f64>,
-}
-
-/// One method's summary: what scripts read.
-#[derive(Debug, Clone, Serialize)]
-pub struct MethodSummary {
-    pub method: &'static str,
-    pub frames: usize,
-    pub median_ms: f64,
-    pub p95_ms: f64,
-    pub mean_ms: f64,
-    pub triangles_drawn_median: u64,
-    pub culled_by_frustum_share: f64,
-    pub culled_by_occlusion_share: f64,
-    pub verified_frames: usize,
-    pub mismatched_frames: usize,
-    /// Lowest per-frame ID agreement with brute force (ray casting with --verify).
-    pub min_id_agreement: Option<f64>,
+/// Parses `--frame-range A..B`: whole numbers, A < B ≤ the most frames a command renders.
+fn frame_range_arg(s: &str) -> std::result::Result<std::ops::Range<usize>, String> {
+    let bad = || format!("'{s}' is not a frame range A..B (frames A to B-1 of the path, A < B, e.g. 0..60)");
+    let (a, b) = s.split_once("..").ok_or_else(bad)?;
+    let a = common::frames_arg(a).map_err(|_| bad())?;
+    let b = common::frames_arg(b).map_err(|_| bad())?;
+    if a >= b {
+        return Err(bad());
+    }
+    Ok(a..b)
 }
 
 fn methods(m: WalkMethod) -> Vec<(&'static str, Option<Method>)> {
@@ -128,27 +123,67 @@ pub fn run(a: &WalkArgs) -> Result<()> {
     common::check_outputs(a.out.as_deref().as_slice(), a.json.as_deref().as_slice())?;
     let mut loaded = super::load_scene(&a.walk.scene)?;
     let keys = common::path_keys(&loaded, a.walk.path.as_deref(), a.walk.frames)?;
+    let range = a.frame_range.clone().unwrap_or(0..keys.len());
+    if range.end > keys.len() {
+        bail!("--frame-range {}..{}, but the path has {} frames", range.start, range.end, keys.len());
+    }
+    let run = RunInfo {
+        scene: format!("{:?}", a.walk.scene.scene),
+        size: [a.size.width, a.size.height],
+        method_set: methods(a.method).iter().map(|m| m.0.to_string()).collect(),
+        verify: a.verify,
+        animate: a.animate || matches!(a.walk.scene.scene, sightline::SceneSpec::CityTraffic(_)),
+        backface_culling: a.backface_culling.on(),
+        path_frames: keys.len(),
+        png_every: a.out.as_ref().map_or(0, |_| a.png_every.unwrap_or(pictures::default_png_every(keys.len()))),
+        gif_every: a.out.as_ref().map_or(0, |_| a.gif_every.unwrap_or(sightline::gif_out::every_for(keys.len()))),
+    };
+    let mut pics = match &a.out {
+        Some(dir) => {
+            let size = (a.size.width, a.size.height);
+            Some(Pictures::new(dir, size, keys.len(), run.png_every, run.gif_every)?)
+        }
+        None => None,
+    };
     let opts = a.look.options(a.backface_culling);
-    let records = common::with_threads(a.threads, || walk(&mut loaded, &keys, a, &opts))??;
-    let summaries = summarize(&records, a);
-    // With the summary on standard output, the table goes to standard error.
-    if a.json.as_deref().is_some_and(common::is_stdout) {
-        print_table(&mut std::io::stderr(), &summaries)?;
-    } else {
-        print_table(&mut std::io::stdout(), &summaries)?;
+    let records =
+        common::with_threads(a.threads, || walk(&mut loaded, &keys, range.clone(), a, &run, &opts, pics.as_mut()))??;
+    let gif_frames = pics.and_then(Pictures::finish);
+    let report = WalkReport {
+        methods: report::summarize(&records, &run.method_set),
+        run,
+        frame_range: [range.start, range.end],
+        missing_frames: Vec::new(),
+    };
+    finish(&report, &records, a.out.as_deref(), a.json.as_deref(), gif_frames, a.min_agreement)
+}
+
+/// The end of a walk or a merge: the table, the report files, the JSON summary, where they
+/// went; then the verdict (frames that differ from brute force, too little ray-casting
+/// agreement) as the error that fails the run.
+pub fn finish(
+    report: &WalkReport,
+    records: &[FrameRecord],
+    out: Option<&std::path::Path>,
+    json: Option<&std::path::Path>,
+    gif_frames: Option<usize>,
+    min_agreement: f64,
+) -> Result<()> {
+    report::print_summary(&report.methods, json)?;
+    if let Some(dir) = out {
+        report::write_report(dir, report, records)?;
     }
-    if let Some(dir) = &a.out {
-        write_frames(dir, &records)?;
+    if let Some(p) = json {
+        common::write_json(p, &serde_json::to_value(report)?, true)?;
     }
-    if let Some(p) = &a.json {
-        let v = serde_json::json!({ "scene": format!("{:?}", a.walk.scene.scene), "size": [a.size.width, a.size.height], "methods": summaries });
-        common::write_json(p, &v, true)?;
+    if let Some(dir) = out {
+        report::print_outputs(dir, gif_frames, json)?;
     }
-    let bad: usize = summaries.iter().map(|s| s.mismatched_frames).sum();
+    let bad: usize = report.methods.iter().map(|s| s.mismatched_frames).sum();
     if bad > 0 {
         bail!("{bad} frames differ from brute force");
     }
-    if let Some(why) = agreement_shortfall(&records, a.min_agreement) {
+    if let Some(why) = agreement_shortfall(records, min_agreement) {
         bail!(why);
     }
     Ok(())
@@ -179,15 +214,20 @@ fn percent_arg(s: &str) -> std::result::Result<f64, String> {
     }
 }
 
+#[allow(clippy::too_many_arguments)]
 fn walk(
     loaded: &mut sightline::LoadedScene,
     keys: &[sightline::scene::path::CameraKey],
+    range: std::ops::Range<usize>,
     a: &WalkArgs,
+    run: &RunInfo,
     opts: &RenderOptions,
+    mut pics: Option<&mut Pictures>,
 ) -> Result<Vec<FrameRecord>> {
-    let animate = a.animate || matches!(a.walk.scene.scene, sightline::SceneSpec::CityTraffic(_));
-    if animate {
-        common::pose(&mut loaded.scene, 0.0)?;
+    // A shard warms up on the frame before its first (see the module docs).
+    let first = range.start.saturating_sub(1);
+    if run.animate {
+        common::pose(&mut loaded.scene, first as f32 / 30.0)?;
     }
     let scene = &mut loaded.scene;
     let list = methods(a.method);
@@ -203,15 +243,17 @@ fn walk(
     })?;
     let mut fb = Framebuffer::new(a.size.width, a.size.height)?;
     let mut reference = Framebuffer::new(a.size.width, a.size.height)?;
-    let bar = indicatif::ProgressBar::new((keys.len() * list.len()) as u64).with_style(
+    let mut picture: Vec<[u8; 4]> = Vec::new();
+    let bar = indicatif::ProgressBar::new((range.len() * list.len()) as u64).with_style(
         indicatif::ProgressStyle::with_template("{bar:40} {pos}/{len} frames·methods {msg} [{elapsed} < {eta}]")
             .unwrap_or_else(|_| indicatif::ProgressStyle::default_bar()),
     );
     let mut out = Vec::new();
     let mut rc_opts = RaycastOptions::from_render(opts);
     rc_opts.shadows = false;
-    for (f, key) in keys.iter().enumerate() {
-        if animate {
+    for (f, key) in keys.iter().enumerate().take(range.end).skip(first) {
+        let recorded = f >= range.start;
+        if run.animate {
             // Frame f shows time f / 30 s; the culler follows in its render call, the ray
             // caster here (a moved vehicle costs a TLAS rebuild, never a BLAS).
             common::pose(scene, f as f32 / 30.0)?;
@@ -227,7 +269,8 @@ fn walk(
             culler.as_mut().unwrap().render(scene, &cam, Method::Brute, &mut reference, opts)?;
             have_reference = true;
         }
-        for (name, method) in &list {
+        let frame_start = out.len();
+        for (k, (name, method)) in list.iter().enumerate() {
             let t = Instant::now();
             let (cs, rs) = match method {
                 Some(m) => culler.as_mut().unwrap().render(scene, &cam, *m, &mut fb, opts)?,
@@ -238,6 +281,9 @@ fn walk(
                 }
             };
             let ms = t.elapsed().as_secs_f64() * 1e3;
+            if !recorded {
+                continue;
+            }
             let diff = have_reference.then(|| compare_ids(&reference.ids, &fb.ids, fb.width()));
             let agreement = diff.map(|d| 1.0 - d.map_or(0, |m| m.pixels) as f64 / fb.len() as f64);
             // Culling methods must equal brute force exactly; ray casting is reported as agreement.
@@ -248,13 +294,12 @@ fn walk(
                     m.pixels, m.first, m.ids.0, m.ids.1
                 ));
             }
-            if let (Some(dir), true) = (&a.out, a.png_every > 0 && f % a.png_every == 0) {
-                std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
-                output::write_color_png(&fb, &dir.join(format!("{name}_{f:04}.png")))?;
+            if k == 0 && pics.as_ref().is_some_and(|p| p.wants(f)) {
+                picture.clone_from(&fb.color);
             }
             out.push(FrameRecord {
                 frame: f,
-                method: name,
+                method: name.to_string(),
                 ms,
                 triangles_drawn: cs.triangles_drawn,
                 cull: cs,
@@ -264,124 +309,13 @@ fn walk(
             });
             bar.inc(1);
         }
+        if let Some(p) = pics.as_mut().filter(|p| recorded && p.wants(f)) {
+            p.add(f, &picture, &out[frame_start..])?;
+        }
         bar.set_message(format!("frame {f}"));
     }
     bar.finish_and_clear();
     Ok(out)
-}
-
-fn percentile(sorted: &[f64], p: f64) -> f64 {
-    if sorted.is_empty() {
-        return 0.0;
-    }
-    let i = ((sorted.len() - 1) as f64 * p).round() as usize;
-    sorted[i]
-}
-
-fn summarize(records: &[FrameRecord], a: &WalkArgs) -> Vec<MethodSummary> {
-    methods(a.method)
-        .iter()
-        .map(|(name, _)| {
-            let rs: Vec<&FrameRecord> = records.iter().filter(|r| r.method == *name).collect();
-            let mut ms: Vec<f64> = rs.iter().map(|r| r.ms).collect();
-            ms.sort_by(f64::total_cmp);
-            let mut tris: Vec<u64> = rs.iter().map(|r| r.triangles_drawn).collect();
-            tris.sort_unstable();
-            let share = |f: &dyn Fn(&CullStats) -> u64| {
-                let total: u64 = rs.iter().map(|r| r.cull.clusters).sum();
-                if total == 0 {
-                    0.0
-                } else {
-                    rs.iter().map(|r| f(&r.cull)).sum::<u64>() as f64 / total as f64
-                }
-            };
-            MethodSummary {
-                method: name,
-                frames: rs.len(),
-                median_ms: percentile(&ms, 0.5),
-                p95_ms: percentile(&ms, 0.95),
-                mean_ms: ms.iter().sum::<f64>() / ms.len().max(1) as f64,
-                triangles_drawn_median: tris.get(tris.len() / 2).copied().unwrap_or(0),
-                culled_by_frustum_share: share(&|c| c.culled_by_frustum),
-                culled_by_occlusion_share: share(&|c| c.culled_by_occlusion),
-                verified_frames: rs.iter().filter(|r| r.verified.is_some()).count(),
-                mismatched_frames: rs.iter().filter(|r| r.verified == Some(false)).count(),
-                min_id_agreement: rs.iter().filter_map(|r| r.agreement).reduce(f64::min),
-            }
-        })
-        .collect()
-}
-
-fn print_table(w: &mut dyn Write, s: &[MethodSummary]) -> std::io::Result<()> {
-    let brute = s.iter().find(|m| m.method == "brute").map(|m| m.median_ms);
-    writeln!(
-        w,
-        "{:<13} {:>6} {:>10} {:>10} {:>9} {:>14} {:>9} {:>9} {:>9}",
-        "method", "frames", "median ms", "p95 ms", "vs brute", "tris drawn", "frustum%", "occl%", "verified"
-    )?;
-    for m in s {
-        let ratio = brute.map_or("-".into(), |b| format!("{:.1}x", b / m.median_ms.max(1e-9)));
-        let ver = if let (0, Some(a)) = (m.verified_frames, m.min_id_agreement) {
-            format!("{:.2}%", 100.0 * a)
-        } else if m.verified_frames == 0 {
-            "-".to_string()
-        } else {
-            format!("{}/{}", m.verified_frames - m.mismatched_frames, m.verified_frames)
-        };
-        writeln!(
-            w,
-            "{:<13} {:>6} {:>10.2} {:>10.2} {:>9} {:>14} {:>8.1}% {:>8.1}% {:>9}",
-            m.method,
-            m.frames,
-            m.median_ms,
-            m.p95_ms,
-            ratio,
-            m.triangles_drawn_median,
-            100.0 * m.culled_by_frustum_share,
-            100.0 * m.culled_by_occlusion_share,
-            ver
-        )?;
-    }
-    Ok(())
-}
-
-fn write_frames(dir: &std::path::Path, records: &[FrameRecord]) -> Result<()> {
-    std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
-    let csv = dir.join("frames.csv");
-    let mut f =
-        std::io::BufWriter::new(std::fs::File::create(&csv).with_context(|| format!("creating {}", csv.display()))?);
-    writeln!(
-        f,
-        "frame,method,ms,triangles_drawn,clusters_in_frustum,clusters_drawn,culled_by_frustum,culled_by_occlusion,occlusion_tests,batches,ms_cull,ms_draw,ms_shading,ms_geometry,ms_binning,ms_raster,fragments_written,verified"
-    )?;
-    for r in records {
-        let c = &r.cull;
-        writeln!(
-            f,
-            "{},{},{:.3},{},{},{},{},{},{},{},{:.3},{:.3},{:.3},{:.3},{:.3},{:.3},{},{}",
-            r.frame,
-            r.method,
-            r.ms,
-            r.triangles_drawn,
-            c.clusters_in_frustum,
-            c.clusters_drawn,
-            c.culled_by_frustum,
-            c.culled_by_occlusion,
-            c.occlusion_tests,
-            c.batches,
-            c.ms_cull,
-            c.ms_draw,
-            c.ms_shading,
-            r.raster.ms_geometry,
-            r.raster.ms_binning,
-            r.raster.ms_raster,
-            r.raster.fragments_written,
-            r.verified.map_or("".into(), |v| v.to_string())
-        )?;
-    }
-    let json = dir.join("frames.json");
-    std::fs::write(&json, serde_json::to_string(records)?).with_context(|| format!("writing {}", json.display()))?;
-    Ok(())
 }
 
 #[cfg(test)]
@@ -391,7 +325,7 @@ mod tests {
     fn record(frame: usize, method: &'static str, agreement: Option<f64>) -> FrameRecord {
         FrameRecord {
             frame,
-            method,
+            method: method.to_string(),
             ms: 1.0,
             triangles_drawn: 0,
             cull: CullStats::default(),

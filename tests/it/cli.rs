@@ -162,3 +162,76 @@ fn every_projection_frames_the_whole_scene() {
     assert!(err.contains("--projection perspective"), "{err}");
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+/// The glTF file's own camera: what `--eye` at the camera's node with its field of view shows,
+/// by either method; a camera the file does not have is an error that says how many it has.
+#[test]
+fn render_through_the_files_own_camera() {
+    let dir = std::env::temp_dir().join(format!("sightline-cli-camera-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let nested = concat!(env!("CARGO_MANIFEST_DIR"), "/assets/nested.gltf");
+    let ids = |extra: &[&str], name: &str| -> Vec<u32> {
+        let npy = dir.join(name);
+        let mut args = vec!["render", "-s", nested, "--size", "120x80", "--id-out", npy.to_str().unwrap()];
+        args.extend_from_slice(extra);
+        let (code, err) = run(&args);
+        assert_eq!(code, Some(0), "{extra:?}: {err}");
+        let bytes = std::fs::read(&npy).unwrap();
+        bytes[128..].chunks(4).map(|c| u32::from_le_bytes([c[0], c[1], c[2], c[3]])).collect()
+    };
+    // nested.gltf's camera "eye": at (10, 1, 10) looking down −z, yfov 0.8 rad, near 0.1, far 100.
+    let by_eye = ids(
+        &["--eye", "10,1,10", "--target", "10,1,0", "--fov", "45.83662", "--near", "0.1", "--far", "100"],
+        "eye.npy",
+    );
+    for method in ["raster", "raycast"] {
+        let own = ids(&["--camera", "0", "--method", method], &format!("{method}.npy"));
+        let seen = own.iter().filter(|&&i| i != 0).count();
+        assert!(seen > 100, "{method}: the model is in the picture ({seen} pixels)");
+        let same = own.iter().zip(&by_eye).filter(|(a, b)| a == b).count();
+        assert!(same as f64 >= 0.99 * own.len() as f64, "{method}: {same} of {} pixels as --eye", own.len());
+    }
+    let (code, err) = run(&["render", "-s", nested, "--camera", "1", "--size", "32x18"]);
+    assert_eq!(code, Some(1), "{err}");
+    assert!(err.contains("--camera 1") && err.contains("has 1 camera") && err.lines().count() == 1, "{err}");
+    let cube = concat!(env!("CARGO_MANIFEST_DIR"), "/assets/cube.obj");
+    let (code, err) = run(&["render", "-s", cube, "--camera", "0", "--size", "32x18"]);
+    assert_eq!(code, Some(1), "{err}");
+    assert!(err.contains("no cameras"), "{err}");
+    let (code, err) = run(&["render", "-s", nested, "--camera", "0", "--projection", "isometric"]);
+    assert_eq!(code, Some(2), "{err}");
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+/// A loader warning reaches the user: in `info --json`'s `warnings`, and as one line on
+/// standard error from the commands that draw.
+#[test]
+fn loader_warnings_reach_the_user() {
+    let dir = std::env::temp_dir().join(format!("sightline-cli-warn-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let text = std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/assets/nested_embedded.gltf")).unwrap();
+    let mut doc: serde_json::Value = serde_json::from_str(&text).unwrap();
+    doc["extensionsUsed"] = serde_json::json!(["EXT_made_up"]);
+    let file = dir.join("warns.gltf");
+    std::fs::write(&file, doc.to_string()).unwrap();
+    let f = file.to_str().unwrap();
+    let out = Command::new(env!("CARGO_BIN_EXE_sightline")).args(["info", "-s", f, "--json"]).output().unwrap();
+    assert!(out.status.success());
+    let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    let warnings = v["warnings"].as_array().expect("a warnings array");
+    assert!(warnings.len() == 1 && warnings[0].as_str().unwrap().contains("EXT_made_up"), "{v}");
+    let plain = concat!(env!("CARGO_MANIFEST_DIR"), "/assets/nested.gltf");
+    let out = Command::new(env!("CARGO_BIN_EXE_sightline")).args(["info", "-s", plain, "--json"]).output().unwrap();
+    let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    assert_eq!(v["warnings"], serde_json::json!([]), "a clean file has an empty array");
+    for cmd in [&["render", "--size", "32x18"][..], &["walk", "-n", "1", "--size", "32x18"]] {
+        let mut args = cmd.to_vec();
+        args.extend(["-s", f]);
+        let (code, err) = run(&args);
+        assert_eq!(code, Some(0), "{err}");
+        let lines: Vec<&str> = err.lines().filter(|l| l.contains("EXT_made_up")).collect();
+        assert_eq!(lines.len(), 1, "{cmd:?}: one line per warning: {err}");
+        assert!(lines[0].starts_with("warning: "), "{err}");
+    }
+    let _ = std::fs::remove_dir_all(&dir);
+}

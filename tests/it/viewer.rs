@@ -13,18 +13,8 @@ const EYE: &str = "60,40,70";
 const TARGET: &str = "0,0,0";
 const SIZE: &str = "160x90";
 
-/// The example binary cargo built beside this test: `<target>/<profile>/examples/viewer`
-/// (the test runs from `<target>/<profile>/deps`).
 fn viewer_binary() -> PathBuf {
-    let exe = std::env::current_exe().expect("the test knows its own path");
-    let profile_dir = exe.parent().and_then(Path::parent).expect("the test runs from <target>/<profile>/deps");
-    let viewer = profile_dir.join("examples").join(format!("viewer{}", std::env::consts::EXE_SUFFIX));
-    assert!(
-        viewer.is_file(),
-        "{} is missing: `cargo test` builds the examples; after a narrower command run `cargo build --example viewer`",
-        viewer.display()
-    );
-    viewer
+    crate::support::example_binary("viewer")
 }
 
 fn skip_window_tests() -> bool {
@@ -52,19 +42,21 @@ fn rgba(path: &Path) -> image::RgbaImage {
     image::open(path).unwrap_or_else(|e| panic!("{}: {e}", path.display())).to_rgba8()
 }
 
-#[test]
-fn the_viewer_screenshot_is_the_headless_render_of_the_same_camera() {
-    if skip_window_tests() {
-        return;
-    }
-    let dir = temp_dir("viewer");
+/// The viewer's screenshot after three frames and `sightline render`'s colour picture, both
+/// with `camera` (scene, eye, size); `viewer_extra` and `render_extra` go to one each.
+fn window_and_headless(
+    dir: &Path,
+    camera: &[&str],
+    viewer_extra: &[&str],
+    render_extra: &[&str],
+) -> (image::RgbaImage, image::RgbaImage) {
     let shot = dir.join("shot.png");
-    let camera = ["--scene", "boxfield", "--eye", EYE, "--target", TARGET, "--size", SIZE];
     // A 24-bit screen: xvfb-run's default depth of 8 bits has no true-colour visual.
     let out = Command::new("xvfb-run")
         .args(["-a", "-s", "-screen 0 640x480x24"])
         .arg(viewer_binary())
         .args(camera)
+        .args(viewer_extra)
         .args(["--no-hud", "--after-frames", "3", "--screenshot"])
         .arg(&shot)
         .output()
@@ -72,25 +64,33 @@ fn the_viewer_screenshot_is_the_headless_render_of_the_same_camera() {
     let err = String::from_utf8_lossy(&out.stderr);
     assert!(out.status.success(), "the viewer failed under xvfb-run: {err}");
     assert!(err.contains("read back from the window"), "the screenshot is the window's pixels: {err}");
+    (rgba(&shot), render(dir, camera, render_extra))
+}
 
+/// `sightline render`'s colour picture.
+fn render(dir: &Path, camera: &[&str], extra: &[&str]) -> image::RgbaImage {
     let render_dir = dir.join("render");
     let out = Command::new(env!("CARGO_BIN_EXE_sightline"))
         .arg("render")
         .args(camera)
+        .args(extra)
         .arg("--out")
         .arg(&render_dir)
         .output()
         .expect("the program starts");
     assert!(out.status.success(), "render failed: {}", String::from_utf8_lossy(&out.stderr));
+    rgba(&render_dir.join("color.png"))
+}
 
-    let (window, headless) = (rgba(&shot), rgba(&render_dir.join("color.png")));
+/// The pixels where two pictures differ.
+fn differing(a: &image::RgbaImage, b: &image::RgbaImage) -> Vec<(u32, u32)> {
+    assert_eq!(a.dimensions(), b.dimensions());
+    a.enumerate_pixels().filter(|(x, y, p)| b.get_pixel(*x, *y) != *p).map(|(x, y, _)| (x, y)).collect()
+}
+
+fn assert_same(window: &image::RgbaImage, headless: &image::RgbaImage) {
     assert_eq!(window.dimensions(), (160, 90), "the window has the size asked for");
-    assert_eq!(window.dimensions(), headless.dimensions());
-    let differ: Vec<(u32, u32)> = window
-        .enumerate_pixels()
-        .filter(|(x, y, p)| headless.get_pixel(*x, *y) != *p)
-        .map(|(x, y, _)| (x, y))
-        .collect();
+    let differ = differing(window, headless);
     if let Some(&(x, y)) = differ.first() {
         panic!(
             "{} of {} pixels differ from the headless render, first at ({x}, {y}): window {:?}, render {:?}",
@@ -100,6 +100,17 @@ fn the_viewer_screenshot_is_the_headless_render_of_the_same_camera() {
             headless.get_pixel(x, y)
         );
     }
+}
+
+#[test]
+fn the_viewer_screenshot_is_the_headless_render_of_the_same_camera() {
+    if skip_window_tests() {
+        return;
+    }
+    let dir = temp_dir("viewer");
+    let camera = ["--scene", "boxfield", "--eye", EYE, "--target", TARGET, "--size", SIZE];
+    let (window, headless) = window_and_headless(&dir, &camera, &[], &[]);
+    assert_same(&window, &headless);
     // Not blank: the field of boxes covers a good part of the picture, its faces in
     // several shades (flat shading: one per face direction, besides the sky).
     let sky = *window.get_pixel(0, 0);
@@ -109,6 +120,36 @@ fn the_viewer_screenshot_is_the_headless_render_of_the_same_camera() {
     shades.dedup();
     assert!(covered > 160 * 90 / 4, "only {covered} pixels differ from the sky");
     assert!(shades.len() >= 4, "only {} colours", shades.len());
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+/// An animated scene plays in the viewer: paused at a time, it shows the pose `render
+/// --time` draws at that time, which is not the pose at the start.
+#[test]
+fn the_viewer_poses_an_animated_scene() {
+    if skip_window_tests() {
+        return;
+    }
+    let dir = temp_dir("viewer-animated");
+    let scene = concat!(env!("CARGO_MANIFEST_DIR"), "/assets/animated.gltf");
+    let camera = [
+        "--scene",
+        scene,
+        "--eye",
+        "2.5,1.5,3",
+        "--target",
+        "2.5,1.5,0",
+        "--near",
+        "0.1",
+        "--far",
+        "50",
+        "--size",
+        SIZE,
+    ];
+    let (window, headless) = window_and_headless(&dir, &camera, &["--paused", "--time", "1.5"], &["--time", "1.5"]);
+    assert_same(&window, &headless);
+    let start = render(&dir, &camera, &["--time", "0"]);
+    assert!(differing(&window, &start).len() > 20, "the scene moved between 0 s and 1.5 s");
     let _ = std::fs::remove_dir_all(&dir);
 }
 

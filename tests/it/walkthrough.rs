@@ -5,17 +5,8 @@
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
-/// The example binary cargo built beside this test (see `viewer.rs`).
 fn walkthrough_binary() -> PathBuf {
-    let exe = std::env::current_exe().expect("the test knows its own path");
-    let profile_dir = exe.parent().and_then(Path::parent).expect("the test runs from <target>/<profile>/deps");
-    let bin = profile_dir.join("examples").join(format!("walkthrough{}", std::env::consts::EXE_SUFFIX));
-    assert!(
-        bin.is_file(),
-        "{} is missing: `cargo test` builds the examples; after a narrower command run `cargo build --example walkthrough`",
-        bin.display()
-    );
-    bin
+    crate::support::example_binary("walkthrough")
 }
 
 fn gif_frames(path: &Path) -> (u16, u16, usize) {
@@ -87,6 +78,8 @@ fn the_walkthrough_writes_frames_gif_and_csv_for_the_city_and_the_assets() {
         ("city".to_string(), "hzb"),
         (assets.join("nested.glb").display().to_string(), "frustum"),
         (assets.join("cube.obj").display().to_string(), "raycast"),
+        // Animated: the vehicles and cranes move along the walk.
+        ("city+traffic:50".to_string(), "hzb"),
     ];
     for (k, (scene, method)) in cases.iter().enumerate() {
         let dir = root.join(k.to_string());

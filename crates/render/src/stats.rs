@@ -5,10 +5,10 @@
 //! setup (unclipped ones plus clipper output) end up degenerate, too small (no pixel center
 //! covered) or rasterized.
 
-use serde::Serialize;
+use serde::{Deserialize, Serialize};
 
 /// Counters of one frame (or of one `draw` batch; [`FrameStats::add`] sums batches).
-#[derive(Debug, Clone, Copy, Default, PartialEq, Serialize)]
+#[derive(Debug, Clone, Copy, Default, PartialEq, Serialize, Deserialize)]
 pub struct FrameStats {
     /// Triangles submitted.
     pub triangles_in: u64,

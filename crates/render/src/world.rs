@@ -125,6 +125,14 @@ impl World {
         self.culler.get_or_insert_with(|| Culler::new(scene))
     }
 
+    /// The culler (built on first use) beside the scene it culls, both as of the last
+    /// frame: for what takes the two together (drawing a frame's wireframe, testing boxes).
+    pub fn culler_and_scene(&mut self) -> (&mut Culler, &Scene) {
+        self.scene.update_transforms();
+        let scene = &self.scene;
+        (self.culler.get_or_insert_with(|| Culler::new(scene)), scene)
+    }
+
     /// Renders the scene seen by `camera` with `method` into `fb` (every plane written);
     /// pending edits are propagated and the structures brought up to date first.
     pub fn render(

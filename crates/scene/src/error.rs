@@ -41,6 +41,14 @@ pub enum Error {
     /// A camera or projection with impossible parameters.
     #[error("invalid camera: {0}")]
     InvalidCamera(String),
+    /// A camera asked for by index that the scene does not have.
+    #[error("{}", no_such_camera(*index, *count))]
+    NoSuchCamera {
+        /// The index asked for.
+        index: usize,
+        /// How many cameras the scene has.
+        count: usize,
+    },
     /// An animation that cannot be played: a bad time, a channel aimed at a removed node.
     #[error("animation '{name}': {why}")]
     Animation {
@@ -85,5 +93,13 @@ impl Error {
     /// A load error for `path` with a message.
     pub fn load(path: impl Into<PathBuf>, why: impl Into<String>) -> Self {
         Error::Load { path: path.into(), why: why.into() }
+    }
+}
+
+fn no_such_camera(index: usize, count: usize) -> String {
+    match count {
+        0 => format!("camera {index}: the scene has no cameras"),
+        1 => format!("camera {index}: the scene has 1 camera (number 0)"),
+        n => format!("camera {index}: the scene has {n} cameras (numbered 0 to {})", n - 1),
     }
 }

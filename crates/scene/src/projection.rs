@@ -165,6 +165,25 @@ impl Projection {
         }
     }
 
+    /// The same projection for a viewport of another `aspect` (width / height): the
+    /// vertical extent is kept and the horizontal one set to `aspect` times it, about the
+    /// same center, so a file's camera keeps its vertical field of view in any image size
+    /// (what glTF asks of a viewer whose viewport differs from the camera's `aspectRatio`).
+    pub fn with_aspect(&self, aspect: f32) -> Result<Self> {
+        if !(aspect > 0.0 && aspect.is_finite()) {
+            return Err(Error::InvalidCamera(format!("aspect ratio {aspect} must be positive (zero-size viewport?)")));
+        }
+        let mut p = *self;
+        let (l, r, b, t) = match &mut p {
+            Projection::Perspective { left, right, bottom, top, .. }
+            | Projection::Parallel { left, right, bottom, top, .. } => (left, right, bottom, top),
+        };
+        let (center, half) = ((*l as f64 + *r as f64) * 0.5, (*t as f64 - *b as f64) * 0.5 * aspect as f64);
+        (*l, *r) = ((center - half) as f32, (center + half) as f32);
+        p.validate()?;
+        Ok(p)
+    }
+
     /// True for perspective projections.
     pub fn is_perspective(&self) -> bool {
         matches!(self, Projection::Perspective { .. })

@@ -44,7 +44,7 @@ mod walk;
 
 use std::time::Instant;
 
-use serde::Serialize;
+use serde::{Deserialize, Serialize};
 use sightline_scene::{Aabb, Camera, Instance, Scene, SceneStamp};
 use sightline_spatial::{BoxProjector, ClusteredScene, LooseOctree, Visible};
 
@@ -95,7 +95,7 @@ impl Method {
 }
 
 /// What one culled frame did and cost.
-#[derive(Debug, Clone, Copy, Default, PartialEq, Serialize)]
+#[derive(Debug, Clone, Copy, Default, PartialEq, Serialize, Deserialize)]
 pub struct CullStats {
     /// Clusters in the scene (the units culled).
     pub clusters: u64,

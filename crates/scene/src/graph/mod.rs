@@ -17,7 +17,7 @@
 
 use std::sync::OnceLock;
 
-use glam::Affine3A;
+use glam::{Affine3A, Vec3};
 use slotmap::{new_key_type, SlotMap};
 
 use crate::{Aabb, Error, Material, Mesh, Result, Transform};
@@ -336,6 +336,23 @@ impl Scene {
             stack.extend(self.nodes[id].children.iter().rev());
             Some(id)
         })
+    }
+
+    /// The file's camera `index` (in [`Scene::cameras`]) as a [`Camera`] for an image of
+    /// `aspect` = width / height: the view from its node's world matrix as of the last
+    /// update (eye at the node's origin, looking down its −z with its +y up, scale ignored),
+    /// the projection the file gave with its vertical extent kept and its horizontal one
+    /// fitted to `aspect` ([`crate::Projection::with_aspect`]).
+    ///
+    /// Errors when there is no camera `index` (saying how many there are), or its node was
+    /// collapsed to a point by a zero scale.
+    pub fn camera(&self, index: usize, aspect: f32) -> Result<crate::Camera> {
+        let cam = self.cameras.get(index).ok_or(Error::NoSuchCamera { index, count: self.cameras.len() })?;
+        let m = self.try_node(cam.node)?.world_matrix();
+        let (eye, gaze, up) = (Vec3::from(m.translation), -Vec3::from(m.matrix3.z_axis), Vec3::from(m.matrix3.y_axis));
+        let view = crate::View::look_along(eye, gaze, up)
+            .map_err(|e| Error::InvalidCamera(format!("camera {index} ('{}'): {e}", cam.name)))?;
+        crate::Camera::new(view, cam.projection.with_aspect(aspect)?)
     }
 
     /// World bounds of everything drawn (as of the last update).

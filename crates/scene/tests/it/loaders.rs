@@ -144,6 +144,27 @@ fn gltf_camera_found() {
     assert_eq!((near, far), (0.1, 100.0));
 }
 
+/// `Scene::camera` turns the file's camera into one for any image: placed by its node,
+/// looking down the node's −z, the vertical field of view kept and the width fitted.
+#[test]
+fn gltf_camera_becomes_a_camera_for_any_aspect() {
+    let scene = load(asset("nested.gltf")).unwrap();
+    let cam = scene.camera(0, 2.0).unwrap();
+    assert_close(cam.view.eye, [10.0, 1.0, 10.0], "eye");
+    assert_close(cam.view.forward(), [0.0, 0.0, -1.0], "gaze");
+    assert_close(cam.view.v, [0.0, 1.0, 0.0], "up");
+    let Projection::Perspective { left, right, top, bottom, .. } = cam.projection else { panic!("perspective") };
+    let t = 0.1 * 0.4f32.tan();
+    assert!((top - t).abs() < 1e-6 && bottom == -top, "vertical extent kept: {top}");
+    assert!((right - 2.0 * t).abs() < 1e-6 && left == -right, "width fitted to the aspect: {right}");
+    // Out of range, and a scene without cameras: the error says how many there are.
+    let e = scene.camera(1, 1.0).unwrap_err().to_string();
+    assert!(e.contains("camera 1") && e.contains("1 camera"), "{e}");
+    let e = Scene::new().camera(0, 1.0).unwrap_err().to_string();
+    assert!(e.contains("no cameras"), "{e}");
+    assert!(scene.camera(0, 0.0).is_err(), "a zero aspect is refused");
+}
+
 // ---- the authored OBJ ---------------------------------------------------------------------
 
 #[test]
