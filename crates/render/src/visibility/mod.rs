@@ -20,6 +20,8 @@
 //! - a method whose cost grows faster than the triangle count refuses a soup larger than
 //!   its limit with [`Error::TooLarge`](crate::Error::TooLarge) instead of running for an hour.
 
+pub mod warnock;
+
 use glam::Vec3;
 use sightline_scene::Scene;
 

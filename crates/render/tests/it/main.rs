@@ -18,3 +18,4 @@ mod raycast_reference;
 mod raycast_robustness;
 mod raycast_watertight;
 mod support;
+mod warnock;
