@@ -213,6 +213,57 @@ pub fn path_keys(loaded: &LoadedScene, path: Option<&Path>, frames: Option<usize
     Ok(keys)
 }
 
+/// The camera options of `render` and `lab`: a frame of a path, or an eye and a target; with
+/// neither, the whole scene framed from its three-quarter view.
+#[derive(Debug, Clone, clap::Args)]
+pub struct CameraArgs {
+    /// Camera path JSON (see `sightline path`); with --frame
+    #[arg(short, long, value_name = "FILE", conflicts_with_all = ["eye", "target"])]
+    pub path: Option<PathBuf>,
+    /// Frame of the path to render
+    #[arg(long, default_value_t = 0)]
+    pub frame: usize,
+    /// Eye position x,y,z (with --target)
+    #[arg(long, value_parser = parse_vec3, allow_hyphen_values = true)]
+    pub eye: Option<Vec3>,
+    /// Point looked at x,y,z (with --eye)
+    #[arg(long, value_parser = parse_vec3, allow_hyphen_values = true)]
+    pub target: Option<Vec3>,
+    /// Up direction x,y,z (with --eye; default 0,1,0)
+    #[arg(long, value_parser = parse_vec3, allow_hyphen_values = true, requires = "eye")]
+    pub up: Option<Vec3>,
+    /// Vertical field of view in degrees (with --eye; default 60)
+    #[arg(long, requires = "eye")]
+    pub fov: Option<f32>,
+    /// Near plane distance (default: the path's, or 0.1)
+    #[arg(long)]
+    pub near: Option<f32>,
+    /// Far plane distance (default: the path's, or beyond the scene)
+    #[arg(long)]
+    pub far: Option<f32>,
+}
+
+impl CameraArgs {
+    /// The camera these options choose (resolved against a scene by [`CameraChoice::camera`]).
+    pub fn choice(&self) -> CameraChoice<'_> {
+        CameraChoice {
+            eye: self.eye,
+            target: self.target,
+            up: self.up.unwrap_or(Vec3::Y),
+            fov: self.fov.unwrap_or(60.0),
+            near: self.near,
+            far: self.far,
+            path: self.path.as_ref(),
+            frame: self.frame,
+        }
+    }
+
+    /// True when some option picks the view (a path, an eye, a field of view).
+    pub fn given(&self) -> bool {
+        self.path.is_some() || self.eye.is_some() || self.target.is_some() || self.fov.is_some()
+    }
+}
+
 /// The camera of `render`: `--eye/--target` when given, else frame `frame` of `--path`, else
 /// the whole scene framed from its three-quarter view.
 pub struct CameraChoice<'a> {

@@ -112,7 +112,7 @@ impl Cli {
             }
             Command::Render(a)
                 if a.projection != render::ProjectionArg::Perspective
-                    && (a.eye.is_some() || a.path.is_some() || a.fov.is_some()) =>
+                    && a.camera.given() =>
             {
                 Some(format!(
                     "--projection {:?} frames the whole scene itself: --eye, --path and --fov go with --projection perspective",
