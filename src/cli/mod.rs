@@ -6,6 +6,7 @@ mod chart;
 mod common;
 mod csg;
 mod info;
+mod lab;
 mod path;
 mod render;
 mod walk;
@@ -91,6 +92,10 @@ enum Command {
     Walk(Box<walk::WalkArgs>),
     /// Every method over a path, verified, as a Markdown table and charts
     Bench(Box<bench::BenchArgs>),
+    /// Every visibility method on one view (z-buffer, HZB, ray casting, Warnock, …): a labelled
+    /// contact sheet, difference images against the z-buffer, a Markdown table and JSON; or,
+    /// with --scaling, time against triangle count for every method
+    Lab(Box<lab::LabArgs>),
     /// Render the built-in CSG demo (box ∩ sphere − three cylinders) by ray casting, to PNG
     Csg {
         /// Output PNG file
@@ -136,6 +141,7 @@ pub fn run(cli: Cli) -> Result<()> {
         Command::Render(a) => render::run(&a),
         Command::Walk(a) => walk::run(&a),
         Command::Bench(a) => bench::run(&a),
+        Command::Lab(a) => lab::run(&a),
         Command::Csg { out, size } => {
             csg::write_classic_demo_png(&out, size.width, size.height)?;
             println!("wrote {}", out.display());
@@ -192,6 +198,7 @@ mod tests {
             Command::Render(a) => a.scene.allow_asset_roots,
             Command::Walk(a) => a.walk.scene.allow_asset_roots,
             Command::Bench(a) => a.walk.scene.allow_asset_roots,
+            Command::Lab(a) => a.scene.allow_asset_roots,
             Command::Csg { .. } => unreachable!(),
         }
     }
@@ -207,6 +214,7 @@ mod tests {
             &["render"],
             &["walk"],
             &["bench"],
+            &["lab", "--out", "lab"],
         ] {
             let mut args = vec!["sightline"];
             args.extend_from_slice(cmd);

@@ -4,6 +4,7 @@
 //! * `cli`: the built program's usage errors;
 //! * `culling`: every culling method draws exactly the brute-force triangle IDs;
 //! * `culling_proptest`: conservative frustum culling, property-tested against the rasterizer;
+//! * `lab`: `sightline lab` writes its pictures, table and JSON, and refuses methods over their limits;
 //! * `occlusion`: occlusion queries against the z-pyramid, and the pyramid's exactness;
 //! * `viewer`: the interactive viewer in a real (virtual) window draws what `render` draws;
 //! * `walkthrough`: the headless walkthrough writes its frames, GIF and CSV.
@@ -16,6 +17,7 @@
 mod cli;
 mod culling;
 mod culling_proptest;
+mod lab;
 mod moving;
 mod occlusion;
 mod support;
