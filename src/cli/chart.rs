@@ -1,5 +1,5 @@
 //! Charts of benchmark results (plotters), for people who would rather look than read: bars
-//! of medians, and lines of frame times along a walk.
+//! of medians, lines of frame times along a walk, and log–log lines of time against size.
 
 use std::path::Path;
 
@@ -26,8 +26,8 @@ fn register_font() -> bool {
     })
 }
 
-/// Colours of bars and lines, in turn.
-const PALETTE: [RGBColor; 7] = [
+/// Colours of bars and lines, in order.
+const PALETTE: [RGBColor; 9] = [
     RGBColor(76, 114, 176),
     RGBColor(221, 132, 82),
     RGBColor(85, 168, 104),
@@ -35,6 +35,8 @@ const PALETTE: [RGBColor; 7] = [
     RGBColor(129, 114, 179),
     RGBColor(147, 120, 96),
     RGBColor(218, 139, 195),
+    RGBColor(140, 140, 140),
+    RGBColor(204, 185, 116),
 ];
 
 /// One bar: label, value, and an optional error bar top (e.g. p95).
@@ -145,6 +147,71 @@ pub fn line_chart(
             .background_style(WHITE.mix(0.85))
             .border_style(BLACK)
             .label_font(("sans-serif", 15))
+            .draw()
+            .map_err(|x| e(&x))?;
+    }
+    root.present().map_err(|x| e(&x))?;
+    Ok(())
+}
+
+/// One line of a line chart: a label and its (x, y) points, in x order.
+pub struct Series {
+    pub label: String,
+    pub points: Vec<(f64, f64)>,
+}
+
+/// Writes a line chart PNG with logarithmic x and y axes, one line (with point markers) per
+/// series and a legend. Points that are not positive are left out (a log axis has no place
+/// for them).
+pub fn log_log_chart(path: &Path, title: &str, x_desc: &str, y_desc: &str, series: &[Series]) -> Result<()> {
+    let text = register_font();
+    let root = BitMapBackend::new(path, (1000, 700)).into_drawing_area();
+    let e = |e: &dyn std::fmt::Display| anyhow!("drawing {}: {e}", path.display());
+    root.fill(&WHITE).map_err(|x| e(&x))?;
+    let pts = || series.iter().flat_map(|s| s.points.iter().copied()).filter(|&(x, y)| x > 0.0 && y > 0.0);
+    let range = |f: fn((f64, f64)) -> f64| {
+        let (lo, hi) = pts().map(f).fold((f64::INFINITY, 0.0f64), |(lo, hi), v| (lo.min(v), hi.max(v)));
+        if lo.is_finite() {
+            (lo / 1.5, hi * 1.5)
+        } else {
+            (1.0, 10.0)
+        }
+    };
+    let ((x0, x1), (y0, y1)) = (range(|p| p.0), range(|p| p.1));
+    let mut builder = ChartBuilder::on(&root);
+    builder.margin(20).x_label_area_size(if text { 45 } else { 10 }).y_label_area_size(if text { 70 } else { 10 });
+    if text {
+        builder.caption(title, ("sans-serif", 22));
+    }
+    let mut chart = builder.build_cartesian_2d((x0..x1).log_scale(), (y0..y1).log_scale()).map_err(|x| e(&x))?;
+    if text {
+        chart
+            .configure_mesh()
+            .x_desc(x_desc)
+            .y_desc(y_desc)
+            .x_label_formatter(&|v| format!("{v:.0}"))
+            .y_label_formatter(&|v| if *v >= 10.0 { format!("{v:.0}") } else { format!("{v:.2}") })
+            .draw()
+            .map_err(|x| e(&x))?;
+    }
+    for (i, s) in series.iter().enumerate() {
+        let c = PALETTE[i % PALETTE.len()];
+        let points: Vec<(f64, f64)> = s.points.iter().copied().filter(|&(x, y)| x > 0.0 && y > 0.0).collect();
+        let drawn = chart.draw_series(LineSeries::new(points.clone(), c.stroke_width(2))).map_err(|x| e(&x))?;
+        if text {
+            drawn
+                .label(s.label.clone())
+                .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], c.stroke_width(2)));
+        }
+        chart.draw_series(points.iter().map(|&p| Circle::new(p, 4, c.filled()))).map_err(|x| e(&x))?;
+    }
+    if text {
+        chart
+            .configure_series_labels()
+            .position(SeriesLabelPosition::UpperLeft)
+            .background_style(WHITE.mix(0.85))
+            .border_style(BLACK)
+            .label_font(("sans-serif", 16))
             .draw()
             .map_err(|x| e(&x))?;
     }

@@ -215,6 +215,69 @@ pub fn path_keys(loaded: &LoadedScene, path: Option<&Path>, frames: Option<usize
     Ok(keys)
 }
 
+/// The camera options of `render` and `lab`: a frame of a path, or an eye and a target; with
+/// neither, the whole scene framed from its three-quarter view.
+#[derive(Debug, Clone, clap::Args)]
+pub struct CameraArgs {
+    /// Camera path JSON (see `sightline path`); with --frame
+    #[arg(short, long, value_name = "FILE", conflicts_with_all = ["eye", "target"])]
+    pub path: Option<PathBuf>,
+    /// Frame of the path to render
+    #[arg(long, default_value_t = 0)]
+    pub frame: usize,
+    /// Eye position x,y,z (with --target)
+    #[arg(long, value_parser = parse_vec3, allow_hyphen_values = true)]
+    pub eye: Option<Vec3>,
+    /// Point looked at x,y,z (with --eye)
+    #[arg(long, value_parser = parse_vec3, allow_hyphen_values = true)]
+    pub target: Option<Vec3>,
+    /// Up direction x,y,z (with --eye; default 0,1,0)
+    #[arg(long, value_parser = parse_vec3, allow_hyphen_values = true, requires = "eye")]
+    pub up: Option<Vec3>,
+    /// Vertical field of view in degrees (with --eye; default 60)
+    #[arg(long, requires = "eye")]
+    pub fov: Option<f32>,
+    /// Near plane distance (default: the path's, or 0.1)
+    #[arg(long)]
+    pub near: Option<f32>,
+    /// Far plane distance (default: the path's, or beyond the scene)
+    #[arg(long)]
+    pub far: Option<f32>,
+    /// Render through the scene file's own camera N (glTF cameras, numbered from 0 in the
+    /// order the file's nodes place them; `sightline info` counts them): its position, field
+    /// of view, near and far, the width fitted to --size
+    #[arg(long = "camera", value_name = "N", conflicts_with_all = ["path", "eye", "target", "fov", "near", "far"])]
+    pub file_camera: Option<usize>,
+}
+
+impl CameraArgs {
+    /// The camera these options choose (resolved against a scene by [`CameraChoice::camera`]);
+    /// `scene_name` is the scene as the user named it, for messages.
+    pub fn choice(&self, scene_name: String) -> CameraChoice<'_> {
+        CameraChoice {
+            eye: self.eye,
+            target: self.target,
+            up: self.up.unwrap_or(Vec3::Y),
+            fov: self.fov.unwrap_or(60.0),
+            near: self.near,
+            far: self.far,
+            path: self.path.as_ref(),
+            frame: self.frame,
+            file_camera: self.file_camera,
+            scene_name,
+        }
+    }
+
+    /// True when some option picks the view (a path, an eye, a field of view, a file's camera).
+    pub fn given(&self) -> bool {
+        self.path.is_some()
+            || self.eye.is_some()
+            || self.target.is_some()
+            || self.fov.is_some()
+            || self.file_camera.is_some()
+    }
+}
+
 /// The camera of `render`: `--eye/--target` when given, else frame `frame` of `--path`, else
 /// the whole scene framed from its three-quarter view.
 pub struct CameraChoice<'a> {

@@ -6,6 +6,7 @@ mod chart;
 mod common;
 mod csg;
 mod info;
+mod lab;
 mod merge;
 mod path;
 mod pictures;
@@ -97,6 +98,10 @@ enum Command {
     /// Join the --out folders of the shards of a walk (`walk --frame-range A..B`) into the
     /// report one run would have written
     Merge(Box<merge::MergeArgs>),
+    /// Every visibility method on one view (z-buffer, HZB, ray casting, Warnock, …): a labelled
+    /// contact sheet, difference images against the z-buffer, a Markdown table and JSON; or,
+    /// with --scaling, time against triangle count for every method
+    Lab(Box<lab::LabArgs>),
     /// Render the built-in CSG demo (box ∩ sphere − three cylinders) by ray casting, to PNG
     Csg {
         /// Output PNG file
@@ -118,7 +123,7 @@ impl Cli {
             }
             Command::Render(a)
                 if a.projection != render::ProjectionArg::Perspective
-                    && (a.eye.is_some() || a.path.is_some() || a.fov.is_some() || a.camera.is_some()) =>
+                    && a.camera.given() =>
             {
                 Some(format!(
                     "--projection {:?} frames the whole scene itself: --eye, --path, --fov and --camera go with --projection perspective",
@@ -143,6 +148,7 @@ pub fn run(cli: Cli) -> Result<()> {
         Command::Walk(a) => walk::run(&a),
         Command::Bench(a) => bench::run(&a),
         Command::Merge(a) => merge::run(&a),
+        Command::Lab(a) => lab::run(&a),
         Command::Csg { out, size } => {
             csg::write_classic_demo_png(&out, size.width, size.height)?;
             println!("wrote {}", out.display());
@@ -206,6 +212,7 @@ mod tests {
             Command::Render(a) => a.scene.allow_asset_roots,
             Command::Walk(a) => a.walk.scene.allow_asset_roots,
             Command::Bench(a) => a.walk.scene.allow_asset_roots,
+            Command::Lab(a) => a.scene.allow_asset_roots,
             Command::Csg { .. } | Command::Merge(_) => unreachable!(),
         }
     }
@@ -221,6 +228,7 @@ mod tests {
             &["render"],
             &["walk"],
             &["bench"],
+            &["lab", "--out", "lab"],
         ] {
             let mut args = vec!["sightline"];
             args.extend_from_slice(cmd);

@@ -6,7 +6,7 @@ use anyhow::{Context, Result};
 use glam::Vec3;
 use sightline::render::{output, Framebuffer, RayCaster, RaycastOptions, Renderer};
 
-use super::common::{self, CameraChoice, Look, OnOff, Size};
+use super::common::{self, Look, OnOff, Size};
 
 /// Visibility method of a single frame.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
@@ -21,35 +21,8 @@ pub enum FrameMethod {
 pub struct RenderArgs {
     #[command(flatten)]
     pub scene: super::SceneArg,
-    /// Camera path JSON (see `sightline path`); with --frame
-    #[arg(short, long, value_name = "FILE", conflicts_with_all = ["eye", "target"])]
-    pub path: Option<PathBuf>,
-    /// Frame of the path to render
-    #[arg(long, default_value_t = 0)]
-    pub frame: usize,
-    /// Render through the scene file's own camera N (glTF cameras, numbered from 0 in the
-    /// order the file's nodes place them; `sightline info` counts them): its position, field
-    /// of view, near and far, the width fitted to --size
-    #[arg(long, value_name = "N", conflicts_with_all = ["path", "eye", "target", "fov", "near", "far"])]
-    pub camera: Option<usize>,
-    /// Eye position x,y,z (with --target)
-    #[arg(long, value_parser = common::parse_vec3, allow_hyphen_values = true)]
-    pub eye: Option<Vec3>,
-    /// Point looked at x,y,z (with --eye)
-    #[arg(long, value_parser = common::parse_vec3, allow_hyphen_values = true)]
-    pub target: Option<Vec3>,
-    /// Up direction x,y,z (with --eye; default 0,1,0)
-    #[arg(long, value_parser = common::parse_vec3, allow_hyphen_values = true, requires = "eye")]
-    pub up: Option<Vec3>,
-    /// Vertical field of view in degrees (with --eye; default 60)
-    #[arg(long, requires = "eye")]
-    pub fov: Option<f32>,
-    /// Near plane distance (default: the path's, or 0.1)
-    #[arg(long)]
-    pub near: Option<f32>,
-    /// Far plane distance (default: the path's, or beyond the scene)
-    #[arg(long)]
-    pub far: Option<f32>,
+    #[command(flatten)]
+    pub camera: common::CameraArgs,
     /// Image size
     #[arg(long, default_value = "1280x720")]
     pub size: Size,
@@ -157,18 +130,7 @@ pub fn run(a: &RenderArgs) -> Result<()> {
     if let Some(t) = a.time {
         common::pose(&mut loaded.scene, t)?;
     }
-    let choice = CameraChoice {
-        eye: a.eye,
-        target: a.target,
-        up: a.up.unwrap_or(Vec3::Y),
-        fov: a.fov.unwrap_or(60.0),
-        near: a.near,
-        far: a.far,
-        path: a.path.as_ref(),
-        frame: a.frame,
-        file_camera: a.camera,
-        scene_name: super::describe(&a.scene.scene),
-    };
+    let choice = a.camera.choice(super::describe(&a.scene.scene));
     let parallel = parallel_cameras(a.projection, &loaded.scene.world_aabb(), a.size.aspect())
         .context("framing the scene for --projection")?;
     let camera = match parallel.first() {

@@ -5,6 +5,7 @@
 //! * `cli`: the built program: usage errors, file cameras, loader warnings;
 //! * `culling`: every culling method draws exactly the brute-force triangle IDs;
 //! * `culling_proptest`: conservative frustum culling, property-tested against the rasterizer;
+//! * `lab`: `sightline lab` writes its pictures, table and JSON, and refuses methods over their limits;
 //! * `occlusion`: occlusion queries against the z-pyramid, and the pyramid's exactness;
 //! * `shards`: a walk in two shards, merged, is the report of one run;
 //! * `viewer`: the interactive viewer in a real (virtual) window draws what `render` draws;
@@ -19,6 +20,7 @@ mod city_builder;
 mod cli;
 mod culling;
 mod culling_proptest;
+mod lab;
 mod moving;
 mod occlusion;
 mod shards;

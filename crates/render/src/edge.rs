@@ -68,12 +68,21 @@ impl Tri {
     /// `[x0, y0, x1, y1]` (inclusive): the plane is affine, so its minimum is at a corner;
     /// the rounding that evaluating it at a pixel may add is subtracted.
     #[inline]
-    pub(crate) fn plane_min(&self, [x0, y0, x1, y1]: [i32; 4]) -> f32 {
+    pub(crate) fn plane_min(&self, rect: [i32; 4]) -> f32 {
+        self.plane_bounds(rect).0
+    }
+
+    /// Lower and upper bounds of the depth plane over the pixel centers of the screen
+    /// rectangle `[x0, y0, x1, y1]` (inclusive), each widened by the rounding that
+    /// evaluating the plane at a pixel ([`Tri::depth_row`], [`Tri::depth_at`]) may add: every
+    /// depth the rasterizer computes for a pixel of the rectangle lies between them.
+    #[inline]
+    pub(crate) fn plane_bounds(&self, [x0, y0, x1, y1]: [i32; 4]) -> (f32, f32) {
         let cx = |px: i32| self.zx * ((px << SUBPIXEL_BITS) + ONE / 2 - self.x[0]) as f32;
         let cy = |py: i32| self.zy * ((py << SUBPIXEL_BITS) + ONE / 2 - self.y[0]) as f32;
         let (a0, a1, b0, b1) = (cx(x0), cx(x1), cy(y0), cy(y1));
         let err = 8.0 * f32::EPSILON * (self.z0.abs() + a0.abs().max(a1.abs()) + b0.abs().max(b1.abs())) + 1e-7;
-        self.z0 + a0.min(a1) + b0.min(b1) - err
+        (self.z0 + a0.min(a1) + b0.min(b1) - err, self.z0 + a0.max(a1) + b0.max(b1) + err)
     }
 }
 

@@ -34,6 +34,8 @@ pub(crate) mod scan;
 
 pub use bsp::{BspMode, BspRenderer};
 
+pub mod warnock;
+
 use glam::Vec3;
 use sightline_scene::Scene;
 

@@ -21,4 +21,5 @@ mod raycast_watertight;
 mod support;
 mod visibility_lab;
 mod visibility_robustness;
+mod warnock;
 mod wire_hidden_line;
