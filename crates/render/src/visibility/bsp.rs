@@ -105,7 +105,12 @@ impl BspRenderer {
             BspMode::FrontToBack => BspOrder::FrontToBack,
         };
         let visited = self.tree.visit(viewpoint(camera), order, |range| {
-            for i in range {
+            // A node's triangles are coplanar and listed by source (see `BspRenderer::new`);
+            // where copies tie, the z-buffer keeps the smaller ID, so the smaller is drawn
+            // last when overwriting and first when each pixel is written once.
+            let back_to_front = mode == BspMode::BackToFront;
+            let mut range = range;
+            while let Some(i) = if back_to_front { range.next_back() } else { range.next() } {
                 let t = &stored[i as usize];
                 let source = t.source as usize;
                 if whole.get(source).is_empty() {

@@ -244,10 +244,21 @@ impl Sorter {
             return false;
         }
         let (pv, qv) = (self.verts(p), self.verts(q));
-        if b.plane.is_some_and(|pl| polygon::reach(pl, pv).1 <= EPS) {
+        // Coplanar polygons overlap exactly where they overlap on screen; there the z-buffer
+        // keeps the smaller triangle ID (in-order drawing), so the smaller one must be
+        // drawn last: P, drawn now, may obscure a coplanar Q only when P's ID is smaller.
+        let tie_keeps_p = a.parent < b.parent;
+        let coplanar = |(lo, hi): (f64, f64)| lo >= -EPS && hi <= EPS;
+        if b.plane.is_some_and(|pl| {
+            let r = polygon::reach(pl, pv);
+            r.1 <= EPS && !(tie_keeps_p && coplanar(r))
+        }) {
             return false; // (3) P behind Q's plane
         }
-        if a.plane.is_some_and(|pl| polygon::reach(pl, qv).0 >= -EPS) {
+        if a.plane.is_some_and(|pl| {
+            let r = polygon::reach(pl, qv);
+            r.0 >= -EPS && !(tie_keeps_p && coplanar(r))
+        }) {
             return false; // (4) Q in front of P's plane
         }
         polygon::overlap_2d(pv, qv) // (5)

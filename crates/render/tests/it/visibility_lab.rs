@@ -249,3 +249,14 @@ fn oversized_soups_are_refused_by_painter() {
     let err = painter::render(&soup, &camera(Vec3::Z * 5.0, Vec3::ZERO), &mut fb).unwrap_err().to_string();
     assert!(err.contains("painter") && err.contains(&painter::LIMIT.to_string()), "{err}");
 }
+
+/// Exact copies of a triangle tie in depth everywhere; the z-buffer keeps the smaller ID
+/// (in-order drawing), and so must painter's and the BSP tree: copies listed in both orders,
+/// over and under a third, larger triangle.
+#[test]
+fn coincident_copies_keep_the_smaller_id_as_the_z_buffer_does() {
+    let a = [Vec3::new(-1.0, -1.0, 0.0), Vec3::new(1.0, -1.0, 0.0), Vec3::new(0.0, 1.0, 0.0)];
+    let big = [Vec3::new(-2.0, -2.0, -0.5), Vec3::new(2.0, -2.0, -0.5), Vec3::new(0.0, 2.0, -0.5)];
+    let tris = vec![big, a, a, big, a];
+    all_methods_agree("coincident copies", tris, &[Vec3::new(0.2, 0.1, 4.0), Vec3::new(-1.0, 0.5, 3.0)], Vec3::ZERO);
+}

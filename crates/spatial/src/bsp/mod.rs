@@ -158,6 +158,9 @@ impl BspTree {
                     }
                 }
             }
+            // A node's triangles are listed by source, so that a renderer can break ties
+            // between coincident copies as in-order drawing does (smaller source on top).
+            here.sort_by_key(|&t| pool[t as usize].source);
             let first = tree.triangles.len() as u32;
             tree.triangles.extend(here.iter().map(|&t| pool[t as usize]));
             let node = &mut tree.nodes[slot as usize];
