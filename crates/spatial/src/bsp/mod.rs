@@ -134,13 +134,18 @@ impl BspTree {
             front.clear();
             back.clear();
             here.clear();
-            let plane = choose_plane(&pool, &list, params, eps);
-            match plane {
+            let chosen = choose_plane(&pool, &list, params, eps);
+            let plane = chosen.map(|(p, _)| p);
+            match chosen {
                 None => here.extend_from_slice(&list),
-                Some(plane) => {
-                    for &t in &list {
+                Some((plane, from)) => {
+                    for (at, &t) in list.iter().enumerate() {
                         let tri = pool[t as usize];
-                        match classify_triangle(&plane, &tri.v, eps) {
+                        // The triangle the plane comes from lies on it, whatever rounding
+                        // says of a sliver: so every node keeps at least one triangle and
+                        // the build ends.
+                        let side = if at == from { Side::On } else { classify_triangle(&plane, &tri.v, eps) };
+                        match side {
                             Side::On => here.push(t),
                             Side::Front => front.push(t),
                             Side::Back => back.push(t),
@@ -270,16 +275,18 @@ impl BspTree {
 
 /// Picks the candidate plane with the lowest `k · splits + |front − back|` over a sample of
 /// the node's triangles; `None` when no candidate triangle has a plane (all zero-area).
-fn choose_plane(pool: &[BspTriangle], list: &[u32], params: &BspParams, eps: f32) -> Option<Plane> {
+/// The splitting plane for a node, with the list position of the triangle it comes from.
+fn choose_plane(pool: &[BspTriangle], list: &[u32], params: &BspParams, eps: f32) -> Option<(Plane, usize)> {
     let n = list.len();
     let c = params.candidates.max(1);
     let step = (n / c).max(1);
     let sample_step = (n / params.sample.max(1)).max(1);
-    let mut best: Option<(f32, Plane)> = None;
+    let mut best: Option<(f32, Plane, usize)> = None;
     let mut tried = 0;
     let mut k = 0;
     // Evenly spaced candidates; zero-area ones are skipped and replaced by the next.
     while k < n && tried < c {
+        let at = k;
         let tri = &pool[list[k] as usize];
         k += step;
         let Some(plane) = Plane::from_triangle(tri.v[0], tri.v[1], tri.v[2]) else {
@@ -287,7 +294,7 @@ fn choose_plane(pool: &[BspTriangle], list: &[u32], params: &BspParams, eps: f32
         };
         tried += 1;
         if n == 1 {
-            return Some(plane);
+            return Some((plane, at));
         }
         let (mut f, mut b, mut s) = (0i64, 0i64, 0i64);
         for &t in list.iter().step_by(sample_step) {
@@ -299,18 +306,18 @@ fn choose_plane(pool: &[BspTriangle], list: &[u32], params: &BspParams, eps: f32
             }
         }
         let cost = params.split_weight * s as f32 + (f - b).abs() as f32;
-        if best.is_none_or(|(bc, _)| cost < bc) {
-            best = Some((cost, plane));
+        if best.is_none_or(|(bc, _, _)| cost < bc) {
+            best = Some((cost, plane, at));
         }
     }
     if best.is_none() {
         // Fall back to any triangle with a plane.
-        return list.iter().find_map(|&t| {
+        return list.iter().enumerate().find_map(|(at, &t)| {
             let v = pool[t as usize].v;
-            Plane::from_triangle(v[0], v[1], v[2])
+            Plane::from_triangle(v[0], v[1], v[2]).map(|p| (p, at))
         });
     }
-    best.map(|(_, p)| p)
+    best.map(|(_, p, at)| (p, at))
 }
 
 #[cfg(test)]
