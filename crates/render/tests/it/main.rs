@@ -1,6 +1,7 @@
 //! The render crate's integration tests, one binary, so that cargo compiles and links one
 //! test executable per package instead of one per file. `raster_*` test the rasterizer through
-//! the public API, `raycast_*` the ray caster, `csg_raycast` CSG solids.
+//! the public API, `raycast_*` the ray caster, `csg_raycast` CSG solids, `transparency` masked
+//! and blended materials.
 
 #![forbid(unsafe_code)]
 
@@ -18,3 +19,4 @@ mod raycast_reference;
 mod raycast_robustness;
 mod raycast_watertight;
 mod support;
+mod transparency;
