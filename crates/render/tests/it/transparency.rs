@@ -6,7 +6,7 @@ use std::sync::Arc;
 use glam::{Affine3A, Quat, Vec2, Vec3};
 use sightline_render::texture::Filter;
 use sightline_render::{
-    draw_all, render_abuffer, render_depth_peeling, scene_has_transparency, DepthFormat, Error, Framebuffer,
+    draw_all, render_abuffer, render_depth_peeling, scene_has_transparency, Antialias, DepthFormat, Error, Framebuffer,
     RenderOptions, Renderer, ShadeOptions, Transparency,
 };
 use sightline_scene::rng::Rng;
@@ -184,6 +184,14 @@ fn abuffer_equals_compositing_by_hand() {
     assert!((st.mean_fragments_per_pixel - st.fragments as f64 / st.pixels as f64).abs() < 1e-12);
     // The hidden quad is drawn (and rejected) too.
     assert!(st.fragments_drawn > st.fragments);
+    // Supersampled, the same inside the quads (the samples of a pixel agree there).
+    let mut ss = frame();
+    let opts = RenderOptions { antialias: Antialias::Ssaa2x2, ..unlit() };
+    let st2 = render_abuffer(&s, &top_camera(), &mut ss, &opts).unwrap();
+    assert_eq!(st2.fragments, 3 * 4096 + 26 * 26, "samples, 128 × 128 of them");
+    for p in [at(0.0, 0.0), at(-0.8, 0.8), at(1.2, -1.2), at(1.4, 1.4)] {
+        assert_eq!(ss.color[p], fb.color[p], "pixel {p}");
+    }
 }
 
 #[test]
