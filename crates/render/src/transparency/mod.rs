@@ -91,8 +91,8 @@ pub struct TransparencyStats {
     pub masked_fragments_discarded: u64,
     /// Blended fragments in front of the opaque surface: the A-buffer's list entries.
     pub fragments: u64,
-    /// Blended fragments rasterized, over every pass (the A-buffer walks once, depth
-    /// peeling once per pass, including the last pass that finds nothing).
+    /// Blended fragments rasterized, over every walk (the A-buffer walks once, depth
+    /// peeling once to count and once per pass).
     pub fragments_drawn: u64,
     /// Pixels with at least one blended fragment in front of the opaque surface.
     pub pixels: u64,

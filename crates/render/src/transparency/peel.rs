@@ -19,11 +19,13 @@
 //!   the A-buffer's (up to the rounding of the compositing order). With fewer, the farthest
 //!   layers are missing: they are not drawn at all, and the opaque color shows through
 //!   where they would have been.
-//! * A band stops early after a pass that finds no layer anywhere in it.
+//! * A band runs as many passes as its deepest pixel needs, at most k.
 //!
-//! Each pass rasterizes every blended triangle again: the cost is (layers + 1) × the
-//! blended fragments, against the A-buffer's one walk and a sort, but the memory is a fixed
-//! few planes, whatever the depth complexity.
+//! Each pass rasterizes every blended triangle again: the cost is the layers × the blended
+//! fragments, against the A-buffer's one walk and a sort, but the memory does not grow with
+//! the depth complexity. A first, counting walk finds the pixels with blended fragments in
+//! front of the opaque surface and how many (the layers the band needs: no pass is spent
+//! finding nothing); the passes keep their state for those pixels only, in flat arrays.
 
 use crate::depth::{with_codec, DepthCodec, DepthFormat};
 use crate::edge::Tri;
@@ -46,22 +48,33 @@ pub(crate) fn peel_band<'t>(
     with_codec!(fmt, peel_in::<_>(band, tris, layers, surfaces))
 }
 
-/// Per-pixel state of the passes (flat planes over the band).
-struct Planes {
-    /// The opaque surface's depth key.
-    opaque: Vec<u32>,
-    /// The last layer peeled: depth key and ID ((0, 0) before the first: every fragment
-    /// lies behind it, IDs being at least 1).
-    last_key: Vec<u32>,
-    last_id: Vec<u32>,
-    /// This pass's z-buffer.
-    key: Vec<u32>,
-    id: Vec<u32>,
-    rgba: Vec<[u8; 4]>,
-    /// The fragments in front of the opaque surface (counted in the first pass).
-    fragments: Vec<u32>,
-    /// The front-to-back sums.
-    under: Vec<Under>,
+/// A pixel without blended fragments in front of its opaque surface.
+const INACTIVE: u32 = u32::MAX;
+
+/// The passes' state of the active pixels (those with blended fragments in front of the
+/// opaque surface), one entry each.
+#[derive(Clone, Copy)]
+struct Active {
+    /// The band pixel.
+    pixel: u32,
+    /// Blended fragments in front of the opaque surface.
+    fragments: u32,
+    /// The opaque surface: depth key and ID.
+    opaque_key: u32,
+    opaque_id: u32,
+    /// The last layer peeled ((0, 0) before the first: every fragment lies behind it, IDs
+    /// being at least 1).
+    last_key: u32,
+    last_id: u32,
+    /// This pass's z-buffer and the color of its fragment.
+    key: u32,
+    id: u32,
+    rgba: [u8; 4],
+    /// The first layer (the nearest blended surface).
+    first_key: u32,
+    first_id: u32,
+    /// The front-to-back sum.
+    under: Under,
 }
 
 fn peel_in<'t, D: DepthCodec>(
@@ -71,79 +84,84 @@ fn peel_in<'t, D: DepthCodec>(
     surfaces: &Surfaces,
 ) -> LayerCounts {
     let shading = surfaces.opts.mode != ShadingMode::None;
-    let n = band.ids.len();
-    let opaque: Vec<u32> = band.depth.iter().map(|&d| D::FORMAT.key_of_stored(d)).collect();
-    let mut p = Planes {
-        last_key: vec![0; n],
-        last_id: vec![0; n],
-        key: opaque.clone(),
-        id: band.ids.to_vec(),
-        rgba: vec![[0; 4]; n],
-        fragments: vec![0; n],
-        under: vec![Under::default(); n],
-        opaque,
-    };
     let mut counts = LayerCounts::default();
-    let (mut first_id, mut first_key) = (band.ids.to_vec(), p.opaque.clone());
+    // The counting walk: per pixel, the fragments in front of the opaque surface.
+    let mut slot = vec![0u32; band.ids.len()];
+    for t in tris.clone() {
+        walk::<D>(t, band.span(), |x, y, key| {
+            let i = band.index(x, y);
+            counts.drawn += 1;
+            slot[i] += wins(key, t.id, D::FORMAT.key_of_stored(band.depth[i]), band.ids[i]) as u32;
+        });
+    }
+    let mut active = Vec::new();
+    for (i, s) in slot.iter_mut().enumerate() {
+        if *s == 0 {
+            *s = INACTIVE;
+            continue;
+        }
+        let (key, id) = (D::FORMAT.key_of_stored(band.depth[i]), band.ids[i]);
+        active.push(Active {
+            pixel: i as u32,
+            fragments: *s,
+            opaque_key: key,
+            opaque_id: id,
+            last_key: 0,
+            last_id: 0,
+            key,
+            id,
+            rgba: [0; 4],
+            first_key: key,
+            first_id: id,
+            under: Under::default(),
+        });
+        counts.pixel(*s);
+        *s = active.len() as u32 - 1;
+    }
     let mut hint = 0;
-    for pass in 0..layers {
-        // The pass's z-buffer starts from the opaque surface.
-        p.key.copy_from_slice(&p.opaque);
-        p.id.copy_from_slice(band.ids);
+    for pass in 0..layers.min(counts.max) {
         for t in tris.clone() {
             let mut surface = None;
             walk::<D>(t, band.span(), |x, y, key| {
-                let i = band.index(x, y);
                 counts.drawn += 1;
-                // In front of the opaque surface and strictly behind the last layer ...
-                if !wins(key, t.id, p.opaque[i], band.ids[i]) || !wins(p.last_key[i], p.last_id[i], key, t.id) {
+                let j = slot[band.index(x, y)];
+                let Some(a) = active.get_mut(j as usize) else { return };
+                // In front of the opaque surface, strictly behind the last layer, and nearer
+                // than this pass's best so far (which starts as the opaque surface).
+                let (k, id) = (key, t.id);
+                if !wins(k, id, a.opaque_key, a.opaque_id)
+                    || !wins(a.last_key, a.last_id, k, id)
+                    || !wins(k, id, a.key, a.id)
+                {
                     return;
                 }
-                if pass == 0 {
-                    p.fragments[i] += 1;
-                }
-                // ... and nearer than this pass's best so far.
-                if !wins(key, t.id, p.key[i], p.id[i]) {
-                    return;
-                }
-                let Some(s) = surface.get_or_insert_with(|| surfaces.get(t.id, &mut hint)) else { return };
-                p.key[i] = key;
-                p.id[i] = t.id;
+                let Some(s) = surface.get_or_insert_with(|| surfaces.get(id, &mut hint)) else { return };
+                (a.key, a.id) = (k, id);
                 if shading {
-                    p.rgba[i] = surfaces.color(s, x, y);
+                    a.rgba = surfaces.color(s, x, y);
                 }
             });
         }
-        // Composite the layer found (pixels whose pass z-buffer left the opaque surface).
-        let mut found = false;
-        for i in 0..n {
-            if p.id[i] == band.ids[i] && p.key[i] == p.opaque[i] {
-                continue;
-            }
-            found = true;
-            p.under[i].add(p.rgba[i]);
-            (p.last_key[i], p.last_id[i]) = (p.key[i], p.id[i]);
+        // Composite the layer found (where the pass's z-buffer left the opaque surface), and
+        // start the next pass from the opaque surface again.
+        for a in active.iter_mut().filter(|a| (a.key, a.id) != (a.opaque_key, a.opaque_id)) {
+            a.under.add(a.rgba);
+            (a.last_key, a.last_id) = (a.key, a.id);
             if pass == 0 {
-                (first_key[i], first_id[i]) = (p.key[i], p.id[i]);
+                (a.first_key, a.first_id) = (a.key, a.id);
             }
-        }
-        if !found {
-            break;
+            (a.key, a.id) = (a.opaque_key, a.opaque_id);
         }
         counts.layers = pass + 1;
     }
-    for i in 0..n {
-        let f = p.fragments[i];
-        if f == 0 {
-            continue;
-        }
-        counts.pixel(f);
-        counts.short += (f > counts.layers) as u64;
+    for a in &active {
+        let i = a.pixel as usize;
+        counts.short += (a.fragments > counts.layers) as u64;
         if shading {
-            band.color[i] = p.under[i].resolve(band.color[i]);
+            band.color[i] = a.under.resolve(band.color[i]);
         }
-        band.ids[i] = first_id[i];
-        band.depth[i] = D::decode(first_key[i]);
+        band.ids[i] = a.first_id;
+        band.depth[i] = D::decode(a.first_key);
     }
     counts
 }
