@@ -286,7 +286,7 @@ impl<'a> TriangleShader<'a> {
     }
 
     /// The alpha at world-space barycentric weights `b`: the base color factor's alpha times
-    /// the texture's there (what a material's [`AlphaMode`](sightline_scene::AlphaMode)
+    /// the texture's there (what a material's [`AlphaMode`]
     /// judges), before lighting and quantization.
     #[inline]
     pub fn alpha(&self, b: Vec3, opts: &ShadeOptions) -> f32 {

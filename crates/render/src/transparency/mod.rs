@@ -8,18 +8,18 @@
 //!
 //! 1. **Opaque** items: drawn by the tile rasterizer into depth and IDs, as always.
 //! 2. **Masked** items (`MASK`): their triangles are set up by the same geometry stage and
-//!    their fragments walked with the rasterizer's coverage and depth ([`walk`]); each
+//!    their fragments walked with the rasterizer's coverage and depth (`walk.rs`); each
 //!    fragment that passes the depth test is alpha-tested (base color factor × texture alpha
 //!    at its perspective-correct texture coordinates) before it writes depth and ID
-//!    ([`mask`]). Then the frame is shaded (deferred, from the IDs) like any other.
+//!    (`mask.rs`). Then the frame is shaded (deferred, from the IDs) like any other.
 //! 3. **Blended** items (`BLEND`), over the shaded opaque frame, one of:
 //!    * [`Transparency::ABuffer`] (the default, and the reference): per-pixel fragment lists,
 //!      sorted by depth and composited back to front with Porter & Duff's "over" (Carpenter,
 //!      "The A-buffer, an antialiased hidden surface method", SIGGRAPH 1984; here without
-//!      its subpixel coverage masks, see [`abuffer`]);
+//!      its subpixel coverage masks, see `abuffer.rs`);
 //!    * [`Transparency::DepthPeeling`]: k z-buffer passes, each keeping the nearest
 //!      fragment behind the previous layer, composited front to back (Everitt,
-//!      "Interactive Order-Independent Transparency", 2001; see [`peel`]).
+//!      "Interactive Order-Independent Transparency", 2001; see `peel.rs`).
 //!
 //! Both blend methods order fragments as the z-buffer does (depth key, then triangle ID),
 //! so with enough layers depth peeling reproduces the A-buffer, and coplanar surfaces are

@@ -6,7 +6,7 @@
 //! z-buffer test plus a second test against the depth that pass k − 1 kept, so that it
 //! keeps, per pixel, the nearest fragment *strictly behind* the previous layer. Pass 1
 //! finds the nearest blended surface, pass 2 the second nearest, and so on; each layer is
-//! composited front to back ("under", see [`super::blend`]) as soon as it is found.
+//! composited front to back ("under", see `blend.rs`) as soon as it is found.
 //!
 //! * The opaque surface bounds every layer: the z-buffer of each pass starts from the opaque
 //!   depth, so a fragment behind it never wins.
