@@ -212,6 +212,17 @@ fn print_raster(s: &sightline::render::FrameStats) {
     println!("fragments written   {:>10}", s.fragments_written);
     println!("covered pixels      {:>10}", s.covered_pixels);
     println!("overdraw            {:>10.2}", s.overdraw);
+    if let Some(t) = &s.transparency {
+        println!(
+            "masked triangles    {:>10} ({} fragments kept, {} discarded)",
+            t.masked_triangles, t.masked_fragments_kept, t.masked_fragments_discarded
+        );
+        println!("blended triangles   {:>10} ({:?})", t.blended_triangles, t.method);
+        println!(
+            "blended fragments   {:>10} (max {} and mean {:.2} per pixel over {} pixels; {} drawn)",
+            t.fragments, t.max_fragments_per_pixel, t.mean_fragments_per_pixel, t.pixels, t.fragments_drawn
+        );
+    }
     println!(
         "ms: geometry {:.2}, binning {:.2}, raster {:.2}, shading {:.2}, total {:.2}",
         s.ms_geometry, s.ms_binning, s.ms_raster, s.ms_shading, s.ms_total

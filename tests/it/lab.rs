@@ -154,3 +154,24 @@ fn lab_scaling_writes_a_chart_and_a_csv_over_the_city_family() {
     assert!(chart.width() > 0);
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+/// On a scene with blended materials the lab adds the A-buffer and depth peeling: peeling
+/// with the A-buffer's depth of layers gives its colours, one layer does not; on an opaque
+/// scene neither runs.
+#[test]
+fn lab_adds_the_transparency_methods_where_there_is_transparency() {
+    let asset = concat!(env!("CARGO_MANIFEST_DIR"), "/assets/transparent.gltf");
+    let dir = out_dir("transparent");
+    let s = lab(&["--scene", asset, "--size", "160x90"], &dir);
+    let methods = s["methods"].as_array().unwrap();
+    let row = |name: &str| methods.iter().find(|m| m["method"] == name).unwrap_or_else(|| panic!("{name} ran: {s}"));
+    assert!(row("abuffer")["max_fragments_per_pixel"].as_u64().unwrap() >= 2, "{s}");
+    assert_eq!(row("depth-peeling")["pixels_differing_from_abuffer"], 0, "{s}");
+    assert!(row("depth-peeling-1")["pixels_differing_from_abuffer"].as_u64().unwrap() > 0, "{s}");
+    let _ = std::fs::remove_dir_all(&dir);
+
+    let dir = out_dir("opaque");
+    let s = lab(&["--scene", "city:2000", "--size", "64x36"], &dir);
+    assert!(s["methods"].as_array().unwrap().iter().all(|m| m["method"] != "abuffer"), "{s}");
+    let _ = std::fs::remove_dir_all(&dir);
+}

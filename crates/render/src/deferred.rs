@@ -30,13 +30,13 @@ const TRI_CACHE: usize = 4096;
 const INST_CACHE: usize = 64;
 
 /// Finds the instance drawing global triangle `g` (instances ordered by first triangle).
-struct Lookup<'a> {
-    instances: &'a [Instance],
+pub(crate) struct Lookup<'a> {
+    pub(crate) instances: &'a [Instance],
     order: Option<Vec<u32>>,
 }
 
 impl<'a> Lookup<'a> {
-    fn new(instances: &'a [Instance]) -> Self {
+    pub(crate) fn new(instances: &'a [Instance]) -> Self {
         let sorted = instances.windows(2).all(|w| w[0].first_triangle <= w[1].first_triangle);
         let order = (!sorted).then(|| {
             let mut o: Vec<u32> =
@@ -45,6 +45,20 @@ impl<'a> Lookup<'a> {
             o
         });
         Self { instances, order }
+    }
+
+    /// The instance drawing global triangle `g`, trying `hint` (the last answer) first:
+    /// neighboring pixels mostly show the same instance.
+    #[inline]
+    pub(crate) fn find_hinted(&self, g: u32, hint: &mut u32) -> Option<u32> {
+        match self.instances.get(*hint as usize) {
+            Some(i) if g >= i.first_triangle && g - i.first_triangle < i.triangle_count => Some(*hint),
+            _ => {
+                let i = self.find(g)?;
+                *hint = i;
+                Some(i)
+            }
+        }
     }
 
     fn find(&self, g: u32) -> Option<u32> {
@@ -89,10 +103,50 @@ struct InstEntry<'a> {
     mesh: &'a Mesh,
 }
 
-struct TriEntry<'a> {
+/// A triangle ready for shading at any pixel: its 2D homogeneous rows and its shader.
+pub(crate) struct TriEntry<'a> {
     rows: [Vec3A; 3],
     w: [f32; 3],
-    shader: TriangleShader<'a>,
+    pub(crate) shader: TriangleShader<'a>,
+}
+
+impl<'a> TriEntry<'a> {
+    /// Triangle `t` of `mesh`, drawn under `clip` (`clip_from_local`) with `shader`.
+    pub(crate) fn new(clip: &Mat4, mesh: &Mesh, t: usize, shader: TriangleShader<'a>) -> Self {
+        let h = mesh
+            .triangle(t)
+            .map(|i| *clip * mesh.positions()[i as usize].extend(1.0))
+            .map(|c| Vec3A::new(c.x, c.y, c.w));
+        TriEntry { rows: [h[1].cross(h[2]), h[2].cross(h[0]), h[0].cross(h[1])], w: [h[0].z, h[1].z, h[2].z], shader }
+    }
+
+    /// The world-space barycentric weights of the point seen through NDC `p = (x, y, 1)`
+    /// (affine screen-space weights when `perspective_correct` is off).
+    #[inline(always)]
+    pub(crate) fn weights(&self, p: Vec3A, perspective_correct: bool) -> Vec3 {
+        let mut b = Vec3::new(self.rows[0].dot(p), self.rows[1].dot(p), self.rows[2].dot(p));
+        if !perspective_correct {
+            b *= Vec3::from(self.w);
+        }
+        let s = b.x + b.y + b.z;
+        if s != 0.0 {
+            b / s
+        } else {
+            Vec3::splat(1.0 / 3.0)
+        }
+    }
+}
+
+/// NDC of the center of pixel column `x` (`sx` = 2 / width).
+#[inline(always)]
+pub(crate) fn ndc_x(x: usize, sx: f32) -> f32 {
+    (x as f32 + 0.5) * sx - 1.0
+}
+
+/// NDC of the center of pixel row `y` (`sy` = 2 / height; row 0 is the top).
+#[inline(always)]
+pub(crate) fn ndc_y(y: usize, sy: f32) -> f32 {
+    1.0 - (y as f32 + 0.5) * sy
 }
 
 /// Writes every color of `fb`: pixels with ID 0, IDs that no instance claims and every
@@ -131,7 +185,7 @@ pub fn shade_pass(
             if y >= h {
                 break;
             }
-            let ndc_y = 1.0 - (y as f32 + 0.5) * sy;
+            let row_y = ndc_y(y, sy);
             let irow = &ids[y * w..(y + 1) * w];
             // Runs of one ID along the row: one cache lookup and one fill per run.
             let mut x = 0;
@@ -170,14 +224,8 @@ pub fn shade_pass(
                     continue;
                 };
                 for (px, c) in crow[x..end].iter_mut().enumerate() {
-                    let p = Vec3A::new(((x + px) as f32 + 0.5) * sx - 1.0, ndc_y, 1.0);
-                    let mut b = Vec3::new(entry.rows[0].dot(p), entry.rows[1].dot(p), entry.rows[2].dot(p));
-                    if !opts.perspective_correct {
-                        b *= Vec3::from(entry.w);
-                    }
-                    let s = b.x + b.y + b.z;
-                    let b = if s != 0.0 { b / s } else { Vec3::splat(1.0 / 3.0) };
-                    *c = entry.shader.shade(b, opts);
+                    let p = Vec3A::new(ndc_x(x + px, sx), row_y, 1.0);
+                    *c = entry.shader.shade(entry.weights(p, opts.perspective_correct), opts);
                 }
                 x = end;
             }
@@ -214,15 +262,7 @@ fn prepare<'a>(
     hint: &mut u32,
 ) -> Option<Prepared<'a>> {
     let g = id - 1;
-    // Neighboring pixels mostly show the same instance: try the last one before searching.
-    let index = match lookup.instances.get(*hint as usize) {
-        Some(i) if g >= i.first_triangle && g - i.first_triangle < i.triangle_count => *hint,
-        _ => {
-            let i = lookup.find(g)?;
-            *hint = i;
-            i
-        }
-    };
+    let index = lookup.find_hinted(g, hint)?;
     let inst = &lookup.instances[index as usize];
     let slot = index as usize & (INST_CACHE - 1);
     if !matches!(&insts[slot], Some(e) if e.index == index) {
@@ -245,14 +285,5 @@ fn prepare<'a>(
         return Some(Prepared::Constant(k));
     }
     let shader = TriangleShader::new(&e.shading, e.mesh, t, eye, opts);
-    let h = e
-        .mesh
-        .triangle(t)
-        .map(|i| e.clip * e.mesh.positions()[i as usize].extend(1.0))
-        .map(|c| Vec3A::new(c.x, c.y, c.w));
-    Some(Prepared::Full(TriEntry {
-        rows: [h[1].cross(h[2]), h[2].cross(h[0]), h[0].cross(h[1])],
-        w: [h[0].z, h[1].z, h[2].z],
-        shader,
-    }))
+    Some(Prepared::Full(TriEntry::new(&e.clip, e.mesh, t, shader)))
 }

@@ -73,6 +73,20 @@ pub enum Error {
         /// The bound.
         limit: u64,
     },
+    /// Render options that cannot be honoured.
+    #[error("invalid render options: {0}")]
+    InvalidOptions(String),
+    /// A method that keeps fragments per pixel handed a frame with more of them than it
+    /// keeps.
+    #[error(
+        "{method} keeps at most {limit} fragments and this frame has more: draw fewer or smaller transparent surfaces, a smaller image, or use depth peeling"
+    )]
+    TooManyFragments {
+        /// The method's name.
+        method: &'static str,
+        /// The most fragments the method keeps.
+        limit: u64,
+    },
     /// Writing an output file failed.
     #[error("{path}: {why}")]
     Output {

@@ -5,6 +5,7 @@ use sightline_scene::Instance;
 
 use crate::depth::DepthFormat;
 use crate::shading::ShadeOptions;
+use crate::transparency::Transparency;
 
 /// One entry of a draw list: a triangle range of one instance. The renderer draws items in
 /// the order given (triangles within an item in mesh order), which is what an occlusion
@@ -139,6 +140,9 @@ pub struct RenderOptions {
     /// Clip x and y against a wide guard band instead of the frustum (same pixels, fewer
     /// clipped triangles). On by default.
     pub guard_band: bool,
+    /// How masked and blended materials are drawn (by default: alpha-tested, and by the
+    /// A-buffer); see [`crate::transparency`].
+    pub transparency: Transparency,
 }
 
 impl Default for RenderOptions {
@@ -153,6 +157,7 @@ impl Default for RenderOptions {
             // The references' sky (0.62, 0.76, 0.92).
             background: [158, 194, 235, 255],
             guard_band: true,
+            transparency: Transparency::ABuffer,
         }
     }
 }

@@ -37,6 +37,7 @@ use crate::raster::{raster_tiles, TileBuf, TilePass};
 use crate::setup::Viewport;
 use crate::stats::{ms_since, FrameStats};
 use crate::tiling::{Grid, TILE, TILE_SHIFT};
+use crate::transparency::{self, Routes};
 use crate::{aa, deferred, wire, Error, Framebuffer, Result};
 
 /// A rasterizer with its reusable buffers. Create once, render many frames.
@@ -70,7 +71,9 @@ impl Renderer {
     }
 
     /// Renders a frame into `fb`: draws `items` (instances from `instances`), shades,
-    /// resolves antialiasing and draws the wireframe, as `opts` says. Every plane is
+    /// resolves antialiasing and draws the wireframe, as `opts` says. Masked and blended
+    /// materials are drawn as [`RenderOptions::transparency`] says (by default alpha-tested,
+    /// and by the A-buffer; see [`crate::transparency`]). Every plane is
     /// written, so `fb` needs no clear; after an error its contents are unspecified.
     pub fn render(
         &mut self,
@@ -130,13 +133,32 @@ impl Renderer {
             return Ok(FrameStats::default());
         }
         opts.depth_format.check_resolves(&camera.projection)?;
-        let t0 = Instant::now();
-        let resolved = self.resolve_items(scene, instances, items, camera)?;
-        let mut stats = self.run(&resolved, Target::Frame { fb: &mut *target, fresh: true }, opts);
-        stats.ms_total = ms_since(t0);
+        if let Some(routes) = Routes::of(scene, instances, items, opts.transparency)? {
+            return transparency::draw_frame(self, scene, instances, &routes, camera, target, opts);
+        }
+        let mut stats =
+            self.draw_items(scene, instances, items, camera, Target::Frame { fb: target, fresh: true }, opts)?;
         let t = Instant::now();
         deferred::shade_pass(scene, instances, camera, target, &opts.shading, opts.background);
         stats.ms_shading = ms_since(t);
+        Ok(stats)
+    }
+
+    /// Draws `items` into the depth and ID planes of `target`, not shaded (a fresh frame
+    /// target needs no clear first: every pixel is written).
+    pub(crate) fn draw_items(
+        &mut self,
+        scene: &Scene,
+        instances: &[Instance],
+        items: &[DrawItem],
+        camera: &Camera,
+        target: Target,
+        opts: &RenderOptions,
+    ) -> Result<FrameStats> {
+        let t0 = Instant::now();
+        let resolved = self.resolve_items(scene, instances, items, camera)?;
+        let mut stats = self.run(&resolved, target, opts);
+        stats.ms_total = ms_since(t0);
         Ok(stats)
     }
 
@@ -153,11 +175,7 @@ impl Renderer {
         opts: &RenderOptions,
     ) -> Result<FrameStats> {
         opts.depth_format.check_resolves(&camera.projection)?;
-        let t0 = Instant::now();
-        let resolved = self.resolve_items(scene, instances, items, camera)?;
-        let mut st = self.run(&resolved, Target::Frame { fb, fresh: false }, opts);
-        st.ms_total = ms_since(t0);
-        Ok(st)
+        self.draw_items(scene, instances, items, camera, Target::Frame { fb, fresh: false }, opts)
     }
 
     /// The geometry sources of `items` (checked against the scene), with their triangle
@@ -347,16 +365,8 @@ impl Renderer {
 
         // 1. Geometry.
         let t = Instant::now();
-        let total: u64 = self.ranges.iter().map(|r| r.2 as u64).sum();
-        let threads = rayon::current_num_threads().max(1);
-        let n = ((total / 2048) as usize).clamp(1, 4 * threads);
-        split(&self.ranges, n, &mut self.work);
-        if self.chunks.len() < n {
-            self.chunks.resize_with(n, Chunk::default);
-        }
-        let cull = opts.backface_culling;
+        let n = self.geometry(items, &vp, opts.backface_culling);
         let chunks = &mut self.chunks[..n];
-        chunks.par_iter_mut().zip(self.work.par_iter()).for_each(|(c, w)| c.process(items, w, &vp, cull));
         st.ms_geometry = ms_since(t);
 
         // 2. Binning.
@@ -400,6 +410,40 @@ impl Renderer {
         st.fragments_written = ts.written;
         st.update_overdraw();
         st
+    }
+
+    /// The geometry stage over `items` (triangle ranges in `self.ranges`), in parallel over
+    /// chunks of about equal triangle counts: the set-up triangles land in the first `n`
+    /// chunks, in submission order; returns `n`.
+    fn geometry(&mut self, items: &[Item], vp: &Viewport, cull: bool) -> usize {
+        let total: u64 = self.ranges.iter().map(|r| r.2 as u64).sum();
+        let threads = rayon::current_num_threads().max(1);
+        let n = ((total / 2048) as usize).clamp(1, 4 * threads);
+        split(&self.ranges, n, &mut self.work);
+        if self.chunks.len() < n {
+            self.chunks.resize_with(n, Chunk::default);
+        }
+        let chunks = &mut self.chunks[..n];
+        chunks.par_iter_mut().zip(self.work.par_iter()).for_each(|(c, w)| c.process(items, w, vp, cull));
+        n
+    }
+
+    /// Transforms, clips and sets up the triangles of `items` for a `width × height` target
+    /// without rasterizing them: the chunks hold them in submission order (with their
+    /// counters), for passes that walk the fragments themselves (transparency).
+    pub(crate) fn set_up(
+        &mut self,
+        scene: &Scene,
+        instances: &[Instance],
+        items: &[DrawItem],
+        camera: &Camera,
+        (width, height): (u32, u32),
+        opts: &RenderOptions,
+    ) -> Result<&[Chunk]> {
+        let resolved = self.resolve_items(scene, instances, items, camera)?;
+        let vp = Viewport::new(width, height, opts.guard_band);
+        let n = self.geometry(&resolved, &vp, opts.backface_culling);
+        Ok(&self.chunks[..n])
     }
 
     fn prepare_tiles(&mut self, grid: Grid) {

@@ -7,6 +7,9 @@
 //! * Per pixel ("Phong" normal interpolation, 1975): interpolate the normal, then light.
 //! * Depth cueing (Foley, van Dam, Feiner, Hughes, *Computer Graphics*, §16.1.3): the color moves towards a cue color
 //!   as the distance grows from `near` to `far`.
+//! * Alpha: the base color's alpha (factor × texture) is written to the color plane for a
+//!   blended material (its coverage when composited, see [`crate::transparency`]) and as 1
+//!   for the others, which glTF renders fully opaque ([`written_alpha`]).
 //!
 //! Everything takes *world-space barycentric weights* of a triangle, so both renderers
 //! share it: the rasterizer gets them perspective-correctly from the pixel (Heckbert &
@@ -14,7 +17,7 @@
 
 use glam::{Affine3A, Mat3A, Vec2, Vec3, Vec3A, Vec4};
 use serde::Serialize;
-use sightline_scene::{Material, Mesh};
+use sightline_scene::{AlphaMode, Material, Mesh};
 
 use crate::texture::{self, Filter, Wrap};
 
@@ -108,6 +111,18 @@ pub fn base_color(material: &Material, uv: Option<Vec2>, opts: &ShadeOptions) ->
     }
 }
 
+/// The alpha a surface of `material` with base alpha `a` writes to the color plane: `a`
+/// for a blended material (its coverage when composited), 1 for the others (glTF: an
+/// `OPAQUE` or `MASK` surface renders fully opaque, whatever its alpha).
+#[inline]
+pub fn written_alpha(material: &Material, a: f32) -> f32 {
+    if material.alpha_mode == AlphaMode::Blend {
+        a
+    } else {
+        1.0
+    }
+}
+
 /// Applies depth cueing (if on) at `distance` and converts to RGBA8.
 #[inline]
 pub fn finish(color: Vec4, distance: f32, opts: &ShadeOptions) -> [u8; 4] {
@@ -146,7 +161,7 @@ pub fn shade(
     }
     let base = base_color(material, uv, opts);
     let i = lambert(n, opts);
-    finish((base.truncate() * i).extend(base.w), distance, opts)
+    finish((base.truncate() * i).extend(written_alpha(material, base.w)), distance, opts)
 }
 
 /// What one instance contributes to shading: its transforms and material.
@@ -191,7 +206,7 @@ pub fn flat_color(inst: &InstanceShading, mesh: &Mesh, tri: usize, eye: Vec3, op
     }
     let i = opts.ambient + opts.diffuse * ndl.max(0.0);
     let b = base_color(inst.material, None, opts);
-    Some(to_rgba8((b.truncate() * i).extend(b.w)))
+    Some(to_rgba8((b.truncate() * i).extend(written_alpha(inst.material, b.w))))
 }
 
 /// Everything needed to shade points of one triangle from barycentric weights, prepared
@@ -270,6 +285,17 @@ impl<'a> TriangleShader<'a> {
         self.flip
     }
 
+    /// The alpha at world-space barycentric weights `b`: the base color factor's alpha times
+    /// the texture's there (what a material's [`AlphaMode`]
+    /// judges), before lighting and quantization.
+    #[inline]
+    pub fn alpha(&self, b: Vec3, opts: &ShadeOptions) -> f32 {
+        match self.uvs {
+            Some(t) => base_color(self.material, Some(t[0] * b.x + t[1] * b.y + t[2] * b.z), opts).w,
+            None => base_color(self.material, None, opts).w,
+        }
+    }
+
     /// The color at world-space barycentric weights `b` (b.x + b.y + b.z = 1).
     #[inline]
     pub fn shade(&self, b: Vec3, opts: &ShadeOptions) -> [u8; 4] {
@@ -292,7 +318,7 @@ impl<'a> TriangleShader<'a> {
         } else {
             0.0
         };
-        finish((base.truncate() * i).extend(base.w), distance, opts)
+        finish((base.truncate() * i).extend(written_alpha(self.material, base.w)), distance, opts)
     }
 }
 

@@ -7,6 +7,8 @@
 
 use serde::{Deserialize, Serialize};
 
+use crate::transparency::TransparencyStats;
+
 /// Counters of one frame (or of one `draw` batch; [`FrameStats::add`] sums batches).
 #[derive(Debug, Clone, Copy, Default, PartialEq, Serialize, Deserialize)]
 pub struct FrameStats {
@@ -51,6 +53,9 @@ pub struct FrameStats {
     pub ms_wireframe: f64,
     /// Whole frame, milliseconds.
     pub ms_total: f64,
+    /// Counters of masked and blended materials, when the frame drew some.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub transparency: Option<TransparencyStats>,
 }
 
 impl FrameStats {
@@ -74,6 +79,10 @@ impl FrameStats {
         self.ms_shading += o.ms_shading;
         self.ms_wireframe += o.ms_wireframe;
         self.ms_total += o.ms_total;
+        match (&mut self.transparency, &o.transparency) {
+            (Some(a), Some(b)) => a.add(b),
+            (a, b) => *a = a.or(*b),
+        }
         self.update_overdraw();
     }
 

@@ -64,7 +64,7 @@ pub use graph::{
     Changes, Instance, Keep, MaterialId, MeshId, Node, NodeDesc, NodeId, Prefab, Removed, Scene, SceneCamera,
     SceneDelta, SceneId, SceneStamp,
 };
-pub use material::{Material, Texture};
+pub use material::{AlphaMode, Material, Texture, DEFAULT_ALPHA_CUTOFF};
 pub use mesh::Mesh;
 pub use projection::Projection;
 pub use stats::SceneStats;

@@ -1,4 +1,11 @@
-//! Materials: a base color factor and an optional base color texture (decoded RGBA8).
+//! Materials: a base color factor, an optional base color texture (decoded RGBA8) and an
+//! alpha mode.
+//!
+//! The alpha mode is glTF 2.0's (`material.alphaMode`, `alphaCutoff`; Khronos, glTF 2.0
+//! specification, "Alpha Coverage"): the alpha of a surface point is the base color
+//! factor's alpha times the base color texture's alpha there; `Opaque` ignores it, `Mask`
+//! keeps the points whose alpha is at least the cutoff (and draws them opaque), `Blend`
+//! composites the surface over what lies behind it.
 //!
 //! A material set on an inner node applies to its whole subtree unless a descendant sets its
 //! own; [`Scene::instances`](crate::Scene::instances) resolves the inherited material of every
@@ -37,6 +44,49 @@ impl Texture {
     }
 }
 
+/// The alpha cutoff of a [`AlphaMode::Mask`] material when none is given (glTF's default).
+pub const DEFAULT_ALPHA_CUTOFF: f32 = 0.5;
+
+/// How a material's alpha (base color factor alpha × base color texture alpha) is used:
+/// glTF 2.0's `alphaMode`.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub enum AlphaMode {
+    /// Alpha is ignored: the surface is drawn fully opaque (the default).
+    #[default]
+    Opaque,
+    /// A point is drawn, fully opaque, where its alpha is at least `cutoff`, and is not
+    /// drawn at all (no depth, no triangle ID) elsewhere. A NaN cutoff draws nothing; loaders
+    /// never produce one (they replace bad values by [`DEFAULT_ALPHA_CUTOFF`]).
+    Mask {
+        /// The alpha a point needs to be drawn.
+        cutoff: f32,
+    },
+    /// The surface is composited over what lies behind it with its alpha as coverage
+    /// (Porter & Duff's "over").
+    Blend,
+}
+
+impl AlphaMode {
+    /// `Mask` with glTF's default cutoff, 0.5.
+    pub fn mask() -> Self {
+        AlphaMode::Mask { cutoff: DEFAULT_ALPHA_CUTOFF }
+    }
+
+    /// True for [`AlphaMode::Opaque`].
+    pub fn is_opaque(self) -> bool {
+        self == AlphaMode::Opaque
+    }
+
+    /// The name glTF uses: `OPAQUE`, `MASK` or `BLEND`.
+    pub fn gltf_name(self) -> &'static str {
+        match self {
+            AlphaMode::Opaque => "OPAQUE",
+            AlphaMode::Mask { .. } => "MASK",
+            AlphaMode::Blend => "BLEND",
+        }
+    }
+}
+
 /// Surface appearance shared by any number of nodes.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Material {
@@ -46,17 +96,41 @@ pub struct Material {
     pub base_color: [f32; 4],
     /// Optional base color texture, multiplied with `base_color`.
     pub base_color_texture: Option<Arc<Texture>>,
+    /// What the alpha of `base_color` × texture means: opaque, a cutout mask or blending.
+    pub alpha_mode: AlphaMode,
 }
 
 impl Default for Material {
     fn default() -> Self {
-        Self { name: "default".into(), base_color: [0.8, 0.8, 0.8, 1.0], base_color_texture: None }
+        Self {
+            name: "default".into(),
+            base_color: [0.8, 0.8, 0.8, 1.0],
+            base_color_texture: None,
+            alpha_mode: AlphaMode::Opaque,
+        }
     }
 }
 
 impl Material {
     /// A plain colored material.
     pub fn color(name: impl Into<String>, rgb: [f32; 3]) -> Self {
-        Self { name: name.into(), base_color: [rgb[0], rgb[1], rgb[2], 1.0], base_color_texture: None }
+        Self { name: name.into(), base_color: [rgb[0], rgb[1], rgb[2], 1.0], ..Self::default() }
+    }
+
+    /// A plain translucent material: color `rgb` with alpha `alpha`, blended
+    /// ([`AlphaMode::Blend`]).
+    pub fn translucent(name: impl Into<String>, rgb: [f32; 3], alpha: f32) -> Self {
+        Self {
+            name: name.into(),
+            base_color: [rgb[0], rgb[1], rgb[2], alpha],
+            alpha_mode: AlphaMode::Blend,
+            ..Self::default()
+        }
+    }
+
+    /// This material with alpha mode `mode`.
+    pub fn with_alpha_mode(mut self, mode: AlphaMode) -> Self {
+        self.alpha_mode = mode;
+        self
     }
 }

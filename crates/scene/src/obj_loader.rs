@@ -10,7 +10,8 @@
 //! * Each mesh holds the vertices its faces use (in first-use order); unreferenced vertices
 //!   are fine. Normals and texture coordinates are kept when every vertex of the mesh has one;
 //!   `vt` v is flipped (`1 − v`) to this crate's top-row-is-v-0 convention.
-//! * `.mtl` (the Wavefront MTL format): `Kd` becomes the base color, `d` its alpha, `map_Kd`
+//! * `.mtl` (the Wavefront MTL format): `Kd` becomes the base color, `d` (or `1 − Tr`) its
+//!   alpha, blended ([`AlphaMode::Blend`]) when below 1, `map_Kd`
 //!   the base color texture (PNG/JPEG). A missing or unreadable `.mtl` or a missing texture
 //!   is a warning in [`Scene::warnings`]; the geometry loads with the default material.
 //! * `mtllib` and `map_Kd` files are found relative to the OBJ file's folder and read under
@@ -30,7 +31,7 @@ use std::sync::Arc;
 use glam::{Vec2, Vec3};
 
 use crate::assets::{AssetError, AssetReader};
-use crate::{Error, LoadOptions, Material, Mesh, NodeDesc, Result, Scene, Texture};
+use crate::{AlphaMode, Error, LoadOptions, Material, Mesh, NodeDesc, Result, Scene, Texture};
 
 /// Largest texture file read, in bytes.
 const MAX_IMAGE_FILE: u64 = 256 << 20;
@@ -287,7 +288,15 @@ fn convert_material(
 ) -> std::result::Result<Material, String> {
     let mut out = Material { name: m.name.clone(), ..Material::default() };
     if let Some(kd) = m.diffuse {
-        out.base_color = [kd[0], kd[1], kd[2], m.dissolve.unwrap_or(1.0)];
+        out.base_color = [kd[0], kd[1], kd[2], 1.0];
+    }
+    // Dissolve (`d`, or `1 − Tr`) below 1 makes the material translucent; `d 1` and no `d`
+    // leave it opaque. Values are clamped to [0, 1].
+    if let Some(d) = m.dissolve {
+        out.base_color[3] = d.clamp(0.0, 1.0);
+        if d < 1.0 {
+            out.alpha_mode = AlphaMode::Blend;
+        }
     }
     if let Some(tex) = &m.diffuse_texture {
         let decoded = assets.resolve(Path::new(tex)).and_then(|file| {

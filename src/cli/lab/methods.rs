@@ -8,9 +8,12 @@
 use std::time::Instant;
 
 use anyhow::Result;
+use sightline::render::transparency::{render_abuffer, render_depth_peeling, scene_has_transparency};
 use sightline::render::visibility::bsp::{self, BspMode};
 use sightline::render::visibility::{painter, warnock, Counters, Soup};
-use sightline::render::{CullStats, Culler, FrameStats, Framebuffer, Method, RayCaster, RaycastOptions, RenderOptions};
+use sightline::render::{
+    CullStats, Culler, FrameStats, Framebuffer, Method, RayCaster, RaycastOptions, RenderOptions, TransparencyStats,
+};
 use sightline::scene::{Camera, Scene};
 
 /// What one run of a method gave.
@@ -21,6 +24,8 @@ pub struct Ran {
     pub ms: f64,
     /// What the method did.
     pub counters: Counters,
+    /// The method drew its own colours (blending), which shading from IDs would lose.
+    pub shaded: bool,
 }
 
 /// The view the methods draw, and what they share: the scene, its triangle soup, and the
@@ -30,12 +35,15 @@ pub struct Lab<'a> {
     pub soup: Soup,
     culler: Option<Culler>,
     caster: Option<RayCaster>,
+    /// The A-buffer's frame (colours and its deepest pixel's layer count), once drawn: what
+    /// depth peeling is measured against.
+    abuffer: Option<(Vec<[u8; 4]>, u32)>,
 }
 
 impl<'a> Lab<'a> {
     /// The lab of `scene` (transforms propagated).
     pub fn new(scene: &'a Scene) -> Result<Lab<'a>> {
-        Ok(Lab { scene, soup: Soup::from_scene(scene)?, culler: None, caster: None })
+        Ok(Lab { scene, soup: Soup::from_scene(scene)?, culler: None, caster: None, abuffer: None })
     }
 }
 
@@ -78,7 +86,7 @@ impl LabMethod {
             Runner::Soup(f) => {
                 let t = Instant::now();
                 let counters = f(&lab.soup, camera, fb)?;
-                Ok(Ran { ms: ms_since(t), counters })
+                Ok(Ran { ms: ms_since(t), counters, shaded: false })
             }
         }
     }
@@ -99,6 +107,13 @@ pub const METHODS: &[LabMethod] = &[
     LabMethod::soup(warnock::NAME, warnock::MAX_TRIANGLES, warnock::render),
     // O(n log n) and no tests: shown for how many pixels it gets wrong.
     LabMethod { name: "centroid-sort", limit: None, applies: always, run: Runner::Soup(painter::render_centroid_sort) },
+    // Transparency, on scenes with blended materials: the A-buffer (the reference), depth
+    // peeling with as many layers as the A-buffer's deepest pixel has, and with one and two
+    // layers, to show how the picture degrades.
+    LabMethod { name: "abuffer", limit: None, applies: scene_has_transparency, run: Runner::Scene(abuffer) },
+    LabMethod { name: "depth-peeling", limit: None, applies: scene_has_transparency, run: Runner::Scene(peel_all) },
+    LabMethod { name: "depth-peeling-1", limit: None, applies: scene_has_transparency, run: Runner::Scene(peel_1) },
+    LabMethod { name: "depth-peeling-2", limit: None, applies: scene_has_transparency, run: Runner::Scene(peel_2) },
 ];
 
 /// The referee's name: every other method is compared with it.
@@ -120,7 +135,7 @@ fn cull(lab: &mut Lab, camera: &Camera, fb: &mut Framebuffer, method: Method) ->
     let t = Instant::now();
     let (cs, fs) = culler.render(scene, camera, method, fb, &ids_only())?;
     let ms = ms_since(t);
-    Ok(Ran { ms, counters: cull_counters(&cs, &fs) })
+    Ok(Ran { ms, counters: cull_counters(&cs, &fs), shaded: false })
 }
 
 fn cull_counters(cs: &CullStats, fs: &FrameStats) -> Counters {
@@ -163,5 +178,58 @@ fn raycast(lab: &mut Lab, camera: &Camera, fb: &mut Framebuffer) -> Result<Ran> 
     let mut c = Counters::new();
     c.add("primary_rays", st.primary_rays);
     c.add("hits", st.hits);
-    Ok(Ran { ms, counters: c })
+    Ok(Ran { ms, counters: c, shaded: false })
+}
+
+fn transparency_counters(st: &TransparencyStats) -> Counters {
+    let mut c = Counters::new();
+    c.add("blended_triangles", st.blended_triangles);
+    c.add("masked_triangles", st.masked_triangles);
+    c.add("fragments", st.fragments);
+    c.add("fragments_drawn", st.fragments_drawn);
+    c.add("pixels_with_fragments", st.pixels);
+    c.add("max_fragments_per_pixel", st.max_fragments_per_pixel as u64);
+    c
+}
+
+/// Blended materials by per-pixel fragment lists, sorted and composited (the reference);
+/// shaded by the method itself.
+fn abuffer(lab: &mut Lab, camera: &Camera, fb: &mut Framebuffer) -> Result<Ran> {
+    let t = Instant::now();
+    let st = render_abuffer(lab.scene, camera, fb, &RenderOptions::default())?;
+    let ms = ms_since(t);
+    lab.abuffer = Some((fb.color.clone(), st.max_fragments_per_pixel));
+    Ok(Ran { ms, counters: transparency_counters(&st), shaded: true })
+}
+
+/// Depth peeling with `layers` layers (all the A-buffer needed when `None`); its counters
+/// add how many pixels' colours differ from the A-buffer's by more than 1/255.
+fn peel(lab: &mut Lab, camera: &Camera, fb: &mut Framebuffer, layers: Option<u32>) -> Result<Ran> {
+    if lab.abuffer.is_none() {
+        let mut scratch = Framebuffer::new(fb.width(), fb.height())?;
+        abuffer(lab, camera, &mut scratch)?;
+    }
+    let (reference, deepest) = lab.abuffer.as_ref().expect("drawn above");
+    let layers = layers.unwrap_or(*deepest).max(1);
+    let t = Instant::now();
+    let st = render_depth_peeling(lab.scene, camera, fb, layers, &RenderOptions::default())?;
+    let ms = ms_since(t);
+    let off = |a: &[u8; 4], b: &[u8; 4]| a.iter().zip(b).any(|(x, y)| x.abs_diff(*y) > 1);
+    let differ = reference.iter().zip(&fb.color).filter(|(a, b)| off(a, b)).count();
+    let mut c = transparency_counters(&st);
+    c.add("layers", layers as u64);
+    c.add("pixels_differing_from_abuffer", differ as u64);
+    Ok(Ran { ms, counters: c, shaded: true })
+}
+
+fn peel_all(lab: &mut Lab, camera: &Camera, fb: &mut Framebuffer) -> Result<Ran> {
+    peel(lab, camera, fb, None)
+}
+
+fn peel_1(lab: &mut Lab, camera: &Camera, fb: &mut Framebuffer) -> Result<Ran> {
+    peel(lab, camera, fb, Some(1))
+}
+
+fn peel_2(lab: &mut Lab, camera: &Camera, fb: &mut Framebuffer) -> Result<Ran> {
+    peel(lab, camera, fb, Some(2))
 }

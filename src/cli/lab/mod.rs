@@ -121,7 +121,7 @@ fn draw_view(
                     Err(e) if m.name == REFEREE => return Err(e),
                     Err(e) => Outcome::NotRun(format!("{e:#}")),
                     Ok(ran) => {
-                        if shade {
+                        if shade && !ran.shaded {
                             shade_pass(scene, &instances, camera, &mut fb, &look.shading, look.background);
                         }
                         let differing = rows

@@ -276,8 +276,9 @@ impl Culler {
     }
 
     /// Renders one frame with `method` into `fb` (every plane written, so no clear needed;
-    /// after an error its contents are unspecified), shaded as `opts` says; antialiasing
-    /// and wireframe are the plain renderer's business and ignored here.
+    /// after an error its contents are unspecified), shaded as `opts` says; antialiasing,
+    /// wireframe and transparency are the plain renderer's business and ignored here (every
+    /// material is drawn opaque: occlusion culling assumes opaque occluders).
     pub fn render(
         &mut self,
         scene: &Scene,
@@ -293,6 +294,7 @@ impl Culler {
         let mut opts = *opts;
         opts.antialias = crate::Antialias::Off;
         opts.wireframe = crate::Wireframe::Off;
+        opts.transparency = crate::Transparency::Ignore;
         if method == Method::Brute {
             let items = draw_all(&self.c.instances);
             let fs = self.renderer.render(scene, &self.c.instances, &items, camera, fb, &opts)?;

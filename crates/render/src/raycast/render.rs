@@ -115,7 +115,7 @@ pub(crate) fn render(
         csg_materials: caster
             .csg
             .iter()
-            .map(|o| Material { name: o.name.clone(), base_color: o.color, base_color_texture: None })
+            .map(|o| Material { name: o.name.clone(), base_color: o.color, ..Material::default() })
             .collect(),
         simd: opts.simd.resolve(),
         clip_zw: world_f64

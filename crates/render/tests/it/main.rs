@@ -1,7 +1,8 @@
 //! The render crate's integration tests, one binary, so that cargo compiles and links one
 //! test executable per package instead of one per file. `raster_*` test the rasterizer through
-//! the public API, `raycast_*` the ray caster, `csg_raycast` CSG solids, `visibility_*` the
-//! visibility lab's methods against the z-buffer, `wire_*` the wireframe.
+//! the public API, `raycast_*` the ray caster, `csg_raycast` CSG solids, `visibility_*` and
+//! `warnock` the visibility lab's methods against the z-buffer, `wire_*` the wireframe,
+//! `transparency` masked and blended materials.
 
 #![forbid(unsafe_code)]
 
@@ -19,6 +20,7 @@ mod raycast_reference;
 mod raycast_robustness;
 mod raycast_watertight;
 mod support;
+mod transparency;
 mod visibility_lab;
 mod visibility_robustness;
 mod warnock;

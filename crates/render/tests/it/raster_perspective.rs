@@ -38,6 +38,7 @@ fn scene() -> Scene {
         name: "checker".into(),
         base_color: [1.0; 4],
         base_color_texture: Some(Arc::new(coded_checkerboard())),
+        ..Material::default()
     });
     s.add_node(None, NodeDesc::new("ground").mesh(m).material(mat)).unwrap();
     s.update_transforms();

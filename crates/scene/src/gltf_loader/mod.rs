@@ -16,7 +16,8 @@
 //!   counted in a warning. Attributes `POSITION`, `NORMAL`, `TEXCOORD_0` (float, or integer
 //!   types as `KHR_mesh_quantization` allows), indices of u8/u16/u32 or none, sparse accessors.
 //! * Materials: `pbrMetallicRoughness.baseColorFactor` and `baseColorTexture` (PNG or JPEG,
-//!   decoded to RGBA8 with the `image` crate).
+//!   decoded to RGBA8 with the `image` crate), `alphaMode` (`OPAQUE`, `MASK`, `BLEND`) and
+//!   `alphaCutoff` (default 0.5) as [`AlphaMode`].
 //! * Perspective and orthographic cameras, as [`SceneCamera`]s on their nodes.
 //!
 //! * Animations of node translation, rotation and scale (STEP, LINEAR, CUBICSPLINE), as
@@ -38,7 +39,8 @@
 //! not support, a buffer or image URI that the rules above refuse (outside the folder, not a
 //! regular file, over the total).
 //! Warnings (in [`Scene::warnings`], the scene still loads): a missing or undecodable
-//! texture (the material keeps its base color factor), skipped point/line primitives, used but
+//! texture (the material keeps its base color factor), an unknown `alphaMode` (opaque) or an
+//! `alphaCutoff` below 0 (0.5), skipped point/line primitives, used but
 //! not required unknown extensions, unusable cameras, bad animation channels (skipped), skins
 //! and morph targets (drawn in the bind pose).
 //!
@@ -61,8 +63,8 @@ use crate::assets::{AssetError, AssetReader};
 mod animation;
 mod data;
 use crate::{
-    Error, LoadOptions, Material, MaterialId, Mesh, MeshId, NodeDesc, NodeId, Projection, Result, Scene, SceneCamera,
-    Texture, Transform,
+    AlphaMode, Error, LoadOptions, Material, MaterialId, Mesh, MeshId, NodeDesc, NodeId, Projection, Result, Scene,
+    SceneCamera, Texture, Transform, DEFAULT_ALPHA_CUTOFF,
 };
 use data::*;
 
@@ -443,15 +445,42 @@ impl Loader<'_> {
                     .push(format!("{label}: base color texture: {e}; using the base color factor alone")),
             }
         }
+        let alpha_mode = self.alpha_mode(mat, &label);
         let id = self.scene.add_material(Material {
             name: mat.name.clone().unwrap_or_else(|| format!("material {i}")),
             base_color,
             base_color_texture: texture,
+            alpha_mode,
         });
         if let Some(slot) = self.materials.get_mut(i) {
             *slot = Some(id);
         }
         Ok(id)
+    }
+
+    /// The material's `alphaMode` and `alphaCutoff`: an unknown mode is a warning (opaque),
+    /// a cutoff that is negative or not finite a warning (0.5); the cutoff of a mode other
+    /// than `MASK` is ignored, as the specification says.
+    fn alpha_mode(&mut self, mat: &json::Material, label: &str) -> AlphaMode {
+        match mat.alpha_mode {
+            Checked::Valid(json::material::AlphaMode::Opaque) => AlphaMode::Opaque,
+            Checked::Valid(json::material::AlphaMode::Blend) => AlphaMode::Blend,
+            Checked::Valid(json::material::AlphaMode::Mask) => {
+                let cutoff = mat.alpha_cutoff.map_or(DEFAULT_ALPHA_CUTOFF, |c| c.0);
+                if cutoff.is_finite() && cutoff >= 0.0 {
+                    AlphaMode::Mask { cutoff }
+                } else {
+                    self.scene.warnings.push(format!(
+                        "{label}: alphaCutoff {cutoff} is not a number >= 0; using {DEFAULT_ALPHA_CUTOFF}"
+                    ));
+                    AlphaMode::mask()
+                }
+            }
+            Checked::Invalid => {
+                self.scene.warnings.push(format!("{label}: unknown alphaMode; drawing it opaque"));
+                AlphaMode::Opaque
+            }
+        }
     }
 
     fn base_color_texture(

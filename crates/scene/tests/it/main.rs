@@ -1,6 +1,6 @@
 //! The scene crate's integration tests, one binary, so that cargo compiles and links one
 //! test executable per package instead of one per file: the scene graph and its change
-//! reports, cameras, the loaders and the exporter, broken glTF files, hostile asset
+//! reports, cameras, the loaders and the exporter, material alpha modes, broken glTF files, hostile asset
 //! references, loader fuzzing, shared subgraphs (instantiate, prefabs, glTF DAGs), animation, the fuzz corpus replayed, and an
 //! ignored 10^6-triangle round trip.
 //!
@@ -9,6 +9,7 @@
 
 #![forbid(unsafe_code)]
 
+mod alpha_modes;
 mod animation;
 mod broken_gltf;
 mod cameras;
