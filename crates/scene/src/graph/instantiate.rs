@@ -14,14 +14,24 @@
 //!   scene. [`Scene::instantiate_prefab`] then places it any number of times;
 //!   [`Scene::instantiate_from`] does both for a single placement.
 //!
-//! The node returned by every placement has `transform` as its local transform.
+//! Cameras on the copied nodes are copied, and so are the animation channels aimed at them
+//! (aimed at the copies), so a placed animated model moves like the original. The node
+//! returned by every placement has `transform` as its local transform.
 
 use std::collections::HashMap;
 
 use glam::Affine3A;
 
 use super::{MaterialId, MeshId, NodeDesc, NodeId, Scene, SceneCamera, SceneId};
+use crate::animation::{Animation, Channel};
 use crate::{Error, Mesh, Projection, Result, Transform};
+
+/// A subtree read as a template: its nodes, the cameras on them, the animations of them.
+struct Template {
+    nodes: Vec<TemplateNode>,
+    cameras: Vec<TemplateCamera>,
+    animations: Vec<TemplateAnimation>,
+}
 
 /// One node of a template: parents come before their children.
 #[derive(Debug, Clone)]
@@ -42,6 +52,31 @@ struct TemplateCamera {
     projection: Projection,
 }
 
+/// The channels of one animation aimed at template nodes: `targets[k]` is the template
+/// index of channel `k`'s node (the channels' own targets are the source's nodes).
+#[derive(Debug, Clone)]
+struct TemplateAnimation {
+    animation: Animation,
+    targets: Vec<u32>,
+}
+
+impl TemplateAnimation {
+    /// The animation aimed at the nodes made for the template (`node(i)`: template node `i`'s
+    /// copy, if it has one).
+    fn aimed(&self, node: impl Fn(u32) -> Option<NodeId>) -> Animation {
+        let mut a = self.animation.clone();
+        let mut targets = self.targets.iter();
+        a.channels.retain_mut(|c| match targets.next().and_then(|&i| node(i)) {
+            Some(n) => {
+                c.target = n;
+                true
+            }
+            None => false,
+        });
+        a
+    }
+}
+
 /// Another scene's node tree, ready to be placed in the scene it was added to: its meshes and
 /// materials already live in that scene's stores, so each placement copies nodes only.
 ///
@@ -54,6 +89,7 @@ pub struct Prefab {
     scene: SceneId,
     nodes: Vec<TemplateNode>,
     cameras: Vec<TemplateCamera>,
+    animations: Vec<TemplateAnimation>,
 }
 
 impl Prefab {
@@ -78,7 +114,8 @@ impl Prefab {
 }
 
 impl Scene {
-    /// Copies the subtree under `source` (nodes, local transforms, cameras on them) and puts
+    /// Copies the subtree under `source` (nodes, local transforms, the cameras on them and the
+    /// animation channels aimed at them) and puts
     /// the copy under `parent` (`None`: as a root), with `transform` as the copy's local
     /// transform in place of `source`'s. Meshes and materials are shared, not copied. Returns
     /// the copy of `source`.
@@ -91,7 +128,7 @@ impl Scene {
         if let Some(p) = parent {
             self.try_node(p)?;
         }
-        let (mut nodes, cameras) = self.template(&[source], Some, Some);
+        let Template { mut nodes, cameras, animations } = self.template(&[source], Some, Some);
         let mut root = nodes.remove(0);
         root.local = local;
         for n in &mut nodes {
@@ -101,12 +138,17 @@ impl Scene {
         let desc = NodeDesc { name: root.name, local: root.local, mesh: root.mesh, material: root.material };
         let id = self.add_node(parent, desc)?;
         let created = self.place(&nodes, id)?;
+        let copy_of = |i: u32| match i {
+            0 => Some(id),
+            i => created.get(i as usize - 1).copied(),
+        };
         for c in cameras {
-            let node = match c.node {
-                0 => id,
-                i => created[i as usize - 1],
-            };
-            self.cameras.push(SceneCamera { name: c.name, node, projection: c.projection });
+            if let Some(node) = copy_of(c.node) {
+                self.cameras.push(SceneCamera { name: c.name, node, projection: c.projection });
+            }
+        }
+        for a in &animations {
+            self.animations.push(a.aimed(copy_of));
         }
         Ok(id)
     }
@@ -127,7 +169,7 @@ impl Scene {
 
     /// Places `prefab` under `parent` (`None`: as a root): a new node named after the prefab,
     /// with `transform` as its local transform, holding a copy of the prefab's node tree (and
-    /// of the cameras on it). Returns the new node.
+    /// of the cameras on it and of the animation channels aimed at it). Returns the new node.
     ///
     /// Errors, before changing anything, when the prefab belongs to another scene, `parent`
     /// is stale or the transform is not finite.
@@ -150,6 +192,9 @@ impl Scene {
             if let Some(&node) = created.get(c.node as usize) {
                 self.cameras.push(SceneCamera { name: c.name.clone(), node, projection: c.projection });
             }
+        }
+        for a in &prefab.animations {
+            self.animations.push(a.aimed(|i| created.get(i as usize).copied()));
         }
         Ok(root)
     }
@@ -178,23 +223,24 @@ impl Scene {
     fn adopt(&mut self, other: &Scene, mut take_mesh: impl FnMut(MeshId) -> Option<Mesh>) -> Prefab {
         let mut meshes: HashMap<MeshId, Option<MeshId>> = HashMap::new();
         let mut materials: HashMap<MaterialId, Option<MaterialId>> = HashMap::new();
-        let (nodes, cameras) = other.template(
+        let Template { nodes, cameras, animations } = other.template(
             other.roots(),
             |m| *meshes.entry(m).or_insert_with(|| take_mesh(m).map(|mesh| self.meshes.insert(mesh))),
             |m| *materials.entry(m).or_insert_with(|| other.materials.get(m).map(|x| self.materials.insert(x.clone()))),
         );
         self.warnings.extend(other.warnings.iter().cloned());
-        Prefab { name: "prefab".into(), scene: self.id, nodes, cameras }
+        Prefab { name: "prefab".into(), scene: self.id, nodes, cameras, animations }
     }
 
     /// The subtrees under `roots` as a template (depth-first, parents first) with mesh and
-    /// material handles mapped through `mesh` and `material`, and the cameras on them.
+    /// material handles mapped through `mesh` and `material`, the cameras on them and the
+    /// animation channels aimed at them.
     fn template(
         &self,
         roots: &[NodeId],
         mut mesh: impl FnMut(MeshId) -> Option<MeshId>,
         mut material: impl FnMut(MaterialId) -> Option<MaterialId>,
-    ) -> (Vec<TemplateNode>, Vec<TemplateCamera>) {
+    ) -> Template {
         let mut nodes = Vec::new();
         let mut index: HashMap<NodeId, u32> = HashMap::new();
         let mut stack: Vec<(NodeId, Option<u32>)> = roots.iter().rev().map(|&r| (r, None)).collect();
@@ -219,6 +265,16 @@ impl Scene {
                 Some(TemplateCamera { node, name: c.name.clone(), projection: c.projection })
             })
             .collect();
-        (nodes, cameras)
+        let animations = self
+            .animations
+            .iter()
+            .filter_map(|a| {
+                let (channels, targets): (Vec<Channel>, Vec<u32>) =
+                    a.channels.iter().filter_map(|c| Some((c.clone(), *index.get(&c.target)?))).unzip();
+                let animation = Animation { name: a.name.clone(), channels, wrap: a.wrap };
+                (!animation.channels.is_empty()).then_some(TemplateAnimation { animation, targets })
+            })
+            .collect();
+        Template { nodes, cameras, animations }
     }
 }

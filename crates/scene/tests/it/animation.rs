@@ -331,3 +331,55 @@ fn morph_weights_skins_and_morph_targets_are_warned_about() {
     });
     assert!(w.contains("1 mesh(es) with morph targets drawn in the bind pose") && w.contains("mesh 0 ('tri')"), "{w}");
 }
+
+// ---- copies ---------------------------------------------------------------------------------
+
+/// A placed animated model moves like the original: a prefab of the asset placed twice, and
+/// a copy of its `base` subtree made by `instantiate`, each pose at t = 0.5 s equals the
+/// original's (local transforms), while the copies stay independent nodes.
+#[test]
+fn copies_of_an_animated_model_play_its_animation() {
+    let t = 0.5;
+    let reference = played(t);
+    let want = |name: &str| local(&reference, name);
+    let mut scene = Scene::new();
+    let prefab = load_prefab(&mut scene, asset("animated.gltf"), &LoadOptions::default()).unwrap();
+    let a = scene.instantiate_prefab(&prefab, None, Transform::from_translation(Vec3::X * 10.0)).unwrap();
+    let b = scene.instantiate_prefab(&prefab, None, Transform::from_translation(Vec3::X * 20.0)).unwrap();
+    assert_eq!(scene.animations.len(), 2, "one animation per placement");
+    // A copy of one placement's `base` subtree, made in the scene.
+    let base_of = |scene: &Scene, root: NodeId| {
+        let mut stack = vec![root];
+        while let Some(n) = stack.pop() {
+            let node = scene.node(n).unwrap();
+            if node.name() == "base" {
+                return n;
+            }
+            stack.extend_from_slice(node.children());
+        }
+        panic!("no base under the placement");
+    };
+    let base_a = base_of(&scene, a);
+    let copy = scene.instantiate(base_a, None, Transform::default()).unwrap();
+    assert_eq!(scene.animations.len(), 3, "the copy got its own channels");
+    assert_eq!(scene.animate(t).unwrap(), 9, "three nodes in each of three copies");
+    scene.update_transforms();
+    for root in [a, b] {
+        let base = base_of(&scene, root);
+        let arm = scene.node(base).unwrap().children()[0];
+        let hand = scene.node(arm).unwrap().children()[0];
+        for (id, name) in [(base, "base"), (arm, "arm"), (hand, "hand")] {
+            let got = scene.node(id).unwrap().local_transform();
+            assert_vec(got.translation, want(name).translation.into(), name);
+            assert!(got.rotation.angle_between(want(name).rotation) < 1e-5, "{name}");
+        }
+    }
+    // `instantiate` replaces the copy root's transform, but the animation sets it again.
+    let got = scene.node(copy).unwrap().local_transform();
+    assert_vec(got.translation, want("base").translation.into(), "copied base");
+    let arm = scene.node(copy).unwrap().children()[0];
+    assert!(scene.node(arm).unwrap().local_transform().rotation.angle_between(want("arm").rotation) < 1e-5);
+    // Removing a copy drops its channels only.
+    scene.remove_node(copy).unwrap();
+    assert_eq!(scene.animate(t).unwrap(), 6);
+}
