@@ -21,7 +21,8 @@
 //! most 2.5 wide, so they stay inside the 12-wide street; on a chamfer a vehicle of half-length
 //! at most 5 stays inside the intersection's cross of streets; buildings keep 1 unit back from
 //! the street. Vehicles on the same lane at different speeds may pass through one another:
-//! this is a visibility benchmark, not a traffic simulation.
+//! this is a visibility benchmark, not a traffic simulation (each vehicle's height and width
+//! vary by a few percent, so that two passing through one another never share a face plane).
 //!
 //! Vehicles are a few instanced meshes (car, van, bus, truck: body and cabin boxes, wheels),
 //! each placed under a `traffic` root added after the city, so the city's triangle IDs are
@@ -266,8 +267,15 @@ pub fn city_with_traffic(params: &TrafficParams) -> Result<City> {
     }
     let traffic = scene.add_node(None, NodeDesc::new("traffic"))?;
     let mut nodes = Vec::with_capacity(drives.len());
+    // Each vehicle is a little taller or lower and wider or narrower than its kind (±3%, about
+    // its ground point): two vehicles of one kind driving through each other in one lane
+    // would otherwise have coplanar sides and roofs, whose pixels rounding decides
+    // differently in each renderer. Drawn from a generator of its own, so the routes are
+    // those of the same seed without it.
+    let mut sizes = Rng::new(params.seed ^ 0x51_2E5);
     for (v, (kind, paint, t, r)) in drives.iter().enumerate() {
-        let start = Transform::from_translation(t.sample(0.0)).with_rotation(r.sample(0.0));
+        let size = Vec3::new(1.0, sizes.range(0.97, 1.03), sizes.range(0.97, 1.03));
+        let start = Transform::from_translation(t.sample(0.0)).with_rotation(r.sample(0.0)).with_scale(size);
         let desc = NodeDesc::new(format!("{} {v}", KINDS[*kind].name)).transform(start);
         nodes.push(scene.add_node(Some(traffic), desc.mesh(meshes[*kind]).material(*paint))?);
     }
