@@ -5,7 +5,7 @@ use sightline_scene::Instance;
 
 use crate::depth::DepthFormat;
 use crate::shading::ShadeOptions;
-use crate::transparency::Transparency;
+use crate::transparency::stats::Transparency;
 
 /// One entry of a draw list: a triangle range of one instance. The renderer draws items in
 /// the order given (triangles within an item in mesh order), which is what an occlusion

@@ -37,7 +37,6 @@ use crate::raster::{raster_tiles, TileBuf, TilePass};
 use crate::setup::Viewport;
 use crate::stats::{ms_since, FrameStats};
 use crate::tiling::{Grid, TILE, TILE_SHIFT};
-use crate::transparency::{self, Routes};
 use crate::{aa, deferred, wire, Error, Framebuffer, Result};
 
 /// A rasterizer with its reusable buffers. Create once, render many frames.
@@ -133,8 +132,9 @@ impl Renderer {
             return Ok(FrameStats::default());
         }
         opts.depth_format.check_resolves(&camera.projection)?;
-        if let Some(routes) = Routes::of(scene, instances, items, opts.transparency)? {
-            return transparency::draw_frame(self, scene, instances, &routes, camera, target, opts);
+        // Masked or blended materials: the transparency module's frame driver.
+        if let Some(stats) = self.draw_with_transparency(scene, instances, items, camera, target, opts)? {
+            return Ok(stats);
         }
         let mut stats =
             self.draw_items(scene, instances, items, camera, Target::Frame { fb: target, fresh: true }, opts)?;

@@ -7,7 +7,7 @@
 
 use serde::{Deserialize, Serialize};
 
-use crate::transparency::TransparencyStats;
+use crate::transparency::stats::TransparencyStats;
 
 /// Counters of one frame (or of one `draw` batch; [`FrameStats::add`] sums batches).
 #[derive(Debug, Clone, Copy, Default, PartialEq, Serialize, Deserialize)]
