@@ -93,6 +93,7 @@ impl Clusters {
     /// `None` when nothing moved.
     pub(super) fn move_nodes(&mut self, scene: &Scene, nodes: &[NodeId]) -> Option<RefitOutcome> {
         let mut moved = false;
+        let mut changed: Vec<u32> = Vec::new();
         for id in nodes {
             let (Some(&i), Some(node)) = (self.node_instance.get(*id), scene.node(*id)) else { continue };
             let inst = &mut self.instances[i as usize];
@@ -101,6 +102,7 @@ impl Clusters {
             moved = true;
             let cols = inst.world_from_local.to_cols_array();
             for item in self.clustered.instance_items(i) {
+                changed.push(item);
                 let k = item as usize;
                 let b = self.clustered.item_box(item, &self.instances);
                 self.item_boxes[k] = b;
@@ -127,7 +129,7 @@ impl Clusters {
                 }
             }
         }
-        moved.then(|| self.clustered.refit_boxes(&self.item_boxes))
+        moved.then(|| self.clustered.refit_changed(&self.item_boxes, &changed))
     }
 }
 

@@ -101,6 +101,9 @@ pub struct Bvh {
     pub(crate) unbounded: Vec<u32>,
     pub(crate) item_count: usize,
     pub(crate) depth: u32,
+    /// Item → its place in `items` (`u32::MAX`: empty or unbounded), made on the first
+    /// [`Bvh::refit_changed`].
+    pub(crate) slot_of: Vec<u32>,
 }
 
 impl Bvh {
@@ -275,6 +278,41 @@ impl Bvh {
         true
     }
 
+    /// [`Bvh::refit`] when only the items `changed` have new boxes (the others are as at the
+    /// last build or refit): the cost is the changed items plus one sweep over the nodes,
+    /// not a pass over every item. Returns false, as `refit` does, when a changed item's box
+    /// changed kind (or an index is out of range): the caller must rebuild then.
+    pub fn refit_changed(&mut self, boxes: &[Aabb], changed: &[u32]) -> bool {
+        if boxes.len() != self.item_count {
+            return false;
+        }
+        if self.slot_of.len() != self.item_count {
+            self.slot_of = vec![u32::MAX; self.item_count];
+            for (slot, &id) in self.items.iter().enumerate() {
+                self.slot_of[id as usize] = slot as u32;
+            }
+        }
+        for &id in changed {
+            let Some(&b) = boxes.get(id as usize) else { return false };
+            match self.slot_of[id as usize] {
+                u32::MAX => {
+                    let was_unbounded = self.unbounded.contains(&id);
+                    if b.kind() == BoxKind::Finite || was_unbounded != (b.kind() == BoxKind::Unbounded) {
+                        return false;
+                    }
+                }
+                slot => {
+                    if b.kind() != BoxKind::Finite {
+                        return false;
+                    }
+                    self.item_boxes[slot as usize] = b;
+                }
+            }
+        }
+        self.refit_nodes();
+        true
+    }
+
     /// Recomputes node boxes from `item_boxes` (one reverse sweep: children follow parents).
     pub(crate) fn refit_nodes(&mut self) {
         for i in (0..self.nodes.len()).rev() {
@@ -395,5 +433,30 @@ mod tests {
         assert!(bvh.refit(&boxes));
         bvh.validate().unwrap();
         assert!(bvh.sah_cost() > fresh * 0.5);
+    }
+
+    #[test]
+    fn refitting_the_changed_items_equals_refitting_all() {
+        let mut boxes = random_boxes(500, 3);
+        boxes[11] = Aabb::EMPTY;
+        boxes[12] = Aabb::new(Vec3::NAN, Vec3::ONE);
+        let mut all = Bvh::build(&boxes, BvhPreset::Fast, 4);
+        let mut some = all.clone();
+        for round in 0..3u32 {
+            let changed: Vec<u32> = (0..500).filter(|i| (i + round) % 7 == 0 && *i != 11 && *i != 12).collect();
+            for &i in &changed {
+                let d = Vec3::new(round as f32 + 1.0, 0.5, -2.0);
+                let b = boxes[i as usize];
+                boxes[i as usize] = Aabb::new(b.min + d, b.max + d);
+            }
+            assert!(all.refit(&boxes));
+            assert!(some.refit_changed(&boxes, &changed));
+            some.validate().unwrap();
+            assert_eq!(some.nodes, all.nodes, "round {round}");
+        }
+        // A changed item whose box changes kind needs a rebuild, as with `refit`.
+        boxes[11] = Aabb::new(Vec3::ZERO, Vec3::ONE);
+        assert!(!some.refit_changed(&boxes, &[11]));
+        assert!(!some.refit_changed(&boxes[..10], &[]));
     }
 }

@@ -170,7 +170,21 @@ impl ClusteredScene {
     /// beyond [`REBUILD_RATIO`] × the fresh build's or when an item's box changed kind (became
     /// empty, unbounded or finite again).
     pub fn refit_boxes(&mut self, boxes: &[Aabb]) -> RefitOutcome {
-        let ratio = if self.bvh.refit(boxes) {
+        let refitted = self.bvh.refit(boxes);
+        self.settle(boxes, refitted)
+    }
+
+    /// [`ClusteredScene::refit_boxes`] when only the items `changed` have new boxes (see
+    /// [`Bvh::refit_changed`]).
+    pub fn refit_changed(&mut self, boxes: &[Aabb], changed: &[u32]) -> RefitOutcome {
+        let refitted = self.bvh.refit_changed(boxes, changed);
+        self.settle(boxes, refitted)
+    }
+
+    /// After a refit (`refitted`: it succeeded), keeps the tree or rebuilds it by the rule
+    /// above.
+    fn settle(&mut self, boxes: &[Aabb], refitted: bool) -> RefitOutcome {
+        let ratio = if refitted {
             if self.build_cost > 0.0 {
                 self.bvh.sah_cost() / self.build_cost
             } else {
