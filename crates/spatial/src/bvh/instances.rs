@@ -37,6 +37,30 @@ pub enum RefitOutcome {
     },
 }
 
+impl RefitOutcome {
+    /// The rule every refitted tree here follows: `ratio` is the refitted tree's SAH cost
+    /// over its last build's (`None`: the refit failed, the boxes no longer fit the tree).
+    /// At most [`REBUILD_RATIO`] the refit stands; otherwise `rebuild` runs.
+    pub(crate) fn decide(ratio: Option<f32>, rebuild: impl FnOnce()) -> RefitOutcome {
+        match ratio {
+            Some(r) if r <= REBUILD_RATIO => RefitOutcome::Refitted { cost_ratio: r },
+            other => {
+                rebuild();
+                RefitOutcome::Rebuilt { cost_ratio: other.unwrap_or(f32::INFINITY) }
+            }
+        }
+    }
+}
+
+/// A tree's SAH cost over its cost right after the last build (1 when that was 0).
+pub(crate) fn cost_ratio(cost: f32, build_cost: f32) -> f32 {
+    if build_cost > 0.0 {
+        cost / build_cost
+    } else {
+        1.0
+    }
+}
+
 /// A BVH over instances: item `i` is instance `i` of the slice it was built from.
 #[derive(Debug, Clone, Default)]
 pub struct InstanceBvh {
@@ -81,23 +105,14 @@ impl InstanceBvh {
 
     /// Current SAH cost over the fresh build's.
     pub fn cost_ratio(&self) -> f32 {
-        if self.build_cost > 0.0 {
-            self.bvh.sah_cost() / self.build_cost
-        } else {
-            1.0
-        }
+        cost_ratio(self.bvh.sah_cost(), self.build_cost)
     }
 
     /// Refits to new boxes and rebuilds when the SAH cost grew beyond [`REBUILD_RATIO`] × the
     /// fresh build's, or when the boxes no longer fit the tree.
     pub fn update(&mut self, boxes: &[Aabb]) -> RefitOutcome {
-        match self.refit(boxes) {
-            Some(r) if r <= REBUILD_RATIO => RefitOutcome::Refitted { cost_ratio: r },
-            other => {
-                *self = Self::build(boxes, self.preset);
-                RefitOutcome::Rebuilt { cost_ratio: other.unwrap_or(f32::INFINITY) }
-            }
-        }
+        let ratio = self.refit(boxes);
+        RefitOutcome::decide(ratio, || *self = Self::build(boxes, self.preset))
     }
 
     /// [`InstanceBvh::update`] from instances (their world boxes).

@@ -18,10 +18,10 @@ use rayon::prelude::*;
 use sightline_scene::{Aabb, Instance, MeshId, Scene};
 
 use super::cluster::MeshClusters;
-use super::instances::RefitOutcome;
+use super::instances::{cost_ratio, RefitOutcome};
 use super::traverse::FrontToBackCursor;
 use super::{Bvh, BvhPreset};
-use crate::{CullCounters, CullOptions, FrontToBack, Frustum, FrustumCull, Visible, Visit, REBUILD_RATIO};
+use crate::{CullCounters, CullOptions, FrontToBack, Frustum, FrustumCull, Visible, Visit};
 
 /// Items per BVH leaf.
 const SCENE_LEAF: u32 = 4;
@@ -155,7 +155,7 @@ impl ClusteredScene {
     }
 
     /// Refits after instances moved (same instances, same order as the build), rebuilding
-    /// the BVH when its SAH cost grew beyond [`REBUILD_RATIO`] × the fresh build's. Clusters
+    /// the BVH when its SAH cost grew beyond [`REBUILD_RATIO`](crate::REBUILD_RATIO) × the fresh build's. Clusters
     /// are mesh-local and never rebuilt. `None` when `instances` do not match the build
     /// (count or meshes changed): build a new `ClusteredScene` then.
     pub fn update(&mut self, instances: &[Instance]) -> Option<RefitOutcome> {
@@ -167,7 +167,7 @@ impl ClusteredScene {
     }
 
     /// Refits the BVH to new item boxes (index = item), rebuilding it when its SAH cost grew
-    /// beyond [`REBUILD_RATIO`] × the fresh build's or when an item's box changed kind (became
+    /// beyond [`REBUILD_RATIO`](crate::REBUILD_RATIO) × the fresh build's or when an item's box changed kind (became
     /// empty, unbounded or finite again).
     pub fn refit_boxes(&mut self, boxes: &[Aabb]) -> RefitOutcome {
         let refitted = self.bvh.refit(boxes);
@@ -184,21 +184,11 @@ impl ClusteredScene {
     /// After a refit (`refitted`: it succeeded), keeps the tree or rebuilds it by the rule
     /// above.
     fn settle(&mut self, boxes: &[Aabb], refitted: bool) -> RefitOutcome {
-        let ratio = if refitted {
-            if self.build_cost > 0.0 {
-                self.bvh.sah_cost() / self.build_cost
-            } else {
-                1.0
-            }
-        } else {
-            f32::INFINITY
-        };
-        if ratio <= REBUILD_RATIO {
-            return RefitOutcome::Refitted { cost_ratio: ratio };
-        }
-        self.bvh = Bvh::build(boxes, BvhPreset::Fast, SCENE_LEAF);
-        self.build_cost = self.bvh.sah_cost();
-        RefitOutcome::Rebuilt { cost_ratio: ratio }
+        let ratio = refitted.then(|| cost_ratio(self.bvh.sah_cost(), self.build_cost));
+        RefitOutcome::decide(ratio, || {
+            self.bvh = Bvh::build(boxes, BvhPreset::Fast, SCENE_LEAF);
+            self.build_cost = self.bvh.sah_cost();
+        })
     }
 
     /// Number of items ((instance, cluster) pairs).

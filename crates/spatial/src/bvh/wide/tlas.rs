@@ -13,7 +13,8 @@ use obvhs::aabb::Aabb as ObAabb;
 
 use super::blas::WideBlas;
 use super::{WideBuildParams, WideBvh};
-use crate::{RefitOutcome, REBUILD_RATIO};
+use crate::bvh::instances::cost_ratio;
+use crate::RefitOutcome;
 
 /// One placed BLAS.
 ///
@@ -85,24 +86,14 @@ impl WideTlas {
     }
 
     /// Refits the tree to the instances' current transforms, or rebuilds it when refitting
-    /// has let its SAH cost grow past [`REBUILD_RATIO`] times that of the last build.
+    /// has let its SAH cost grow past [`REBUILD_RATIO`](crate::REBUILD_RATIO) times that of the last build.
     pub fn refit(&mut self, blases: &[WideBlas]) -> RefitOutcome {
         let boxes = world_boxes(&self.instances, blases);
-        let ratio = if self.bvh.refit(&boxes) {
-            if self.build_cost > 0.0 {
-                self.bvh.sah_cost() / self.build_cost
-            } else {
-                1.0
-            }
-        } else {
-            f32::INFINITY
-        };
-        if ratio <= REBUILD_RATIO {
-            return RefitOutcome::Refitted { cost_ratio: ratio };
-        }
-        self.bvh = WideBvh::build_obvhs(&boxes, WideBuildParams::TLAS);
-        self.build_cost = self.bvh.sah_cost();
-        RefitOutcome::Rebuilt { cost_ratio: ratio }
+        let ratio = self.bvh.refit(&boxes).then(|| cost_ratio(self.bvh.sah_cost(), self.build_cost));
+        RefitOutcome::decide(ratio, || {
+            self.bvh = WideBvh::build_obvhs(&boxes, WideBuildParams::TLAS);
+            self.build_cost = self.bvh.sah_cost();
+        })
     }
 
     /// The instances kept (in the order given to [`WideTlas::build`]); the BVH's primitive
