@@ -64,6 +64,9 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let camera = Camera::perspective(&look, 16.0 / 9.0)?;
     let mut fb = Framebuffer::new(1280, 720)?;
     let frame = world.render(&camera, Method::Hzb, &mut fb, &RenderOptions::default())?;
+    // The picture in the sky's light, 2 × 2 samples per pixel.
+    let look = RenderOptions { shading: ShadeOptions::picture(), ..RenderOptions::default() };
+    let fb = aa::supersample(1280, 720, 2, |fb| world.render(&camera, Method::Frustum, fb, &look).map(drop))?;
     let picture = out.join("city.png");
     write_color_png(&fb, &picture)?;
 

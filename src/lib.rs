@@ -35,7 +35,7 @@ pub use sightline_spatial as spatial;
 pub mod prelude {
     pub use glam::{Affine3A, Mat4, Quat, Vec2, Vec3};
     pub use sightline_render::output::write_color_png;
-    pub use sightline_render::{Framebuffer, Method, RenderOptions, Visibility, World};
+    pub use sightline_render::{aa, Framebuffer, Method, RenderOptions, ShadeOptions, Sky, Visibility, World};
     pub use sightline_scene::builders::{boxfield, city, scatter, BoxfieldParams, CityParams, ScatterParams};
     pub use sightline_scene::path::CameraKey;
     pub use sightline_scene::shapes;

@@ -51,8 +51,9 @@ pub fn run(args: Args) -> Result<()> {
     let engine = Engine::load(&args.scene, &args.allow_asset_roots)?;
     let (w, h) = args.size;
     let aspect = w as f32 / h as f32;
-    let start = match (args.eye, args.target) {
-        (Some(eye), Some(target)) => engine.pose_like_render(eye, target, args.fov, args.near, args.far),
+    let start = match (args.file_camera, args.eye, args.target) {
+        (Some(n), _, _) => engine.file_camera(n, aspect)?.1,
+        (None, Some(eye), Some(target)) => engine.pose_like_render(eye, target, args.fov, args.near, args.far),
         _ => engine.start_pose(aspect)?,
     };
     engine.camera(&start, aspect).context("the start camera")?;
@@ -199,7 +200,12 @@ impl App {
         if fb.depth_tests.is_some() != counting {
             fb.count_depth_tests(counting);
         }
-        let camera = self.engine.camera(&self.fly.pose, w as f32 / h as f32)?;
+        let aspect = w as f32 / h as f32;
+        let camera = match self.args.file_camera {
+            // The file's own camera, exactly, until the first move (R returns to it).
+            Some(n) if self.fly.pose == self.fly.start => self.engine.file_camera(n, aspect)?.0,
+            _ => self.engine.camera(&self.fly.pose, aspect)?,
+        };
         let t0 = Instant::now();
         let (level, ms_render) = self.draw(&camera, &mut fb)?;
         let lines = if self.hud { readout(self, ms_render, level.as_ref()) } else { Vec::new() };

@@ -19,7 +19,7 @@ use std::time::Instant;
 use anyhow::{bail, Result};
 use glam::{DVec2, Vec3, Vec4};
 use sightline::render::hzb::DepthPyramid;
-use sightline::render::{self, BoxVisibility, DrawItem, RenderOptions, Visibility, World};
+use sightline::render::{self, BoxVisibility, DrawItem, RenderOptions, ShadeOptions, Visibility, World};
 use sightline::scene::builders::CityLayout;
 use sightline::scene::path::CameraKey;
 use sightline::scene::Aabb;
@@ -179,7 +179,9 @@ impl Engine {
         Ok(Engine {
             world,
             layout: loaded.layout,
-            opts: RenderOptions::default(),
+            // The pictures' look (sky, light) at one sample per pixel: `sightline render
+            // --aa off` draws the same pixels.
+            opts: RenderOptions { shading: ShadeOptions::picture(), ..RenderOptions::default() },
             bounds,
             triangles,
             starts,
@@ -258,6 +260,49 @@ impl Engine {
     pub fn far_for(&self, eye: Vec3) -> f32 {
         let b = self.bounds;
         ((b.center() - eye).length() + b.extent().length()).max(1.0) * 1.5
+    }
+
+    /// The scene file's camera `n` for an image of this aspect (what `sightline render
+    /// --camera N` draws through), and the fly camera's pose that starts where it is.
+    pub fn file_camera(&self, n: usize, aspect: f32) -> Result<(Camera, Pose)> {
+        let scene = self.world.scene();
+        let camera = match scene.camera(n, aspect) {
+            Err(sightline::scene::Error::NoSuchCamera { count, .. }) => {
+                let has = match count {
+                    0 => "no cameras".to_string(),
+                    1 => "1 camera (--camera 0)".to_string(),
+                    c => format!("{c} cameras (--camera 0 to {})", c - 1),
+                };
+                bail!("--camera {n}, but the scene has {has}")
+            }
+            c => c.map_err(|e| anyhow::anyhow!("--camera {n}: {e}"))?,
+        };
+        let (_, _, bottom, top, near, far, perspective) = camera.projection.bounds();
+        // A parallel camera has no field of view: the fly camera takes 60°.
+        let fov_deg = if perspective {
+            ((top as f64 / near as f64).atan() - (bottom as f64 / near as f64).atan()).to_degrees() as f32
+        } else {
+            60.0
+        };
+        let eye = camera.view.eye;
+        let pose = Pose { eye, target: eye + camera.view.forward(), fov_deg, near, far };
+        Ok((camera, pose))
+    }
+
+    /// A `width × height` picture seen by `camera`, supersampled `s × s` (the walkthrough's
+    /// PNG frames): ray cast when `method` is, else rasterized with frustum culling (the
+    /// same pixels as any culling method, and no state that a timed frame's culling keeps).
+    #[allow(dead_code)] // the walkthrough's
+    pub fn picture(&mut self, camera: &Camera, method: Method, width: u32, height: u32, s: u32) -> Result<Framebuffer> {
+        let visibility = match method {
+            Method::Raycast => Visibility::RayCast,
+            _ => render::Method::Frustum.into(),
+        };
+        let (world, opts) = (&mut self.world, &self.opts);
+        render::aa::supersample(width, height, s, |fb| -> Result<()> {
+            world.render(camera, visibility, fb, opts)?;
+            Ok(())
+        })
     }
 
     /// The camera of a pose for an image of this aspect (width / height).

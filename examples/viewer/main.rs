@@ -88,6 +88,12 @@ pub struct Args {
     /// Far plane distance (with --eye; default: past the scene)
     #[arg(long, requires = "eye")]
     pub far: Option<f32>,
+    /// Start from the scene file's own camera N (glTF cameras, numbered from 0 in the order
+    /// the file's nodes place them; `sightline info` counts them), as `sightline render
+    /// --camera N` does: its position, orientation, field of view, near and far, the width
+    /// fitted to the window. Moving leaves it for the fly camera; R returns to it
+    #[arg(long = "camera", value_name = "N", conflicts_with_all = ["eye", "target", "near", "far"])]
+    pub file_camera: Option<usize>,
     /// Initial window size (inner, in pixels)
     #[arg(long, default_value = "1280x720", value_parser = sightline::args::parse_size)]
     pub size: (u32, u32),

@@ -64,9 +64,34 @@ struct Args {
     /// Put every k-th frame into the GIF (0: as many as keep it near 60 frames)
     #[arg(long, default_value_t = 0)]
     gif_every: u32,
+    /// Supersampling of the PNG frames (1 = off): each pixel the average of s×s samples,
+    /// drawn apart from the timed frame (the GIF is shrunk, which filters it enough)
+    #[arg(long, visible_alias = "supersample", value_enum, default_value = "2x2")]
+    aa: Aa,
     /// Worker threads (default: all cores)
     #[arg(short = 'j', long, value_parser = clap::value_parser!(u16).range(1..=256))]
     threads: Option<u16>,
+}
+
+/// Samples per pixel side of the PNG frames (the names of `sightline render --aa`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+enum Aa {
+    #[value(alias = "1")]
+    Off,
+    #[value(name = "2x2", alias = "2")]
+    X2,
+    #[value(name = "4x4", alias = "4")]
+    X4,
+}
+
+impl Aa {
+    fn factor(self) -> u32 {
+        match self {
+            Aa::Off => 1,
+            Aa::X2 => 2,
+            Aa::X4 => 4,
+        }
+    }
 }
 
 fn main() {
@@ -141,7 +166,12 @@ fn walk(
         let info = engine.render(&camera, a.method, &mut fb).with_context(|| format!("frame {f}"))?;
         if a.png_every > 0 && f % a.png_every as usize == 0 {
             let p = a.out.join(format!("frame_{f:04}.png"));
-            image::save_buffer(&p, fb.color.as_flattened(), w, h, image::ExtendedColorType::Rgba8)
+            let sharp = match a.aa {
+                Aa::Off => None,
+                aa => Some(engine.picture(&camera, a.method, w, h, aa.factor()).with_context(|| format!("frame {f}"))?),
+            };
+            let color = sharp.as_ref().map_or(&fb.color, |s| &s.color);
+            image::save_buffer(&p, color.as_flattened(), w, h, image::ExtendedColorType::Rgba8)
                 .with_context(|| format!("writing {}", p.display()))?;
         }
         if f % gif_every == 0 {

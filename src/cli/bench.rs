@@ -42,12 +42,7 @@ pub fn run(a: &BenchArgs) -> Result<()> {
         gif_every: None,
         json: Some(json.clone()),
         first_batch: sightline::render::Culler::DEFAULT_FIRST_BATCH,
-        look: super::common::Look {
-            shading: super::common::ShadingArg::Flat,
-            aa: super::common::AaArg::Off,
-            wireframe: super::common::WireArg::Off,
-            depth_format: super::common::DepthArg::F32,
-        },
+        look: super::common::Look::pictures(),
     };
     // A summary left by an earlier run must not pass for this one's.
     if json.exists() {

@@ -5,7 +5,7 @@ use std::path::{Path, PathBuf};
 
 use anyhow::{bail, Context, Result};
 use glam::Vec3;
-use sightline::render::{Antialias, DepthFormat, RenderOptions, ShadingMode, Wireframe};
+use sightline::render::{Antialias, DepthFormat, RenderOptions, ShadeOptions, ShadingMode, Sky, Wireframe};
 use sightline::scene::path::CameraKey;
 use sightline::scene::Camera;
 use sightline::LoadedScene;
@@ -52,9 +52,14 @@ pub struct Look {
     /// Shading: none (depth and IDs only), flat, gouraud, per-pixel
     #[arg(long, value_enum, default_value = "flat")]
     pub shading: ShadingArg,
-    /// Supersampling antialiasing
-    #[arg(long, value_enum, default_value = "off")]
+    /// Supersampling of the pictures written (PNG frames and images; 1 = off): each pixel is
+    /// the average of s×s samples. Triangle IDs, depth, counters and timed frames always
+    /// take one sample per pixel, at its centre
+    #[arg(long, visible_alias = "supersample", value_enum, default_value = "2x2")]
     pub aa: AaArg,
+    /// The background of the pictures: a gradient sky, or the flat clear colour
+    #[arg(long, value_enum, default_value = "on")]
+    pub sky: OnOff,
     /// Wireframe drawing (Bresenham lines); hidden-line: only the edges the depth buffer shows
     #[arg(long, value_enum, default_value = "off")]
     pub wireframe: WireArg,
@@ -73,10 +78,11 @@ pub enum ShadingArg {
 
 #[derive(Debug, Clone, Copy, clap::ValueEnum)]
 pub enum AaArg {
+    #[value(alias = "1")]
     Off,
-    #[value(name = "2x2")]
+    #[value(name = "2x2", alias = "2")]
     X2,
-    #[value(name = "4x4")]
+    #[value(name = "4x4", alias = "4")]
     X4,
 }
 
@@ -98,8 +104,23 @@ pub enum DepthArg {
 }
 
 impl Look {
+    /// The look of the pictures: flat shading in the pictures' light
+    /// ([`ShadeOptions::picture`]) in front of the sky, 2×2 supersampled.
+    pub fn pictures() -> Self {
+        Look {
+            shading: ShadingArg::Flat,
+            aa: AaArg::X2,
+            sky: OnOff::On,
+            wireframe: WireArg::Off,
+            depth_format: DepthArg::F32,
+        }
+    }
+
+    /// The options of a picture (`antialias` is the supersampling the pictures get; a frame
+    /// whose IDs or time count is drawn with it off, see [`Look::frame_options`]).
     pub fn options(&self, backface: OnOff) -> RenderOptions {
-        let mut o = RenderOptions { backface_culling: backface.on(), ..Default::default() };
+        let shading = ShadeOptions { sky: self.sky.on().then(Sky::default), ..ShadeOptions::picture() };
+        let mut o = RenderOptions { backface_culling: backface.on(), shading, ..Default::default() };
         o.shading.mode = match self.shading {
             ShadingArg::None => ShadingMode::None,
             ShadingArg::Flat => ShadingMode::Flat,
@@ -123,6 +144,12 @@ impl Look {
             DepthArg::U16 => DepthFormat::Unorm16,
         };
         o
+    }
+
+    /// The options of a frame whose IDs, depth, counters or time are reported: as
+    /// [`Look::options`] with one sample per pixel (the pictures are drawn apart).
+    pub fn frame_options(&self, backface: OnOff) -> RenderOptions {
+        RenderOptions { antialias: Antialias::Off, ..self.options(backface) }
     }
 }
 

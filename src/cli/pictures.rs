@@ -2,11 +2,18 @@
 //! animated GIF with the readout (frame number, each method's time and triangles drawn)
 //! burned in. Which frames are kept depends only on the frame's number in the camera path
 //! and the path's length, so the shards of a walk keep exactly the frames one run keeps.
+//!
+//! Pictures are supersampled ([`picture`]): drawn apart from the timed frame at s × s
+//! samples per pixel and box-filtered down (Crow, "A Comparison of Antialiasing
+//! Techniques", 1981), so a walk's times and a frame's IDs never pay for, or change with,
+//! the picture.
 
 use std::path::{Path, PathBuf};
 
 use anyhow::{Context, Result};
 use sightline::gif_out::{self, GifOut};
+use sightline::render::{aa, draw_all, Antialias, RayCaster, RaycastOptions, RenderOptions, Renderer};
+use sightline::scene::{Camera, Scene};
 
 use super::report::{FrameRecord, WALK_GIF};
 
@@ -40,16 +47,28 @@ impl Pictures {
 
     /// True when frame `f` of the path is kept as a picture.
     pub fn wants(&self, f: usize) -> bool {
-        let every = |k: usize| k > 0 && f.is_multiple_of(k);
-        every(self.png_every) || every(self.gif_every)
+        self.wants_png(f) || (self.gif_every > 0 && f.is_multiple_of(self.gif_every))
     }
 
-    /// Writes frame `f` (its colour, RGBA, and what each method did on it).
-    pub fn add(&mut self, f: usize, color: &[[u8; 4]], records: &[FrameRecord]) -> Result<()> {
+    /// True when frame `f` of the path is written as PNG.
+    pub fn wants_png(&self, f: usize) -> bool {
+        self.png_every > 0 && f.is_multiple_of(self.png_every)
+    }
+
+    /// Writes frame `f` (its colour, RGBA, and what each method did on it); the PNG gets
+    /// `sharp` when given (the frame supersampled: the GIF's shrinking filters enough).
+    pub fn add(
+        &mut self,
+        f: usize,
+        color: &[[u8; 4]],
+        sharp: Option<&[[u8; 4]]>,
+        records: &[FrameRecord],
+    ) -> Result<()> {
         let (w, h) = self.size;
-        if self.png_every > 0 && f.is_multiple_of(self.png_every) {
+        if self.wants_png(f) {
             let p = self.dir.join(format!("frame_{f:04}.png"));
-            image::save_buffer(&p, color.as_flattened(), w, h, image::ExtendedColorType::Rgba8)
+            let png = sharp.unwrap_or(color);
+            image::save_buffer(&p, png.as_flattened(), w, h, image::ExtendedColorType::Rgba8)
                 .with_context(|| format!("writing {}", p.display()))?;
         }
         if let Some(gif) = self.gif.as_mut().filter(|_| f.is_multiple_of(self.gif_every)) {
@@ -70,4 +89,34 @@ impl Pictures {
         // Dropping the encoder writes the GIF's trailer.
         self.gif.map(|g| g.frames)
     }
+}
+
+/// A picture of `scene` seen by `camera`: ray cast with `caster` and its options when
+/// given (their shading and background replaced by `opts`'), else rasterized (every
+/// instance), supersampled as `opts.antialias` says.
+pub fn picture(
+    scene: &Scene,
+    caster: Option<(&RayCaster, &RaycastOptions)>,
+    camera: &Camera,
+    opts: &RenderOptions,
+    size: (u32, u32),
+) -> Result<Vec<[u8; 4]>> {
+    let one = RenderOptions { antialias: Antialias::Off, ..*opts };
+    let fb = aa::supersample(size.0, size.1, opts.antialias.factor(), |fb| -> Result<()> {
+        match caster {
+            Some((c, ro)) => {
+                let ro = RaycastOptions { shading: one.shading, background: one.background, ..*ro };
+                c.render(scene, camera, fb, &ro)?;
+            }
+            None => {
+                let instances = scene.instances();
+                Renderer::new().render(scene, &instances, &draw_all(&instances), camera, fb, &one)?;
+            }
+        }
+        Ok(())
+    })
+    .with_context(|| {
+        format!("a {}x{} picture at {2}x{2} samples per pixel", size.0, size.1, opts.antialias.factor())
+    })?;
+    Ok(fb.color)
 }

@@ -7,6 +7,7 @@ use glam::Vec3;
 use sightline::render::{output, Framebuffer, RayCaster, RaycastOptions, Renderer};
 
 use super::common::{self, Look, OnOff, Size};
+use super::pictures;
 
 /// Visibility method of a single frame.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
@@ -48,7 +49,8 @@ pub struct RenderArgs {
     /// Worker threads, 1 to 256 (default: all cores)
     #[arg(short = 'j', long, value_parser = super::common::threads_arg)]
     pub threads: Option<usize>,
-    /// Output folder for color.png, depth.png, ids.png, complexity.png
+    /// Output folder for color.png (supersampled as --aa says), depth.png, ids.png,
+    /// complexity.png
     #[arg(short, long, value_name = "DIR")]
     pub out: Option<PathBuf>,
     /// Raw triangle-ID buffer as .npy (uint32, H×W, row 0 = top, 0 = background)
@@ -137,7 +139,11 @@ pub fn run(a: &RenderArgs) -> Result<()> {
         Some(&c) if a.projection != ProjectionArg::Multiview => c,
         _ => choice.camera(&loaded, a.size)?,
     };
-    let opts = a.look.options(a.backface_culling);
+    // IDs, depth and counters come from one sample per pixel (what the references compare);
+    // the colour picture, when one is written, is drawn apart, supersampled.
+    let opts = a.look.frame_options(a.backface_culling);
+    let pic_opts = a.look.options(a.backface_culling);
+    let supersample = a.out.is_some() && pic_opts.antialias.factor() > 1;
     let mut fb = Framebuffer::new(a.size.width, a.size.height)?;
     let counting = a.out.is_some() && a.method == FrameMethod::Raster;
     let caster = (a.method == FrameMethod::Raycast)
@@ -146,6 +152,12 @@ pub fn run(a: &RenderArgs) -> Result<()> {
         })
         .transpose()?
         .transpose()?;
+    let mut ro = RaycastOptions::from_render(&opts);
+    ro.shadows = a.shadows;
+    let picture = |cam: &sightline::scene::Camera, size: (u32, u32)| -> Result<Vec<[u8; 4]>> {
+        let caster = caster.as_ref().map(|c| (c, &ro));
+        common::with_threads(a.threads, || pictures::picture(&loaded.scene, caster, cam, &pic_opts, size))?
+    };
     fb.count_depth_tests(counting);
     if a.projection == ProjectionArg::Multiview {
         // Four views, each framed for a quarter of the image.
@@ -157,14 +169,20 @@ pub fn run(a: &RenderArgs) -> Result<()> {
         let mut views = Vec::new();
         for (q, cam) in cams.iter().enumerate() {
             let v =
-                common::with_threads(a.threads, || draw(&loaded.scene, caster.as_ref(), cam, &mut part, a, &opts))??;
+                common::with_threads(a.threads, || draw(&loaded.scene, caster.as_ref(), cam, &mut part, &ro, &opts))??;
+            if supersample {
+                part.color = picture(cam, (qw, qh))?;
+            }
             blit_quadrant(&part, q, &mut fb);
             views.push(v);
         }
         return write_outputs(&fb, a, &serde_json::json!({ "views": views }));
     }
     let counters =
-        common::with_threads(a.threads, || draw(&loaded.scene, caster.as_ref(), &camera, &mut fb, a, &opts))??;
+        common::with_threads(a.threads, || draw(&loaded.scene, caster.as_ref(), &camera, &mut fb, &ro, &opts))??;
+    if supersample {
+        fb.color = picture(&camera, (a.size.width, a.size.height))?;
+    }
     write_outputs(&fb, a, &counters)
 }
 
@@ -175,7 +193,7 @@ fn draw(
     caster: Option<&RayCaster>,
     camera: &sightline::scene::Camera,
     fb: &mut Framebuffer,
-    a: &RenderArgs,
+    ro: &RaycastOptions,
     opts: &sightline::render::RenderOptions,
 ) -> Result<serde_json::Value> {
     let Some(caster) = caster else {
@@ -185,9 +203,7 @@ fn draw(
         print_raster(&stats);
         return Ok(serde_json::to_value(stats)?);
     };
-    let mut ro = RaycastOptions::from_render(opts);
-    ro.shadows = a.shadows;
-    let st = caster.render(scene, camera, fb, &ro)?;
+    let st = caster.render(scene, camera, fb, ro)?;
     println!("BVH build        {:>10.1} ms", caster.build_ms());
     println!("primary rays     {:>10}", st.primary_rays);
     println!("shadow rays      {:>10}", st.shadow_rays);

@@ -145,9 +145,12 @@ pub fn run(a: &WalkArgs) -> Result<()> {
         }
         None => None,
     };
-    let opts = a.look.options(a.backface_culling);
-    let records =
-        common::with_threads(a.threads, || walk(&mut loaded, &keys, range.clone(), a, &run, &opts, pics.as_mut()))??;
+    // Timed frames take one sample per pixel; the PNG frames are drawn apart, supersampled.
+    let opts = a.look.frame_options(a.backface_culling);
+    let pic_opts = a.look.options(a.backface_culling);
+    let records = common::with_threads(a.threads, || {
+        walk(&mut loaded, &keys, range.clone(), a, &run, (&opts, &pic_opts), pics.as_mut())
+    })??;
     let gif_frames = pics.and_then(Pictures::finish);
     let report = WalkReport {
         methods: report::summarize(&records, &run.method_set),
@@ -221,7 +224,7 @@ fn walk(
     range: std::ops::Range<usize>,
     a: &WalkArgs,
     run: &RunInfo,
-    opts: &RenderOptions,
+    (opts, pic_opts): (&RenderOptions, &RenderOptions),
     mut pics: Option<&mut Pictures>,
 ) -> Result<Vec<FrameRecord>> {
     // A shard warms up on the frame before its first (see the module docs).
@@ -310,7 +313,14 @@ fn walk(
             bar.inc(1);
         }
         if let Some(p) = pics.as_mut().filter(|p| recorded && p.wants(f)) {
-            p.add(f, &picture, &out[frame_start..])?;
+            // The PNG supersampled, by the first method's renderer (untimed).
+            let sharp = (p.wants_png(f) && pic_opts.antialias.factor() > 1)
+                .then(|| {
+                    let caster = caster.as_ref().filter(|_| list[0].1.is_none()).map(|c| (c, &rc_opts));
+                    pictures::picture(scene, caster, &cam, pic_opts, (a.size.width, a.size.height))
+                })
+                .transpose()?;
+            p.add(f, &picture, sharp.as_deref(), &out[frame_start..])?;
         }
         bar.set_message(format!("frame {f}"));
     }

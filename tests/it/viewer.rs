@@ -67,12 +67,13 @@ fn window_and_headless(
     (rgba(&shot), render(dir, camera, render_extra))
 }
 
-/// `sightline render`'s colour picture.
+/// `sightline render`'s colour picture, at one sample per pixel as the window draws it.
 fn render(dir: &Path, camera: &[&str], extra: &[&str]) -> image::RgbaImage {
     let render_dir = dir.join("render");
     let out = Command::new(env!("CARGO_BIN_EXE_sightline"))
         .arg("render")
         .args(camera)
+        .args(["--aa", "off"])
         .args(extra)
         .arg("--out")
         .arg(&render_dir)
@@ -150,6 +151,34 @@ fn the_viewer_poses_an_animated_scene() {
     assert_same(&window, &headless);
     let start = render(&dir, &camera, &["--time", "0"]);
     assert!(differing(&window, &start).len() > 20, "the scene moved between 0 s and 1.5 s");
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+/// `--camera N` starts from the file's own camera, as `render --camera N` draws it; a
+/// camera the file does not have is one clear error.
+#[test]
+fn the_viewer_starts_from_the_file_s_camera() {
+    if skip_window_tests() {
+        return;
+    }
+    let dir = temp_dir("viewer-camera");
+    let scene = concat!(env!("CARGO_MANIFEST_DIR"), "/assets/nested.gltf");
+    let camera = ["--scene", scene, "--camera", "0", "--size", SIZE];
+    let (window, headless) = window_and_headless(&dir, &camera, &[], &[]);
+    assert_same(&window, &headless);
+    // Not the view the viewer frames by itself.
+    let framed = render(&dir, &["--scene", scene, "--size", SIZE], &[]);
+    assert!(differing(&window, &framed).len() > 100, "the file's camera is not the three-quarter view");
+    let out = Command::new("xvfb-run")
+        .args(["-a", "-s", "-screen 0 640x480x24"])
+        .arg(viewer_binary())
+        .args(["--scene", scene, "--camera", "7", "--size", SIZE, "--screenshot"])
+        .arg(dir.join("none.png"))
+        .output()
+        .expect("xvfb-run starts");
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(1), "{err}");
+    assert!(err.contains("--camera 7") && err.contains("camera") && !err.contains("panicked"), "{err}");
     let _ = std::fs::remove_dir_all(&dir);
 }
 

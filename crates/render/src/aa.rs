@@ -10,6 +10,30 @@ use rayon::prelude::*;
 
 use crate::Framebuffer;
 
+/// A `width × height` frame drawn at `s × s` samples per pixel: `draw` renders into a
+/// framebuffer `s` times larger on each side (with the same camera, since the aspect is the
+/// same), which is then box-filtered down with [`resolve`]. This is how pictures are
+/// supersampled whatever draws them (rasterizer, culler, ray caster). The result's IDs and
+/// depth are each pixel's nearest sample, not a one-sample frame's: count and compare on a
+/// frame drawn at one sample per pixel. `s` ≤ 1 draws the frame as it is.
+pub fn supersample<E: From<crate::Error>>(
+    width: u32,
+    height: u32,
+    s: u32,
+    draw: impl FnOnce(&mut Framebuffer) -> Result<(), E>,
+) -> Result<Framebuffer, E> {
+    let s = s.max(1);
+    // An overflowing side becomes too large a framebuffer, refused by `Framebuffer::new`.
+    let mut big = Framebuffer::new(width.saturating_mul(s), height.saturating_mul(s))?;
+    draw(&mut big)?;
+    if s == 1 {
+        return Ok(big);
+    }
+    let mut out = Framebuffer::new(width, height)?;
+    resolve(&big, s, &mut out);
+    Ok(out)
+}
+
 /// Box-filters `ss` (s times larger on each side) into `out`.
 pub fn resolve(ss: &Framebuffer, s: u32, out: &mut Framebuffer) {
     let (w, h) = (out.width() as usize, out.height() as usize);
@@ -75,5 +99,18 @@ mod tests {
         assert_eq!(out.color[1], [0, 0, 0, 255]);
         assert_eq!((out.depth[1], out.ids[1]), (0.25, 9));
         assert_eq!((out.depth[0], out.ids[0]), (1.0, 0));
+    }
+
+    #[test]
+    fn supersample_draws_large_and_resolves() {
+        let fb = supersample(3, 2, 2, |big| {
+            assert_eq!((big.width(), big.height()), (6, 4));
+            big.color = (0..24).map(|i| if i % 2 == 0 { [200, 0, 0, 255] } else { [0, 0, 100, 255] }).collect();
+            Ok::<(), crate::Error>(())
+        })
+        .unwrap();
+        assert_eq!((fb.width(), fb.height()), (3, 2));
+        assert!(fb.color.iter().all(|&c| c == [100, 0, 50, 255]));
+        assert!(supersample(8192, 8, 2, |_| Ok::<(), crate::Error>(())).is_err(), "too large is an error");
     }
 }

@@ -149,8 +149,9 @@ pub(crate) fn ndc_y(y: usize, sy: f32) -> f32 {
     1.0 - (y as f32 + 0.5) * sy
 }
 
-/// Writes every color of `fb`: pixels with ID 0, IDs that no instance claims and every
-/// pixel in mode `None` get `background`; the others are shaded. So the color plane needs no
+/// Writes every color of `fb`: pixels with ID 0 get the sky's color for their row when
+/// `opts` has a sky ([`crate::sky`]), else `background`, as do IDs that no instance claims
+/// and every pixel in mode `None`; the others are shaded. So the color plane needs no
 /// clearing before a frame.
 pub fn shade_pass(
     scene: &Scene,
@@ -171,6 +172,7 @@ pub fn shade_pass(
     let eye = camera.view.eye;
     let (sx, sy) = (2.0 / w as f32, 2.0 / h as f32);
     let ids = &fb.ids;
+    let sky = opts.sky.map(|s| s.rows(camera, h));
     let band_rows = h.div_ceil(rayon::current_num_threads().max(1) * BANDS_PER_THREAD).max(1);
     fb.color.par_chunks_mut(w * band_rows).enumerate().for_each(|(band, color)| {
         let mut insts: Vec<Option<InstEntry>> = (0..INST_CACHE).map(|_| None).collect();
@@ -193,7 +195,7 @@ pub fn shade_pass(
                 let id = irow[x];
                 let end = irow[x + 1..].iter().position(|&v| v != id).map_or(w, |n| x + 1 + n);
                 if id == 0 {
-                    crow[x..end].fill(background);
+                    crow[x..end].fill(sky.as_ref().map_or(background, |s| s[y]));
                     x = end;
                     continue;
                 }

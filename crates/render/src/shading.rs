@@ -2,11 +2,13 @@
 //! with one directional light plus ambient, base color from the material and its texture,
 //! and optional depth cueing.
 //!
-//! * Lambert's cosine law: `I = ambient + diffuse · max(0, n·l)`.
+//! * Lambert's cosine law: `I = ambient + diffuse · max(0, n·l)`; the color is
+//!   `base · I + emissive` (glTF's emissive factor: light the surface gives off itself).
 //! * Gouraud (1971): light the three vertices, interpolate the intensities.
 //! * Per pixel ("Phong" normal interpolation, 1975): interpolate the normal, then light.
 //! * Depth cueing (Foley, van Dam, Feiner, Hughes, *Computer Graphics*, §16.1.3): the color moves towards a cue color
 //!   as the distance grows from `near` to `far`.
+//! * The background, optionally: a gradient sky ([`Sky`], painted where no surface is).
 //! * Alpha: the base color's alpha (factor × texture) is written to the color plane for a
 //!   blended material (its coverage when composited, see [`crate::transparency`]) and as 1
 //!   for the others, which glTF renders fully opaque ([`written_alpha`]).
@@ -19,6 +21,7 @@ use glam::{Affine3A, Mat3A, Vec2, Vec3, Vec3A, Vec4};
 use serde::Serialize;
 use sightline_scene::{AlphaMode, Material, Mesh};
 
+use crate::sky::Sky;
 use crate::texture::{self, Filter, Wrap};
 
 /// How surfaces are lit.
@@ -68,6 +71,9 @@ pub struct ShadeOptions {
     pub perspective_correct: bool,
     /// Optional depth cueing.
     pub depth_cue: Option<DepthCue>,
+    /// The background: a gradient sky where no surface is drawn (`None`: the flat
+    /// background color). Changes colors only; IDs and depth stay.
+    pub sky: Option<Sky>,
 }
 
 impl Default for ShadeOptions {
@@ -84,6 +90,7 @@ impl Default for ShadeOptions {
             wrap: Wrap::Repeat,
             perspective_correct: true,
             depth_cue: None,
+            sky: None,
         }
     }
 }
@@ -92,6 +99,26 @@ impl ShadeOptions {
     /// Unlit: color = base color × texture (ambient 1, diffuse 0).
     pub fn unlit() -> Self {
         Self { ambient: 1.0, diffuse: 0.0, ..Self::default() }
+    }
+
+    /// The look of pictures: a lower sun from the sky's bright side, more ambient light (the
+    /// sides in shade keep their color), in front of the default [`Sky`].
+    pub fn picture() -> Self {
+        Self {
+            light_dir: Vec3::new(0.35, 0.62, 0.70).normalize(),
+            ambient: 0.32,
+            diffuse: 0.78,
+            sky: Some(Sky::default()),
+            ..Self::default()
+        }
+    }
+
+    /// Paints the background pixels (ID 0) of `fb` seen by `camera` with the sky, when
+    /// there is one and shading is on.
+    pub fn paint_sky(&self, camera: &sightline_scene::Camera, fb: &mut crate::Framebuffer) {
+        if let (Some(sky), false) = (&self.sky, self.mode == ShadingMode::None) {
+            sky.paint(camera, fb);
+        }
     }
 }
 
@@ -161,7 +188,14 @@ pub fn shade(
     }
     let base = base_color(material, uv, opts);
     let i = lambert(n, opts);
-    finish((base.truncate() * i).extend(written_alpha(material, base.w)), distance, opts)
+    finish(lit(material, base, i), distance, opts)
+}
+
+/// The color of a surface of `material` with base color `base` under light intensity `i`:
+/// `base · i + emissive`, with the alpha [`written_alpha`] gives.
+#[inline]
+pub fn lit(material: &Material, base: Vec4, i: f32) -> Vec4 {
+    (base.truncate() * i + Vec3::from(material.emissive)).extend(written_alpha(material, base.w))
 }
 
 /// What one instance contributes to shading: its transforms and material.
@@ -206,7 +240,7 @@ pub fn flat_color(inst: &InstanceShading, mesh: &Mesh, tri: usize, eye: Vec3, op
     }
     let i = opts.ambient + opts.diffuse * ndl.max(0.0);
     let b = base_color(inst.material, None, opts);
-    Some(to_rgba8((b.truncate() * i).extend(written_alpha(inst.material, b.w))))
+    Some(to_rgba8(lit(inst.material, b, i)))
 }
 
 /// Everything needed to shade points of one triangle from barycentric weights, prepared
@@ -318,7 +352,7 @@ impl<'a> TriangleShader<'a> {
         } else {
             0.0
         };
-        finish((base.truncate() * i).extend(written_alpha(self.material, base.w)), distance, opts)
+        finish(lit(self.material, base, i), distance, opts)
     }
 }
 

@@ -1,5 +1,5 @@
-//! Materials: a base color factor, an optional base color texture (decoded RGBA8) and an
-//! alpha mode.
+//! Materials: a base color factor, an optional base color texture (decoded RGBA8), an
+//! alpha mode and an emitted color.
 //!
 //! The alpha mode is glTF 2.0's (`material.alphaMode`, `alphaCutoff`; Khronos, glTF 2.0
 //! specification, "Alpha Coverage"): the alpha of a surface point is the base color
@@ -98,6 +98,9 @@ pub struct Material {
     pub base_color_texture: Option<Arc<Texture>>,
     /// What the alpha of `base_color` × texture means: opaque, a cutout mask or blending.
     pub alpha_mode: AlphaMode,
+    /// Light the surface gives off itself, linear RGB added after lighting (glTF
+    /// `emissiveFactor`): a lit window stays bright on the side the sun does not reach.
+    pub emissive: [f32; 3],
 }
 
 impl Default for Material {
@@ -107,6 +110,7 @@ impl Default for Material {
             base_color: [0.8, 0.8, 0.8, 1.0],
             base_color_texture: None,
             alpha_mode: AlphaMode::Opaque,
+            emissive: [0.0; 3],
         }
     }
 }
@@ -126,6 +130,12 @@ impl Material {
             alpha_mode: AlphaMode::Blend,
             ..Self::default()
         }
+    }
+
+    /// This material giving off light `rgb` (see [`Material::emissive`]).
+    pub fn with_emissive(mut self, rgb: [f32; 3]) -> Self {
+        self.emissive = rgb;
+        self
     }
 
     /// This material with alpha mode `mode`.

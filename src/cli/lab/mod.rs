@@ -8,7 +8,7 @@ mod scaling;
 use std::path::PathBuf;
 
 use anyhow::Result;
-use sightline::render::{shade_pass, Framebuffer, RenderOptions};
+use sightline::render::{shade_pass, Framebuffer, RenderOptions, ShadeOptions};
 use sightline::scene::{Camera, Scene};
 
 use super::common::{self, CameraArgs, Size};
@@ -108,7 +108,8 @@ fn draw_view(
 ) -> Result<Vec<Row>> {
     let mut lab = Lab::new(scene)?;
     let instances = scene.instances();
-    let look = RenderOptions::default();
+    // The contact sheet shrinks each frame by a box filter, which antialiases it as well.
+    let look = RenderOptions { shading: ShadeOptions::picture(), ..RenderOptions::default() };
     let mut rows: Vec<Row> = Vec::new();
     for m in METHODS.iter().filter(|m| (m.applies)(scene)) {
         bar.set_message(m.name);

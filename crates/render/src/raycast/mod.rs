@@ -398,7 +398,10 @@ impl RayCaster {
         if scene.stamp() != self.stamp {
             return Err(crate::Error::NotSynced);
         }
-        render::render(self, scene, camera, opts, fb)
+        let stats = render::render(self, scene, camera, opts, fb)?;
+        // The background as the rasterizer's deferred shading paints it.
+        opts.shading.paint_sky(camera, fb);
+        Ok(stats)
     }
 
     /// The nearest surface (triangle of either facing, or CSG solid) on `origin + t·dir`

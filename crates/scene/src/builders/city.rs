@@ -1,19 +1,22 @@
-//! The procedural city: blocks on a street grid, box buildings with facades split into
-//! window quads, a ground split into tiles.
+//! The procedural city: blocks on a street grid, box buildings whose facades show windows,
+//! a ground split into tiles.
 //!
 //! Layout: street center lines run along x = k·P and z = k·P (pitch P = 52, street width 12,
 //! k = 0..=blocks), shifted so the city is centered on the origin. Each 40 × 40 block holds
 //! 2 × 2 lots; each lot one building with a footprint of at most 18 × 18 set back from the
 //! street. Buildings are drawn from a table of prototypes (footprint, height), rotated by a
-//! multiple of 90°, so repeated shapes share one mesh (instancing). Facades are grids of
-//! window cells whose size is chosen so the whole city has the requested triangle count.
-//! Blocks are group nodes carrying a material that their buildings inherit (a few buildings
-//! override it).
+//! multiple of 90°, so repeated shapes share meshes (instancing). Facades are grids of
+//! cells whose count is chosen so the whole city has the requested triangle count; the
+//! cells are laid out as piers, spandrels and window panes ([`super::facade`]), and each
+//! building is a node with up to three children: its walls, its dark panes and its lit
+//! panes, each with its own mesh and material. Blocks are group nodes carrying a wall
+//! material that their buildings inherit (the towers override it).
 
 use glam::{Quat, Vec3};
 
+use super::facade::facade;
 use crate::rng::Rng;
-use crate::shapes::{ground_quad, subdivided_box};
+use crate::shapes::ground_quad;
 use crate::{Aabb, Error, Material, NodeDesc, Result, Scene, Transform};
 
 /// Distance between street center lines.
@@ -21,6 +24,8 @@ pub const PITCH: f32 = 52.0;
 /// Width of a street.
 pub const STREET: f32 = 12.0;
 const LOT: f32 = (PITCH - STREET) / 2.0;
+/// The share of window panes that are lit.
+const LIT_SHARE: f32 = 0.2;
 
 /// Parameters of [`city`].
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -169,15 +174,15 @@ pub fn city(params: &CityParams) -> Result<City> {
     params.validate()?;
     let protos = prototypes(params);
     let mut scene = Scene::new();
-    let meshes: Vec<_> = protos
-        .iter()
-        .enumerate()
-        .map(|(i, p)| {
-            let h = p.size * Vec3::new(0.5, 0.0, 0.5);
-            subdivided_box(&format!("building {i}"), -h, p.size - h, p.cells(params.subdivision), false)
-                .map(|m| scene.add_mesh(m))
-        })
-        .collect::<Result<_>>()?;
+    // Per prototype: walls, dark panes, lit panes (a prototype may have no panes of a kind).
+    let mut meshes = Vec::with_capacity(protos.len());
+    for (i, p) in protos.iter().enumerate() {
+        let h = p.size * Vec3::new(0.5, 0.0, 0.5);
+        let seed = params.seed ^ (0x11_9475 + i as u64);
+        let f = facade(&format!("building {i}"), -h, p.size - h, p.cells(params.subdivision), seed, LIT_SHARE)?;
+        let mut add = |m: Option<crate::Mesh>| m.map(|m| scene.add_mesh(m));
+        meshes.push([add(Some(f.walls)), add(f.windows), add(f.lit)]);
+    }
     let ground_mesh = scene.add_mesh(ground_quad("ground tile", 1)?);
     let palette = [
         [0.72, 0.66, 0.58],
@@ -193,6 +198,11 @@ pub fn city(params: &CityParams) -> Result<City> {
         .map(|(i, c)| scene.add_material(Material::color(format!("facade {i}"), *c)))
         .collect();
     let glass = scene.add_material(Material::color("glass tower", [0.35, 0.45, 0.60]));
+    let panes = [
+        None,
+        Some(scene.add_material(Material::color("window", [0.10, 0.13, 0.20]))),
+        Some(scene.add_material(Material::color("lit window", [0.35, 0.28, 0.15]).with_emissive([0.75, 0.55, 0.25]))),
+    ];
     let asphalt = scene.add_material(Material::color("ground", [0.30, 0.30, 0.32]));
 
     let origin = -(params.blocks as f32) * PITCH * 0.5;
@@ -227,12 +237,21 @@ pub fn city(params: &CityParams) -> Result<City> {
                 let lz = (lot / 2) as f32 * LOT - LOT * 0.5 + jz;
                 let t = Transform::from_translation(Vec3::new(lx, 0.0, lz))
                     .with_rotation(Quat::from_rotation_y(turns as f32 * std::f32::consts::FRAC_PI_2));
-                let mut desc = NodeDesc::new(format!("building {bx},{bz},{lot}")).transform(t).mesh(meshes[p]);
+                let mut desc = NodeDesc::new(format!("building {bx},{bz},{lot}")).transform(t);
                 if protos[p].size.y > 44.0 {
                     desc = desc.material(glass);
                 }
+                let building = scene.add_node(Some(block), desc)?;
+                for ((mesh, part), mat) in meshes[p].iter().zip(["walls", "windows", "lit windows"]).zip(panes) {
+                    if let Some(mesh) = *mesh {
+                        let mut d = NodeDesc::new(part).mesh(mesh);
+                        if let Some(m) = mat {
+                            d = d.material(m);
+                        }
+                        scene.add_node(Some(building), d)?;
+                    }
+                }
                 max_height = max_height.max(protos[p].size.y);
-                scene.add_node(Some(block), desc)?;
             }
         }
     }
@@ -266,6 +285,25 @@ mod tests {
             assert_eq!(x.world_from_local, y.world_from_local);
             assert_eq!(a.mesh(x.mesh).unwrap().positions(), b.mesh(y.mesh).unwrap().positions());
         }
+    }
+
+    #[test]
+    fn facades_have_dark_and_lit_windows_of_their_own_material() {
+        let c = city(&CityParams::for_triangles(60_000)).unwrap();
+        let s = &c.scene;
+        let mut tris = std::collections::HashMap::<String, u64>::new();
+        for inst in s.instances() {
+            let name = inst.material.and_then(|m| s.material(m)).map_or("default".into(), |m| m.name.clone());
+            *tris.entry(name).or_default() += u64::from(inst.triangle_count);
+        }
+        let (dark, lit) = (tris["window"], tris["lit window"]);
+        let all: u64 = tris.values().sum();
+        // Panes are a good part of the facades; about a fifth of them are lit.
+        assert!(dark + lit > all / 10 && dark + lit < all * 3 / 4, "{dark} + {lit} pane triangles of {all}");
+        assert!(lit * 10 > dark && lit < dark, "{lit} lit vs {dark} dark");
+        let lit_mat = s.materials().find(|(_, m)| m.name == "lit window").unwrap().1;
+        assert!(lit_mat.emissive.iter().all(|&e| e > 0.0), "lit windows give off light");
+        assert!(tris.keys().any(|k| k.starts_with("facade")), "walls keep their block's material");
     }
 
     #[test]

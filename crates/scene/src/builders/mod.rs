@@ -10,6 +10,7 @@
 mod boxfield;
 mod city;
 mod crane;
+mod facade;
 mod scatter;
 mod traffic;
 

@@ -451,6 +451,7 @@ impl Loader<'_> {
             base_color,
             base_color_texture: texture,
             alpha_mode,
+            emissive: emissive(mat),
         });
         if let Some(slot) = self.materials.get_mut(i) {
             *slot = Some(id);
@@ -568,4 +569,10 @@ pub(crate) fn decode_texture(bytes: &[u8]) -> std::result::Result<Texture, Strin
     let rgba = img.to_rgba8();
     let (w, h) = rgba.dimensions();
     Texture::new(w, h, rgba.into_raw()).ok_or_else(|| format!("bad image size {w}x{h}"))
+}
+
+/// The material's `emissiveFactor` (glTF: linear RGB, default black); a component that is
+/// negative or not finite counts as 0.
+fn emissive(mat: &json::Material) -> [f32; 3] {
+    mat.emissive_factor.0.map(|c| if c.is_finite() { c.max(0.0) } else { 0.0 })
 }
