@@ -235,3 +235,37 @@ fn loader_warnings_reach_the_user() {
     }
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+/// `render`'s picture is supersampled by default, its IDs and depth are not: `--aa 2x2` and
+/// `--aa off` write the same `.npy` buffers and `ids.png`, and different `color.png` (the
+/// edges smoothed); the city's triangle count stays 1,000,342 with its windows.
+#[test]
+fn render_supersamples_the_picture_but_not_the_ids() {
+    let dir = std::env::temp_dir().join(format!("sightline-cli-aa-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let out = |aa: &str| {
+        let d = dir.join(aa);
+        let (ids, depth) = (d.join("ids.npy"), d.join("depth.npy"));
+        std::fs::create_dir_all(&d).unwrap();
+        let args = ["render", "-s", "city:30000", "--eye", "26,1.7,60", "--target", "26,6,-60", "--size", "96x64"];
+        let (code, err) = run(&[
+            &args[..],
+            &["--aa", aa, "--out", d.to_str().unwrap(), "--id-out", ids.to_str().unwrap()],
+            &["--depth-out", depth.to_str().unwrap()],
+        ]
+        .concat());
+        assert_eq!(code, Some(0), "--aa {aa}: {err}");
+        let read = |f: &str| std::fs::read(d.join(f)).unwrap();
+        (read("ids.npy"), read("depth.npy"), read("ids.png"), image::open(d.join("color.png")).unwrap().to_rgba8())
+    };
+    let (a, b) = (out("off"), out("2x2"));
+    assert!(a.0 == b.0 && a.1 == b.1 && a.2 == b.2, "IDs and depth do not depend on --aa");
+    let differ = a.3.pixels().zip(b.3.pixels()).filter(|(x, y)| x != y).count();
+    assert!(differ > 20, "only {differ} pixels of the picture changed");
+    let (code, err) = run(&["render", "-s", "city:30000", "--aa", "3x3"]);
+    assert_eq!(code, Some(2), "{err}");
+    let _ = std::fs::remove_dir_all(&dir);
+    let info = Command::new(env!("CARGO_BIN_EXE_sightline")).args(["info", "--json"]).output().unwrap();
+    let v: serde_json::Value = serde_json::from_slice(&info.stdout).unwrap();
+    assert_eq!(v["triangles"], 1_000_342, "the default city's triangle count");
+}

@@ -192,11 +192,16 @@ fn transparency_counters(st: &TransparencyStats) -> Counters {
     c
 }
 
+/// How every method's frame is shaded for the contact sheet: the pictures' light and sky.
+pub fn look() -> RenderOptions {
+    RenderOptions { shading: sightline::render::ShadeOptions::picture(), ..RenderOptions::default() }
+}
+
 /// Blended materials by per-pixel fragment lists, sorted and composited (the reference);
 /// shaded by the method itself.
 fn abuffer(lab: &mut Lab, camera: &Camera, fb: &mut Framebuffer) -> Result<Ran> {
     let t = Instant::now();
-    let st = render_abuffer(lab.scene, camera, fb, &RenderOptions::default())?;
+    let st = render_abuffer(lab.scene, camera, fb, &look())?;
     let ms = ms_since(t);
     lab.abuffer = Some((fb.color.clone(), st.max_fragments_per_pixel));
     Ok(Ran { ms, counters: transparency_counters(&st), shaded: true })
@@ -212,7 +217,7 @@ fn peel(lab: &mut Lab, camera: &Camera, fb: &mut Framebuffer, layers: Option<u32
     let (reference, deepest) = lab.abuffer.as_ref().expect("drawn above");
     let layers = layers.unwrap_or(*deepest).max(1);
     let t = Instant::now();
-    let st = render_depth_peeling(lab.scene, camera, fb, layers, &RenderOptions::default())?;
+    let st = render_depth_peeling(lab.scene, camera, fb, layers, &look())?;
     let ms = ms_since(t);
     let off = |a: &[u8; 4], b: &[u8; 4]| a.iter().zip(b).any(|(x, y)| x.abs_diff(*y) > 1);
     let differ = reference.iter().zip(&fb.color).filter(|(a, b)| off(a, b)).count();

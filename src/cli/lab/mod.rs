@@ -8,7 +8,7 @@ mod scaling;
 use std::path::PathBuf;
 
 use anyhow::Result;
-use sightline::render::{shade_pass, Framebuffer, RenderOptions, ShadeOptions};
+use sightline::render::{shade_pass, Framebuffer};
 use sightline::scene::{Camera, Scene};
 
 use super::common::{self, CameraArgs, Size};
@@ -109,7 +109,7 @@ fn draw_view(
     let mut lab = Lab::new(scene)?;
     let instances = scene.instances();
     // The contact sheet shrinks each frame by a box filter, which antialiases it as well.
-    let look = RenderOptions { shading: ShadeOptions::picture(), ..RenderOptions::default() };
+    let look = methods::look();
     let mut rows: Vec<Row> = Vec::new();
     for m in METHODS.iter().filter(|m| (m.applies)(scene)) {
         bar.set_message(m.name);

@@ -7,6 +7,7 @@
 #![forbid(unsafe_code)]
 
 mod csg_raycast;
+mod pictures;
 mod raster_api;
 mod raster_clipping;
 mod raster_depth;
