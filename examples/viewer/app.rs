@@ -21,6 +21,7 @@ use std::rc::Rc;
 use std::time::Instant;
 
 use anyhow::{anyhow, bail, Context, Result};
+use glam::Vec3;
 use winit::application::ApplicationHandler;
 use winit::dpi::PhysicalSize;
 use winit::event::{DeviceEvent, DeviceId, ElementState, MouseButton, MouseScrollDelta, WindowEvent};
@@ -28,7 +29,9 @@ use winit::event_loop::{ActiveEventLoop, EventLoop};
 use winit::keyboard::{KeyCode, PhysicalKey};
 use winit::window::{CursorGrabMode, Window, WindowId};
 
-use crate::engine::{self, ClassifiedBoxes, Engine, FrameInfo, Framebuffer, LevelImage, Method};
+use crate::engine::{
+    self, ClassifiedBoxes, Engine, Exact, FrameInfo, Framebuffer, LevelImage, Method, Pose, StartView,
+};
 use crate::fly::Fly;
 use crate::views::{self, View};
 use crate::Args;
@@ -51,21 +54,49 @@ pub fn run(args: Args) -> Result<()> {
     let engine = Engine::load(&args.scene, &args.allow_asset_roots)?;
     let (w, h) = args.size;
     let aspect = w as f32 / h as f32;
-    let start = match (args.file_camera, args.eye, args.target) {
-        (Some(n), _, _) => engine.file_camera(n, aspect)?.1,
-        (None, Some(eye), Some(target)) => engine.pose_like_render(eye, target, args.fov, args.near, args.far),
-        _ => engine.start_pose(aspect)?,
-    };
-    engine.camera(&start, aspect).context("the start camera")?;
-    let fly = Fly::new(start, engine.ground(), engine.eye_height(), engine.base_speed());
+    let start = start_view(&engine, &args, aspect)?;
+    engine.camera(&start.pose, aspect).context("the start camera")?;
+    let fly = Fly::new(start.pose, engine.ground(), engine.eye_height(), engine.base_speed());
     eprintln!("{} triangles; keys: `viewer --help`", engine.triangles());
-    let mut app = App::new(args, engine, fly, pool);
+    let mut app = App::new(args, engine, fly, start, pool);
     event_loop.run_app(&mut app).map_err(|e| anyhow!("the window's event loop failed: {e}"))?;
     app.report();
     match app.error.take() {
         Some(e) => Err(e),
         None => Ok(()),
     }
+}
+
+/// The start view the options choose (`--camera`, `--path --frame`, `--eye --target`, or
+/// none: [`Engine::start_pose`]), as `sightline render` reads the same options.
+fn start_view(engine: &Engine, args: &Args, aspect: f32) -> Result<StartView> {
+    let (near, far) = (args.near, args.far);
+    if let Some(n) = args.file_camera {
+        let (_, pose) = engine.file_camera(n, aspect)?;
+        return Ok(StartView { pose, exact: Exact::File(n) });
+    }
+    let key = match (&args.path, args.eye, args.target) {
+        (Some(path), _, _) => {
+            let keys = sightline::scene::path::read_path(path)?;
+            let mut key = *keys
+                .get(args.frame)
+                .with_context(|| format!("--frame {} but the path has {} frames", args.frame, keys.len()))?;
+            key.near = near.unwrap_or(key.near);
+            key.far = far.unwrap_or(key.far);
+            key
+        }
+        (None, Some(eye), Some(target)) => {
+            engine.key_like_render(eye, target, args.up.unwrap_or(Vec3::Y), args.fov, near, far)
+        }
+        _ => {
+            let mut pose = engine.start_pose(aspect)?;
+            pose.near = near.unwrap_or(pose.near);
+            pose.far = far.unwrap_or(pose.far);
+            return Ok(StartView { pose, exact: Exact::Pose });
+        }
+    };
+    key.camera(aspect).context("the start camera")?;
+    Ok(StartView { pose: Pose::from_key(&key), exact: Exact::Key(key) })
 }
 
 fn display() -> String {
@@ -85,6 +116,8 @@ struct App {
     gfx: Option<Gfx>,
     fb: Option<Framebuffer>,
     fly: Fly,
+    /// The view the options named (drawn exactly until the first move).
+    start: StartView,
     method: Method,
     view: View,
     level: usize,
@@ -112,7 +145,7 @@ struct App {
 }
 
 impl App {
-    fn new(args: Args, engine: Engine, fly: Fly, pool: rayon::ThreadPool) -> App {
+    fn new(args: Args, engine: Engine, fly: Fly, start: StartView, pool: rayon::ThreadPool) -> App {
         let anim = engine.animated().then_some((args.time, !args.paused));
         App {
             method: args.method,
@@ -125,6 +158,7 @@ impl App {
             gfx: None,
             fb: None,
             fly,
+            start,
             level: 3,
             frozen: None,
             freeze_next: false,
@@ -201,10 +235,11 @@ impl App {
             fb.count_depth_tests(counting);
         }
         let aspect = w as f32 / h as f32;
-        let camera = match self.args.file_camera {
-            // The file's own camera, exactly, until the first move (R returns to it).
-            Some(n) if self.fly.pose == self.fly.start => self.engine.file_camera(n, aspect)?.0,
-            _ => self.engine.camera(&self.fly.pose, aspect)?,
+        let camera = if self.fly.pose == self.fly.start {
+            // The camera the options named, exactly, until the first move (R returns to it).
+            self.engine.start_camera(&self.start, aspect)?
+        } else {
+            self.engine.camera(&self.fly.pose, aspect)?
         };
         let t0 = Instant::now();
         let (level, ms_render) = self.draw(&camera, &mut fb)?;

@@ -86,9 +86,28 @@ pub struct Pose {
 }
 
 impl Pose {
-    fn from_key(k: &CameraKey) -> Pose {
+    pub fn from_key(k: &CameraKey) -> Pose {
         Pose { eye: k.eye.into(), target: k.target.into(), fov_deg: k.fovy_deg, near: k.near, far: k.far }
     }
+}
+
+/// Where the viewer starts: the fly camera's pose there, and the camera drawn exactly
+/// until the first move.
+#[derive(Debug, Clone, Copy)]
+pub struct StartView {
+    pub pose: Pose,
+    pub exact: Exact,
+}
+
+/// The camera a start view draws before the first move.
+#[derive(Debug, Clone, Copy)]
+pub enum Exact {
+    /// The scene file's camera N.
+    File(usize),
+    /// A path's frame or `--eye --target`, its up direction kept.
+    Key(CameraKey),
+    /// The pose itself (+y up).
+    Pose,
 }
 
 /// What one frame did and cost.
@@ -249,10 +268,36 @@ impl Engine {
         Ok((0..n).map(|i| orbit_pose(&self.bounds, aspect, std::f32::consts::TAU * i as f32 / n as f32)).collect())
     }
 
-    /// The camera `sightline render --eye --target --fov [--near] [--far]` makes: near 0.1
-    /// and the far plane half again past the far side of the scene unless given.
-    pub fn pose_like_render(&self, eye: Vec3, target: Vec3, fov: f32, near: Option<f32>, far: Option<f32>) -> Pose {
-        Pose { eye, target, fov_deg: fov, near: near.unwrap_or(0.1), far: far.unwrap_or_else(|| self.far_for(eye)) }
+    /// The camera `sightline render --eye --target [--up] --fov [--near] [--far]` makes: near
+    /// 0.1 and the far plane half again past the far side of the scene unless given.
+    pub fn key_like_render(
+        &self,
+        eye: Vec3,
+        target: Vec3,
+        up: Vec3,
+        fov: f32,
+        near: Option<f32>,
+        far: Option<f32>,
+    ) -> CameraKey {
+        let far = far.unwrap_or_else(|| self.far_for(eye));
+        CameraKey {
+            eye: eye.into(),
+            target: target.into(),
+            up: up.into(),
+            fovy_deg: fov,
+            near: near.unwrap_or(0.1),
+            far,
+        }
+    }
+
+    /// The camera of the start view for an image of this aspect: exactly what the options
+    /// named (a file's camera, a path's frame with its up, an eye and target with --up).
+    pub fn start_camera(&self, start: &StartView, aspect: f32) -> Result<Camera> {
+        match &start.exact {
+            Exact::File(n) => Ok(self.file_camera(*n, aspect)?.0),
+            Exact::Key(key) => Ok(key.camera(aspect)?),
+            Exact::Pose => self.camera(&start.pose, aspect),
+        }
     }
 
     /// A far plane half again past the far side of the scene as seen from `eye` (what

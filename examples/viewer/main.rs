@@ -8,6 +8,10 @@
 //! (`sightline::hud`). The modules: `engine` (every call into sightline), `fly` (the camera
 //! controller), `views` (the pictures), `app` (the window and its events).
 //!
+//! The start camera takes `sightline render`'s options: `--path FILE --frame N`, `--eye
+//! --target [--up] [--fov]`, `--near`/`--far`, or the file's own `--camera N`. That camera is
+//! drawn exactly until the first move (R returns to it); flying keeps +y up.
+//!
 //! `--screenshot FILE --after-frames N` draws N frames, reads the window's pixels back from
 //! the X server and saves them as PNG, then exits: what a test compares with
 //! `sightline render` of the same camera.
@@ -72,6 +76,13 @@ pub struct Args {
     /// Picture at the start (V switches it)
     #[arg(long, value_enum, default_value = "color")]
     pub view: View,
+    /// Camera path JSON (see `sightline path`): start from its frame --frame, as `sightline
+    /// render --path FILE --frame N` draws it
+    #[arg(short, long, value_name = "FILE", conflicts_with_all = ["eye", "target"])]
+    pub path: Option<PathBuf>,
+    /// Frame of --path to start from
+    #[arg(long, default_value_t = 0, requires = "path")]
+    pub frame: usize,
     /// Eye position x,y,z (with --target; default: the street walk's start in a city, a
     /// three-quarter view of anything else)
     #[arg(long, value_parser = sightline::args::parse_vec3, allow_hyphen_values = true, requires = "target")]
@@ -79,20 +90,24 @@ pub struct Args {
     /// Point looked at x,y,z (with --eye)
     #[arg(long, value_parser = sightline::args::parse_vec3, allow_hyphen_values = true, requires = "eye")]
     pub target: Option<Vec3>,
+    /// Up direction x,y,z (with --eye; default 0,1,0). The start view uses it exactly; flying
+    /// keeps +y up
+    #[arg(long, value_parser = sightline::args::parse_vec3, allow_hyphen_values = true, requires = "eye")]
+    pub up: Option<Vec3>,
     /// Vertical field of view in degrees (with --eye)
     #[arg(long, default_value_t = 60.0, requires = "eye")]
     pub fov: f32,
-    /// Near plane distance (with --eye; default 0.1)
-    #[arg(long, requires = "eye")]
+    /// Near plane distance (default: the path's, or 0.1)
+    #[arg(long)]
     pub near: Option<f32>,
-    /// Far plane distance (with --eye; default: past the scene)
-    #[arg(long, requires = "eye")]
+    /// Far plane distance (default: the path's, or past the scene)
+    #[arg(long)]
     pub far: Option<f32>,
     /// Start from the scene file's own camera N (glTF cameras, numbered from 0 in the order
     /// the file's nodes place them; `sightline info` counts them), as `sightline render
     /// --camera N` does: its position, orientation, field of view, near and far, the width
-    /// fitted to the window. Moving leaves it for the fly camera; R returns to it
-    #[arg(long = "camera", value_name = "N", conflicts_with_all = ["eye", "target", "near", "far"])]
+    /// fitted to the window
+    #[arg(long = "camera", value_name = "N", conflicts_with_all = ["path", "eye", "target", "near", "far"])]
     pub file_camera: Option<usize>,
     /// Initial window size (inner, in pixels)
     #[arg(long, default_value = "1280x720", value_parser = sightline::args::parse_size)]

@@ -83,6 +83,28 @@ fn render(dir: &Path, camera: &[&str], extra: &[&str]) -> image::RgbaImage {
     rgba(&render_dir.join("color.png"))
 }
 
+/// The viewer's exit code and stderr when started in a window with `args` it should refuse
+/// after loading the scene. xvfb-run -a can lose the race for a display number to a server
+/// another test starts at the same moment: try again then, never on the viewer's own answer.
+fn viewer_refusal(dir: &Path, args: &[&str]) -> (Option<i32>, String) {
+    let (mut code, mut err) = (None, String::new());
+    for _ in 0..3 {
+        let out = Command::new("xvfb-run")
+            .args(["-a", "-s", "-screen 0 640x480x24"])
+            .arg(viewer_binary())
+            .args(args)
+            .arg("--screenshot")
+            .arg(dir.join("none.png"))
+            .output()
+            .expect("xvfb-run starts");
+        (code, err) = (out.status.code(), String::from_utf8_lossy(&out.stderr).into_owned());
+        if err.contains("loading") {
+            break;
+        }
+    }
+    (code, err)
+}
+
 /// The pixels where two pictures differ.
 fn differing(a: &image::RgbaImage, b: &image::RgbaImage) -> Vec<(u32, u32)> {
     assert_eq!(a.dimensions(), b.dimensions());
@@ -121,6 +143,32 @@ fn the_viewer_screenshot_is_the_headless_render_of_the_same_camera() {
     shades.dedup();
     assert!(covered > 160 * 90 / 4, "only {covered} pixels differ from the sky");
     assert!(shades.len() >= 4, "only {} colours", shades.len());
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+/// `--path FILE --frame N` starts from that frame of the path, as `render --path FILE --frame
+/// N` draws it, its up direction (tilted here) included; a frame past the path's end is one
+/// clear error.
+#[test]
+fn the_viewer_starts_from_a_path_frame() {
+    if skip_window_tests() {
+        return;
+    }
+    let dir = temp_dir("viewer-path");
+    let path = dir.join("path.json");
+    let key = |eye: &str, up: &str| {
+        format!(r#"{{"eye":[{eye}],"target":[0,0,0],"up":[{up}],"fovy_deg":50,"near":0.5,"far":400}}"#)
+    };
+    std::fs::write(&path, format!("[{},{}]", key("60,40,70", "0,1,0"), key("-50,30,60", "0.3,1,0"))).unwrap();
+    let path = path.to_str().unwrap();
+    let camera = ["--scene", "boxfield", "--path", path, "--frame", "1", "--size", SIZE];
+    let (window, headless) = window_and_headless(&dir, &camera, &[], &[]);
+    assert_same(&window, &headless);
+    let other = render(&dir, &["--scene", "boxfield", "--path", path, "--frame", "0", "--size", SIZE], &[]);
+    assert!(differing(&window, &other).len() > 100, "frame 1 is not frame 0");
+    let (code, err) = viewer_refusal(&dir, &["--scene", "boxfield", "--path", path, "--frame", "5", "--size", SIZE]);
+    assert_eq!(code, Some(1), "{err}");
+    assert!(err.contains("--frame 5") && err.contains("2 frames") && !err.contains("panicked"), "{err}");
     let _ = std::fs::remove_dir_all(&dir);
 }
 
@@ -169,22 +217,7 @@ fn the_viewer_starts_from_the_file_s_camera() {
     // Not the view the viewer frames by itself.
     let framed = render(&dir, &["--scene", scene, "--size", SIZE], &[]);
     assert!(differing(&window, &framed).len() > 100, "the file's camera is not the three-quarter view");
-    // xvfb-run -a can lose the race for a display number to a server another test starts
-    // at the same moment: try again then, never on the viewer's own answer.
-    let (mut code, mut err) = (None, String::new());
-    for _ in 0..3 {
-        let out = Command::new("xvfb-run")
-            .args(["-a", "-s", "-screen 0 640x480x24"])
-            .arg(viewer_binary())
-            .args(["--scene", scene, "--camera", "7", "--size", SIZE, "--screenshot"])
-            .arg(dir.join("none.png"))
-            .output()
-            .expect("xvfb-run starts");
-        (code, err) = (out.status.code(), String::from_utf8_lossy(&out.stderr).into_owned());
-        if err.contains("loading") {
-            break;
-        }
-    }
+    let (code, err) = viewer_refusal(&dir, &["--scene", scene, "--camera", "7", "--size", SIZE]);
     assert_eq!(code, Some(1), "{err}");
     assert!(err.contains("--camera 7") && err.contains("camera") && !err.contains("panicked"), "{err}");
     let _ = std::fs::remove_dir_all(&dir);
