@@ -1,8 +1,9 @@
 //! Culling benchmarks on 10^6-triangle scenes.
 //!
 //! * `city_street/METHOD`: one street frame of the default city at 1280×720 per iteration,
-//!   walking the 120 frames of the street path in order (as `sightline walk` does, so `hzb`
-//!   sees the last frame of a walk), flat shading, all threads.
+//!   drawn through the `World` facade as a program draws it, walking the 120 frames of the
+//!   street path in order (as `sightline walk` does, so `hzb` sees the last frame of a
+//!   walk), flat shading, all threads.
 //! * `boxfield_1thread/occluders` and `/queries`: the occlusion benchmark of record on one
 //!   thread: (a) depth-only rasterization of the frustum- and back-face-culled occluders into
 //!   the z-buffer and pyramid, (b) 100,000 box queries against it. `occluders_one_mesh`: (a)
@@ -18,14 +19,15 @@ use std::time::{Duration, Instant};
 
 use criterion::{criterion_group, criterion_main, Criterion};
 use sightline::boxfield::{Boxfield, QUERIES, SIZE};
-use sightline::render::{Culler, Framebuffer, Method, RenderOptions};
+use sightline::render::{Culler, Framebuffer, Method, RenderOptions, World};
 use sightline::scene::builders::{boxfield, city, BoxfieldLayout, BoxfieldParams, CityParams};
 
 fn city_street(c: &mut Criterion) {
     let city = city(&CityParams::for_triangles(1_000_000)).unwrap();
     let keys = city.layout.street_path(120, 11);
     let cams: Vec<_> = keys.iter().map(|k| k.camera(1280.0 / 720.0).unwrap()).collect();
-    let mut culler = Culler::new(&city.scene);
+    let mut world = World::new(city.scene);
+    world.prepare(Method::Hzb).unwrap();
     let mut fb = Framebuffer::new(1280, 720).unwrap();
     let opts = RenderOptions::default();
     let mut g = c.benchmark_group("city_street");
@@ -38,7 +40,7 @@ fn city_street(c: &mut Criterion) {
         g.bench_function(m.name(), |b| {
             b.iter(|| {
                 k = (k + 1) % cams.len();
-                pool.install(|| culler.render(&city.scene, &cams[k], m, &mut fb, &opts).unwrap())
+                pool.install(|| world.render(&cams[k], m, &mut fb, &opts).unwrap())
             })
         });
     }

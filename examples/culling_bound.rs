@@ -2,7 +2,8 @@
 //! frame is rendered three ways:
 //!
 //! - `brute`: every triangle;
-//! - `hzb`: the culler's default occlusion culling;
+//! - `hzb`: the culler's default occlusion culling (this and `brute` drawn through the
+//!   `World` facade, as a program draws its frames);
 //! - `oracle`: exactly the triangles visible in the brute-force frame, found from its ID
 //!   buffer beforehand (not timed), drawn as a plain frame: what perfect culling at zero
 //!   cost would draw.
@@ -23,7 +24,7 @@
 
 use std::time::Instant;
 
-use sightline::render::{compare_ids, Culler, DrawItem, FrameStats, Framebuffer, Method, RenderOptions, Renderer};
+use sightline::render::{compare_ids, DrawItem, FrameStats, Framebuffer, Method, RenderOptions, Renderer, World};
 use sightline::scene::builders::{city, CityParams};
 use sightline::scene::Instance;
 
@@ -42,11 +43,11 @@ fn run() -> Result<(), Error> {
         },
     };
     let c = city(&CityParams::for_triangles(1_000_000))?;
-    let scene = &c.scene;
     let cams =
         c.layout.street_path(frames, 11).iter().map(|k| k.camera(1280.0 / 720.0)).collect::<Result<Vec<_>, _>>()?;
-    let instances = scene.instances();
-    let mut culler = Culler::new(scene);
+    let instances = c.scene.instances();
+    let mut world = World::new(c.scene);
+    world.prepare(Method::Hzb)?;
     let mut renderer = Renderer::new();
     let (mut reference, mut fb) = (Framebuffer::new(1280, 720)?, Framebuffer::new(1280, 720)?);
     let opts = RenderOptions::default();
@@ -56,14 +57,14 @@ fn run() -> Result<(), Error> {
     for round in 0..2 {
         for (k, cam) in cams.iter().enumerate() {
             let t = Instant::now();
-            culler.render(scene, cam, Method::Brute, &mut reference, &opts)?;
+            world.render(cam, Method::Brute, &mut reference, &opts)?;
             let brute = ms(t);
             let t = Instant::now();
-            culler.render(scene, cam, Method::Hzb, &mut fb, &opts)?;
+            world.render(cam, Method::Hzb, &mut fb, &opts)?;
             let hzb = ms(t);
             let items = visible_items(&reference.ids, &instances);
             let t = Instant::now();
-            let st = renderer.render(scene, &instances, &items.0, cam, &mut fb, &opts)?;
+            let st = renderer.render(world.scene(), &instances, &items.0, cam, &mut fb, &opts)?;
             let oracle = ms(t);
             if let Some(m) = compare_ids(&reference.ids, &fb.ids, fb.width()) {
                 return Err(format!("frame {k}: the oracle frame differs from brute force: {m:?}").into());

@@ -14,7 +14,7 @@ use std::path::PathBuf;
 
 use sightline::render::cull::DepthPyramid;
 use sightline::render::output::heat_color;
-use sightline::render::{Culler, Framebuffer, Method, RenderOptions};
+use sightline::render::{Framebuffer, Method, RenderOptions, World};
 use sightline::scene::builders::{city, CityParams};
 
 fn main() {
@@ -25,14 +25,15 @@ fn main() {
     let key = c.layout.street_path(120, 11)[frame.min(119)];
     let (w, h) = (1280u32, 720u32);
     let cam = key.camera(w as f32 / h as f32).expect("camera");
-    let mut culler = Culler::new(&c.scene);
+    let mut world = World::new(c.scene);
     let opts = RenderOptions::ids_only();
     let mut counts = Vec::new();
     let mut depth = Vec::new();
     for method in [Method::Brute, Method::Hzb] {
         let mut fb = Framebuffer::new(w, h).expect("framebuffer");
         fb.count_depth_tests(true);
-        let (cs, fs) = culler.render(&c.scene, &cam, method, &mut fb, &opts).expect("frame");
+        let frame = world.render(&cam, method, &mut fb, &opts).expect("frame");
+        let (cs, fs) = (frame.cull.expect("a culled frame"), frame.raster.expect("a rasterized frame"));
         let tests = fb.depth_tests.take().expect("counting was on");
         let total: u64 = tests.iter().map(|&t| t as u64).sum();
         println!(

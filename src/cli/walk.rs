@@ -12,8 +12,9 @@ use std::time::Instant;
 
 use anyhow::{bail, Context, Result};
 use sightline::render::{
-    compare_ids, CullStats, Culler, FrameStats, Framebuffer, Method, RayCaster, RaycastOptions, RenderOptions,
+    compare_ids, CullStats, Culler, Framebuffer, Method, RaycastOptions, RenderOptions, Visibility, World,
 };
+use sightline::scene::Scene;
 
 use super::common::{self, Look, OnOff, Size};
 use super::pictures::{self, Pictures};
@@ -102,26 +103,22 @@ fn frame_range_arg(s: &str) -> std::result::Result<std::ops::Range<usize>, Strin
     Ok(a..b)
 }
 
-fn methods(m: WalkMethod) -> Vec<(&'static str, Option<Method>)> {
-    let one = |x: Method| (x.name(), Some(x));
+/// The methods a walk runs on each frame, in order.
+fn methods(m: WalkMethod) -> Vec<Visibility> {
     match m {
-        WalkMethod::Brute => vec![one(Method::Brute)],
-        WalkMethod::Frustum => vec![one(Method::Frustum)],
-        WalkMethod::Hzb => vec![one(Method::Hzb)],
-        WalkMethod::OctreeHzb => vec![one(Method::OctreeHzb)],
-        WalkMethod::HzbOnePass => vec![one(Method::HzbOnePass)],
-        WalkMethod::Raycast => vec![("raycast", None)],
-        WalkMethod::All => {
-            let mut v: Vec<_> = Method::ALL.iter().map(|&x| one(x)).collect();
-            v.push(("raycast", None));
-            v
-        }
+        WalkMethod::Brute => vec![Method::Brute.into()],
+        WalkMethod::Frustum => vec![Method::Frustum.into()],
+        WalkMethod::Hzb => vec![Method::Hzb.into()],
+        WalkMethod::OctreeHzb => vec![Method::OctreeHzb.into()],
+        WalkMethod::HzbOnePass => vec![Method::HzbOnePass.into()],
+        WalkMethod::Raycast => vec![Visibility::RayCast],
+        WalkMethod::All => Visibility::all(),
     }
 }
 
 pub fn run(a: &WalkArgs) -> Result<()> {
     common::check_outputs(a.out.as_deref().as_slice(), a.json.as_deref().as_slice())?;
-    let mut loaded = super::load_scene(&a.walk.scene)?;
+    let loaded = super::load_scene(&a.walk.scene)?;
     let keys = common::path_keys(&loaded, a.walk.path.as_deref(), a.walk.frames)?;
     let range = a.frame_range.clone().unwrap_or(0..keys.len());
     if range.end > keys.len() {
@@ -130,7 +127,7 @@ pub fn run(a: &WalkArgs) -> Result<()> {
     let run = RunInfo {
         scene: format!("{:?}", a.walk.scene.scene),
         size: [a.size.width, a.size.height],
-        method_set: methods(a.method).iter().map(|m| m.0.to_string()).collect(),
+        method_set: methods(a.method).iter().map(|m| m.name().to_string()).collect(),
         verify: a.verify,
         animate: a.animate || matches!(a.walk.scene.scene, sightline::SceneSpec::CityTraffic(_)),
         backface_culling: a.backface_culling.on(),
@@ -148,8 +145,9 @@ pub fn run(a: &WalkArgs) -> Result<()> {
     // Timed frames take one sample per pixel; the PNG frames are drawn apart, supersampled.
     let opts = a.look.frame_options(a.backface_culling);
     let pic_opts = a.look.options(a.backface_culling);
+    let scene = loaded.scene;
     let records = common::with_threads(a.threads, || {
-        walk(&mut loaded, &keys, range.clone(), a, &run, (&opts, &pic_opts), pics.as_mut())
+        walk(scene, &keys, range.clone(), a, &run, (&opts, &pic_opts), pics.as_mut())
     })??;
     let gif_frames = pics.and_then(Pictures::finish);
     let report = WalkReport {
@@ -219,7 +217,7 @@ fn percent_arg(s: &str) -> std::result::Result<f64, String> {
 
 #[allow(clippy::too_many_arguments)]
 fn walk(
-    loaded: &mut sightline::LoadedScene,
+    scene: Scene,
     keys: &[sightline::scene::path::CameraKey],
     range: std::ops::Range<usize>,
     a: &WalkArgs,
@@ -227,22 +225,21 @@ fn walk(
     (opts, pic_opts): (&RenderOptions, &RenderOptions),
     mut pics: Option<&mut Pictures>,
 ) -> Result<Vec<FrameRecord>> {
+    let mut world = World::new(scene);
     // A shard warms up on the frame before its first (see the module docs).
     let first = range.start.saturating_sub(1);
     if run.animate {
-        common::pose(&mut loaded.scene, first as f32 / 30.0)?;
+        pose(&mut world, first)?;
     }
-    let scene = &mut loaded.scene;
     let list = methods(a.method);
-    let needs_raster = list.iter().any(|m| m.1.is_some()) || a.verify;
-    let (mut culler, mut caster) = super::with_spinner("building BVHs", || -> Result<_> {
-        let culler = needs_raster.then(|| {
-            let mut c = Culler::new(scene);
-            c.first_batch = a.first_batch.max(1);
-            c
-        });
-        let caster = list.iter().any(|m| m.1.is_none()).then(|| RayCaster::build(scene)).transpose()?;
-        Ok((culler, caster))
+    super::with_spinner("building BVHs", || -> Result<()> {
+        if list.iter().any(|m| matches!(m, Visibility::Cull(_))) || a.verify {
+            world.culler().first_batch = a.first_batch.max(1);
+        }
+        if list.contains(&Visibility::RayCast) {
+            world.prepare(Visibility::RayCast)?;
+        }
+        Ok(())
     })?;
     let mut fb = Framebuffer::new(a.size.width, a.size.height)?;
     let mut reference = Framebuffer::new(a.size.width, a.size.height)?;
@@ -252,49 +249,43 @@ fn walk(
             .unwrap_or_else(|_| indicatif::ProgressStyle::default_bar()),
     );
     let mut out = Vec::new();
-    let mut rc_opts = RaycastOptions::from_render(opts);
-    rc_opts.shadows = false;
     for (f, key) in keys.iter().enumerate().take(range.end).skip(first) {
         let recorded = f >= range.start;
         if run.animate {
-            // Frame f shows time f / 30 s; the culler follows in its render call, the ray
-            // caster here (a moved vehicle costs a TLAS rebuild, never a BLAS).
-            common::pose(scene, f as f32 / 30.0)?;
-            if let Some(c) = &mut caster {
-                c.sync(scene)?;
-            }
+            pose(&mut world, f)?;
         }
-        let scene = &*scene;
         let cam = key.camera(a.size.aspect()).with_context(|| format!("frame {f} of the path"))?;
         let mut have_reference = false;
         if a.verify {
             // The reference is rendered apart from the timed frames.
-            culler.as_mut().unwrap().render(scene, &cam, Method::Brute, &mut reference, opts)?;
+            world.render(&cam, Method::Brute, &mut reference, opts)?;
             have_reference = true;
         }
         let frame_start = out.len();
-        for (k, (name, method)) in list.iter().enumerate() {
+        for (k, &method) in list.iter().enumerate() {
             let t = Instant::now();
-            let (cs, rs) = match method {
-                Some(m) => culler.as_mut().unwrap().render(scene, &cam, *m, &mut fb, opts)?,
-                None => {
-                    let st = caster.as_ref().unwrap().render(scene, &cam, &mut fb, &rc_opts)?;
-                    let cs = CullStats { ms_total: st.ms_total, ..Default::default() };
-                    (cs, FrameStats::default())
-                }
-            };
+            let report = world.render(&cam, method, &mut fb, opts)?;
             let ms = t.elapsed().as_secs_f64() * 1e3;
             if !recorded {
                 continue;
             }
+            // Ray casting has no culling counters; its frame time stands in their total.
+            let cs = report.cull.unwrap_or_else(|| CullStats {
+                ms_total: report.rays.map_or(0.0, |r| r.ms_total),
+                ..Default::default()
+            });
             let diff = have_reference.then(|| compare_ids(&reference.ids, &fb.ids, fb.width()));
             let agreement = diff.map(|d| 1.0 - d.map_or(0, |m| m.pixels) as f64 / fb.len() as f64);
             // Culling methods must equal brute force exactly; ray casting is reported as agreement.
-            let verified = if method.is_some() { diff } else { None };
+            let verified = if method == Visibility::RayCast { None } else { diff };
             if let Some(Some(m)) = &verified {
                 bar.println(format!(
-                    "frame {f}, {name}: {} pixels differ from brute force, first at {:?} (expected ID {}, got {})",
-                    m.pixels, m.first, m.ids.0, m.ids.1
+                    "frame {f}, {}: {} pixels differ from brute force, first at {:?} (expected ID {}, got {})",
+                    method.name(),
+                    m.pixels,
+                    m.first,
+                    m.ids.0,
+                    m.ids.1
                 ));
             }
             if k == 0 && pics.as_ref().is_some_and(|p| p.wants(f)) {
@@ -302,11 +293,11 @@ fn walk(
             }
             out.push(FrameRecord {
                 frame: f,
-                method: name.to_string(),
+                method: method.name().to_string(),
                 ms,
                 triangles_drawn: cs.triangles_drawn,
                 cull: cs,
-                raster: rs,
+                raster: report.raster.unwrap_or_default(),
                 verified: verified.map(|m| m.is_none()),
                 agreement,
             });
@@ -316,8 +307,14 @@ fn walk(
             // The PNG supersampled, by the first method's renderer (untimed).
             let sharp = (p.wants_png(f) && pic_opts.antialias.factor() > 1)
                 .then(|| {
-                    let caster = caster.as_ref().filter(|_| list[0].1.is_none()).map(|c| (c, &rc_opts));
-                    pictures::picture(scene, caster, &cam, pic_opts, (a.size.width, a.size.height))
+                    let size = (a.size.width, a.size.height);
+                    if list[0] == Visibility::RayCast {
+                        let (caster, scene) = world.caster_and_scene()?;
+                        let rc_opts = RaycastOptions::from_render(opts);
+                        pictures::picture(scene, Some((caster, &rc_opts)), &cam, pic_opts, size)
+                    } else {
+                        pictures::picture(world.scene(), None, &cam, pic_opts, size)
+                    }
                 })
                 .transpose()?;
             p.add(f, &picture, sharp.as_deref(), &out[frame_start..])?;
@@ -328,9 +325,21 @@ fn walk(
     Ok(out)
 }
 
+/// Poses the world's animations at frame `f` of the walk (time f / 30 s) and brings the
+/// culler and the ray caster up to date before any frame is timed: a walk times how each
+/// method draws the frame, not the scene's change, which every method shares (a moved
+/// vehicle costs a refit of the culler's and the ray caster's trees, never a BLAS).
+fn pose(world: &mut World, f: usize) -> Result<()> {
+    let t = f as f32 / 30.0;
+    world.animate(t).with_context(|| format!("playing the animations at {t} s"))?;
+    world.update().with_context(|| format!("following the scene's changes at {t} s"))?;
+    Ok(())
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+    use sightline::render::FrameStats;
 
     fn record(frame: usize, method: &'static str, agreement: Option<f64>) -> FrameRecord {
         FrameRecord {

@@ -133,6 +133,54 @@ impl World {
         (self.culler.get_or_insert_with(|| Culler::new(scene)), scene)
     }
 
+    /// Builds what `method` draws with, if not built yet, for the scene as it is now (the
+    /// culler for a culling method, the ray caster's BVHs for ray casting), so that the
+    /// build is not paid by the first frame.
+    pub fn prepare(&mut self, method: impl Into<Visibility>) -> Result<()> {
+        match method.into() {
+            Visibility::Cull(_) => {
+                self.culler();
+            }
+            Visibility::RayCast => {
+                self.caster()?;
+            }
+        }
+        Ok(())
+    }
+
+    /// Propagates pending edits and brings every structure built so far up to date: what
+    /// the next frame would do first. A frame loop that times its frames apart from the
+    /// scene's changes (as `sightline walk` does) calls it before the clock starts.
+    pub fn update(&mut self) -> Result<()> {
+        self.scene.update_transforms();
+        if let Some(c) = &mut self.culler {
+            c.sync(&self.scene)?;
+        }
+        if let Some(c) = &mut self.caster {
+            c.sync(&self.scene)?;
+        }
+        Ok(())
+    }
+
+    /// The ray caster (built on first use) beside the scene it casts, both up to date: for
+    /// what takes the two together (a supersampled picture cast ray by ray).
+    pub fn caster_and_scene(&mut self) -> Result<(&RayCaster, &Scene)> {
+        self.caster()?;
+        Ok((self.caster.as_ref().expect("built by caster()"), &self.scene))
+    }
+
+    /// The ray caster, built on first use, up to date with the propagated scene.
+    fn caster(&mut self) -> Result<&mut RayCaster> {
+        self.scene.update_transforms();
+        Ok(match &mut self.caster {
+            Some(c) => {
+                c.sync(&self.scene)?;
+                c
+            }
+            slot => slot.insert(RayCaster::build(&self.scene)?),
+        })
+    }
+
     /// Renders the scene seen by `camera` with `method` into `fb` (every plane written);
     /// pending edits are propagated and the structures brought up to date first.
     pub fn render(
@@ -154,17 +202,41 @@ impl World {
                 report.raster = Some(fs);
             }
             Visibility::RayCast => {
-                let caster = match &mut self.caster {
-                    Some(c) => {
-                        c.sync(&self.scene)?;
-                        c
-                    }
-                    slot => slot.insert(RayCaster::build(&self.scene)?),
-                };
+                self.caster()?;
+                let caster = self.caster.as_ref().expect("built by caster()");
                 report.rays = Some(caster.render(&self.scene, camera, fb, &RaycastOptions::from_render(opts))?);
             }
         }
         report.ms_total = t0.elapsed().as_secs_f64() * 1e3;
         Ok(report)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use glam::Vec3;
+    use sightline_scene::{shapes, NodeDesc, Transform};
+
+    use super::*;
+    use crate::SyncOutcome;
+
+    #[test]
+    fn update_brings_every_built_structure_up_to_date_and_builds_none() {
+        let mut scene = Scene::new();
+        let cube = scene.add_mesh(shapes::cube("cube").unwrap());
+        let node = scene.add_node(None, NodeDesc::new("cube").mesh(cube)).unwrap();
+        let mut world = World::new(scene);
+        world.update().unwrap();
+        assert!(world.culler.is_none() && world.caster.is_none(), "update builds nothing");
+        world.prepare(Method::Hzb).unwrap();
+        world.prepare(Visibility::RayCast).unwrap();
+        let moved = Transform::from_translation(Vec3::new(3.0, 0.0, 0.0));
+        world.scene_mut().set_local_transform(node, moved).unwrap();
+        world.update().unwrap();
+        let World { scene, culler, caster } = &mut world;
+        let culler = culler.as_mut().unwrap();
+        assert_eq!(culler.instances()[0].world_from_local.translation.x, 3.0);
+        assert_eq!(culler.sync(scene).unwrap(), SyncOutcome::Unchanged, "the culler was synced");
+        assert!(!caster.as_mut().unwrap().sync(scene).unwrap(), "the ray caster was synced");
     }
 }
