@@ -36,6 +36,7 @@
 
 pub mod cone;
 pub mod meshlets;
+mod moves;
 pub mod order;
 pub mod query;
 mod update;
@@ -168,6 +169,9 @@ struct Clusters {
     octree_pending: Vec<u32>,
     /// More clusters moved than there are: rebuild the octree instead of moving entries.
     octree_rebuild: bool,
+    /// Scratch of `move_nodes`: the moved (instance, node) pairs, and the moved clusters.
+    moves: Vec<(u32, sightline_scene::NodeId)>,
+    changed: Vec<u32>,
     visible: Vec<Visible>,
     /// Two-pass state: the clusters found visible in the last frame drawn with it.
     last_visible: Vec<u32>,

@@ -41,7 +41,10 @@ impl Clusters {
         };
         let item_boxes = clustered.item_boxes(&instances);
         let items = 0..clustered.item_count() as u32;
-        let cone_inputs: Vec<_> = items.clone().map(|i| cone_input(scene, &instances, &clustered, i)).collect();
+        let cone_inputs: Vec<_> = items
+            .clone()
+            .map(|i| cone_input(scene, &instances[clustered.item(i).instance as usize], &clustered, i))
+            .collect();
         let cones = cone::cones(&cone_inputs);
         let mut cone_can_cull = vec![0u64; cones.len().div_ceil(64)];
         for (i, c) in cones.iter().enumerate() {
@@ -81,55 +84,13 @@ impl Clusters {
             octree,
             octree_pending: Vec::new(),
             octree_rebuild: false,
+            moves: Vec::new(),
+            changed: Vec::new(),
             visible: Vec::new(),
             last_visible: Vec::new(),
             drawn_in: Vec::new(),
             frame: 0,
         }
-    }
-
-    /// Moves the instances drawn by `nodes` to their nodes' current world transforms (nodes
-    /// that draw nothing here are passed over). Returns what became of the cluster BVH, or
-    /// `None` when nothing moved.
-    pub(super) fn move_nodes(&mut self, scene: &Scene, nodes: &[NodeId]) -> Option<RefitOutcome> {
-        let mut moved = false;
-        let mut changed: Vec<u32> = Vec::new();
-        for id in nodes {
-            let (Some(&i), Some(node)) = (self.node_instance.get(*id), scene.node(*id)) else { continue };
-            let inst = &mut self.instances[i as usize];
-            inst.world_from_local = node.world_matrix();
-            inst.world_aabb = node.world_aabb();
-            moved = true;
-            let cols = inst.world_from_local.to_cols_array();
-            for item in self.clustered.instance_items(i) {
-                changed.push(item);
-                let k = item as usize;
-                let b = self.clustered.item_box(item, &self.instances);
-                self.item_boxes[k] = b;
-                // The octree serves one method only: its entries move when that method
-                // draws next (`settle_octree`), not on every frame of the others.
-                if !self.octree_rebuild {
-                    self.octree_pending.push(item);
-                    if self.octree_pending.len() > self.item_boxes.len() {
-                        // More moves than clusters: rebuilding is cheaper than the list.
-                        self.octree_pending.clear();
-                        self.octree_rebuild = true;
-                    }
-                }
-                self.draws[k].world_from_local = cols;
-                // A cone that can cull is recomputed for the new pose; one that cannot stays
-                // unable to (conservative: at worst a cluster that could be dropped is drawn).
-                if self.cone_can_cull[k / 64] >> (k % 64) & 1 != 0 {
-                    let (p, idx, tris, m) = cone_input(scene, &self.instances, &self.clustered, item);
-                    let c = cone::Cone::of_cluster(p, idx, tris, &m);
-                    self.cones[k] = c;
-                    if !c.can_cull() {
-                        self.cone_can_cull[k / 64] &= !(1u64 << (k % 64));
-                    }
-                }
-            }
-        }
-        moved.then(|| self.clustered.refit_changed(&self.item_boxes, &changed))
     }
 }
 
@@ -151,15 +112,13 @@ impl Clusters {
     }
 }
 
-/// What a cluster's normal cone is made from.
-fn cone_input<'a>(
+/// What a cluster's normal cone is made from (`inst` is the cluster's instance).
+pub(super) fn cone_input<'a>(
     scene: &'a Scene,
-    instances: &[sightline_scene::Instance],
+    inst: &sightline_scene::Instance,
     clustered: &'a ClusteredScene,
     item: u32,
 ) -> cone::ClusterRef<'a> {
-    let it = clustered.item(item);
-    let inst = &instances[it.instance as usize];
     match scene.mesh(inst.mesh) {
         Some(m) => (m.positions(), m.indices(), clustered.triangles(item), inst.world_from_local),
         None => (&[][..], &[][..], &[][..], inst.world_from_local),

@@ -97,10 +97,8 @@ impl InstanceBvh {
     /// Returns the SAH cost ratio, or `None` when the boxes no longer fit the tree (an item's
     /// box became empty, NaN or infinite, or the count changed): rebuild then.
     pub fn refit(&mut self, boxes: &[Aabb]) -> Option<f32> {
-        if !self.bvh.refit(boxes) {
-            return None;
-        }
-        Some(self.cost_ratio())
+        let cost = self.bvh.refit_cost(boxes)?;
+        Some(cost_ratio(cost, self.build_cost))
     }
 
     /// Current SAH cost over the fresh build's.

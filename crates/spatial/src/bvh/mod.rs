@@ -24,6 +24,7 @@
 pub mod cluster;
 pub mod instances;
 mod ploc;
+mod refit;
 pub mod scene;
 pub mod traverse;
 pub mod triangles;
@@ -104,6 +105,9 @@ pub struct Bvh {
     /// Item → its place in `items` (`u32::MAX`: empty or unbounded), made on the first
     /// [`Bvh::refit_changed`].
     pub(crate) slot_of: Vec<u32>,
+    /// How a refit splits the tree into subtrees refitted in parallel, made on the first
+    /// refit (see the `refit` module).
+    pub(crate) parts: Option<refit::Parts>,
 }
 
 impl Bvh {
@@ -249,86 +253,6 @@ impl Bvh {
         }
     }
 
-    /// Refits every node to new item boxes (`boxes[i]` is item `i`'s box, as in the build).
-    ///
-    /// Returns false (and leaves the tree unusable until rebuilt) when the boxes no longer
-    /// fit the tree: a different count, or an item whose box kind changed (became empty,
-    /// NaN or infinite, or the reverse) — the caller must rebuild then.
-    pub fn refit(&mut self, boxes: &[Aabb]) -> bool {
-        if boxes.len() != self.item_count {
-            return false;
-        }
-        for (slot, &id) in self.items.iter().enumerate() {
-            let b = boxes[id as usize];
-            if b.kind() != BoxKind::Finite {
-                return false;
-            }
-            self.item_boxes[slot] = b;
-        }
-        if self.unbounded.iter().any(|&id| boxes[id as usize].kind() != BoxKind::Unbounded) {
-            return false;
-        }
-        // Items that were empty must still be empty.
-        let in_tree = self.items.len() + self.unbounded.len();
-        let empty_now = boxes.iter().filter(|b| b.kind() == BoxKind::Empty).count();
-        if in_tree + empty_now != boxes.len() {
-            return false;
-        }
-        self.refit_nodes();
-        true
-    }
-
-    /// [`Bvh::refit`] when only the items `changed` have new boxes (the others are as at the
-    /// last build or refit): the cost is the changed items plus one sweep over the nodes,
-    /// not a pass over every item. Returns false, as `refit` does, when a changed item's box
-    /// changed kind (or an index is out of range): the caller must rebuild then.
-    pub fn refit_changed(&mut self, boxes: &[Aabb], changed: &[u32]) -> bool {
-        if boxes.len() != self.item_count {
-            return false;
-        }
-        if self.slot_of.len() != self.item_count {
-            self.slot_of = vec![u32::MAX; self.item_count];
-            for (slot, &id) in self.items.iter().enumerate() {
-                self.slot_of[id as usize] = slot as u32;
-            }
-        }
-        for &id in changed {
-            let Some(&b) = boxes.get(id as usize) else { return false };
-            match self.slot_of[id as usize] {
-                u32::MAX => {
-                    let was_unbounded = self.unbounded.contains(&id);
-                    if b.kind() == BoxKind::Finite || was_unbounded != (b.kind() == BoxKind::Unbounded) {
-                        return false;
-                    }
-                }
-                slot => {
-                    if b.kind() != BoxKind::Finite {
-                        return false;
-                    }
-                    self.item_boxes[slot as usize] = b;
-                }
-            }
-        }
-        self.refit_nodes();
-        true
-    }
-
-    /// Recomputes node boxes from `item_boxes` (one reverse sweep: children follow parents).
-    pub(crate) fn refit_nodes(&mut self) {
-        for i in (0..self.nodes.len()).rev() {
-            let n = self.nodes[i];
-            let b = if n.is_leaf() {
-                let r = n.index as usize..(n.index + n.count) as usize;
-                self.item_boxes[r].iter().fold(Aabb::EMPTY, |acc, b| acc.union(b))
-            } else {
-                let (l, r) = (self.nodes[n.index as usize], self.nodes[n.index as usize + 1]);
-                l.aabb().union(&r.aabb())
-            };
-            self.nodes[i].min = b.min;
-            self.nodes[i].max = b.max;
-        }
-    }
-
     /// Heap bytes held (nodes, items, item boxes).
     pub fn memory_bytes(&self) -> usize {
         self.nodes.capacity() * std::mem::size_of::<BvhNode>()
@@ -382,7 +306,8 @@ impl Bvh {
 mod tests {
     use super::*;
 
-    fn random_boxes(n: usize, seed: u64) -> Vec<Aabb> {
+    /// `n` random boxes over a 100 × 10 × 100 area (also the refit tests' input).
+    pub(super) fn random_boxes(n: usize, seed: u64) -> Vec<Aabb> {
         let mut rng = sightline_scene::rng::Rng::new(seed);
         (0..n)
             .map(|_| {

@@ -134,8 +134,14 @@ impl ClusteredScene {
     /// transform (the instance's box when the mesh is one cluster).
     #[inline]
     pub fn item_box(&self, i: u32, instances: &[Instance]) -> Aabb {
+        self.item_box_of(i, &instances[self.items[i as usize].instance as usize])
+    }
+
+    /// [`ClusteredScene::item_box`] given item `i`'s instance itself (`inst` must be the
+    /// build's instance [`ClusterItem::instance`] of item `i`, possibly moved).
+    #[inline]
+    pub fn item_box_of(&self, i: u32, inst: &Instance) -> Aabb {
         let it = self.items[i as usize];
-        let inst = &instances[it.instance as usize];
         let mc = &self.meshes[self.instance_mesh[it.instance as usize] as usize];
         if mc.clusters().len() == 1 {
             inst.world_aabb
@@ -170,21 +176,21 @@ impl ClusteredScene {
     /// beyond [`REBUILD_RATIO`](crate::REBUILD_RATIO) × the fresh build's or when an item's box changed kind (became
     /// empty, unbounded or finite again).
     pub fn refit_boxes(&mut self, boxes: &[Aabb]) -> RefitOutcome {
-        let refitted = self.bvh.refit(boxes);
-        self.settle(boxes, refitted)
+        let cost = self.bvh.refit_cost(boxes);
+        self.settle(boxes, cost)
     }
 
     /// [`ClusteredScene::refit_boxes`] when only the items `changed` have new boxes (see
     /// [`Bvh::refit_changed`]).
     pub fn refit_changed(&mut self, boxes: &[Aabb], changed: &[u32]) -> RefitOutcome {
-        let refitted = self.bvh.refit_changed(boxes, changed);
-        self.settle(boxes, refitted)
+        let cost = self.bvh.refit_changed_cost(boxes, changed);
+        self.settle(boxes, cost)
     }
 
-    /// After a refit (`refitted`: it succeeded), keeps the tree or rebuilds it by the rule
-    /// above.
-    fn settle(&mut self, boxes: &[Aabb], refitted: bool) -> RefitOutcome {
-        let ratio = refitted.then(|| cost_ratio(self.bvh.sah_cost(), self.build_cost));
+    /// After a refit (`cost`: the refitted tree's SAH cost, `None` when the refit failed),
+    /// keeps the tree or rebuilds it by the rule above.
+    fn settle(&mut self, boxes: &[Aabb], cost: Option<f32>) -> RefitOutcome {
+        let ratio = cost.map(|c| cost_ratio(c, self.build_cost));
         RefitOutcome::decide(ratio, || {
             self.bvh = Bvh::build(boxes, BvhPreset::Fast, SCENE_LEAF);
             self.build_cost = self.bvh.sah_cost();
@@ -205,6 +211,12 @@ impl ClusteredScene {
     pub fn instance_items(&self, instance: u32) -> std::ops::Range<u32> {
         let i = instance as usize;
         self.instance_first_item[i]..self.instance_first_item[i + 1]
+    }
+
+    /// The first item of instance `instance`, or the item count for `instance` = the number
+    /// of instances: items of instances `a..b` are `first_item(a)..first_item(b)`.
+    pub fn first_item(&self, instance: u32) -> u32 {
+        self.instance_first_item[instance as usize]
     }
 
     /// The original (mesh-local) triangle indices that item `i` draws.
