@@ -4,32 +4,12 @@
 //!
 //! Inner nodes are laid out depth first, so a node's inner children always have larger
 //! indices than the node: one sweep from the last node to the first sees every child
-//! before its parent.
+//! before its parent. The sweep keeps each node's union for its parent to read, and sums
+//! the surface-area cost as it goes, so deciding whether to rebuild costs no second pass.
 
 use obvhs::aabb::Aabb as ObAabb;
 
-use super::{WideBvh, WideChild, WideNode, WIDTH};
-
-impl WideChild {
-    fn set_box(&mut self, b: &ObAabb) {
-        self.lo = b.min.to_array();
-        self.hi = b.max.to_array();
-    }
-}
-
-impl WideNode {
-    /// The union of the node's used slots.
-    fn bounds(&self) -> ObAabb {
-        let mut b = ObAabb::INVALID;
-        for k in 0..WIDTH {
-            let c = self.child(k);
-            if !c.is_empty() {
-                b = b.union(&ObAabb::new(c.lo.into(), c.hi.into()));
-            }
-        }
-        b
-    }
-}
+use super::{WideBvh, EMPTY_LINK, WIDTH};
 
 /// Half the surface area of a box given by its corners (0 for an inverted box).
 fn half_area(lo: [f32; 3], hi: [f32; 3]) -> f32 {
@@ -42,33 +22,58 @@ impl WideBvh {
     /// leaving the tree unchanged, when the count differs from the build's or a box is not
     /// finite: the caller must rebuild then.
     pub fn refit(&mut self, boxes: &[ObAabb]) -> bool {
+        self.refit_cost(boxes).is_some()
+    }
+
+    /// [`WideBvh::refit`], returning the refitted tree's [SAH cost](WideBvh::sah_cost), summed
+    /// in the same sweep (in the sweep's order, so equal to it up to rounding); `None` where
+    /// `refit` fails.
+    pub fn refit_cost(&mut self, boxes: &[ObAabb]) -> Option<f32> {
         if boxes.len() != self.order.len() || !boxes.iter().all(|b| b.min.is_finite() && b.max.is_finite()) {
-            return false;
+            return None;
         }
-        let leaf_box = |c: &WideChild| {
-            let run = &self.order[c.link as usize..(c.link + c.count) as usize];
-            run.iter().fold(ObAabb::INVALID, |acc, &i| acc.union(&boxes[i as usize]))
+        // Each node's union, written when the node is refitted: its parent, earlier in the
+        // array, reads it instead of re-reducing the node's four slots.
+        let mut union = vec![ObAabb::INVALID; self.nodes.len()];
+        let mut cost = 0.0f64;
+        let order = &self.order;
+        // A slot's new box: a leaf's primitives, or the union of an inner child's node.
+        let fit = |link: u32, count: u32, union: &[ObAabb]| -> ObAabb {
+            if count == 0 {
+                union[link as usize]
+            } else {
+                let run = &order[link as usize..(link + count) as usize];
+                run.iter().fold(ObAabb::INVALID, |acc, &i| acc.union(&boxes[i as usize]))
+            }
         };
         for i in (0..self.nodes.len()).rev() {
             let mut node = self.nodes[i];
+            let mut all = ObAabb::INVALID;
             for k in 0..WIDTH {
-                let mut c = node.child(k);
-                if c.is_empty() {
+                if node.link[k] == EMPTY_LINK {
                     continue;
                 }
-                let b = if c.is_leaf() { leaf_box(&c) } else { self.nodes[c.link as usize].bounds() };
-                c.set_box(&b);
-                node.set(k, &c);
+                let b = fit(node.link[k], node.count[k], &union);
+                for a in 0..3 {
+                    node.lo[a][k] = b.min[a];
+                    node.hi[a][k] = b.max[a];
+                }
+                // The cost as `sah_cost` weighs a slot: its area, times its count for a leaf.
+                cost += half_area(b.min.to_array(), b.max.to_array()) as f64 * node.count[k].max(1) as f64;
+                all = all.union(&b);
             }
             self.nodes[i] = node;
+            union[i] = all;
         }
-        let mut root = self.root;
-        if !root.is_empty() {
-            let b = if root.is_leaf() { leaf_box(&root) } else { self.nodes[root.link as usize].bounds() };
-            root.set_box(&b);
+        if self.root.is_empty() {
+            return Some(0.0);
         }
-        self.root = root;
-        true
+        // The root's own box has no weight: the cost is relative to it.
+        let b = fit(self.root.link, self.root.count, &union);
+        self.root.lo = b.min.to_array();
+        self.root.hi = b.max.to_array();
+        let root = half_area(self.root.lo, self.root.hi);
+        Some(if !(root > 0.0) { self.order.len() as f32 } else { (cost / root as f64) as f32 })
     }
 
     /// The tree's surface-area cost: the expected number of box and primitive tests for a
@@ -116,6 +121,8 @@ mod tests {
         for n in [1usize, 2, 5, 100, 1000] {
             let mut bvh = WideBvh::build_obvhs(&boxes(n, 0.0), WideBuildParams::TLAS);
             let built = bvh.sah_cost();
+            let swept = bvh.refit_cost(&boxes(n, 0.0)).unwrap();
+            assert!((swept - built).abs() <= 1e-5 * built, "the sweep's cost {swept} is the tree's {built}");
             assert!(bvh.refit(&boxes(n, 0.0)));
             assert_eq!(bvh.sah_cost(), built, "refitting to the same boxes changes nothing");
             let moved = boxes(n, 40.0);

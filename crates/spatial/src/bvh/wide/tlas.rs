@@ -41,9 +41,17 @@ pub struct InstanceRecord {
 
 /// True when `m` can be inverted with a finite, well-conditioned result.
 pub fn invertible(m: &Affine3A) -> bool {
+    inverse(m).is_some()
+}
+
+/// `m`'s inverse when `m` is [`invertible`].
+fn inverse(m: &Affine3A) -> Option<Affine3A> {
     let det = m.matrix3.determinant();
     let scale = m.matrix3.x_axis.length() * m.matrix3.y_axis.length() * m.matrix3.z_axis.length();
-    det.is_finite() && scale.is_finite() && det.abs() > 1e-7 * scale && m.inverse().is_finite()
+    if !(det.is_finite() && scale.is_finite() && det.abs() > 1e-7 * scale) {
+        return None;
+    }
+    Some(m.inverse()).filter(|inv| inv.is_finite())
 }
 
 /// Instance records plus the wide BVH over them.
@@ -55,6 +63,11 @@ pub struct WideTlas {
     bvh: WideBvh,
     /// The tree's SAH cost right after its last build (refits are measured against it).
     build_cost: f32,
+    /// Each instance's world box, as the tree was last built or refitted from, except the
+    /// instances in `moved`.
+    boxes: Vec<ObAabb>,
+    /// Instances placed anew since the last refit (their boxes are recomputed by it).
+    moved: Vec<u32>,
 }
 
 impl WideTlas {
@@ -65,10 +78,10 @@ impl WideTlas {
             .into_iter()
             .filter(|rec| blases.get(rec.blas as usize).is_some_and(|b| !b.tris().is_empty()))
             .collect();
-        let boxes = world_boxes(&instances, blases);
+        let boxes: Vec<ObAabb> = instances.iter().map(|rec| world_box(rec, blases)).collect();
         let bvh = WideBvh::build_obvhs(&boxes, WideBuildParams::TLAS);
         let build_cost = bvh.sah_cost();
-        WideTlas { instances, bvh, build_cost }
+        WideTlas { instances, bvh, build_cost, boxes, moved: Vec::new() }
     }
 
     /// Places instance `i` (of [`WideTlas::instances`], made by [`InstanceRecord::placed`])
@@ -78,20 +91,25 @@ impl WideTlas {
     /// [`InstanceRecord::in_world`] must not be moved this way: its BLAS holds world positions.
     pub fn set_transform(&mut self, i: usize, world_from_local: Affine3A) -> bool {
         let Some(rec) = self.instances.get_mut(i) else { return false };
-        if !invertible(&world_from_local) {
-            return false;
-        }
-        *rec = InstanceRecord::placed(rec.blas, rec.scene_index, rec.first_id, world_from_local);
+        let Some(local_from_world) = inverse(&world_from_local) else { return false };
+        *rec =
+            InstanceRecord::with_inverse(rec.blas, rec.scene_index, rec.first_id, world_from_local, local_from_world);
+        self.moved.push(i as u32);
         true
     }
 
     /// Refits the tree to the instances' current transforms, or rebuilds it when refitting
     /// has let its SAH cost grow past [`REBUILD_RATIO`](crate::REBUILD_RATIO) times that of the last build.
+    /// The boxes of the instances placed since the last refit are recomputed; the others are
+    /// kept (`blases` must be the list the tree was built with).
     pub fn refit(&mut self, blases: &[WideBlas]) -> RefitOutcome {
-        let boxes = world_boxes(&self.instances, blases);
-        let ratio = self.bvh.refit(&boxes).then(|| cost_ratio(self.bvh.sah_cost(), self.build_cost));
+        for &i in &self.moved {
+            self.boxes[i as usize] = world_box(&self.instances[i as usize], blases);
+        }
+        self.moved.clear();
+        let ratio = self.bvh.refit_cost(&self.boxes).map(|cost| cost_ratio(cost, self.build_cost));
         RefitOutcome::decide(ratio, || {
-            self.bvh = WideBvh::build_obvhs(&boxes, WideBuildParams::TLAS);
+            self.bvh = WideBvh::build_obvhs(&self.boxes, WideBuildParams::TLAS);
             self.build_cost = self.bvh.sah_cost();
         })
     }
@@ -110,27 +128,33 @@ impl WideTlas {
     }
 }
 
-/// The world boxes of `instances` (their BLAS bounds mapped by `world_from_blas`), padded
-/// by a relative epsilon so that each contains every transformed vertex despite rounding.
-fn world_boxes(instances: &[InstanceRecord], blases: &[WideBlas]) -> Vec<ObAabb> {
-    instances
-        .iter()
-        .map(|rec| {
-            let wb = blases[rec.blas as usize].bounds().transformed(&rec.world_from_blas);
-            let pad = (wb.max - wb.min).max(wb.max.abs().max(wb.min.abs())) * 1e-6;
-            ObAabb::new(Vec3A::from(wb.min - pad), Vec3A::from(wb.max + pad))
-        })
-        .collect()
+/// The world box of an instance (its BLAS bounds mapped by `world_from_blas`), padded by a
+/// relative epsilon so that it contains every transformed vertex despite rounding.
+fn world_box(rec: &InstanceRecord, blases: &[WideBlas]) -> ObAabb {
+    let wb = blases[rec.blas as usize].bounds().transformed(&rec.world_from_blas);
+    let pad = (wb.max - wb.min).max(wb.max.abs().max(wb.min.abs())) * 1e-6;
+    ObAabb::new(Vec3A::from(wb.min - pad), Vec3A::from(wb.max + pad))
 }
 
 impl InstanceRecord {
     /// The record of a shared BLAS placed by an invertible `world_from_local`.
     pub fn placed(blas: u32, scene_index: u32, first_id: u32, world_from_local: Affine3A) -> Self {
+        Self::with_inverse(blas, scene_index, first_id, world_from_local, world_from_local.inverse())
+    }
+
+    /// [`InstanceRecord::placed`] given the inverse of `world_from_local` already.
+    fn with_inverse(
+        blas: u32,
+        scene_index: u32,
+        first_id: u32,
+        world_from_local: Affine3A,
+        local_from_world: Affine3A,
+    ) -> Self {
         Self {
             blas,
             scene_index,
             first_id,
-            local_from_world: world_from_local.inverse(),
+            local_from_world,
             world_from_blas: world_from_local,
             identity: world_from_local == Affine3A::IDENTITY,
             mirror: world_from_local.matrix3.determinant() < 0.0,
