@@ -92,7 +92,11 @@ pub(crate) fn render(
     let t0 = Instant::now();
     camera.projection.validate()?;
     let (width, height) = (fb.width(), fb.height());
-    fb.clear(opts.background);
+    // Each band clears its own rows below, while they are in cache; only the raster's
+    // depth-test counters are cleared here.
+    if let Some(c) = &mut fb.depth_tests {
+        c.fill(0);
+    }
     let default = Material::default();
     let clip: DMat4 = camera.clip_from_world_f64();
     let world_f64: Vec<DAffine3> = caster.tlas.instances().iter().map(|r| to_f64(&r.world_from_blas)).collect();
@@ -148,6 +152,9 @@ pub(crate) fn render(
                 band.shadow_rays = 0;
                 band.hit_count = 0;
                 let y0 = b as u32 * TILE;
+                color.fill(opts.background);
+                depth.fill(1.0);
+                ids.fill(0);
                 let mut out = Out { color, depth, ids };
                 let mut x0 = 0;
                 while x0 < width {
@@ -217,7 +224,7 @@ impl<'a> CastFrame<'a> {
         if mask == 0 {
             return;
         }
-        let frustum = self.gen.beam(x0, y0, x0 + TILE, y0 + TILE, self.camera).frustum();
+        let frustum = self.gen.beam(x0, y0, x0 + TILE, y0 + TILE).frustum();
         trace::<I, false>(
             &caster.blases,
             &caster.tlas,
