@@ -136,6 +136,11 @@ fn morton_sorted_leaves(boxes: &[ObAabb]) -> Vec<Bvh2Node> {
 /// centres' bounding box), ties by index. Codes and sort run in parallel; the keys are
 /// unique, so the order does not depend on the thread count.
 pub(crate) fn morton_order(boxes: &[ObAabb]) -> Vec<u32> {
+    morton_keys(boxes).into_iter().map(|(_, i)| i).collect()
+}
+
+/// [`morton_order`] with each primitive's code: `(code, index)`, sorted.
+pub(crate) fn morton_keys(boxes: &[ObAabb]) -> Vec<(u64, u32)> {
     use rayon::prelude::*;
     let center = |b: &ObAabb| (b.min.as_dvec3() + b.max.as_dvec3()) * 0.5;
     let (lo, hi) = boxes
@@ -158,7 +163,7 @@ pub(crate) fn morton_order(boxes: &[ObAabb]) -> Vec<u32> {
         })
         .collect();
     keys.par_sort_unstable();
-    keys.into_iter().map(|(_, i)| i).collect()
+    keys
 }
 
 /// The cost of merging two clusters: the half surface area of their union (NaN, from boxes
