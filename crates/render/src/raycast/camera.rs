@@ -11,7 +11,7 @@
 use glam::{DVec2, DVec3, Vec3A};
 use sightline_scene::Camera;
 
-use super::packet::{Beam, Hits, Rays, CHUNK, CHUNKS, TILE};
+use super::packet::{Beam, Hits, Rays, CHUNKS, TILE};
 
 /// Per-frame ray generator.
 #[derive(Debug, Clone)]
@@ -29,11 +29,28 @@ pub(crate) struct CameraRays {
     /// The eye in f32 (the shared origin of perspective rays).
     pub eye32: Vec3A,
     /// View-space (origin x, direction x) per pixel column.
+    #[cfg(test)]
     cols: Vec<[f64; 2]>,
     /// View-space (origin y, direction y) per pixel row.
+    #[cfg(test)]
     rows: Vec<[f64; 2]>,
     /// View-space (origin z, direction z), the same for every pixel.
+    #[cfg(test)]
     z: [f64; 2],
+    /// Per column, `u·dx` and `u·ox` (world-space products of [`CameraRays::to_world`]'s
+    /// first term), so a packet only adds.
+    col_terms: Vec<[[f64; 3]; 2]>,
+    /// Per row, `v·dy` and `v·oy`.
+    row_terms: Vec<[[f64; 3]; 2]>,
+    /// `w·dz` and `w·oz`.
+    z_terms: [[f64; 3]; 2],
+    /// View-space (origin x, direction x) per pixel *corner* column (`width + 1` of them),
+    /// for the packets' beams.
+    corner_cols: Vec<[f64; 2]>,
+    /// View-space (origin y, direction y) per pixel corner row (`height + 1`).
+    corner_rows: Vec<[f64; 2]>,
+    /// View-space (origin z, direction z), the same for every ray.
+    view_z: [f64; 2],
     width: u32,
     height: u32,
 }
@@ -43,22 +60,45 @@ impl CameraRays {
     pub fn new(camera: &Camera, width: u32, height: u32) -> Self {
         let p = &camera.projection;
         let (w_, h_) = (width as f64, height as f64);
-        let cols = (0..width)
+        let cols: Vec<[f64; 2]> = (0..width)
             .map(|c| {
                 let (o, d) = p.view_ray(DVec2::new(Self::ndc_x(c as f64 + 0.5, w_), 0.0));
                 [o.x, d.x]
             })
             .collect();
-        let rows = (0..height)
+        let rows: Vec<[f64; 2]> = (0..height)
             .map(|r| {
                 let (o, d) = p.view_ray(DVec2::new(0.0, Self::ndc_y(r as f64 + 0.5, h_)));
+                [o.y, d.y]
+            })
+            .collect();
+        let corner_cols = (0..=width)
+            .map(|c| {
+                let (o, d) = p.view_ray(DVec2::new(Self::ndc_x(c as f64, w_), 0.0));
+                [o.x, d.x]
+            })
+            .collect();
+        let corner_rows = (0..=height)
+            .map(|r| {
+                let (o, d) = p.view_ray(DVec2::new(0.0, Self::ndc_y(r as f64, h_)));
                 [o.y, d.y]
             })
             .collect();
         let (o, d) = p.view_ray(DVec2::ZERO);
         let view = &camera.view;
         let w = view.w.as_dvec3();
+        let (u, v) = (view.u.as_dvec3(), view.v.as_dvec3());
+        let terms = |axis: DVec3, [o, d]: [f64; 2]| [(axis * d).to_array(), (axis * o).to_array()];
+        let col_terms = cols.iter().map(|&c| terms(u, c)).collect();
+        let row_terms = rows.iter().map(|&r| terms(v, r)).collect();
+        let z_terms = terms(w, [o.z, d.z]);
         Self {
+            col_terms,
+            row_terms,
+            z_terms,
+            corner_cols,
+            corner_rows,
+            view_z: [o.z, d.z],
             eye: view.eye.as_dvec3(),
             u: view.u.as_dvec3(),
             v: view.v.as_dvec3(),
@@ -68,8 +108,11 @@ impl CameraRays {
             far: p.far() as f64,
             perspective: p.is_perspective(),
             eye32: Vec3A::from(view.eye),
+            #[cfg(test)]
             cols,
+            #[cfg(test)]
             rows,
+            #[cfg(test)]
             z: [o.z, d.z],
             width,
             height,
@@ -104,48 +147,55 @@ impl CameraRays {
     /// Fills the 8 × 8 packet whose top-left pixel is (x0, y0): rays, reciprocals, shears and
     /// near–far intervals. Returns the mask of lanes inside the image with a valid
     /// interval; the other lanes get empty intervals.
+    ///
+    /// A world direction is `(u·dx + v·dy) + w·dz`, the same sum [`CameraRays::to_world`]
+    /// rounds, from products tabulated per column and row: bit for bit the camera's ray, with
+    /// only additions per pixel, a row of eight lanes per loop.
+    // Index loops over SoA lanes: the form LLVM vectorizes.
+    #[allow(clippy::needless_range_loop)]
     #[inline(always)]
     pub fn fill(&self, x0: u32, y0: u32, rays: &mut Rays, hits: &mut Hits) -> u64 {
         let (w, h) = (self.width, self.height);
-        let mut inside = 0u64;
-        for ly in 0..TILE {
-            let r = (y0 + ly).min(h - 1);
-            let [oy, dy] = self.rows[r as usize];
-            let (c, j0) = ((ly / 2) as usize, ((ly % 2) * TILE) as usize);
-            for lx in 0..TILE {
-                let col = (x0 + lx).min(w - 1);
-                let [ox, dx] = self.cols[col as usize];
-                let d = self.to_world(DVec3::new(dx, dy, self.z[1]));
-                let j = j0 + lx as usize;
-                rays.d[0][c][j] = d.x as f32;
-                rays.d[1][c][j] = d.y as f32;
-                rays.d[2][c][j] = d.z as f32;
-                let o =
-                    if self.perspective { self.eye } else { self.eye + self.to_world(DVec3::new(ox, oy, self.z[0])) };
-                rays.o[0][c][j] = o.x as f32;
-                rays.o[1][c][j] = o.y as f32;
-                rays.o[2][c][j] = o.z as f32;
-            }
-            if y0 + ly < h {
-                let cols = (w.saturating_sub(x0)).min(TILE);
-                inside |= ((1u64 << cols) - 1) << (ly * TILE);
+        let tile = TILE as usize;
+        // The packet's column terms, SoA: [d or o][axis][lx].
+        let mut ct = [[[0f64; TILE as usize]; 3]; 2];
+        for lx in 0..tile {
+            let col = (x0 + lx as u32).min(w - 1) as usize;
+            for (k, t) in self.col_terms[col].iter().enumerate() {
+                for a in 0..3 {
+                    ct[k][a][lx] = t[a];
+                }
             }
         }
-        rays.shared = self.perspective.then_some(self.eye32);
-        let g = self.gaze;
+        let [wd, wo] = self.z_terms;
+        let (g, eye) = (self.gaze.to_array(), self.eye.to_array());
+        let mut inside = 0u64;
         let mut mask = 0u64;
-        for c in 0..CHUNKS {
+        for ly in 0..tile {
+            let r = (y0 + ly as u32).min(h - 1) as usize;
+            let [rd, ro] = self.row_terms[r];
+            let (c, j0) = (ly / 2, (ly % 2) * tile);
             let mut m = 0u64;
-            rays.derive_chunk(c);
-            for j in 0..CHUNK {
-                let d = [rays.d[0][c][j], rays.d[1][c][j], rays.d[2][c][j]];
-                let dg = g.x * d[0] as f64 + g.y * d[1] as f64 + g.z * d[2] as f64;
+            for lx in 0..tile {
+                let j = j0 + lx;
+                let d = [0, 1, 2].map(|a| ((ct[0][a][lx] + rd[a]) + wd[a]) as f32);
+                for a in 0..3 {
+                    rays.d[a][c][j] = d[a];
+                }
+                let o = if self.perspective {
+                    eye.map(|e| e as f32)
+                } else {
+                    [0, 1, 2].map(|a| (eye[a] + ((ct[1][a][lx] + ro[a]) + wo[a])) as f32)
+                };
+                for a in 0..3 {
+                    rays.o[a][c][j] = o[a];
+                }
+                // The search interval, by view depth along the gaze.
+                let dg = g[0] * d[0] as f64 + g[1] * d[1] as f64 + g[2] * d[2] as f64;
                 let og = if self.perspective {
                     0.0
                 } else {
-                    g.x * (rays.o[0][c][j] as f64 - self.eye.x)
-                        + g.y * (rays.o[1][c][j] as f64 - self.eye.y)
-                        + g.z * (rays.o[2][c][j] as f64 - self.eye.z)
+                    g[0] * (o[0] as f64 - eye[0]) + g[1] * (o[1] as f64 - eye[1]) + g[2] * (o[2] as f64 - eye[2])
                 };
                 let t0 = (self.near - og) / dg;
                 let t0 = if t0 > 0.0 { t0 } else { 0.0 };
@@ -155,24 +205,43 @@ impl CameraRays {
                 hits.t[c][j] = if ok { t1 as f32 } else { f32::NEG_INFINITY };
                 hits.inst[c][j] = super::packet::NO_HIT;
                 hits.gid[c][j] = super::packet::NO_GID;
-                m |= (ok as u64) << j;
+                m |= (ok as u64) << lx;
             }
-            mask |= m << (c * CHUNK);
+            mask |= m << (ly * tile);
+            if y0 + (ly as u32) < h {
+                let cols = (w.saturating_sub(x0)).min(TILE);
+                inside |= ((1u64 << cols) - 1) << (ly * tile);
+            }
+        }
+        rays.shared = self.perspective.then_some(self.eye32);
+        for c in 0..CHUNKS {
+            rays.derive_chunk(c);
         }
         mask & inside
     }
 
     /// The ray through a window position (pixel units, y down), not necessarily a center.
+    #[cfg(test)]
     pub fn ray_at(&self, x: f64, y: f64, camera: &Camera) -> (Vec3A, Vec3A) {
         let ndc = DVec2::new(Self::ndc_x(x, self.width as f64), Self::ndc_y(y, self.height as f64));
         let (o, d) = camera.projection.view_ray(ndc);
         ((self.eye + self.to_world(o)).as_vec3().into(), self.to_world(d).as_vec3().into())
     }
 
-    /// The corner rays of the pixel block `[x0, x1) × [y0, y1)` (at pixel corners).
-    pub fn beam(&self, x0: u32, y0: u32, x1: u32, y1: u32, camera: &Camera) -> Beam {
+    /// The corner rays of the pixel block `[x0, x1) × [y0, y1)` (at pixel corners; the
+    /// corners lie inside the image's `(width + 1) × (height + 1)` grid). The view-space
+    /// ray's x part depends on the column only and its y part on the row only, so the
+    /// corners come from tables: the same rays as [`CameraRays::ray_at`] gives there.
+    pub fn beam(&self, x0: u32, y0: u32, x1: u32, y1: u32) -> Beam {
+        let (w, h) = (self.width as usize, self.height as usize);
         let pts = [(x0, y0), (x1, y0), (x1, y1), (x0, y1)];
-        let rays = pts.map(|(x, y)| self.ray_at(x as f64, y as f64, camera));
+        let rays = pts.map(|(x, y)| {
+            let [ox, dx] = self.corner_cols[(x as usize).min(w)];
+            let [oy, dy] = self.corner_rows[(y as usize).min(h)];
+            let o = self.eye + self.to_world(DVec3::new(ox, oy, self.view_z[0]));
+            let d = self.to_world(DVec3::new(dx, dy, self.view_z[1]));
+            (Vec3A::from(o.as_vec3()), Vec3A::from(d.as_vec3()))
+        });
         Beam { o: rays.map(|r| r.0), d: rays.map(|r| r.1) }
     }
 
@@ -245,6 +314,12 @@ mod tests {
             let (mut rays, mut hits) = (Rays::new(), Hits::new());
             for (x0, y0) in [(0, 0), (8, 0), (0, 8), (8, 8)] {
                 let mask = g.fill(x0, y0, &mut rays, &mut hits);
+                // The beam's corners: the rays through the packet's pixel corners, clamped to
+                // the image.
+                let b = g.beam(x0, y0, x0 + 8, y0 + 8);
+                for (k, (x, y)) in [(x0, y0), (x0 + 8, y0), (x0 + 8, y0 + 8), (x0, y0 + 8)].into_iter().enumerate() {
+                    assert_eq!((b.o[k], b.d[k]), g.ray_at(x.min(13) as f64, y.min(11) as f64, &cam));
+                }
                 for i in 0..64 {
                     let (c, r) = (x0 + i as u32 % 8, y0 + i as u32 / 8);
                     let inside = c < 13 && r < 11;

@@ -3,8 +3,9 @@
 //!
 //! Per packet: generate the 64 primary rays and their near–far intervals, trace them as a
 //! packet (closest hit, frustum culling, back-face culling as configured), test the CSG
-//! solids per lane, then resolve each hit: the point from the exact barycentrics in f64 and
-//! its window depth `(z_ndc + 1) / 2` through `clip_from_world · world_from_local` (f64).
+//! solids per lane, then resolve each hit: its ID, and the window depth `(z_ndc + 1) / 2` of
+//! the world point `o + t·d` through `clip_from_world` (f64, all 64 lanes in one vectorized
+//! loop; the hit's `t` is the same in every space, so no triangle is read again).
 //! With shading on, an optional any-hit shadow packet goes towards the light and the color
 //! comes from the shared [`crate::shading`] (`TriangleShader`s cached per band, one per
 //! triangle and light state). Each band owns its rows of the framebuffer, so the image does
@@ -21,7 +22,7 @@ use super::camera::CameraRays;
 #[cfg(target_arch = "x86_64")]
 use super::isa::{Avx2, Avx512};
 use super::isa::{Isa, Portable};
-use super::packet::{BeamPlanes, Hits, Rays, CHUNK, LANES, NO_HIT, TILE};
+use super::packet::{BeamPlanes, Hits, Rays, CHUNK, CHUNKS, LANES, NO_HIT, TILE};
 use super::trace::{trace, Scratch};
 use super::{RayCaster, RaycastOptions, RaycastStats, SimdLevel};
 use crate::csg::CsgScratch;
@@ -42,9 +43,7 @@ struct CastFrame<'a> {
     shading: Vec<InstanceShading<'a>>,
     csg_materials: Vec<Material>,
     simd: SimdLevel,
-    /// Per TLAS record: rows z and w of `clip_from_world · world_from_blas`.
-    clip_zw: Vec<[DVec4; 2]>,
-    /// `clip_from_world` rows z and w (CSG hits).
+    /// `clip_from_world` rows z and w (window depth of a world point).
     world_zw: [DVec4; 2],
     /// Per TLAS record: `world_from_blas` in f64.
     world_f64: Vec<DAffine3>,
@@ -93,7 +92,11 @@ pub(crate) fn render(
     let t0 = Instant::now();
     camera.projection.validate()?;
     let (width, height) = (fb.width(), fb.height());
-    fb.clear(opts.background);
+    // Each band clears its own rows below, while they are in cache; only the raster's
+    // depth-test counters are cleared here.
+    if let Some(c) = &mut fb.depth_tests {
+        c.fill(0);
+    }
     let default = Material::default();
     let clip: DMat4 = camera.clip_from_world_f64();
     let world_f64: Vec<DAffine3> = caster.tlas.instances().iter().map(|r| to_f64(&r.world_from_blas)).collect();
@@ -118,13 +121,6 @@ pub(crate) fn render(
             .map(|o| Material { name: o.name.clone(), base_color: o.color, ..Material::default() })
             .collect(),
         simd: opts.simd.resolve(),
-        clip_zw: world_f64
-            .iter()
-            .map(|m| {
-                let c = clip * DMat4::from(*m);
-                [c.row(2), c.row(3)]
-            })
-            .collect(),
         world_zw: [clip.row(2), clip.row(3)],
         world_f64,
         width,
@@ -156,6 +152,9 @@ pub(crate) fn render(
                 band.shadow_rays = 0;
                 band.hit_count = 0;
                 let y0 = b as u32 * TILE;
+                color.fill(opts.background);
+                depth.fill(1.0);
+                ids.fill(0);
                 let mut out = Out { color, depth, ids };
                 let mut x0 = 0;
                 while x0 < width {
@@ -225,7 +224,7 @@ impl<'a> CastFrame<'a> {
         if mask == 0 {
             return;
         }
-        let frustum = self.gen.beam(x0, y0, x0 + TILE, y0 + TILE, self.camera).frustum();
+        let frustum = self.gen.beam(x0, y0, x0 + TILE, y0 + TILE).frustum();
         trace::<I, false>(
             &caster.blases,
             &caster.tlas,
@@ -255,32 +254,38 @@ impl<'a> CastFrame<'a> {
                 hits.t[i / CHUNK][i % CHUNK] = t;
             }
         }
-        // Depth and IDs: clip z and w per hit, then the divisions in one vectorizable loop.
+        // IDs of the hit lanes.
         let w = self.width as usize;
         let mut hit_mask = 0u64;
-        let (mut cz, mut cw) = ([0f64; LANES], [1f64; LANES]);
         let mut bits = mask;
         while bits != 0 {
             let i = bits.trailing_zeros() as usize;
             bits &= bits - 1;
             let (c, j) = (i / CHUNK, i % CHUNK);
-            let at = (i / TILE as usize) * w + x0 as usize + i % TILE as usize;
-            let (zw, p, id) = if has_csg && csg_hit[i].0 != u32::MAX {
-                let t = hits.t[c][j] as f64;
-                let p = Vec3::from(rays.origin(i)).as_dvec3() + Vec3::from(rays.dir(i)).as_dvec3() * t;
-                (&self.world_zw, p, caster.csg_id(csg_hit[i].0 as usize))
+            let id = if has_csg && csg_hit[i].0 != u32::MAX {
+                caster.csg_id(csg_hit[i].0 as usize)
             } else if hits.inst[c][j] != NO_HIT {
-                let Some((rec, p, _, _)) = self.local_point(hits, c, j) else { continue };
-                let Some(zw) = self.clip_zw.get(rec) else { continue };
-                (zw, p, hits.gid[c][j])
+                hits.gid[c][j]
             } else {
                 continue;
             };
-            cz[i] = zw[0].x * p.x + zw[0].y * p.y + zw[0].z * p.z + zw[0].w;
-            cw[i] = zw[1].x * p.x + zw[1].y * p.y + zw[1].z * p.z + zw[1].w;
+            let at = (i / TILE as usize) * w + x0 as usize + i % TILE as usize;
             if let Some(dst) = out.ids.get_mut(at) {
                 *dst = id;
                 hit_mask |= 1 << i;
+            }
+        }
+        // Window depth of every lane's world point `o + t·d` (f64; t is the same in every
+        // space, instances map directions without normalizing), in one vectorizable loop;
+        // only the hit lanes' values are written.
+        let [rz, rw] = self.world_zw;
+        let (mut cz, mut cw) = ([0f64; LANES], [1f64; LANES]);
+        for c in 0..CHUNKS {
+            for j in 0..CHUNK {
+                let t = hits.t[c][j] as f64;
+                let p = [0, 1, 2].map(|a| rays.o[a][c][j] as f64 + rays.d[a][c][j] as f64 * t);
+                cz[c * CHUNK + j] = rz.x * p[0] + rz.y * p[1] + rz.z * p[2] + rz.w;
+                cw[c * CHUNK + j] = rw.x * p[0] + rw.y * p[1] + rw.z * p[2] + rw.w;
             }
         }
         let mut zs = [1f32; LANES];

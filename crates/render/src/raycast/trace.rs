@@ -86,6 +86,51 @@ fn leaf<const ANY: bool>(
     done
 }
 
+/// Traces the lanes of `mask` through TLAS record `ii`'s BLAS (the packet mapped into the
+/// instance's space unless its transform is the identity).
+#[inline(always)]
+#[allow(clippy::too_many_arguments)]
+fn instance<I: Isa, const ANY: bool>(
+    blases: &[WideBlas],
+    tlas: &WideTlas,
+    ii: u32,
+    rays: &Rays,
+    world: &BeamPlanes,
+    backface: bool,
+    hits: &mut Hits,
+    m: u64,
+    local: &mut Rays,
+    blas_stack: &mut Vec<Entry>,
+) -> u64 {
+    let Some(inst) = tlas.instances().get(ii as usize) else {
+        return 0;
+    };
+    let Some(blas) = blases.get(inst.blas as usize) else {
+        return 0;
+    };
+    let (lr, fr): (&Rays, BeamPlanes) = if inst.identity {
+        (rays, *world)
+    } else {
+        rays.transform_into(&inst.local_from_world, m, local);
+        (&*local, world.transformed(&inst.world_from_blas))
+    };
+    let cull = match (backface, inst.mirror) {
+        (false, _) => 0.0,
+        (true, false) => 1.0,
+        (true, true) => -1.0,
+    };
+    traverse::<I, _>(
+        blas.bvh(),
+        lr,
+        hits,
+        &fr,
+        m,
+        blas_stack,
+        #[inline(always)]
+        |hits, f, n, lm| leaf::<ANY>(blas, lr, hits, f, n, lm, ii, inst.first_id, cull),
+    )
+}
+
 /// Traces the lanes of `mask` through the scene. `frustum` (world space; planes bounding
 /// the packet's rays) enables frustum culling; `backface` drops triangles seen from behind. Returns the lanes closed by
 /// any-hit queries.
@@ -103,6 +148,11 @@ pub(crate) fn trace<I: Isa, const ANY: bool>(
 ) -> u64 {
     let world = *frustum;
     let Scratch { local, tlas_stack, blas_stack } = s;
+    // A TLAS that is one leaf of one instance (a loaded OBJ: one mesh): its root test only
+    // prunes what the BLAS's own root test prunes again, so go to the BLAS directly.
+    if let ([only], 1) = (tlas.bvh().order(), tlas.bvh().root().count) {
+        return instance::<I, ANY>(blases, tlas, *only, rays, &world, backface, hits, mask, local, blas_stack);
+    }
     traverse::<I, _>(
         tlas.bvh(),
         rays,
@@ -115,39 +165,12 @@ pub(crate) fn trace<I: Isa, const ANY: bool>(
             let mut done = 0u64;
             let end = first.saturating_add(count) as usize;
             for k in first as usize..end.min(tlas.bvh().order().len()) {
-                let ii = tlas.bvh().order()[k];
-                let Some(inst) = tlas.instances().get(ii as usize) else {
-                    continue;
-                };
-                let Some(blas) = blases.get(inst.blas as usize) else {
-                    continue;
-                };
                 let m = m & !done;
                 if m == 0 {
                     break;
                 }
-                let (lr, fr): (&Rays, BeamPlanes) = if inst.identity {
-                    (rays, world)
-                } else {
-                    rays.transform_into(&inst.local_from_world, m, local);
-                    let fr = world.transformed(&inst.world_from_blas);
-                    (&*local, fr)
-                };
-                let cull = match (backface, inst.mirror) {
-                    (false, _) => 0.0,
-                    (true, false) => 1.0,
-                    (true, true) => -1.0,
-                };
-                done |= traverse::<I, _>(
-                    blas.bvh(),
-                    lr,
-                    hits,
-                    &fr,
-                    m,
-                    blas_stack,
-                    #[inline(always)]
-                    |hits, f, n, lm| leaf::<ANY>(blas, lr, hits, f, n, lm, ii, inst.first_id, cull),
-                );
+                let ii = tlas.bvh().order()[k];
+                done |= instance::<I, ANY>(blases, tlas, ii, rays, &world, backface, hits, m, local, blas_stack);
             }
             done
         },

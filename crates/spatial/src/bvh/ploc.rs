@@ -32,7 +32,7 @@
 //!    cluster per pass, sums to O(r² n) after the O(n log n) sort.
 //!
 //! Sorting is by (code, primitive index), so the result depends only on the input: no
-//! randomness, no threads.
+//! randomness, and the same tree for any thread count (only the sort runs in parallel).
 
 use glam::DVec3;
 use obvhs::aabb::Aabb as ObAabb;
@@ -129,18 +129,32 @@ fn build_with<const R: usize>(boxes: &[ObAabb], full_search_from: usize) -> (Bvh
 
 /// One leaf per primitive, sorted by the Morton code of its box centre, ties by index.
 fn morton_sorted_leaves(boxes: &[ObAabb]) -> Vec<Bvh2Node> {
+    morton_order(boxes).iter().map(|&i| Bvh2Node::new(boxes[i as usize], 1, i)).collect()
+}
+
+/// The primitive indices sorted by the Morton code of their box centres (63-bit codes on the
+/// centres' bounding box), ties by index. Codes and sort run in parallel; the keys are
+/// unique, so the order does not depend on the thread count.
+pub(crate) fn morton_order(boxes: &[ObAabb]) -> Vec<u32> {
+    morton_keys(boxes).into_iter().map(|(_, i)| i).collect()
+}
+
+/// [`morton_order`] with each primitive's code: `(code, index)`, sorted.
+pub(crate) fn morton_keys(boxes: &[ObAabb]) -> Vec<(u64, u32)> {
+    use rayon::prelude::*;
     let center = |b: &ObAabb| (b.min.as_dvec3() + b.max.as_dvec3()) * 0.5;
-    let (mut lo, mut hi) = (DVec3::splat(f64::INFINITY), DVec3::splat(f64::NEG_INFINITY));
-    for b in boxes {
-        let c = center(b);
-        lo = lo.min(c);
-        hi = hi.max(c);
-    }
+    let (lo, hi) = boxes
+        .par_iter()
+        .fold(
+            || (DVec3::splat(f64::INFINITY), DVec3::splat(f64::NEG_INFINITY)),
+            |(lo, hi), b| (lo.min(center(b)), hi.max(center(b))),
+        )
+        .reduce(|| (DVec3::splat(f64::INFINITY), DVec3::splat(f64::NEG_INFINITY)), |a, b| (a.0.min(b.0), a.1.max(b.1)));
     let extent = hi - lo;
     // A flat axis (every centre equal on it) contributes nothing rather than dividing by zero.
     let scale = DVec3::select(extent.cmpgt(DVec3::ZERO), GRID_MAX / extent, DVec3::ZERO);
     let mut keys: Vec<(u64, u32)> = boxes
-        .iter()
+        .par_iter()
         .enumerate()
         .map(|(i, b)| {
             let g = ((center(b) - lo) * scale).clamp(DVec3::ZERO, DVec3::splat(GRID_MAX));
@@ -148,8 +162,8 @@ fn morton_sorted_leaves(boxes: &[ObAabb]) -> Vec<Bvh2Node> {
             (morton_encode_u64(g.x as u32, g.y as u32, g.z as u32), i as u32)
         })
         .collect();
-    keys.sort_unstable();
-    keys.iter().map(|&(_, i)| Bvh2Node::new(boxes[i as usize], 1, i)).collect()
+    keys.par_sort_unstable();
+    keys
 }
 
 /// The cost of merging two clusters: the half surface area of their union (NaN, from boxes

@@ -7,6 +7,7 @@
 
 use glam::{Affine3A, Vec3, Vec3A};
 use obvhs::aabb::Aabb as ObAabb;
+use rayon::prelude::*;
 use sightline_scene::{Aabb, Mesh};
 
 use super::{WideBuildParams, WideBvh};
@@ -22,12 +23,13 @@ pub struct WideBlas {
 
 impl WideBlas {
     /// Builds over `count` triangles whose corners `corners(i)` gives.
-    pub fn build(count: usize, corners: impl Fn(usize) -> [Vec3; 3]) -> WideBlas {
-        let all: Vec<[Vec3A; 3]> = (0..count).map(|i| corners(i).map(Vec3A::from)).collect();
+    /// Triangles, boxes and the leaf-order copy are made in parallel.
+    pub fn build(count: usize, corners: impl Fn(usize) -> [Vec3; 3] + Sync) -> WideBlas {
+        let all: Vec<[Vec3A; 3]> = (0..count).into_par_iter().map(|i| corners(i).map(Vec3A::from)).collect();
         let boxes: Vec<ObAabb> =
-            all.iter().map(|t| ObAabb::new(t[0].min(t[1]).min(t[2]), t[0].max(t[1]).max(t[2]))).collect();
+            all.par_iter().map(|t| ObAabb::new(t[0].min(t[1]).min(t[2]), t[0].max(t[1]).max(t[2]))).collect();
         let bvh = WideBvh::build_obvhs(&boxes, WideBuildParams::BLAS);
-        let tris = bvh.order().iter().map(|&i| all[i as usize]).collect();
+        let tris = bvh.order().par_iter().map(|&i| all[i as usize]).collect();
         WideBlas { tris, bvh }
     }
 

@@ -23,6 +23,7 @@
 
 mod blas;
 mod refit;
+mod split;
 mod tlas;
 
 pub use blas::WideBlas;
@@ -189,7 +190,16 @@ impl WideBvh {
     }
 
     /// Builds over obvhs boxes (all finite); what [`WideBvh::build`] does after converting.
+    /// Large inputs are built as four Morton runs in parallel (see `split`).
     pub(crate) fn build_obvhs(boxes: &[ObAabb], params: WideBuildParams) -> WideBvh {
+        if boxes.len() >= split::SPLIT_MIN {
+            return split::build_split(boxes, params);
+        }
+        Self::build_serial(boxes, params)
+    }
+
+    /// One PLOC build, reinsertion and collapse over all of `boxes`.
+    fn build_serial(boxes: &[ObAabb], params: WideBuildParams) -> WideBvh {
         if boxes.is_empty() {
             return WideBvh { root: WideChild::EMPTY, nodes: Vec::new(), order: Vec::new(), depth: 0 };
         }
