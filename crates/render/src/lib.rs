@@ -12,6 +12,7 @@
 pub mod aa;
 mod bin;
 pub mod clip;
+mod color;
 pub mod csg;
 pub mod cull;
 mod deferred;

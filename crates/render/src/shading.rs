@@ -21,6 +21,7 @@ use glam::{Affine3A, Mat3A, Vec2, Vec3, Vec3A, Vec4};
 use serde::Serialize;
 use sightline_scene::{AlphaMode, Material, Mesh};
 
+pub use crate::color::to_rgba8;
 use crate::sky::Sky;
 use crate::texture::{self, Filter, Wrap};
 
@@ -162,13 +163,6 @@ pub fn finish(color: Vec4, distance: f32, opts: &ShadeOptions) -> [u8; 4] {
         c = c.lerp(cue, f);
     }
     to_rgba8(c)
-}
-
-/// RGBA in [0, 1] to 8 bits per channel (clamped, rounded; NaN → 0).
-#[inline]
-pub fn to_rgba8(c: Vec4) -> [u8; 4] {
-    let q = |v: f32| (v.clamp(0.0, 1.0) * 255.0 + 0.5) as u8;
-    [q(c.x), q(c.y), q(c.z), q(c.w)]
 }
 
 /// Shades one surface point: Lambert with `normal` (turned towards `view_dir`, the

@@ -17,7 +17,7 @@ use glam::{Vec2, Vec3};
 use serde::Serialize;
 use sightline_scene::Camera;
 
-use crate::shading::to_rgba8;
+use crate::color::to_rgba8;
 use crate::Framebuffer;
 
 /// A gradient sky (linear RGB colors in [0, 1]).

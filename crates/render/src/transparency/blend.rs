@@ -14,7 +14,7 @@
 
 use glam::Vec4;
 
-use crate::shading::to_rgba8;
+use crate::color::to_rgba8;
 
 /// An RGBA8 color in [0, 1].
 #[inline]
