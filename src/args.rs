@@ -2,6 +2,7 @@
 //! `--size` and `--eye` mean the same, with the same messages, everywhere.
 
 use glam::Vec3;
+use sightline_render::Antialias;
 
 /// `WIDTHxHEIGHT` (or `WIDTHXHEIGHT`), each side 1 to 8192: an image or window size.
 pub fn parse_size(s: &str) -> Result<(u32, u32), String> {
@@ -27,6 +28,17 @@ pub fn parse_vec3(s: &str) -> Result<Vec3, String> {
     }
 }
 
+/// `--aa` (alias `--supersample`): samples per pixel side of a picture, `off` (or `1`), `2x2`
+/// (or `2`), `4x4` (or `4`).
+pub fn parse_aa(s: &str) -> Result<Antialias, String> {
+    match s.trim() {
+        "off" | "1" => Ok(Antialias::Off),
+        "2x2" | "2" => Ok(Antialias::Ssaa2x2),
+        "4x4" | "4" => Ok(Antialias::Ssaa4x4),
+        _ => Err(format!("'{s}': expected off, 2x2 or 4x4 (or 1, 2, 4 samples per pixel side)")),
+    }
+}
+
 /// Parses a time in seconds (`--time`): a finite number, not negative.
 pub fn parse_time(s: &str) -> Result<f32, String> {
     match s.trim().parse::<f32>() {
@@ -47,6 +59,10 @@ mod tests {
             assert!(parse_size(bad).unwrap_err().contains(bad), "{bad}");
         }
         assert_eq!(parse_vec3("1, -2,3.5"), Ok(Vec3::new(1.0, -2.0, 3.5)));
+        assert_eq!(parse_aa("2"), Ok(Antialias::Ssaa2x2));
+        assert_eq!(parse_aa("4x4"), Ok(Antialias::Ssaa4x4));
+        assert_eq!(parse_aa("off"), parse_aa("1"));
+        assert!(parse_aa("3x3").unwrap_err().contains("3x3"));
         assert!(parse_vec3("1,2").is_err() && parse_vec3("1,2,nan").is_err() && parse_vec3("a,b,c").is_err());
     }
 }

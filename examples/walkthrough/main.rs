@@ -24,6 +24,7 @@ use std::path::{Path, PathBuf};
 use anyhow::{bail, Context, Result};
 use clap::Parser;
 use sightline::gif_out;
+use sightline::render::Antialias;
 use sightline::SceneSpec;
 
 use engine::{Engine, FrameInfo, Framebuffer, Method};
@@ -66,32 +67,12 @@ struct Args {
     gif_every: u32,
     /// Supersampling of the PNG frames (1 = off): each pixel the average of s×s samples,
     /// drawn apart from the timed frame (the GIF is shrunk, which filters it enough)
-    #[arg(long, visible_alias = "supersample", value_enum, default_value = "2x2")]
-    aa: Aa,
+    /// (off, 2x2, 4x4; or 1, 2, 4)
+    #[arg(long, visible_alias = "supersample", value_name = "off|2x2|4x4", value_parser = sightline::args::parse_aa, default_value = "2x2")]
+    aa: Antialias,
     /// Worker threads (default: all cores)
     #[arg(short = 'j', long, value_parser = clap::value_parser!(u16).range(1..=256))]
     threads: Option<u16>,
-}
-
-/// Samples per pixel side of the PNG frames (the names of `sightline render --aa`).
-#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
-enum Aa {
-    #[value(alias = "1")]
-    Off,
-    #[value(name = "2x2", alias = "2")]
-    X2,
-    #[value(name = "4x4", alias = "4")]
-    X4,
-}
-
-impl Aa {
-    fn factor(self) -> u32 {
-        match self {
-            Aa::Off => 1,
-            Aa::X2 => 2,
-            Aa::X4 => 4,
-        }
-    }
 }
 
 fn main() {
@@ -167,7 +148,7 @@ fn walk(
         if a.png_every > 0 && f % a.png_every as usize == 0 {
             let p = a.out.join(format!("frame_{f:04}.png"));
             let sharp = match a.aa {
-                Aa::Off => None,
+                Antialias::Off => None,
                 aa => Some(engine.picture(&camera, a.method, w, h, aa.factor()).with_context(|| format!("frame {f}"))?),
             };
             let color = sharp.as_ref().map_or(&fb.color, |s| &s.color);

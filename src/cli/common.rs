@@ -55,8 +55,9 @@ pub struct Look {
     /// Supersampling of the pictures written (PNG frames and images; 1 = off): each pixel is
     /// the average of s×s samples. Triangle IDs, depth, counters and timed frames always
     /// take one sample per pixel, at its centre
-    #[arg(long, visible_alias = "supersample", value_enum, default_value = "2x2")]
-    pub aa: AaArg,
+    /// (off, 2x2, 4x4; or 1, 2, 4)
+    #[arg(long, visible_alias = "supersample", value_name = "off|2x2|4x4", value_parser = sightline::args::parse_aa, default_value = "2x2")]
+    pub aa: Antialias,
     /// The background of the pictures: a gradient sky, or the flat clear colour
     #[arg(long, value_enum, default_value = "on")]
     pub sky: OnOff,
@@ -74,16 +75,6 @@ pub enum ShadingArg {
     Flat,
     Gouraud,
     PerPixel,
-}
-
-#[derive(Debug, Clone, Copy, clap::ValueEnum)]
-pub enum AaArg {
-    #[value(alias = "1")]
-    Off,
-    #[value(name = "2x2", alias = "2")]
-    X2,
-    #[value(name = "4x4", alias = "4")]
-    X4,
 }
 
 #[derive(Debug, Clone, Copy, clap::ValueEnum)]
@@ -109,7 +100,7 @@ impl Look {
     pub fn pictures() -> Self {
         Look {
             shading: ShadingArg::Flat,
-            aa: AaArg::X2,
+            aa: Antialias::Ssaa2x2,
             sky: OnOff::On,
             wireframe: WireArg::Off,
             depth_format: DepthArg::F32,
@@ -127,11 +118,7 @@ impl Look {
             ShadingArg::Gouraud => ShadingMode::Gouraud,
             ShadingArg::PerPixel => ShadingMode::PerPixel,
         };
-        o.antialias = match self.aa {
-            AaArg::Off => Antialias::Off,
-            AaArg::X2 => Antialias::Ssaa2x2,
-            AaArg::X4 => Antialias::Ssaa4x4,
-        };
+        o.antialias = self.aa;
         o.wireframe = match self.wireframe {
             WireArg::Off => Wireframe::Off,
             WireArg::Overlay => Wireframe::Overlay,
