@@ -92,8 +92,8 @@ impl std::str::FromStr for SceneSpec {
                         .replace('_', "")
                         .parse()
                         .map_err(|_| format!("'{s}': expected city:TRIANGLES, e.g. city:10000000"))?;
-                    if !(1_000..=100_000_000).contains(&n) {
-                        return Err(format!("'{s}': the city's triangle count must be between 1000 and 100000000"));
+                    if !(1_000..=1_000_000_000).contains(&n) {
+                        return Err(format!("'{s}': the city's triangle count must be between 1000 and 1000000000"));
                     }
                     Ok(SceneSpec::City(n))
                 } else {
@@ -169,6 +169,8 @@ mod tests {
         assert_eq!("a.obj".parse::<SceneSpec>().unwrap(), SceneSpec::File("a.obj".into()));
         assert!("city:abc".parse::<SceneSpec>().is_err());
         assert!("city:5".parse::<SceneSpec>().is_err());
+        assert_eq!("city:1_000_000_000".parse::<SceneSpec>().unwrap(), SceneSpec::City(1_000_000_000));
+        assert!("city:1000000001".parse::<SceneSpec>().unwrap_err().contains("1000000000"));
         assert_eq!("city+traffic:1000".parse::<SceneSpec>().unwrap(), SceneSpec::CityTraffic(1000));
         assert_eq!("city+traffic:10_000".parse::<SceneSpec>().unwrap(), SceneSpec::CityTraffic(10_000));
         assert!("city+traffic:".parse::<SceneSpec>().is_err());

@@ -57,7 +57,7 @@ Keys:
 #[derive(Debug, Parser)]
 #[command(name = "viewer", after_help = KEYS)]
 pub struct Args {
-    /// Scene: a .gltf/.glb/.obj file, `city` (default, ≥ 10^6 triangles), `city:TRIS`,
+    /// Scene: a .gltf/.glb/.obj file, `city` (default, ≥ 10^6 triangles), `city:TRIS` (10^3 to 10^9),
     /// `city+traffic:N` (N vehicles and tower cranes, animated), or `boxfield`
     #[arg(short, long, default_value = "city", value_name = "SCENE")]
     pub scene: SceneSpec,

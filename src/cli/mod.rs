@@ -31,7 +31,7 @@ pub struct Cli {
 /// The scene option shared by every command.
 #[derive(Debug, Clone, clap::Args)]
 pub struct SceneArg {
-    /// Scene: a .gltf/.glb/.obj file, `city` (default, ≥ 10^6 triangles), `city:TRIS`,
+    /// Scene: a .gltf/.glb/.obj file, `city` (default, ≥ 10^6 triangles), `city:TRIS` (10^3 to 10^9),
     /// `city+traffic:N` (the city with N vehicles and tower cranes, animated: frame f is time
     /// f/30 s), or `boxfield`
     #[arg(short, long, default_value = "city", value_name = "SCENE")]
