@@ -136,6 +136,11 @@ impl SceneMeshlets {
         self.instance_slot[i as usize]
     }
 
+    /// Number of slots (meshes drawn).
+    pub fn slots(&self) -> usize {
+        self.meshes.len()
+    }
+
     /// The meshlets in `slot` (see [`SceneMeshlets::slot`]).
     pub fn by_slot(&self, slot: u32) -> &Meshlets {
         &self.meshes[slot as usize]

@@ -159,6 +159,8 @@ struct Clusters {
     /// Per cluster, what drawing it takes.
     draws: Vec<ClusterDraw>,
     item_boxes: Vec<Aabb>,
+    /// Per meshlet slot (mesh), its clusters' normal cones in mesh space.
+    local_cones: Vec<Vec<cone::LocalCone>>,
     cones: Vec<cone::Cone>,
     /// Per cluster, one bit: its cone [can cull](cone::Cone::can_cull) at all. A small
     /// array that stays in cache, so that clusters whose cone never culls (closed meshes

@@ -15,7 +15,7 @@ use rayon::prelude::*;
 use sightline_scene::{Aabb, Instance, NodeId, Scene};
 use sightline_spatial::{ClusteredScene, RefitOutcome};
 
-use super::{cone, ClusterDraw, Clusters};
+use super::{cone, ClusterDraw, Clusters, SceneMeshlets};
 
 /// Moves below this count are done in one task (splitting costs more than it saves).
 const PARALLEL_MOVES: usize = 512;
@@ -47,6 +47,8 @@ struct Shared<'a> {
     scene: &'a Scene,
     clustered: &'a ClusteredScene,
     cone_can_cull: &'a [u64],
+    meshlets: &'a SceneMeshlets,
+    local_cones: &'a [Vec<cone::LocalCone>],
 }
 
 impl Range<'_> {
@@ -72,8 +74,10 @@ impl Range<'_> {
                 // A cone that can cull is recomputed for the new pose; one that cannot stays
                 // unable to (conservative: at worst a cluster that could be dropped is drawn).
                 if sh.cone_can_cull[item as usize / 64] >> (item % 64) & 1 != 0 {
-                    let (p, idx, tris, m) = super::update::cone_input(sh.scene, inst, sh.clustered, item);
-                    let c = cone::Cone::of_cluster(p, idx, tris, &m);
+                    let it = sh.clustered.item(item);
+                    let local =
+                        sh.local_cones.get(sh.meshlets.slot(i) as usize).and_then(|v| v.get(it.cluster as usize));
+                    let c = local.map_or(cone::Cone::NEVER, |l| l.to_world(&inst.world_from_local));
                     self.cones[k] = c;
                     if !c.can_cull() {
                         out.uncull.push(item);
@@ -102,7 +106,13 @@ impl Clusters {
             &mut self.item_boxes,
             &mut self.cones,
         );
-        let sh = Shared { scene, clustered: &self.clustered, cone_can_cull: &self.cone_can_cull };
+        let sh = Shared {
+            scene,
+            clustered: &self.clustered,
+            cone_can_cull: &self.cone_can_cull,
+            meshlets: &self.meshlets,
+            local_cones: &self.local_cones,
+        };
         let parts: Vec<Moved> = if ranges.len() == 1 {
             ranges.into_iter().map(|r| r.apply(&moves, &sh)).collect()
         } else {

@@ -16,7 +16,8 @@
 //! new place as this frame's first occluders (drawing more than needed never changes the
 //! picture), and every other cluster is tested against the pyramid as usual.
 
-use sightline_scene::{NodeId, Scene, SceneDelta};
+use rayon::prelude::*;
+use sightline_scene::{Instance, NodeId, Scene, SceneDelta};
 use sightline_spatial::{ClusteredScene, LooseOctree, RefitOutcome};
 use slotmap::SecondaryMap;
 
@@ -41,11 +42,11 @@ impl Clusters {
         };
         let item_boxes = clustered.item_boxes(&instances);
         let items = 0..clustered.item_count() as u32;
-        let cone_inputs: Vec<_> = items
-            .clone()
-            .map(|i| cone_input(scene, &instances[clustered.item(i).instance as usize], &clustered, i))
+        let local_cones = local_cones(scene, &instances, &clustered, &meshlets);
+        let cones: Vec<cone::Cone> = (0..clustered.item_count() as u32)
+            .into_par_iter()
+            .map(|i| world_cone(&local_cones, &meshlets, &clustered, &instances, i))
             .collect();
-        let cones = cone::cones(&cone_inputs);
         let mut cone_can_cull = vec![0u64; cones.len().div_ceil(64)];
         for (i, c) in cones.iter().enumerate() {
             cone_can_cull[i / 64] |= (c.can_cull() as u64) << (i % 64);
@@ -79,6 +80,7 @@ impl Clusters {
             meshlets,
             draws,
             item_boxes,
+            local_cones,
             cones,
             cone_can_cull,
             octree,
@@ -112,16 +114,52 @@ impl Clusters {
     }
 }
 
-/// What a cluster's normal cone is made from (`inst` is the cluster's instance).
-pub(super) fn cone_input<'a>(
-    scene: &'a Scene,
-    inst: &sightline_scene::Instance,
-    clustered: &'a ClusteredScene,
+/// Each drawn mesh's cluster cones in its own space, by meshlet slot (indexed by the
+/// cluster's index in its mesh), made once from the first instance of each slot.
+fn local_cones(
+    scene: &Scene,
+    instances: &[Instance],
+    clustered: &ClusteredScene,
+    meshlets: &SceneMeshlets,
+) -> Vec<Vec<cone::LocalCone>> {
+    let mut first = vec![u32::MAX; meshlets.slots()];
+    for i in 0..instances.len() as u32 {
+        let s = &mut first[meshlets.slot(i) as usize];
+        if *s == u32::MAX {
+            *s = i;
+        }
+    }
+    first
+        .par_iter()
+        .map(|&i| {
+            let (Some(inst), Some(mc)) = (instances.get(i as usize), clustered.mesh_clusters(i)) else {
+                return Vec::new();
+            };
+            let Some(mesh) = scene.mesh(inst.mesh) else { return Vec::new() };
+            let mut v = vec![cone::LocalCone::NEVER; mc.clusters().len()];
+            for item in clustered.instance_items(i) {
+                let c = clustered.item(item).cluster as usize;
+                v[c] = cone::LocalCone::of_cluster(mesh.positions(), mesh.indices(), clustered.triangles(item));
+            }
+            v
+        })
+        .collect()
+}
+
+/// Item `item`'s normal cone in world space: its mesh cluster's local cone under its
+/// instance's transform.
+pub(super) fn world_cone(
+    local_cones: &[Vec<cone::LocalCone>],
+    meshlets: &SceneMeshlets,
+    clustered: &ClusteredScene,
+    instances: &[Instance],
     item: u32,
-) -> cone::ClusterRef<'a> {
-    match scene.mesh(inst.mesh) {
-        Some(m) => (m.positions(), m.indices(), clustered.triangles(item), inst.world_from_local),
-        None => (&[][..], &[][..], &[][..], inst.world_from_local),
+) -> cone::Cone {
+    let it = clustered.item(item);
+    let local = local_cones.get(meshlets.slot(it.instance) as usize).and_then(|v| v.get(it.cluster as usize));
+    match (local, instances.get(it.instance as usize)) {
+        (Some(l), Some(inst)) => l.to_world(&inst.world_from_local),
+        _ => cone::Cone::NEVER,
     }
 }
 
