@@ -29,14 +29,14 @@ use sightline_scene::{Camera, Instance, Scene};
 use sightline_spatial::SimdLevel;
 
 use crate::bin::bin_chunk;
-use crate::depth::{decode_row, with_codec, DepthFormat};
+use crate::depth::{with_codec, DepthCodec, DepthFormat};
 use crate::geometry::{split, Chunk, Item, Source};
 use crate::hzb::{TileLevels, TilePyramid, UpperLevels};
 use crate::options::{same_matrix, DrawItem, DrawSource, RenderOptions, Wireframe};
-use crate::raster::{raster_tiles, TileBuf, TilePass};
+use crate::raster::{raster_tiles, Planes, TileBuf, TilePass};
 use crate::setup::Viewport;
 use crate::stats::{ms_since, FrameStats};
-use crate::tiling::{Grid, TILE, TILE_SHIFT};
+use crate::tiling::Grid;
 use crate::{aa, deferred, wire, Error, Framebuffer, Result};
 
 /// A rasterizer with its reusable buffers. Create once, render many frames.
@@ -310,11 +310,13 @@ impl Renderer {
     /// Writes a session's frame to `fb` (depth, IDs and, when counting, depth tests; tiles
     /// never drawn into as cleared). Returns the pixels covered (ID ≠ 0).
     pub(crate) fn store_session(&mut self, fb: &mut Framebuffer, format: DepthFormat) -> u64 {
-        let Some(grid) = self.grid else { return 0 };
+        if self.grid.is_none() {
+            return 0;
+        }
         for (t, lv) in self.tiles.iter_mut().zip(&self.levels) {
             t.dirty = lv.touched;
         }
-        store_tiles(&self.tiles, &grid, fb, format, true)
+        with_codec!(format, store_all::<_>(&self.tiles, fb))
     }
 
     /// The z-pyramid of a session's frame drawn so far.
@@ -379,21 +381,21 @@ impl Renderer {
         let t = Instant::now();
         let chunks = &self.chunks[..n];
         let fmt = session.unwrap_or(opts.depth_format);
-        let (load, counting, fresh) = match &target {
-            Target::Frame { fb, fresh } => ((!*fresh).then_some(&**fb), fb.depth_tests.is_some(), *fresh),
+        let (planes, counting, fresh) = match &mut target {
+            Target::Frame { fb, fresh } => {
+                let counting = fb.depth_tests.is_some();
+                (Some(Planes::new(fb)), counting, *fresh)
+            }
             Target::Session { counting, .. } => (None, *counting, false),
         };
-        let pass = TilePass { chunks, load, counting, session: session.is_some() };
+        let pass = TilePass { chunks, target: planes.as_ref(), fresh, counting, session: session.is_some() };
         let ts = raster_tiles(&mut self.tiles, &mut self.levels, &pass, fmt, SimdLevel::Auto);
-        if let Target::Frame { fb, .. } = &mut target {
-            let covered = store_tiles(&self.tiles, &grid, fb, fmt, fresh);
+        if planes.is_none() {
+            self.upper.update(&self.levels);
+        } else if fresh {
             // Only a fresh draw wrote every pixel; after a plain batch the count would include
             // earlier batches' pixels.
-            if fresh {
-                st.covered_pixels = covered;
-            }
-        } else {
-            self.upper.update(&self.levels);
+            st.covered_pixels = ts.covered;
         }
         st.ms_raster = ms_since(t);
 
@@ -461,55 +463,24 @@ impl Renderer {
     }
 }
 
-/// Writes tiles to `fb`: the dirty ones from their buffers and, with `all`, every other
-/// tile as cleared (depth 1, ID 0, no depth tests), so that `fb` needs no clear first.
-/// Returns the covered pixels (ID ≠ 0) of the tiles written.
-fn store_tiles(tiles: &[TileBuf], grid: &Grid, fb: &mut Framebuffer, fmt: DepthFormat, all: bool) -> u64 {
-    let width = fb.width() as usize;
-    let tx = grid.tiles_x as usize;
-    let far = fmt.depth(fmt.key(1.0));
-    let copy_row = |y: usize, depth: &mut [f32], ids: &mut [u32]| -> u64 {
-        let row = &tiles[(y >> TILE_SHIFT) * tx..(y >> TILE_SHIFT) * tx + tx];
-        let r = (y & (TILE as usize - 1)) << TILE_SHIFT;
-        let mut covered = 0u64;
-        for t in row {
-            let (x0, w) = (t.x0 as usize, t.w as usize);
+/// Writes every tile to `fb`: the dirty ones from their buffers, the others as cleared
+/// (depth 1, ID 0, no depth tests), so that `fb` needs no clear first. Returns the covered
+/// pixels (ID ≠ 0).
+fn store_all<D: DepthCodec>(tiles: &[TileBuf], fb: &mut Framebuffer) -> u64 {
+    let far = D::decode(D::FORMAT.key(1.0));
+    let planes = Planes::new(fb);
+    // SAFETY (both): each tile is visited by one task, and tiles' rectangles do not overlap.
+    tiles
+        .par_iter()
+        .map(|t| {
             if t.dirty {
-                // The format's branch outside the loop, so that the loop vectorizes.
-                let (out, keys) = (&mut depth[x0..x0 + w], &t.depth[r..r + w]);
-                with_codec!(fmt, decode_row::<_>(out, keys));
-                let src = &t.ids[r..r + w];
-                ids[x0..x0 + w].copy_from_slice(src);
-                covered += src.iter().map(|&i| (i != 0) as u32).sum::<u32>() as u64;
-            } else if all {
-                depth[x0..x0 + w].fill(far);
-                ids[x0..x0 + w].fill(0);
+                unsafe { planes.store::<D>(t) }
+            } else {
+                unsafe { planes.clear(t, far) };
+                0
             }
-        }
-        covered
-    };
-    let covered = fb
-        .depth
-        .par_chunks_mut(width)
-        .zip(fb.ids.par_chunks_mut(width))
-        .enumerate()
-        .map(|(y, (d, i))| copy_row(y, d, i))
-        .sum();
-    if let Some(counts) = &mut fb.depth_tests {
-        counts.par_chunks_mut(width).enumerate().for_each(|(y, c)| {
-            let row = &tiles[(y >> TILE_SHIFT) * tx..(y >> TILE_SHIFT) * tx + tx];
-            let r = (y & (TILE as usize - 1)) << TILE_SHIFT;
-            for t in row {
-                let (x0, w) = (t.x0 as usize, t.w as usize);
-                if t.dirty {
-                    c[x0..x0 + w].copy_from_slice(&t.counts[r..r + w]);
-                } else if all {
-                    c[x0..x0 + w].fill(0);
-                }
-            }
-        });
-    }
-    covered
+        })
+        .sum()
 }
 
 /// Renders every instance of `scene` (world transforms must be up to date) with a fresh

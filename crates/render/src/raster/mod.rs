@@ -24,6 +24,7 @@
 //! run-time [`SimdLevel`] picks one per frame; the images are identical.
 
 pub(crate) mod kernel;
+pub(crate) mod store;
 pub(crate) mod tile;
 
 use std::sync::atomic::Ordering;
@@ -36,8 +37,8 @@ use crate::edge::{edges, wide_block, BlockSetup, Edge, FastEdges, Tri};
 use crate::geometry::Chunk;
 use crate::hzb::TileLevels;
 use crate::tiling::{BLOCK, TILE_SHIFT};
-use crate::Framebuffer;
 pub(crate) use kernel::{Avx2, Kernel, Rows};
+pub(crate) use store::Planes;
 pub(crate) use tile::TileBuf;
 
 /// Per-triangle result of rasterizing into one tile.
@@ -153,11 +154,18 @@ pub(crate) struct TileStats {
     pub tested: u64,
     pub written: u64,
     pub empty: u64,
+    /// Pixels with an ID after the pass, of the tiles stored to a target.
+    pub covered: u64,
 }
 
 impl TileStats {
     fn sum(a: Self, b: Self) -> Self {
-        Self { tested: a.tested + b.tested, written: a.written + b.written, empty: a.empty + b.empty }
+        Self {
+            tested: a.tested + b.tested,
+            written: a.written + b.written,
+            empty: a.empty + b.empty,
+            covered: a.covered + b.covered,
+        }
     }
 }
 
@@ -166,9 +174,12 @@ impl TileStats {
 pub(crate) struct TilePass<'a> {
     /// The binned chunks, in submission order.
     pub chunks: &'a [Chunk],
-    /// Outside sessions: the target whose pixels the tiles start from (`None`: it is
-    /// overwritten whole, so tiles start from the clear values).
-    pub load: Option<&'a Framebuffer>,
+    /// Outside sessions: the target each tile loads its pixels from before drawing (unless
+    /// `fresh`) and stores them to right after.
+    pub target: Option<&'a Planes<'a>>,
+    /// The target is overwritten whole: tiles start from the clear values, and tiles with
+    /// nothing to draw are stored as cleared.
+    pub fresh: bool,
     /// Depth tests are counted per pixel.
     pub counting: bool,
     /// Inside a frame session: tiles hold the frame and keep their pyramid levels.
@@ -246,6 +257,11 @@ unsafe fn raster_tile<D: DepthCodec, const C: bool, K: Kernel>(
     let mut st = TileStats::default();
     tile.dirty = pass.chunks.iter().any(|c| !c.bins[index].is_empty());
     if !tile.dirty {
+        if let (Some(out), true) = (pass.target, pass.fresh) {
+            // SAFETY: this task is the only one on tile `index`, whose rectangle no other
+            // tile shares.
+            unsafe { out.clear(tile, D::decode(D::FORMAT.key(1.0))) };
+        }
         return st;
     }
     if pass.session {
@@ -259,31 +275,25 @@ unsafe fn raster_tile<D: DepthCodec, const C: bool, K: Kernel>(
         lv.update::<D>(&tile.depth);
         return st;
     }
-    // Start from the clear values right after a clear; otherwise load the tile's pixels
+    // Start from the clear values on a fresh target; otherwise load the tile's pixels
     // (earlier batches may have drawn here).
-    if let Some(fb) = pass.load {
-        let width = fb.width() as usize;
-        for r in 0..tile.h as usize {
-            let src = (tile.y0 as usize + r) * width + tile.x0 as usize;
-            let dst = r << TILE_SHIFT;
-            let w = tile.w as usize;
-            for (k, d) in tile.depth[dst..dst + w].iter_mut().zip(&fb.depth[src..src + w]) {
-                *k = D::FORMAT.key_of_stored(*d);
+    match pass.target {
+        // SAFETY: as above, the tile's rectangle is this task's alone.
+        Some(out) if !pass.fresh => unsafe { out.load::<D>(tile, C) },
+        _ => {
+            tile.depth.fill(D::FORMAT.key(1.0));
+            tile.ids.fill(0);
+            if C {
+                tile.counts.fill(0); // only read and written when counting
             }
-            tile.ids[dst..dst + w].copy_from_slice(&fb.ids[src..src + w]);
-            if let (true, Some(c)) = (C, &fb.depth_tests) {
-                tile.counts[dst..dst + w].copy_from_slice(&c[src..src + w]);
-            }
-        }
-    } else {
-        tile.depth.fill(D::FORMAT.key(1.0));
-        tile.ids.fill(0);
-        if C {
-            tile.counts.fill(0); // only read and written when counting
         }
     }
     // SAFETY: forwarded from the caller.
     unsafe { raster_bins::<D, C, false, K>(tile, lv, index, pass.chunks, &mut st) };
+    if let Some(out) = pass.target {
+        // SAFETY: as above.
+        st.covered = unsafe { out.store::<D>(tile) };
+    }
     st
 }
 

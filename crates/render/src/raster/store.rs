@@ -1,0 +1,122 @@
+//! Tiles to the framebuffer and back, inside the tile stage.
+//!
+//! A tile's buffers (depth keys and IDs, 32 KiB) are loaded from the target just before
+//! its triangles are drawn and stored right after, by the same task, while they are still
+//! in that core's cache: one pass over the target's planes instead of a separate copy
+//! stage that reads every tile buffer back in. Tasks run in parallel over tiles, and each
+//! touches only its own tile's rectangle of the planes, which is what makes sharing the
+//! planes between them sound.
+
+use std::marker::PhantomData;
+
+use super::tile::TileBuf;
+use crate::depth::{decode_row, DepthCodec};
+use crate::tiling::TILE_SHIFT;
+use crate::Framebuffer;
+
+/// The depth, ID and (when counting) depth-test planes of one framebuffer, shared between
+/// the tile tasks of a pass; each task reads and writes only its own tile's rectangle.
+pub(crate) struct Planes<'a> {
+    depth: *mut f32,
+    ids: *mut u32,
+    /// Null without depth-test counts.
+    counts: *mut u32,
+    width: usize,
+    height: usize,
+    _fb: PhantomData<&'a mut Framebuffer>,
+}
+
+// SAFETY: the pointers come from a framebuffer borrowed mutably for 'a, and every access
+// through them is a tile's own rectangle (see the methods' contracts): tasks on different
+// threads never touch the same pixel.
+unsafe impl Send for Planes<'_> {}
+// SAFETY: as above.
+unsafe impl Sync for Planes<'_> {}
+
+impl<'a> Planes<'a> {
+    /// The planes of `fb`, for the length of its borrow.
+    pub(crate) fn new(fb: &'a mut Framebuffer) -> Self {
+        let (width, height) = (fb.width() as usize, fb.height() as usize);
+        let counts = fb.depth_tests.as_mut().map_or(std::ptr::null_mut(), |c| c.as_mut_ptr());
+        Self { depth: fb.depth.as_mut_ptr(), ids: fb.ids.as_mut_ptr(), counts, width, height, _fb: PhantomData }
+    }
+
+    /// Row `r` of `tile`'s rectangle in the planes: (depth, IDs, counts when present).
+    ///
+    /// # Safety
+    /// No other task may access this tile's rectangle at the same time.
+    #[allow(clippy::type_complexity)] // three parallel row slices
+    #[allow(clippy::mut_from_ref)] // the shared planes' rows: the caller owns the tile's rectangle
+    unsafe fn row(&self, tile: &TileBuf, r: usize) -> (&mut [f32], &mut [u32], Option<&mut [u32]>) {
+        let (x0, y0, w, h) = (tile.x0 as usize, tile.y0 as usize, tile.w as usize, tile.h as usize);
+        // A real check (not debug only): it is what keeps the raw accesses inside the planes.
+        assert!(x0 + w <= self.width && y0 + h <= self.height && r < h, "tile outside the framebuffer");
+        let at = (y0 + r) * self.width + x0;
+        // SAFETY: `at..at + w` lies inside each plane (checked above; every plane holds
+        // width × height entries), and the caller guarantees no other access to it.
+        unsafe {
+            (
+                std::slice::from_raw_parts_mut(self.depth.add(at), w),
+                std::slice::from_raw_parts_mut(self.ids.add(at), w),
+                (!self.counts.is_null()).then(|| std::slice::from_raw_parts_mut(self.counts.add(at), w)),
+            )
+        }
+    }
+
+    /// Loads `tile` from the planes (depth-test counts too when `counting`).
+    ///
+    /// # Safety
+    /// No other task may access this tile's rectangle at the same time.
+    pub(crate) unsafe fn load<D: DepthCodec>(&self, tile: &mut TileBuf, counting: bool) {
+        for r in 0..tile.h as usize {
+            // SAFETY: forwarded from the caller.
+            let (depth, ids, counts) = unsafe { self.row(tile, r) };
+            let (at, w) = (r << TILE_SHIFT, tile.w as usize);
+            for (k, d) in tile.depth[at..at + w].iter_mut().zip(depth.iter()) {
+                *k = D::FORMAT.key_of_stored(*d);
+            }
+            tile.ids[at..at + w].copy_from_slice(ids);
+            if let (true, Some(c)) = (counting, counts) {
+                tile.counts[at..at + w].copy_from_slice(c);
+            }
+        }
+    }
+
+    /// Stores `tile` into the planes (depth-test counts too when present); returns its
+    /// covered pixels (ID ≠ 0).
+    ///
+    /// # Safety
+    /// No other task may access this tile's rectangle at the same time.
+    pub(crate) unsafe fn store<D: DepthCodec>(&self, tile: &TileBuf) -> u64 {
+        let mut covered = 0u32;
+        for r in 0..tile.h as usize {
+            // SAFETY: forwarded from the caller.
+            let (depth, ids, counts) = unsafe { self.row(tile, r) };
+            let (at, w) = (r << TILE_SHIFT, tile.w as usize);
+            decode_row::<D>(depth, &tile.depth[at..at + w]);
+            let src = &tile.ids[at..at + w];
+            ids.copy_from_slice(src);
+            covered += src.iter().map(|&i| (i != 0) as u32).sum::<u32>();
+            if let Some(c) = counts {
+                c.copy_from_slice(&tile.counts[at..at + w]);
+            }
+        }
+        covered as u64
+    }
+
+    /// Writes `tile`'s rectangle as cleared: depth `far`, ID 0, no depth tests.
+    ///
+    /// # Safety
+    /// No other task may access this tile's rectangle at the same time.
+    pub(crate) unsafe fn clear(&self, tile: &TileBuf, far: f32) {
+        for r in 0..tile.h as usize {
+            // SAFETY: forwarded from the caller.
+            let (depth, ids, counts) = unsafe { self.row(tile, r) };
+            depth.fill(far);
+            ids.fill(0);
+            if let Some(c) = counts {
+                c.fill(0);
+            }
+        }
+    }
+}
