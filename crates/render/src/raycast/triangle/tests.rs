@@ -332,9 +332,9 @@ fn parity_cases() -> Vec<([Vec3A; 3], Rays)> {
 }
 
 /// Every kernel (shared origin and per-lane origin, closest and any hit, each facing rule)
-/// on every case.
+/// on every case; with `split`, each chunk's lanes one call per lane (the sparse path).
 #[inline(always)]
-fn run_kernels(cases: &[([Vec3A; 3], Rays)]) -> Vec<Record> {
+fn run_kernels(cases: &[([Vec3A; 3], Rays)], split: bool) -> Vec<Record> {
     let mut out = Vec::new();
     for (tri, rays) in cases {
         for cull in [0.0, 1.0, -1.0] {
@@ -345,24 +345,31 @@ fn run_kernels(cases: &[([Vec3A; 3], Rays)]) -> Vec<Record> {
                     hits.open(i, 0.0, if i % 5 == 0 { 1.0 } else { f32::INFINITY });
                 }
                 for c in 0..CHUNKS {
-                    let job = Job { c, bits: 0xFFFF ^ (1 << c), inst: 3, prim: 9, gid: 5, cull };
-                    let m = match kernel {
-                        0 => intersect_shared::<false>(
-                            &shared_setup(tri, rays.shared.unwrap(), rays.uniform[0]),
-                            rays,
-                            &mut hits,
-                            job,
-                        ),
-                        1 => intersect_general::<false>(tri, rays, &mut hits, job),
-                        2 => intersect_shared::<true>(
-                            &shared_setup(tri, rays.shared.unwrap(), MIXED),
-                            rays,
-                            &mut hits,
-                            job,
-                        ),
-                        _ => intersect_general::<true>(tri, rays, &mut hits, job),
+                    let all = 0xFFFF ^ (1u64 << c);
+                    let jobs: Vec<u64> = match split {
+                        false => vec![all],
+                        true => (0..CHUNK).map(|j| 1u64 << j).filter(|b| all & b != 0).collect(),
                     };
-                    lanes |= m << (c * CHUNK);
+                    for bits in jobs {
+                        let job = Job { c, bits, inst: 3, prim: 9, gid: 5, cull };
+                        let m = match kernel {
+                            0 => intersect_shared::<false>(
+                                &shared_setup(tri, rays.shared.unwrap(), rays.uniform[0]),
+                                rays,
+                                &mut hits,
+                                job,
+                            ),
+                            1 => intersect_general::<false>(tri, rays, &mut hits, job),
+                            2 => intersect_shared::<true>(
+                                &shared_setup(tri, rays.shared.unwrap(), MIXED),
+                                rays,
+                                &mut hits,
+                                job,
+                            ),
+                            _ => intersect_general::<true>(tri, rays, &mut hits, job),
+                        };
+                        lanes |= m << (c * CHUNK);
+                    }
                 }
                 let mut bits: Vec<u32> = Vec::new();
                 for f in [&hits.t, &hits.e1, &hits.e2, &hits.det] {
@@ -379,36 +386,41 @@ fn run_kernels(cases: &[([Vec3A; 3], Rays)]) -> Vec<Record> {
 
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2,fma,bmi1,bmi2,lzcnt,popcnt")]
-fn run_kernels_avx2(cases: &[([Vec3A; 3], Rays)]) -> Vec<Record> {
-    run_kernels(cases)
+fn run_kernels_avx2(cases: &[([Vec3A; 3], Rays)], split: bool) -> Vec<Record> {
+    run_kernels(cases, split)
 }
 
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx512f,avx512bw,avx512dq,avx512vl,avx2,fma,bmi1,bmi2,lzcnt,popcnt")]
-fn run_kernels_avx512(cases: &[([Vec3A; 3], Rays)]) -> Vec<Record> {
-    run_kernels(cases)
+fn run_kernels_avx512(cases: &[([Vec3A; 3], Rays)], split: bool) -> Vec<Record> {
+    run_kernels(cases, split)
 }
 
 /// The kernels compiled for AVX2 and AVX-512 (the ray caster's packet step enables those
 /// features) record exactly what the portable build records, on every SIMD level this
-/// process has (`SIGHTLINE_SIMD` may cap them).
+/// process has (`SIGHTLINE_SIMD` may cap them); a chunk tested lane by lane (the sparse
+/// path for chunks with few active lanes) records what the whole chunk does.
 #[test]
 fn kernels_are_bit_identical_on_every_simd_level() {
+    // One-lane calls must take the sparse path for `split` to test it.
+    const _: () = assert!(SPARSE >= 1);
     use sightline_spatial::simd::SimdLevel;
     let cases = parity_cases();
-    let reference = run_kernels(&cases);
+    let reference = run_kernels(&cases, false);
     assert!(reference.iter().any(|r| r.0 != 0) && reference.iter().any(|r| r.0 == 0));
     for level in SimdLevel::all_available() {
-        let got = match level {
-            #[cfg(target_arch = "x86_64")]
-            // SAFETY: `all_available` lists AVX2 only when the CPU has these features.
-            SimdLevel::Avx2 => unsafe { run_kernels_avx2(&cases) },
-            #[cfg(target_arch = "x86_64")]
-            // SAFETY: as above, for AVX-512.
-            SimdLevel::Avx512 => unsafe { run_kernels_avx512(&cases) },
-            _ => run_kernels(&cases),
-        };
-        assert!(got == reference, "{level:?} differs from the portable kernels");
+        for split in [false, true] {
+            let got = match level {
+                #[cfg(target_arch = "x86_64")]
+                // SAFETY: `all_available` lists AVX2 only when the CPU has these features.
+                SimdLevel::Avx2 => unsafe { run_kernels_avx2(&cases, split) },
+                #[cfg(target_arch = "x86_64")]
+                // SAFETY: as above, for AVX-512.
+                SimdLevel::Avx512 => unsafe { run_kernels_avx512(&cases, split) },
+                _ => run_kernels(&cases, split),
+            };
+            assert!(got == reference, "{level:?} (split: {split}) differs from the portable kernels");
+        }
     }
 }
 
