@@ -113,14 +113,6 @@ impl ShadeOptions {
             ..Self::default()
         }
     }
-
-    /// Paints the background pixels (ID 0) of `fb` seen by `camera` with the sky, when
-    /// there is one and shading is on.
-    pub fn paint_sky(&self, camera: &sightline_scene::Camera, fb: &mut crate::Framebuffer) {
-        if let (Some(sky), false) = (&self.sky, self.mode == ShadingMode::None) {
-            sky.paint(camera, fb);
-        }
-    }
 }
 
 /// Lambert intensity for a unit normal.

@@ -398,10 +398,7 @@ impl RayCaster {
         if scene.stamp() != self.stamp {
             return Err(crate::Error::NotSynced);
         }
-        let stats = render::render(self, scene, camera, opts, fb)?;
-        // The background as the rasterizer's deferred shading paints it.
-        opts.shading.paint_sky(camera, fb);
-        Ok(stats)
+        render::render(self, scene, camera, opts, fb)
     }
 
     /// The nearest surface (triangle of either facing, or CSG solid) on `origin + t·dir`

@@ -97,6 +97,11 @@ pub(crate) fn render(
     if let Some(c) = &mut fb.depth_tests {
         c.fill(0);
     }
+    // With shading off every pixel keeps the clear color, as in the raster's shading pass.
+    let sky = match (&opts.shading.sky, opts.shading.mode) {
+        (Some(s), m) if m != ShadingMode::None => Some(s.rows(camera, height as usize)),
+        _ => None,
+    };
     let default = Material::default();
     let clip: DMat4 = camera.clip_from_world_f64();
     let world_f64: Vec<DAffine3> = caster.tlas.instances().iter().map(|r| to_f64(&r.world_from_blas)).collect();
@@ -152,7 +157,16 @@ pub(crate) fn render(
                 band.shadow_rays = 0;
                 band.hit_count = 0;
                 let y0 = b as u32 * TILE;
-                color.fill(opts.background);
+                // The background: the sky's row colors (as the raster's deferred shading
+                // paints them) or the flat clear color; hit pixels are shaded over it.
+                match &sky {
+                    Some(rows) => {
+                        for (r, row) in color.chunks_mut(width as usize).enumerate() {
+                            row.fill(rows.get(y0 as usize + r).copied().unwrap_or(opts.background));
+                        }
+                    }
+                    None => color.fill(opts.background),
+                }
                 depth.fill(1.0);
                 ids.fill(0);
                 let mut out = Out { color, depth, ids };
