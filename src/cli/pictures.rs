@@ -12,7 +12,7 @@ use std::path::{Path, PathBuf};
 
 use anyhow::{Context, Result};
 use sightline::gif_out::{self, GifOut};
-use sightline::render::{aa, draw_all, Antialias, RayCaster, RaycastOptions, RenderOptions, Renderer};
+use sightline::render::{aa, draw_all, Framebuffer, RayCaster, RaycastOptions, RenderOptions, Renderer};
 use sightline::scene::{Camera, Scene};
 
 use super::report::{FrameRecord, WALK_GIF};
@@ -101,22 +101,28 @@ pub fn picture(
     opts: &RenderOptions,
     size: (u32, u32),
 ) -> Result<Vec<[u8; 4]>> {
-    let one = RenderOptions { antialias: Antialias::Off, ..*opts };
-    let fb = aa::supersample(size.0, size.1, opts.antialias.factor(), |fb| -> Result<()> {
-        match caster {
-            Some((c, ro)) => {
-                let ro = RaycastOptions { shading: one.shading, background: one.background, ..*ro };
+    let s = opts.antialias.factor();
+    let fb = match caster {
+        // The ray caster takes one sample per pixel: the picture is cast s times larger and
+        // box-filtered down.
+        Some((c, ro)) => {
+            let ro = RaycastOptions { shading: opts.shading, background: opts.background, ..*ro };
+            aa::supersample(size.0, size.1, s, |fb| -> Result<()> {
                 c.render(scene, camera, fb, &ro)?;
-            }
-            None => {
-                let instances = scene.instances();
-                Renderer::new().render(scene, &instances, &draw_all(&instances), camera, fb, &one)?;
-            }
+                Ok(())
+            })
         }
-        Ok(())
-    })
-    .with_context(|| {
-        format!("a {}x{} picture at {2}x{2} samples per pixel", size.0, size.1, opts.antialias.factor())
-    })?;
+        None => raster_picture(scene, camera, opts, size),
+    }
+    .with_context(|| format!("a {}x{} picture at {s}x{s} samples per pixel", size.0, size.1))?;
     Ok(fb.color)
+}
+
+/// Every instance rasterized: the renderer supersamples by itself (`opts.antialias`), as it
+/// does every frame it draws, the wireframe over the resolved picture.
+fn raster_picture(scene: &Scene, camera: &Camera, opts: &RenderOptions, size: (u32, u32)) -> Result<Framebuffer> {
+    let mut fb = Framebuffer::new(size.0, size.1)?;
+    let instances = scene.instances();
+    Renderer::new().render(scene, &instances, &draw_all(&instances), camera, &mut fb, opts)?;
+    Ok(fb)
 }
