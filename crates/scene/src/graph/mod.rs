@@ -217,9 +217,6 @@ pub struct Scene {
     changes: Changes,
     pending: changes::Pending,
     order: OnceLock<changes::Order>,
-    /// Propagation's scratch list of (depth, marking order, node), kept between updates so
-    /// that an update of a scene whose edits keep their size allocates nothing.
-    scratch: Vec<(u32, u32, NodeId)>,
 }
 
 impl Default for Scene {
@@ -238,7 +235,6 @@ impl Default for Scene {
             changes: Changes::default(),
             pending: changes::Pending::default(),
             order: OnceLock::new(),
-            scratch: Vec::new(),
         }
     }
 }
@@ -259,7 +255,6 @@ impl Clone for Scene {
             changes: self.changes.clone(),
             pending: self.pending.clone(),
             order: self.order.clone(),
-            scratch: Vec::new(),
         }
     }
 }

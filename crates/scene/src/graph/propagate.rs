@@ -55,27 +55,29 @@ impl Scene {
         // the order they were marked (so reports are in that order). The depths recorded
         // with the marks are used unless a reparent changed depths since; nodes removed or
         // already clean are skipped in the walk below, so ordering reads no node.
-        let mut dirty = std::mem::take(&mut self.scratch);
-        dirty.clear();
-        let redepth = std::mem::take(&mut self.pending.depths_changed);
-        dirty.extend(marked.iter().enumerate().map(|(seq, &(depth, id))| {
-            let depth = if redepth { self.nodes.get(id).map_or(depth, |n| n.depth) } else { depth };
-            (depth, seq as u32, id)
-        }));
-        dirty.sort_unstable_by_key(|&(depth, seq, _)| (depth, seq));
+        if std::mem::take(&mut self.pending.depths_changed) {
+            for (depth, id) in marked.iter_mut() {
+                if let Some(n) = self.nodes.get(*id) {
+                    *depth = n.depth;
+                }
+            }
+        }
+        // A stable sort keeps marking order within a depth, and runs in linear time over
+        // the long runs of one depth that animations mark (every vehicle, say).
+        marked.sort_by_key(|&(depth, _)| depth);
         let mut walk = Walk { nodes: &mut self.nodes, meshes: &self.meshes, changes: &mut changes };
         let mut visited = 0;
         // The walk's stack holds one entry per level (a node, what it passes down and the
         // next child to visit), not one per pending node: a parent of 10^6 children costs
         // no 10^6-entry stack.
         let mut stack: Vec<(NodeId, Frame, usize)> = Vec::new();
-        for (k, &(_, _, id)) in dirty.iter().enumerate() {
+        for (k, &(_, id)) in marked.iter().enumerate() {
             // Scattered edits are bound by cache misses on the nodes, and one node's visit
             // is too long for the processor to reach the next node's loads on its own: so
             // every `TOUCH_AHEAD` nodes, the next batch is read in a short loop whose loads
             // overlap.
             if k % TOUCH_AHEAD == 0 {
-                walk.touch(dirty[k..].iter().take(TOUCH_AHEAD).map(|&(_, _, id)| id));
+                walk.touch(marked[k..].iter().take(TOUCH_AHEAD).map(|&(_, id)| id));
             }
             let Some(node) = walk.nodes.get(id) else {
                 continue; // removed since it was marked
@@ -118,8 +120,7 @@ impl Scene {
             }
         }
         marked.clear();
-        self.dirty = marked; // keep the allocations for the next update
-        self.scratch = dirty;
+        self.dirty = marked; // keep the allocation for the next update
         if changes.order_changed {
             self.forget_order();
         }
