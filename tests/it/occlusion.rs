@@ -199,3 +199,33 @@ fn skipping_hidden_occluders_changes_nothing() {
         assert_eq!(all.2, skipped.2, "{layout:?}: query answers");
     }
 }
+
+/// The occluder pass that draws every occluder finds each batch while the last one is drawn:
+/// its depth and IDs are the same on one, two and three threads, and its IDs are brute
+/// force's.
+#[test]
+fn the_pipelined_occluder_pass_is_the_same_on_any_thread_count() {
+    use sightline::render::Method;
+    use sightline::scene::builders::{boxfield, BoxfieldLayout, BoxfieldParams};
+    let camera = sightline::boxfield::camera(16.0 / 9.0, 200.0);
+    let scene =
+        boxfield(&BoxfieldParams { boxes: 6000, half_size: 40.0, seed: 9, layout: BoxfieldLayout::Instanced }).unwrap();
+    let opts = RenderOptions::ids_only();
+    let mut frames = Vec::new();
+    for threads in [1, 2, 3] {
+        let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap();
+        let mut culler = Culler::new(&scene);
+        let mut fb = Framebuffer::new(320, 180).unwrap();
+        pool.install(|| {
+            let (cs, _, pass) = culler.occluder_pass(&camera, &fb, &opts).unwrap();
+            assert!(cs.batches > 3, "{threads} threads: {} batches", cs.batches);
+            pass.finish(&mut fb).unwrap();
+        });
+        frames.push((fb.depth, fb.ids));
+    }
+    assert!(frames[0].1.iter().any(|&i| i != 0));
+    assert!(frames.iter().all(|f| *f == frames[0]), "the frame depends on the thread count");
+    let mut brute = Framebuffer::new(320, 180).unwrap();
+    Culler::new(&scene).render(&scene, &camera, Method::Brute, &mut brute, &opts).unwrap();
+    assert_eq!(frames[0].1, brute.ids, "the occluder pass's IDs are brute force's");
+}

@@ -330,12 +330,12 @@ impl Culler {
             let mut session = self.renderer.begin(fb, &opts);
             let r = match method {
                 Method::HzbOnePass => {
-                    let walk = Walk { first_batch: batching.first, skip: None, test: true };
+                    let walk = Walk { first_batch: batching.first, skip: None };
                     self.c.hzb_walk(&mut session, &mut f, &frustum, Source::Bvh, walk, batching)
                 }
                 Method::OctreeHzb => {
                     self.c.settle_octree();
-                    let walk = Walk { first_batch: batching.first, skip: None, test: true };
+                    let walk = Walk { first_batch: batching.first, skip: None };
                     self.c.hzb_walk(&mut session, &mut f, &frustum, Source::Octree, walk, batching)
                 }
                 _ => self.c.hzb_two_pass(&mut session, &mut f, &frustum, batching),
@@ -387,8 +387,12 @@ impl Culler {
         // Front to back in growing batches, so that the coarse depth test of the rasterizer
         // rejects whole triangles hidden behind earlier ones.
         let mut f = Frame { camera, opts, cs, fs: FrameStats::default() };
-        let walk = Walk { first_batch: batching.first, skip: None, test: skip_hidden };
-        self.c.hzb_walk(&mut session, &mut f, &frustum, Source::Bvh, walk, batching)?;
+        if skip_hidden {
+            let walk = Walk { first_batch: batching.first, skip: None };
+            self.c.hzb_walk(&mut session, &mut f, &frustum, Source::Bvh, walk, batching)?;
+        } else {
+            self.c.draw_front_to_back(&mut session, &mut f, &frustum, batching.first, batching)?;
+        }
         let Frame { mut cs, fs, .. } = f;
         // The walk's split into culling and drawing is not reported for the pass.
         cs.ms_cull = 0.0;

@@ -38,9 +38,6 @@ pub(super) struct Walk {
     /// `Some(frame)`: clusters already drawn in that frame (see `drawn_in`) are passed
     /// over, and the ones drawn get marked and join `last_visible`.
     pub skip: Option<u32>,
-    /// Test nodes and clusters against the pyramid before drawing them (false: draw every
-    /// cluster in the frustum, front to back).
-    pub test: bool,
 }
 
 /// Which structure the front-to-back walk runs over.
@@ -132,9 +129,9 @@ impl Clusters {
     }
 
     /// The front-to-back walk of [`super::Method::HzbOnePass`] and
-    /// [`super::Method::OctreeHzb`] (and of the occluder pass, which does not test) over
-    /// `source`, in batches growing from `walk.first_batch` clusters; see [`Walk`] for the
-    /// rest.
+    /// [`super::Method::OctreeHzb`] (and of the occluder pass that skips hidden occluders)
+    /// over `source`, testing nodes and clusters against the pyramid as it fills, in batches
+    /// growing from `walk.first_batch` clusters; see [`Walk`] for the rest.
     pub(super) fn hzb_walk(
         &mut self,
         s: &mut Session,
@@ -157,9 +154,9 @@ impl Clusters {
             let t = Instant::now();
             out.clear();
             let more = {
-                let q = walk.test.then(|| OcclusionQueries::with_projector(projector, s.pyramid()));
+                let q = OcclusionQueries::with_projector(projector, s.pyramid());
                 let cs = &mut f.cs;
-                let visible = |b: &_| q.as_ref().is_none_or(|q| q.counted_visible(b, cs));
+                let visible = |b: &_| q.counted_visible(b, cs);
                 match &mut cursor {
                     Cursor::Bvh(c) => c.next_batch(self.clustered.bvh(), visible, batch, &mut out),
                     Cursor::Octree(c) => c.next_batch(&self.octree, visible, batch, &mut out),
@@ -190,6 +187,62 @@ impl Clusters {
             }
             batch = (batch * 2).min(batching.cap);
         }
+    }
+
+    /// The occluder pass's walk when nothing is tested: every cluster in the frustum, front
+    /// to back in batches growing from `first_batch` clusters, with no pyramid tests. No batch depends on the pyramid here, so the walk is pipelined: the
+    /// next batch is found (BVH walk, back-facing clusters dropped) on one thread while the
+    /// current one is drawn with the others (`rayon::join`), so that the serial traversal
+    /// and the parallel drawing overlap. The batches, and so the frame, are the same.
+    pub(super) fn draw_front_to_back(
+        &mut self,
+        s: &mut Session,
+        f: &mut Frame,
+        frustum: &Frustum,
+        first_batch: usize,
+        batching: Batching,
+    ) -> Result<()> {
+        let this: &Clusters = self;
+        let eye = f.camera.view.eye;
+        let backface = f.opts.backface_culling;
+        let mut cursor = this.clustered.cursor(Some(frustum), eye);
+        // One batch: the clusters, whether more may follow, and what dropping back faces counted.
+        let find = |cursor: &mut FrontToBackCursor, batch: usize| {
+            let t = Instant::now();
+            let mut out = Vec::new();
+            let mut cs = CullStats::default();
+            let more = cursor.next_batch(this.clustered.bvh(), |_| true, batch, &mut out);
+            if backface {
+                this.drop_backfacing(&mut out, eye, &mut cs);
+            }
+            cs.ms_cull = ms_since(t);
+            (out, more, cs)
+        };
+        let mut batch = first_batch.max(1);
+        let mut found = Some(find(&mut cursor, batch));
+        while let Some((out, more, cs)) = found.take() {
+            f.cs.culled_by_backface += cs.culled_by_backface;
+            f.cs.ms_cull += cs.ms_cull;
+            batch = (batch * 2).min(batching.cap);
+            let draw = |s: &mut Session, f: &mut Frame| -> Result<()> {
+                if out.is_empty() {
+                    return Ok(());
+                }
+                let t = Instant::now();
+                this.draw(s, &out, |v| v.index, f)?;
+                f.cs.ms_draw += ms_since(t);
+                f.cs.batches += 1;
+                Ok(())
+            };
+            if more {
+                let (drawn, next) = rayon::join(|| draw(s, f), || find(&mut cursor, batch));
+                drawn?;
+                found = Some(next);
+            } else {
+                draw(s, f)?;
+            }
+        }
+        Ok(())
     }
 
     /// [`super::Method::Hzb`]: last frame's visible clusters (those still in the frustum and
@@ -241,7 +294,7 @@ impl Clusters {
         if result.is_ok() {
             // With last frame's occluders in place the pyramid is mostly complete: big batches.
             let first_batch = if first.is_empty() { batching.first } else { (batching.cap / 4).max(batching.first) };
-            let walk = Walk { first_batch, skip: Some(frame), test: true };
+            let walk = Walk { first_batch, skip: Some(frame) };
             result = self.hzb_walk(s, f, frustum, Source::Bvh, walk, batching);
         }
         // Re-test last frame's clusters against the finished pyramid: the occluded ones leave
