@@ -58,6 +58,12 @@ impl Transform {
 
     /// The matrix `T * R * S`; errors on NaN/inf components or a zero quaternion.
     pub fn to_affine(&self, what: &str) -> Result<Affine3A> {
+        self.normalized(what).map(|t| t.matrix())
+    }
+
+    /// This transform with its rotation made unit; errors on NaN/inf components or a zero
+    /// quaternion (`what` names the thing in the error).
+    pub fn normalized(&self, what: &str) -> Result<Transform> {
         let bad = |why: &str| Error::InvalidTransform { what: what.to_string(), why: why.to_string() };
         if !self.translation.is_finite() || !self.scale.is_finite() || !self.rotation.is_finite() {
             return Err(bad("a component is NaN or infinite"));
@@ -66,12 +72,39 @@ impl Transform {
         if len < 1e-6 {
             return Err(bad("rotation quaternion has zero length"));
         }
-        Ok(Affine3A::from_scale_rotation_translation(self.scale, self.rotation / len, self.translation))
+        Ok(Transform { rotation: self.rotation / len, ..*self })
     }
 
-    /// Decomposes an affine matrix (exact when it has no shear).
+    /// The matrix `T * R * S` as it stands (the rotation taken as given).
+    pub(crate) fn matrix(&self) -> Affine3A {
+        Affine3A::from_scale_rotation_translation(self.scale, self.rotation, self.translation)
+    }
+
+    /// Decomposes an affine matrix (exact when it has no shear). A matrix cannot tell which
+    /// axes a negative scale mirrors: the sign goes on x. A zero scale leaves the rotation
+    /// undefined: the rotation of the other columns is kept when it can be found, else the
+    /// identity (never NaN).
     pub fn from_affine(m: &Affine3A) -> Self {
         let (scale, rotation, translation) = m.to_scale_rotation_translation();
+        if rotation.is_finite() {
+            return Self { translation, rotation, scale };
+        }
+        // A zero column: rebuild an orthonormal frame from the others where there are two.
+        let [x, y, z] = [m.matrix3.x_axis, m.matrix3.y_axis, m.matrix3.z_axis].map(|c| c.try_normalize());
+        let frame = match (x, y, z) {
+            (Some(x), Some(y), _) => Some((x, y, x.cross(y))),
+            (Some(x), None, Some(z)) => Some((x, z.cross(x), z)),
+            (None, Some(y), Some(z)) => Some((y.cross(z), y, z)),
+            _ => None,
+        };
+        let rotation = frame
+            .and_then(|(x, y, z)| {
+                let q = Quat::from_mat3(&glam::Mat3::from_cols(x.into(), y.into(), z.into()));
+                q.is_finite().then(|| q.normalize())
+            })
+            .filter(|q| q.is_finite())
+            .unwrap_or(Quat::IDENTITY);
+        let scale = Vec3::new(m.matrix3.x_axis.length(), m.matrix3.y_axis.length(), m.matrix3.z_axis.length());
         Self { translation, rotation, scale }
     }
 }

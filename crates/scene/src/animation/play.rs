@@ -1,13 +1,13 @@
 //! Playing animations: sample every channel at one time and set the targeted nodes' local
 //! transforms (see the parent module for the rules on time and untargeted components).
 //!
-//! The new local matrix of a node goes through [`Scene::set_local_matrix`], so the node is
-//! marked dirty (and whatever else the scene records about edits happens) exactly as for an
+//! The new local transform of a node goes through [`Scene::set_local_transform`], so the node
+//! is marked dirty (and whatever else the scene records about edits happens) exactly as for an
 //! edit made by hand.
 
 use std::ops::Range;
 
-use glam::{Affine3A, Quat, Vec3};
+use glam::{Quat, Vec3};
 use rayon::prelude::*;
 
 use super::{Animation, Curve};
@@ -33,37 +33,22 @@ impl Pose {
         }
     }
 
-    /// The node's new local matrix: the sampled components over its current ones. Only
-    /// what is missing is read back from the current matrix: the translation is its last
-    /// column, the scale its column lengths (the determinant's sign on x, as
-    /// `Affine3A::to_scale_rotation_translation` does); only a missing rotation needs the
-    /// full decomposition.
-    fn over(&self, scene: &Scene, node: NodeId) -> Result<Affine3A> {
-        let (translation, rotation, scale) = match (self.translation, self.rotation, self.scale) {
-            (Some(t), Some(r), Some(s)) => (t, r, s),
-            (t, Some(r), s) => {
-                let m = scene.try_node(node)?.local_matrix();
-                let scale = s.unwrap_or_else(|| {
-                    let sign = m.matrix3.determinant().signum();
-                    Vec3::new(m.matrix3.x_axis.length() * sign, m.matrix3.y_axis.length(), m.matrix3.z_axis.length())
-                });
-                (t.unwrap_or(m.translation.into()), r, scale)
-            }
-            (t, None, s) => {
-                let current = scene.try_node(node)?.local_transform();
-                (t.unwrap_or(current.translation), current.rotation, s.unwrap_or(current.scale))
+    /// The node's new local transform: the sampled components over its current ones, as the
+    /// scene keeps them ([`Scene::local_transform`]: the TRS as last set, so a zero or
+    /// negative scale keeps its rotation and its mirrored axes frame after frame).
+    fn over(&self, scene: &Scene, node: NodeId) -> Result<Transform> {
+        let trs = match (self.translation, self.rotation, self.scale) {
+            (Some(translation), Some(rotation), Some(scale)) => Transform { translation, rotation, scale },
+            (t, r, s) => {
+                let current = scene.local_transform(node)?;
+                Transform {
+                    translation: t.unwrap_or(current.translation),
+                    rotation: r.unwrap_or(current.rotation),
+                    scale: s.unwrap_or(current.scale),
+                }
             }
         };
-        // Sampled values are finite and rotations unit by construction, but interpolating
-        // huge values can still overflow: check as `Transform::to_affine` does, and let it
-        // word the error.
-        let ok = translation.is_finite() && scale.is_finite() && rotation.is_finite() && rotation.length() > 1e-6;
-        let trs = Transform { translation, rotation, scale };
-        if ok {
-            Ok(Affine3A::from_scale_rotation_translation(scale, rotation.normalize(), translation))
-        } else {
-            trs.to_affine(&format!("node '{}'", scene.try_node(node)?.name()))
-        }
+        Ok(trs)
     }
 }
 
@@ -121,7 +106,7 @@ fn play(animations: &[Animation], scene: &mut Scene, t: f32) -> Result<usize> {
     let mut set = 0;
     for ((k, r), pose) in jobs.iter().zip(poses) {
         let first = &animations[*k].channels[r.start];
-        match pose.over(scene, first.target).and_then(|m| scene.set_local_matrix(first.target, m)) {
+        match pose.over(scene, first.target).and_then(|t| scene.set_local_transform(first.target, t)) {
             Ok(()) => set += 1,
             Err(e) => {
                 first_error.get_or_insert(Error::Animation {

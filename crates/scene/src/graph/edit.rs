@@ -52,6 +52,9 @@ impl Scene {
             Some(p) => self.nodes[p].children.push(id),
             None => self.roots.push(id),
         }
+        if let Some(t) = desc.trs.filter(|t| t.matrix() == desc.local) {
+            self.trs.insert(id, t);
+        }
         self.dirty.push((depth, id));
         Ok(id)
     }
@@ -64,12 +67,25 @@ impl Scene {
         }
     }
 
-    /// Sets a node's local transform from translation, rotation and scale.
+    /// Sets a node's local transform from translation, rotation and scale (the rotation
+    /// made unit). The scene keeps the TRS beside the matrix (see [`NodeDesc::trs`]).
     pub fn set_local_transform(&mut self, id: NodeId, t: Transform) -> Result<()> {
         self.try_node(id)?;
         // The message names the node only when there is one to write: no allocation per edit.
-        let m = t.to_affine("").map_err(|e| self.name_in(id, e))?;
-        self.set_local_matrix(id, m)
+        let t = t.normalized("").map_err(|e| self.name_in(id, e))?;
+        self.node_mut(id)?.parent_from_local = t.matrix();
+        self.trs.insert(id, t);
+        self.mark_dirty(id);
+        Ok(())
+    }
+
+    /// A node's local transform as translation, rotation and scale: as last given so
+    /// ([`NodeDesc::transform`], [`Scene::set_local_transform`], animation), else taken
+    /// from its matrix ([`Transform::from_affine`]: a negative scale goes on x, and a zero
+    /// scale keeps what rotation the other axes show).
+    pub fn local_transform(&self, id: NodeId) -> Result<Transform> {
+        let n = self.try_node(id)?;
+        Ok(self.trs.get(id).copied().unwrap_or_else(|| Transform::from_affine(&n.parent_from_local)))
     }
 
     /// `e` with the node's name as the object it is about.
@@ -93,6 +109,7 @@ impl Scene {
         self.try_node(id)?;
         crate::transform::validate_affine(&m, "").map_err(|e| self.name_in(id, e))?;
         self.node_mut(id)?.parent_from_local = m;
+        self.trs.remove(id);
         self.mark_dirty(id);
         Ok(())
     }
@@ -159,6 +176,7 @@ impl Scene {
                 });
             }
             self.nodes[child].parent_from_local = parent_world.inverse() * world;
+            self.trs.remove(child);
         }
         // Unlink from the old place, link into the new one.
         match self.nodes[child].parent {
@@ -209,6 +227,7 @@ impl Scene {
         let drawn_before = self.pending.removed.len();
         while let Some(n) = stack.pop() {
             if let Some(node) = self.nodes.remove(n) {
+                self.trs.remove(n);
                 if node.drawn.is_some() {
                     self.pending.removed.push(n);
                 }

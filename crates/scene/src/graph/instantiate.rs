@@ -40,6 +40,7 @@ struct TemplateNode {
     /// Index of the parent in the template (`None`: a root of the template).
     parent: Option<u32>,
     local: Affine3A,
+    trs: Option<Transform>,
     mesh: Option<MeshId>,
     material: Option<MaterialId>,
 }
@@ -135,7 +136,8 @@ impl Scene {
             // Indices shift by one with the root taken out; the root's children become roots.
             n.parent = n.parent.and_then(|p| p.checked_sub(1));
         }
-        let desc = NodeDesc { name: root.name, local: root.local, mesh: root.mesh, material: root.material };
+        let desc =
+            NodeDesc { name: root.name, local: root.local, trs: root.trs, mesh: root.mesh, material: root.material };
         let id = self.add_node(parent, desc)?;
         let created = self.place(&nodes, id)?;
         let copy_of = |i: u32| match i {
@@ -182,11 +184,11 @@ impl Scene {
         if prefab.scene != self.id {
             return Err(Error::ForeignPrefab { prefab: prefab.name.clone() });
         }
-        let local = transform.to_affine(&format!("placement of prefab '{}'", prefab.name))?;
+        let placement = transform.normalized(&format!("placement of prefab '{}'", prefab.name))?;
         if let Some(p) = parent {
             self.try_node(p)?;
         }
-        let root = self.add_node(parent, NodeDesc::new(prefab.name.clone()).matrix(local))?;
+        let root = self.add_node(parent, NodeDesc::new(prefab.name.clone()).transform(placement))?;
         let created = self.place(&prefab.nodes, root)?;
         for c in &prefab.cameras {
             if let Some(&node) = created.get(c.node as usize) {
@@ -212,7 +214,8 @@ impl Scene {
         let mut created: Vec<NodeId> = Vec::with_capacity(nodes.len());
         for n in nodes {
             let parent = n.parent.and_then(|p| created.get(p as usize).copied()).unwrap_or(root);
-            let desc = NodeDesc { name: n.name.clone(), local: n.local, mesh: n.mesh, material: n.material };
+            let desc =
+                NodeDesc { name: n.name.clone(), local: n.local, trs: n.trs, mesh: n.mesh, material: n.material };
             created.push(self.add_node(Some(parent), desc)?);
         }
         Ok(created)
@@ -252,6 +255,7 @@ impl Scene {
                 name: n.name.to_string(),
                 parent,
                 local: n.parent_from_local,
+                trs: self.trs.get(id).copied(),
                 mesh: n.mesh.and_then(&mut mesh),
                 material: n.material.and_then(&mut material),
             });

@@ -18,7 +18,7 @@
 use std::sync::OnceLock;
 
 use glam::{Affine3A, Vec3};
-use slotmap::{new_key_type, SlotMap};
+use slotmap::{new_key_type, SecondaryMap, SlotMap};
 
 use crate::{Aabb, Error, Material, Mesh, Result, Transform};
 
@@ -88,7 +88,8 @@ impl Node {
     pub fn local_matrix(&self) -> Affine3A {
         self.parent_from_local
     }
-    /// The local transform as translation, rotation, scale.
+    /// The local transform as translation, rotation, scale, taken from the matrix
+    /// ([`Transform::from_affine`]); [`Scene::local_transform`] gives the TRS as it was set.
     pub fn local_transform(&self) -> Transform {
         Transform::from_affine(&self.parent_from_local)
     }
@@ -130,6 +131,11 @@ pub struct NodeDesc {
     pub name: String,
     /// Local transform (`parent_from_local`).
     pub local: Affine3A,
+    /// The local transform as translation, rotation and scale, when it was given so
+    /// ([`NodeDesc::transform`]). The scene keeps it beside the matrix, because a matrix
+    /// cannot give back a zero scale's rotation or which axes a negative scale mirrors, and
+    /// animation lays sampled components over it. Ignored unless it makes `local` exactly.
+    pub trs: Option<Transform>,
     /// Mesh to draw.
     pub mesh: Option<MeshId>,
     /// Material for this node and (unless overridden) its subtree.
@@ -139,16 +145,27 @@ pub struct NodeDesc {
 impl NodeDesc {
     /// A group node with an identity transform.
     pub fn new(name: impl Into<String>) -> Self {
-        Self { name: name.into(), local: Affine3A::IDENTITY, mesh: None, material: None }
+        Self {
+            name: name.into(),
+            local: Affine3A::IDENTITY,
+            trs: Some(Transform::IDENTITY),
+            mesh: None,
+            material: None,
+        }
     }
-    /// Sets the local transform from TRS (checked when the node is added).
+    /// Sets the local transform from TRS (checked when the node is added; a rotation that
+    /// is not unit is normalized there).
     pub fn transform(mut self, t: Transform) -> Self {
-        self.local = Affine3A::from_scale_rotation_translation(t.scale, t.rotation, t.translation);
+        let len = t.rotation.length();
+        let t = if len > 0.0 && len.is_finite() { Transform { rotation: t.rotation / len, ..t } } else { t };
+        self.local = t.matrix();
+        self.trs = Some(t);
         self
     }
     /// Sets the local transform from a matrix.
     pub fn matrix(mut self, m: Affine3A) -> Self {
         self.local = m;
+        self.trs = None;
         self
     }
     /// Sets the mesh.
@@ -217,6 +234,8 @@ pub struct Scene {
     changes: Changes,
     pending: changes::Pending,
     order: OnceLock<changes::Order>,
+    /// The local transforms given as TRS (see [`NodeDesc::trs`]), beside the matrices.
+    trs: SecondaryMap<NodeId, Transform>,
 }
 
 impl Default for Scene {
@@ -235,6 +254,7 @@ impl Default for Scene {
             changes: Changes::default(),
             pending: changes::Pending::default(),
             order: OnceLock::new(),
+            trs: SecondaryMap::new(),
         }
     }
 }
@@ -255,6 +275,7 @@ impl Clone for Scene {
             changes: self.changes.clone(),
             pending: self.pending.clone(),
             order: self.order.clone(),
+            trs: self.trs.clone(),
         }
     }
 }

@@ -150,6 +150,49 @@ fn untargeted_components_keep_the_nodes_values() {
     assert!(scene.node(arm).unwrap().is_dirty(), "animate marks the node dirty");
 }
 
+/// A mirrored node (scale (1, −1, 1)) whose rotation is animated keeps its mirrored axis:
+/// the scene keeps the TRS it was given, where a matrix would put the sign on x.
+#[test]
+fn a_mirrored_node_keeps_its_mirrored_axis() {
+    let mut scene = Scene::new();
+    let wheel = scene
+        .add_node(None, NodeDesc::new("wheel").transform(Transform::from_scale(Vec3::new(1.0, -1.0, 1.0))))
+        .unwrap();
+    let spin =
+        Sampler::new(vec![0.0, 1.0], vec![Quat::IDENTITY, Quat::from_rotation_y(0.5)], Interpolation::Linear).unwrap();
+    scene.animations.push(Animation::new("spin").with_channel(wheel, Curve::Rotation(spin)));
+    for t in [0.0, 0.5, 1.0, 0.0] {
+        scene.animate(t).unwrap();
+    }
+    // At t = 0: rotation identity, so the matrix is diag(1, −1, 1), not diag(−1, 1, 1).
+    let m = scene.node(wheel).unwrap().local_matrix();
+    assert_eq!(m, Affine3A::from_scale(Vec3::new(1.0, -1.0, 1.0)));
+    assert_eq!(scene.local_transform(wheel).unwrap().scale, Vec3::new(1.0, -1.0, 1.0));
+}
+
+/// A scale animated through zero with a translation channel and no rotation channel: the
+/// node keeps its own rotation (a matrix of zero scale has none to give back), with no error.
+#[test]
+fn a_scale_through_zero_keeps_the_nodes_rotation() {
+    let mut scene = Scene::new();
+    let turned = Transform::from_rotation(Quat::from_rotation_y(std::f32::consts::FRAC_PI_2));
+    let node = scene.add_node(None, NodeDesc::new("popper").transform(turned)).unwrap();
+    let grow = Sampler::new(vec![0.0, 1.0], vec![Vec3::ZERO, Vec3::ONE], Interpolation::Linear).unwrap();
+    let slide = Sampler::new(vec![0.0, 1.0], vec![Vec3::ZERO, Vec3::X], Interpolation::Linear).unwrap();
+    scene.animations.push(
+        Animation::new("pop").with_channel(node, Curve::Scale(grow)).with_channel(node, Curve::Translation(slide)),
+    );
+    scene.animate(0.0).unwrap();
+    scene.animate(0.5).unwrap();
+    let t = scene.local_transform(node).unwrap();
+    assert_vec(t.scale, [0.5, 0.5, 0.5], "scale");
+    assert_vec(t.translation, [0.5, 0.0, 0.0], "translation");
+    assert!(t.rotation.angle_between(turned.rotation) < 1e-6, "the rotation is kept: {}", t.rotation);
+    // Taken apart from the matrix alone, a zero scale gives a finite rotation too.
+    let flat = Transform::from_affine(&Affine3A::from_scale(Vec3::new(0.0, 2.0, 2.0)));
+    assert!(flat.rotation.is_finite() && flat.scale == Vec3::new(0.0, 2.0, 2.0), "{flat:?}");
+}
+
 #[test]
 fn non_finite_time_is_an_error() {
     let mut scene = load(asset("animated.gltf")).unwrap();
