@@ -51,7 +51,7 @@ impl Loader<'_> {
                     (Checked::Invalid, _) => format!("node {node}"),
                 };
                 match self.channel(anim, ch) {
-                    Ok(channel) => out.channels.push(channel),
+                    Ok(channels) => out.channels.extend(channels),
                     Err(why) => {
                         self.scene.warnings.push(format!("{label} channel {c} ({target}): {why}; channel skipped"))
                     }
@@ -64,7 +64,13 @@ impl Loader<'_> {
         self.warn_bind_pose();
     }
 
-    fn channel(&self, anim: &json::Animation, ch: &json::animation::Channel) -> std::result::Result<Channel, String> {
+    /// The channel `ch` aimed at each scene node made for its glTF node (one per copy of a
+    /// node shared by several parents).
+    fn channel(
+        &self,
+        anim: &json::Animation,
+        ch: &json::animation::Channel,
+    ) -> std::result::Result<Vec<Channel>, String> {
         let root = self.root;
         let property = match ch.target.path {
             Checked::Valid(GltfProperty::Translation) => Property::Translation,
@@ -78,10 +84,12 @@ impl Loader<'_> {
             }
         };
         let node = ch.target.node.value();
-        let target = match self.node_ids.get(node) {
+        let targets = match self.node_ids.get(node) {
             None => return Err(format!("the target node {node} does not exist")),
-            Some(None) => return Err(format!("the target {} is not in the loaded scene", node_label(root, node))),
-            Some(Some(id)) => *id,
+            Some(ids) if ids.is_empty() => {
+                return Err(format!("the target {} is not in the loaded scene", node_label(root, node)))
+            }
+            Some(ids) => ids,
         };
         let s = ch.sampler.value();
         let sampler = anim.samplers.get(s).ok_or_else(|| format!("sampler {s} does not exist"))?;
@@ -99,7 +107,7 @@ impl Loader<'_> {
             Property::Rotation => Curve::Rotation(self.sampler(output, Type::Vec4, times, interpolation)?),
             Property::Scale => Curve::Scale(self.sampler(output, Type::Vec3, times, interpolation)?),
         };
-        Ok(Channel { target, curve })
+        Ok(targets.iter().map(|&target| Channel { target, curve: curve.clone() }).collect())
     }
 
     /// Reads the output accessor and makes the sampler (the rules of [`Sampler::new`]).
@@ -125,7 +133,7 @@ impl Loader<'_> {
         let mut morphed = Vec::new();
         let mut seen_mesh = vec![false; root.meshes.len()];
         for (i, node) in root.nodes.iter().enumerate() {
-            if !matches!(self.node_ids.get(i), Some(Some(_))) {
+            if self.node_ids.get(i).is_none_or(Vec::is_empty) {
                 continue;
             }
             if node.skin.is_some() {

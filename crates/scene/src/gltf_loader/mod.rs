@@ -166,7 +166,7 @@ fn load_with_reader(bytes: &[u8], path: &Path, assets: &AssetReader, options: &L
         images: vec![None; root.images.len()],
         default_material: None,
         skipped: Vec::new(),
-        node_ids: vec![None; root.nodes.len()],
+        node_ids: vec![Vec::new(); root.nodes.len()],
         unbacked: Cell::new(0),
         max_nodes: options.max_nodes.unwrap_or(crate::assets::DEFAULT_MAX_NODES),
     };
@@ -209,8 +209,9 @@ struct Loader<'a> {
     images: Vec<Option<Option<Arc<Texture>>>>,
     default_material: Option<MaterialId>,
     skipped: Vec<String>,
-    /// The scene node made for each glTF node (`None`: not in the loaded scene).
-    node_ids: Vec<Option<NodeId>>,
+    /// The scene nodes made for each glTF node: none when it is not in the loaded scene, one
+    /// per path to it when it is shared by several parents.
+    node_ids: Vec<Vec<NodeId>>,
     /// Accessor elements filled with zeros so far (accessors without a buffer view).
     unbacked: Cell<u64>,
     /// The most scene nodes this load may create.
@@ -317,7 +318,7 @@ impl Loader<'_> {
                 desc.material = self.resolve_material(mat, inherits);
             }
             let id = self.scene.add_node(parent, desc).map_err(|e| e.to_string())?;
-            self.node_ids[i] = Some(id);
+            self.node_ids[i].push(id);
             let passes = inherits || self.scene.node(id).is_some_and(|n| n.material().is_some());
             if prims.len() > 1 {
                 for (p, mesh_id, mat) in prims {
