@@ -192,7 +192,7 @@ impl Engine {
         }
         let mut world = World::new(loaded.scene);
         // The culler now, not in the first frame; the ray caster when first asked for.
-        let culler = world.culler();
+        let culler = world.culler()?;
         let starts: Vec<u32> = culler.instances().iter().map(|i| i.first_triangle).collect();
         let triangles = culler.instances().iter().map(|i| i.triangle_count as u64).sum();
         Ok(Engine {
@@ -411,7 +411,7 @@ impl Engine {
             }
         }
         let drawn = items.iter().map(|d| d.count as usize).sum();
-        let (culler, scene) = self.world.culler_and_scene();
+        let (culler, scene) = self.world.culler_and_scene()?;
         render::wire::draw_wireframe(scene, culler.instances(), &items, camera, fb, &self.opts)?;
         Ok(drawn)
     }
@@ -434,7 +434,7 @@ impl Engine {
     /// Every cluster box, classified against the frame `camera` sees at `width × height`:
     /// outside its view, hidden behind the frame's finished depth, or visible.
     pub fn classify_clusters(&mut self, camera: &Camera, width: u32, height: u32) -> Result<ClassifiedBoxes> {
-        let (culler, scene) = self.world.culler_and_scene();
+        let (culler, scene) = self.world.culler_and_scene()?;
         let revision = scene.revision();
         let boxes = match self.cluster_boxes.take() {
             // Taken again once the scene has moved.

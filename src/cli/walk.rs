@@ -234,7 +234,7 @@ fn walk(
     let list = methods(a.method);
     super::with_spinner("building BVHs", || -> Result<()> {
         if list.iter().any(|m| matches!(m, Visibility::Cull(_))) || a.verify {
-            world.culler().first_batch = a.first_batch.max(1);
+            world.culler()?.first_batch = a.first_batch.max(1);
         }
         if list.contains(&Visibility::RayCast) {
             world.prepare(Visibility::RayCast)?;

@@ -40,6 +40,16 @@ pub enum Error {
         "the scene has edits whose world transforms are not propagated yet: call Scene::update_transforms before rendering"
     )]
     NotPropagated,
+    /// The scene draws more triangles than 32-bit triangle IDs can name.
+    #[error(
+        "the scene draws {triangles} triangles, more than the {max} that 32-bit triangle IDs can name: draw fewer instances or smaller meshes"
+    )]
+    TooManyTriangles {
+        /// Triangles drawn by the scene's instances.
+        triangles: u64,
+        /// The most a scene may draw ([`sightline_scene::MAX_DRAWN_TRIANGLES`]).
+        max: u64,
+    },
     /// A culler or ray caster handed a scene other than the one it was built for.
     #[error(
         "this culler or ray caster was built for another scene (a clone is another scene): build one for this scene"
@@ -99,3 +109,13 @@ pub enum Error {
 
 /// Result alias for the render crate.
 pub type Result<T, E = Error> = std::result::Result<T, E>;
+
+/// [`Error::TooManyTriangles`] when `scene` draws more triangles than IDs can name (its
+/// instances' first IDs would stop at `u32::MAX` and repeat).
+pub(crate) fn check_triangle_ids(scene: &sightline_scene::Scene) -> Result<()> {
+    let (triangles, max) = (scene.drawn_triangle_count(), sightline_scene::MAX_DRAWN_TRIANGLES);
+    if triangles > max {
+        return Err(Error::TooManyTriangles { triangles, max });
+    }
+    Ok(())
+}

@@ -118,19 +118,21 @@ impl World {
         Ok(self.scene.animate(t)?)
     }
 
-    /// The culler, built for the scene as it is now on first use.
-    pub fn culler(&mut self) -> &mut Culler {
-        self.scene.update_transforms();
-        let scene = &self.scene;
-        self.culler.get_or_insert_with(|| Culler::new(scene))
+    /// The culler, for the scene as it is now: edits are propagated, and the culler is built
+    /// on first use and synced after ([`Culler::sync`]), so what it answers outside a frame
+    /// (its instances, an occluder pass) is never stale. Errors as [`Culler::sync`].
+    pub fn culler(&mut self) -> Result<&mut Culler> {
+        Ok(self.culler_and_scene()?.0)
     }
 
-    /// The culler (built on first use) beside the scene it culls, both as of the last
-    /// frame: for what takes the two together (drawing a frame's wireframe, testing boxes).
-    pub fn culler_and_scene(&mut self) -> (&mut Culler, &Scene) {
+    /// [`World::culler`] beside the scene it culls: for what takes the two together
+    /// (drawing a frame's wireframe, testing boxes).
+    pub fn culler_and_scene(&mut self) -> Result<(&mut Culler, &Scene)> {
         self.scene.update_transforms();
         let scene = &self.scene;
-        (self.culler.get_or_insert_with(|| Culler::new(scene)), scene)
+        let culler = self.culler.get_or_insert_with(|| Culler::new(scene));
+        culler.sync(scene)?;
+        Ok((culler, scene))
     }
 
     /// Builds what `method` draws with, if not built yet, for the scene as it is now (the
@@ -139,7 +141,7 @@ impl World {
     pub fn prepare(&mut self, method: impl Into<Visibility>) -> Result<()> {
         match method.into() {
             Visibility::Cull(_) => {
-                self.culler();
+                self.culler()?;
             }
             Visibility::RayCast => {
                 self.caster()?;
@@ -238,5 +240,49 @@ mod tests {
         assert_eq!(culler.instances()[0].world_from_local.translation.x, 3.0);
         assert_eq!(culler.sync(scene).unwrap(), SyncOutcome::Unchanged, "the culler was synced");
         assert!(!caster.as_mut().unwrap().sync(scene).unwrap(), "the ray caster was synced");
+    }
+
+    #[test]
+    fn the_culler_outside_a_frame_follows_the_scene() {
+        let mut scene = Scene::new();
+        let cube = scene.add_mesh(shapes::cube("cube").unwrap());
+        let node = scene.add_node(None, NodeDesc::new("cube").mesh(cube)).unwrap();
+        let mut world = World::new(scene);
+        assert_eq!(world.culler().unwrap().instances()[0].world_from_local.translation.x, 0.0);
+        let moved = Transform::from_translation(Vec3::new(3.0, 0.0, 0.0));
+        world.scene_mut().set_local_transform(node, moved).unwrap();
+        let (culler, _) = world.culler_and_scene().unwrap();
+        assert_eq!(culler.instances()[0].world_from_local.translation.x, 3.0, "propagated and synced");
+    }
+
+    /// A scene of more triangles than 32-bit IDs can name is refused by every renderer with
+    /// an error that gives the count, and the culler builds nothing for it.
+    #[test]
+    fn too_many_triangles_for_32_bit_ids_is_an_error() {
+        use sightline_scene::{Mesh, MAX_DRAWN_TRIANGLES};
+        let mut scene = Scene::new();
+        // 2^20 degenerate triangles (cheap to make and never drawn), placed 4,100 times:
+        // 4.3 × 10^9 triangles.
+        let big = Mesh::new("big", vec![Vec3::ZERO; 3], None, None, vec![0; 3 << 20]).unwrap();
+        let big = scene.add_mesh(big);
+        for i in 0..4100 {
+            scene.add_node(None, NodeDesc::new(format!("copy {i}")).mesh(big)).unwrap();
+        }
+        scene.update_transforms();
+        let triangles = scene.drawn_triangle_count();
+        assert!(triangles > MAX_DRAWN_TRIANGLES);
+        let check = |e: crate::Error| {
+            assert!(matches!(e, crate::Error::TooManyTriangles { triangles: t, .. } if t == triangles), "{e}");
+            assert!(e.to_string().contains(&triangles.to_string()), "{e}");
+        };
+        let look = sightline_scene::LookAt { eye: Vec3::new(0.0, 0.0, 5.0), ..Default::default() };
+        let camera = sightline_scene::Camera::perspective(&look, 1.0).unwrap();
+        let mut fb = Framebuffer::new(16, 16).unwrap();
+        let mut culler = Culler::new(&scene);
+        assert!(culler.instances().is_empty(), "nothing built for a scene that cannot be drawn");
+        check(culler.render(&scene, &camera, Method::Hzb, &mut fb, &RenderOptions::default()).unwrap_err());
+        check(crate::RayCaster::build(&scene).unwrap_err());
+        let mut world = World::new(scene);
+        check(world.render(&camera, Method::Brute, &mut fb, &RenderOptions::default()).unwrap_err());
     }
 }

@@ -62,7 +62,7 @@ pub use camera::{projection_onto_plane, Camera, LookAt, View};
 pub use error::{Error, Result};
 pub use graph::{
     Changes, Instance, Keep, MaterialId, MeshId, Node, NodeDesc, NodeId, Prefab, Removed, Scene, SceneCamera,
-    SceneDelta, SceneId, SceneStamp,
+    SceneDelta, SceneId, SceneStamp, MAX_DRAWN_TRIANGLES,
 };
 pub use material::{AlphaMode, Material, Texture, DEFAULT_ALPHA_CUTOFF};
 pub use mesh::Mesh;

@@ -231,11 +231,17 @@ impl Culler {
     }
 
     /// Builds clusters, meshlets, BVH and octree for the scene's instances (world transforms
-    /// must be up to date).
+    /// must be up to date). A scene of more triangles than IDs can name
+    /// ([`sightline_scene::MAX_DRAWN_TRIANGLES`]) is not built for: its frames are refused
+    /// with [`Error::TooManyTriangles`] until it draws few enough.
     pub fn new(scene: &Scene) -> Self {
+        let c = match crate::error::check_triangle_ids(scene) {
+            Ok(()) => Clusters::build(scene, None),
+            Err(_) => Clusters::empty(scene),
+        };
         Self {
             renderer: Renderer::new(),
-            c: Clusters::build(scene, None),
+            c,
             first_batch: Self::DEFAULT_FIRST_BATCH,
             max_batch: Self::DEFAULT_MAX_BATCH,
             one_thread_max_batch: Self::ONE_THREAD_MAX_BATCH,
@@ -255,6 +261,13 @@ impl Culler {
         }
         if scene.needs_update() {
             return Err(Error::NotPropagated);
+        }
+        crate::error::check_triangle_ids(scene)?;
+        if self.c.instances.is_empty() && scene.instance_count() > 0 {
+            // Built empty for a scene that was too big (or for one that drew nothing): build
+            // anew rather than follow a change report; there are no clusters to keep.
+            self.c = Clusters::build(scene, None);
+            return Ok(SyncOutcome::Rebuilt);
         }
         Ok(self.c.sync(scene))
     }

@@ -8,9 +8,10 @@
 //! or rebuilt once refitting has let its SAH cost grow past `REBUILD_RATIO` times that of a
 //! fresh build (the rule of Wald, Boulos and Shirley 2007, "Ray tracing deformable scenes
 //! using dynamic bounding volume hierarchies": refit while the tree stays good, rebuild when
-//! it has degraded). A change of what is drawn (instances added, removed or reordered, a mesh
-//! or material swapped) rebuilds the world side but keeps the clusters and meshlets of every
-//! mesh that is still drawn, so a mesh is clustered once, however the scene changes.
+//! it has degraded). A material change only updates the instance records (shading reads
+//! them). A change of what is drawn (instances added, removed or reordered, a mesh swapped)
+//! rebuilds the world side but keeps the clusters and meshlets of every mesh that is still
+//! drawn, so a mesh is clustered once, however the scene changes.
 //!
 //! Two-pass culling needs nothing here: last frame's visible clusters are drawn at their
 //! new place as this frame's first occluders (drawing more than needed never changes the
@@ -27,7 +28,15 @@ impl Clusters {
     /// Builds the culling state for `scene.instances()` (world transforms must be up to date),
     /// keeping the per-mesh clusters and meshlets of `reuse` for meshes still drawn.
     pub(super) fn build(scene: &Scene, reuse: Option<(ClusteredScene, SceneMeshlets)>) -> Clusters {
-        let instances = scene.instances();
+        Self::build_for(scene, scene.instances(), reuse)
+    }
+
+    /// A state that draws nothing, for a scene it must not draw (see [`super::Culler::new`]).
+    pub(super) fn empty(scene: &Scene) -> Clusters {
+        Self::build_for(scene, Vec::new(), None)
+    }
+
+    fn build_for(scene: &Scene, instances: Vec<Instance>, reuse: Option<(ClusteredScene, SceneMeshlets)>) -> Clusters {
         let (clustered, meshlets) = match reuse {
             Some((mut clustered, mut meshlets)) => {
                 clustered.rebuild(scene, &instances);
@@ -181,8 +190,8 @@ pub enum SyncOutcome {
         /// What became of the cluster BVH.
         bvh: RefitOutcome,
     },
-    /// What is drawn changed (instances added, removed or reordered, meshes or materials
-    /// swapped): the world side was rebuilt, keeping the clusters of meshes still drawn.
+    /// What is drawn changed (instances added, removed or reordered, meshes swapped): the
+    /// world side was rebuilt, keeping the clusters of meshes still drawn.
     Rebuilt,
 }
 

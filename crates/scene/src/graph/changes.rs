@@ -144,7 +144,13 @@ pub(crate) struct Order {
     nodes: Vec<NodeId>,
     first: Vec<u32>,
     index: SecondaryMap<NodeId, u32>,
+    /// Triangles of all drawn nodes, counted without the 32-bit cap of `first`.
+    triangles: u64,
 }
+
+/// Most triangles a scene may draw: triangle IDs are 32-bit, ID 0 is the background, and
+/// the ray caster numbers CSG solids after the triangles.
+pub const MAX_DRAWN_TRIANGLES: u64 = u32::MAX as u64 - (1 << 16);
 
 impl Scene {
     /// This scene value's identity (a clone has another).
@@ -193,6 +199,13 @@ impl Scene {
     pub fn instances(&self) -> Vec<Instance> {
         let order = self.order();
         order.nodes.iter().zip(&order.first).filter_map(|(&id, &first)| self.instance_at(id, first)).collect()
+    }
+
+    /// Triangles drawn by all instances as of the last update, counted in 64 bits: triangle
+    /// IDs are 32-bit, so a renderer refuses a scene of more than [`MAX_DRAWN_TRIANGLES`]
+    /// (whose [`Instance::first_triangle`]s would stop at `u32::MAX`).
+    pub fn drawn_triangle_count(&self) -> u64 {
+        self.order().triangles
     }
 
     /// One drawn node's [`Instance`], as [`Scene::instances`] would list it; `None` when the
@@ -265,6 +278,7 @@ impl Scene {
                 order.index.insert(id, order.nodes.len() as u32);
                 order.nodes.push(id);
                 order.first.push(first);
+                order.triangles += count as u64;
                 first = first.saturating_add(count);
             }
             order

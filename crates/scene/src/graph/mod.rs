@@ -27,7 +27,7 @@ mod edit;
 mod instantiate;
 mod propagate;
 
-pub use changes::{Changes, SceneDelta, SceneId, SceneStamp};
+pub use changes::{Changes, SceneDelta, SceneId, SceneStamp, MAX_DRAWN_TRIANGLES};
 pub use edit::Removed;
 pub use instantiate::Prefab;
 
