@@ -103,7 +103,9 @@ impl World {
         &self.scene
     }
 
-    /// The scene, to edit: move, add, remove, reparent, instantiate. The next frame follows.
+    /// The scene, to edit: move, add, remove, reparent, instantiate. The next frame follows;
+    /// a scene put in place of this one (`*world.scene_mut() = other`) gets its culler and
+    /// ray caster built anew.
     pub fn scene_mut(&mut self) -> &mut Scene {
         &mut self.scene
     }
@@ -128,7 +130,7 @@ impl World {
     /// [`World::culler`] beside the scene it culls: for what takes the two together
     /// (drawing a frame's wireframe, testing boxes).
     pub fn culler_and_scene(&mut self) -> Result<(&mut Culler, &Scene)> {
-        self.scene.update_transforms();
+        self.propagate();
         let scene = &self.scene;
         let culler = self.culler.get_or_insert_with(|| Culler::new(scene));
         culler.sync(scene)?;
@@ -150,11 +152,24 @@ impl World {
         Ok(())
     }
 
+    /// Propagates pending edits, and drops the structures built for another scene (one put
+    /// in place through [`World::scene_mut`]): they are built again for this one on use.
+    fn propagate(&mut self) {
+        self.scene.update_transforms();
+        let id = self.scene.id();
+        if self.culler.as_ref().is_some_and(|c| c.scene_id() != id) {
+            self.culler = None;
+        }
+        if self.caster.as_ref().is_some_and(|c| c.scene_id() != id) {
+            self.caster = None;
+        }
+    }
+
     /// Propagates pending edits and brings every structure built so far up to date: what
     /// the next frame would do first. A frame loop that times its frames apart from the
     /// scene's changes (as `sightline walk` does) calls it before the clock starts.
     pub fn update(&mut self) -> Result<()> {
-        self.scene.update_transforms();
+        self.propagate();
         if let Some(c) = &mut self.culler {
             c.sync(&self.scene)?;
         }
@@ -173,7 +188,7 @@ impl World {
 
     /// The ray caster, built on first use, up to date with the propagated scene.
     fn caster(&mut self) -> Result<&mut RayCaster> {
-        self.scene.update_transforms();
+        self.propagate();
         Ok(match &mut self.caster {
             Some(c) => {
                 c.sync(&self.scene)?;
@@ -193,7 +208,7 @@ impl World {
         opts: &RenderOptions,
     ) -> Result<FrameReport> {
         let t0 = std::time::Instant::now();
-        self.scene.update_transforms();
+        self.propagate();
         let mut report = FrameReport::default();
         match method.into() {
             Visibility::Cull(m) => {
@@ -284,5 +299,28 @@ mod tests {
         check(crate::RayCaster::build(&scene).unwrap_err());
         let mut world = World::new(scene);
         check(world.render(&camera, Method::Brute, &mut fb, &RenderOptions::default()).unwrap_err());
+    }
+
+    #[test]
+    fn a_scene_put_in_place_gets_its_own_structures() {
+        let scene_with = |x: f32| {
+            let mut s = Scene::new();
+            let cube = s.add_mesh(shapes::cube("cube").unwrap());
+            s.add_node(None, NodeDesc::new("cube").mesh(cube).transform(Transform::from_translation(Vec3::X * x)))
+                .unwrap();
+            s
+        };
+        let mut world = World::new(scene_with(0.0));
+        world.prepare(Method::Hzb).unwrap();
+        world.prepare(Visibility::RayCast).unwrap();
+        *world.scene_mut() = scene_with(4.0);
+        world.update().unwrap();
+        assert_eq!(world.culler().unwrap().instances()[0].world_from_local.translation.x, 4.0);
+        let look =
+            sightline_scene::LookAt { eye: Vec3::new(4.0, 0.0, 5.0), target: Vec3::X * 4.0, ..Default::default() };
+        let camera = sightline_scene::Camera::perspective(&look, 1.0).unwrap();
+        let mut fb = Framebuffer::new(16, 16).unwrap();
+        world.render(&camera, Visibility::RayCast, &mut fb, &RenderOptions::default()).unwrap();
+        assert_ne!(fb.ids[8 * 16 + 8], 0, "the ray caster sees the new scene's cube");
     }
 }

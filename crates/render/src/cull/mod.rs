@@ -248,6 +248,11 @@ impl Culler {
         }
     }
 
+    /// The identity of the scene this culler was built for.
+    pub(crate) fn scene_id(&self) -> sightline_scene::SceneId {
+        self.c.stamp.scene
+    }
+
     /// Brings the culling state up to date with `scene` after edits: moved instances are
     /// refitted, added or removed ones rebuild the world side (see the `update` module).
     /// `scene` must have been propagated ([`Scene::update_transforms`]).

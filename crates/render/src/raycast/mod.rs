@@ -197,6 +197,11 @@ impl RayCaster {
         Ok(Self::build_reusing(scene, std::collections::HashMap::new()))
     }
 
+    /// The identity of the scene this caster was built for.
+    pub(crate) fn scene_id(&self) -> sightline_scene::SceneId {
+        self.stamp.scene
+    }
+
     /// Follows `scene` after edits (see the type's docs); `Ok(false)` when it was up to date.
     pub fn sync(&mut self, scene: &Scene) -> Result<bool> {
         if scene.id() != self.stamp.scene {

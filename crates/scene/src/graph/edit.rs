@@ -168,14 +168,20 @@ impl Scene {
                 Some(p) => self.world_from_local_now(p)?,
                 None => Affine3A::IDENTITY,
             };
-            let det = parent_world.matrix3.determinant();
-            if det.abs() < 1e-12 || !det.is_finite() {
+            // Singular relative to the matrix's own scale (a uniformly tiny parent is fine).
+            let m = &parent_world.matrix3;
+            let det = m.determinant();
+            let scale = m.x_axis.length() * m.y_axis.length() * m.z_axis.length();
+            let local = parent_world.inverse() * world;
+            if !(det.is_finite() && scale.is_finite() && det.abs() > 1e-7 * scale) || !local.is_finite() {
+                let parent_name = parent.and_then(|p| self.nodes.get(p)).map_or("", |n| &n.name);
                 return Err(Error::InvalidTransform {
-                    what: format!("new parent of node '{}'", self.nodes[child].name),
-                    why: "its world matrix is singular, so the child's world transform cannot be kept".into(),
+                    what: format!("node '{parent_name}', the new parent of node '{}'", self.nodes[child].name),
+                    why: "its world matrix is singular (or overflows), so the child's world transform cannot be kept"
+                        .into(),
                 });
             }
-            self.nodes[child].parent_from_local = parent_world.inverse() * world;
+            self.nodes[child].parent_from_local = local;
             self.trs.remove(child);
         }
         // Unlink from the old place, link into the new one.
