@@ -32,7 +32,7 @@
 //! draws).
 
 use glam::Affine3A;
-use sightline_scene::Scene;
+use sightline_scene::{Mesh, Scene};
 use sightline_spatial::Visible;
 
 use super::{Clusters, CullStats};
@@ -88,16 +88,17 @@ impl Clusters {
         for v in visible {
             bits[v.index as usize / 64] |= 1 << (v.index % 64);
         }
-        let mut sources: Vec<DrawSource> = Vec::new();
+        // At most one source per cluster.
+        let mut sources: Vec<DrawSource> = Vec::with_capacity(visible.len());
+        let mut mesh: Option<(u32, &Mesh)> = None;
         for (start, end) in (Runs { bits: &bits, at: 0 }) {
             // Split the run at instance boundaries.
             let mut a = start;
             while a < end {
-                let instance = self.clustered.item(a).instance;
-                let whole = self.clustered.instance_items(instance);
+                let whole = self.clustered.instance_items(self.clustered.item(a).instance);
                 let b = end.min(whole.end);
                 let complete = a == whole.start && b == whole.end;
-                if !(complete && self.push_whole(scene, instance, a..b, &mut sources, cs)) {
+                if !(complete && self.push_whole(scene, a..b, &mut mesh, &mut sources, cs)) {
                     self.push_meshlet_runs(a..b, &mut sources, cs);
                 }
                 a = b;
@@ -106,30 +107,41 @@ impl Clusters {
         sources
     }
 
-    /// Instance `instance` whole, as its mesh, when its clusters `items` (all of them) hold
-    /// exactly the mesh's triangles; false (nothing pushed) otherwise.
+    /// An instance whole, as its mesh, when `items` (all its clusters) hold exactly the
+    /// mesh's triangles; false (nothing pushed) otherwise. Everything comes from the items'
+    /// draw records, which the draw needs anyway (the instance records are twice the size
+    /// and elsewhere in memory); `last` keeps the last mesh looked up.
     fn push_whole<'s>(
         &'s self,
         scene: &'s Scene,
-        instance: u32,
         items: std::ops::Range<u32>,
+        last: &mut Option<(u32, &'s Mesh)>,
         sources: &mut Vec<DrawSource<'s>>,
         cs: &mut CullStats,
     ) -> bool {
-        let inst = &self.instances[instance as usize];
-        let Some(mesh) = scene.mesh(inst.mesh) else { return false };
         let draws = &self.draws[items.start as usize..items.end as usize];
+        let Some(d) = draws.first() else { return false };
+        let mesh = match *last {
+            Some((slot, m)) if slot == d.meshlets => m,
+            _ => match scene.mesh(self.meshlets.mesh_id(d.meshlets)) {
+                Some(m) => {
+                    *last = Some((d.meshlets, m));
+                    m
+                }
+                None => return false,
+            },
+        };
         let triangles: u64 = draws.iter().map(|d| d.count as u64).sum();
         let count = mesh.triangle_count() as u64;
-        if triangles != count || inst.triangle_count as u64 != count {
+        if triangles != count {
             return false;
         }
         sources.push(DrawSource {
             positions: mesh.positions(),
             indices: mesh.indices(),
             triangle_ids: None,
-            world_from_local: inst.world_from_local,
-            first_triangle: inst.first_triangle,
+            world_from_local: Affine3A::from_cols_array(&d.world_from_local),
+            first_triangle: d.first_triangle,
             first: 0,
             count: count as u32,
         });
