@@ -14,17 +14,18 @@
 //! items are a contiguous range, its clusters in meshlet order. Each run of consecutive
 //! marked items of one instance becomes one range:
 //!
-//! * every cluster of the instance marked (a fully-inside subtree of the BVH, most
-//!   instances in most views): the instance's original mesh, whole, exactly the draw brute
-//!   force makes of it, with the mesh's own shared vertices and IDs;
+//! * every cluster of the instance marked (the instance wholly in view, as most are): the
+//!   instance's original mesh, whole, exactly the draw brute force makes of it, with the
+//!   mesh's own shared vertices and IDs;
 //! * otherwise the run's meshlets, whose triangles (and vertices) are contiguous because
 //!   [`super::Meshlets`] lays clusters out one after another: one draw over the run.
 //!
 //! Draws then come in brute force's order, and the triangles that can be seen are the same
 //! ones, so binning and the tiles do brute force's work on them; the frame costs the
-//! geometry of the culled triangles less, in at most as many draws as brute force makes.
-//! The image does not depend on draw order (depth ties go to the smaller ID), so the ID
-//! buffer stays brute force's bit for bit; the tests compare it.
+//! geometry of the culled triangles less, in about as many draws as brute force makes or
+//! fewer (an instance cut by the frustum can take a few). The image does not depend on
+//! draw order (depth ties go to the smaller ID), so the ID buffer stays brute force's bit
+//! for bit; the tests compare it.
 //!
 //! Other orders tried: front to back by instance (the BVH walked nearest child first, or
 //! instances sorted by their box centres) writes fewer fragments (the boxfield 0.65 million
