@@ -136,6 +136,11 @@ impl SceneMeshlets {
         self.instance_slot[i as usize]
     }
 
+    /// The mesh of `slot`.
+    pub(crate) fn mesh_id(&self, slot: u32) -> MeshId {
+        self.mesh_ids[slot as usize]
+    }
+
     /// Number of slots (meshes drawn).
     pub fn slots(&self) -> usize {
         self.meshes.len()

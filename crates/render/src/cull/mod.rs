@@ -4,7 +4,9 @@
 //!
 //! * [`Method::Brute`]: every triangle through the pipeline (the reference).
 //! * [`Method::Frustum`]: the (instance, cluster) BVH of `sightline_spatial::ClusteredScene`
-//!   culled against the view frustum; the surviving clusters are drawn.
+//!   culled against the view frustum; the surviving clusters are drawn in scene order, as
+//!   few long ranges: whole instances as their meshes, runs of one instance's clusters as one
+//!   meshlet range (`ranges.rs`).
 //! * [`Method::HzbOnePass`]: frustum culling plus occlusion culling with Greene's z-pyramid
 //!   ([`crate::hzb`]): the BVH is walked front to back in batches; before anything (node or
 //!   cluster) is drawn, its box is projected to a screen rectangle and nearest depth and tested
@@ -39,6 +41,7 @@ pub mod meshlets;
 mod moves;
 pub mod order;
 pub mod query;
+mod ranges;
 mod update;
 mod verify;
 mod walk;
@@ -339,7 +342,7 @@ impl Culler {
         let batching = self.batching();
         if method == Method::Frustum {
             let t = Instant::now();
-            let sources = self.c.sources(&self.c.visible, |v| v.index, &mut f.cs);
+            let sources = self.c.range_sources(scene, &self.c.visible, &mut f.cs);
             let target = Target::Frame { fb: &mut *fb, fresh: true };
             f.fs.add(&self.renderer.draw_sources_to(&sources, camera, target, &opts, false)?);
             f.cs.ms_draw = ms_since(t);
