@@ -173,7 +173,7 @@ impl Scene {
             let det = m.determinant();
             let scale = m.x_axis.length() * m.y_axis.length() * m.z_axis.length();
             let local = parent_world.inverse() * world;
-            if !(det.is_finite() && scale.is_finite() && det.abs() > 1e-7 * scale) || !local.is_finite() {
+            if !(det.is_finite() && scale.is_finite() && det.abs() > 1e-7 * scale && local.is_finite()) {
                 let parent_name = parent.and_then(|p| self.nodes.get(p)).map_or("", |n| &n.name);
                 return Err(Error::InvalidTransform {
                     what: format!("node '{parent_name}', the new parent of node '{}'", self.nodes[child].name),
