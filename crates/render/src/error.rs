@@ -110,9 +110,11 @@ pub enum Error {
 /// Result alias for the render crate.
 pub type Result<T, E = Error> = std::result::Result<T, E>;
 
-/// [`Error::TooManyTriangles`] when `scene` draws more triangles than IDs can name (its
-/// instances' first IDs would stop at `u32::MAX` and repeat).
-pub(crate) fn check_triangle_ids(scene: &sightline_scene::Scene) -> Result<()> {
+/// Whether `scene` (propagated) can be drawn: [`Error::TooManyTriangles`] when it draws more
+/// triangles than IDs can name (its instances' first IDs would stop at `u32::MAX` and
+/// repeat), the scene's error when a world transform overflowed.
+pub(crate) fn check_drawable(scene: &sightline_scene::Scene) -> Result<()> {
+    scene.check_world_transforms()?;
     let (triangles, max) = (scene.drawn_triangle_count(), sightline_scene::MAX_DRAWN_TRIANGLES);
     if triangles > max {
         return Err(Error::TooManyTriangles { triangles, max });

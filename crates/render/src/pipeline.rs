@@ -83,7 +83,7 @@ impl Renderer {
         fb: &mut Framebuffer,
         opts: &RenderOptions,
     ) -> Result<FrameStats> {
-        crate::error::check_triangle_ids(scene)?;
+        crate::error::check_drawable(scene)?;
         let t0 = Instant::now();
         let s = opts.antialias.factor();
         let mut stats = if s == 1 {

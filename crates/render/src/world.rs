@@ -323,4 +323,24 @@ mod tests {
         world.render(&camera, Visibility::RayCast, &mut fb, &RenderOptions::default()).unwrap();
         assert_ne!(fb.ids[8 * 16 + 8], 0, "the ray caster sees the new scene's cube");
     }
+
+    #[test]
+    fn an_overflowing_world_transform_is_an_error_not_a_frame() {
+        let mut scene = Scene::new();
+        let cube = scene.add_mesh(shapes::cube("cube").unwrap());
+        let big = Transform::from_scale(Vec3::splat(1e20));
+        let a = scene.add_node(None, NodeDesc::new("a").transform(big)).unwrap();
+        let b = scene.add_node(Some(a), NodeDesc::new("b").transform(big)).unwrap();
+        scene.add_node(Some(b), NodeDesc::new("far cube").mesh(cube)).unwrap();
+        let look = sightline_scene::LookAt { eye: Vec3::new(0.0, 0.0, 5.0), ..Default::default() };
+        let camera = sightline_scene::Camera::perspective(&look, 1.0).unwrap();
+        let mut fb = Framebuffer::new(16, 16).unwrap();
+        let mut world = World::new(scene);
+        for v in [Visibility::Cull(Method::Hzb), Visibility::RayCast] {
+            let e = world.render(&camera, v, &mut fb, &RenderOptions::default()).unwrap_err().to_string();
+            assert!(e.contains("overflows") && e.contains("node '"), "{e}");
+        }
+        world.scene_mut().set_local_transform(a, Transform::IDENTITY).unwrap();
+        world.render(&camera, Method::Hzb, &mut fb, &RenderOptions::default()).unwrap();
+    }
 }

@@ -238,7 +238,7 @@ impl Culler {
     /// ([`sightline_scene::MAX_DRAWN_TRIANGLES`]) is not built for: its frames are refused
     /// with [`Error::TooManyTriangles`] until it draws few enough.
     pub fn new(scene: &Scene) -> Self {
-        let c = match crate::error::check_triangle_ids(scene) {
+        let c = match crate::error::check_drawable(scene) {
             Ok(()) => Clusters::build(scene, None),
             Err(_) => Clusters::empty(scene),
         };
@@ -270,7 +270,7 @@ impl Culler {
         if scene.needs_update() {
             return Err(Error::NotPropagated);
         }
-        crate::error::check_triangle_ids(scene)?;
+        crate::error::check_drawable(scene)?;
         if self.c.instances.is_empty() && scene.instance_count() > 0 {
             // Built empty for a scene that was too big (or for one that drew nothing): build
             // anew rather than follow a change report; there are no clusters to keep.

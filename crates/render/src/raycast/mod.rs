@@ -193,7 +193,7 @@ impl RayCaster {
         if scene.needs_update() {
             return Err(crate::Error::NotPropagated);
         }
-        crate::error::check_triangle_ids(scene)?;
+        crate::error::check_drawable(scene)?;
         Ok(Self::build_reusing(scene, std::collections::HashMap::new()))
     }
 
@@ -210,7 +210,7 @@ impl RayCaster {
         if scene.needs_update() {
             return Err(crate::Error::NotPropagated);
         }
-        crate::error::check_triangle_ids(scene)?;
+        crate::error::check_drawable(scene)?;
         match scene.delta_since(self.stamp) {
             SceneDelta::UpToDate => return Ok(false),
             // Only moves and material changes: follow them in place unless a move needs a

@@ -57,7 +57,7 @@ impl Soup {
         if scene.needs_update() {
             return Err(Error::NotPropagated);
         }
-        crate::error::check_triangle_ids(scene)?;
+        crate::error::check_drawable(scene)?;
         let instances = scene.instances();
         let total: usize = instances.iter().map(|i| i.triangle_count as usize).sum();
         let mut triangles = Vec::with_capacity(total);

@@ -45,6 +45,7 @@ impl Scene {
             world_aabb: Aabb::EMPTY,
             depth,
             dirty: true,
+            overflowed: false,
             material_in_effect: None,
             drawn: None,
         });
@@ -234,6 +235,7 @@ impl Scene {
         while let Some(n) = stack.pop() {
             if let Some(node) = self.nodes.remove(n) {
                 self.trs.remove(n);
+                self.overflowed -= node.overflowed as usize;
                 if node.drawn.is_some() {
                     self.pending.removed.push(n);
                 }

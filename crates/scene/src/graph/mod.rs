@@ -65,6 +65,9 @@ pub struct Node {
     world_aabb: Aabb,
     depth: u32,
     dirty: bool,
+    /// The world matrix has NaN or infinite entries (products of finite local matrices can
+    /// overflow); see [`Scene::check_world_transforms`].
+    overflowed: bool,
     /// The material in effect (own or inherited), as of the last update.
     material_in_effect: Option<MaterialId>,
     /// The mesh drawn as of the last update: what the last change report told consumers.
@@ -236,6 +239,8 @@ pub struct Scene {
     order: OnceLock<changes::Order>,
     /// The local transforms given as TRS (see [`NodeDesc::trs`]), beside the matrices.
     trs: SecondaryMap<NodeId, Transform>,
+    /// How many live nodes have an overflowed world matrix.
+    overflowed: usize,
 }
 
 impl Default for Scene {
@@ -255,6 +260,7 @@ impl Default for Scene {
             pending: changes::Pending::default(),
             order: OnceLock::new(),
             trs: SecondaryMap::new(),
+            overflowed: 0,
         }
     }
 }
@@ -276,6 +282,7 @@ impl Clone for Scene {
             pending: self.pending.clone(),
             order: self.order.clone(),
             trs: self.trs.clone(),
+            overflowed: self.overflowed,
         }
     }
 }
@@ -383,5 +390,31 @@ mod tests {
     fn a_node_slot_stays_at_256_bytes() {
         // Propagation is bound by cache misses on nodes: keep a slot (node + version) at 256.
         assert!(std::mem::size_of::<super::Node>() <= 240, "{}", std::mem::size_of::<super::Node>());
+    }
+
+    /// Finite local scales can multiply past f32's range down a chain: the update says which
+    /// node overflowed, until an edit or a removal brings it back.
+    #[test]
+    fn an_overflowing_world_transform_is_named_until_it_is_fixed() {
+        use crate::{NodeDesc, Scene, Transform};
+        let mut s = Scene::new();
+        let big = Transform::from_scale(glam::Vec3::splat(1e12));
+        let mut parent = None;
+        let mut chain = Vec::new();
+        for name in ["a", "b", "c", "d", "e"] {
+            let id = s.add_node(parent, NodeDesc::new(name).transform(big)).unwrap();
+            chain.push(id);
+            parent = Some(id);
+        }
+        s.update_transforms();
+        // 10^48 at "d": "d" and "e" overflow.
+        let e = s.check_world_transforms().unwrap_err().to_string();
+        assert!(e.contains("node 'd'") || e.contains("node 'e'"), "{e}");
+        s.set_local_transform(chain[0], Transform::IDENTITY).unwrap();
+        s.update_transforms();
+        assert!(s.check_world_transforms().is_err(), "10^48 still at 'e'");
+        s.remove_node(chain[4]).unwrap();
+        s.update_transforms();
+        s.check_world_transforms().unwrap();
     }
 }

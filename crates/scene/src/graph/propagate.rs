@@ -5,7 +5,7 @@ use glam::Affine3A;
 use slotmap::SlotMap;
 
 use super::{Changes, MaterialId, MeshId, Node, NodeId, Scene};
-use crate::{Aabb, Mesh};
+use crate::{Aabb, Mesh, Result};
 
 /// What a node passes down to its children: its world transform and its material in effect.
 #[derive(Clone, Copy)]
@@ -24,9 +24,26 @@ struct Walk<'a> {
     nodes: &'a mut SlotMap<NodeId, Node>,
     meshes: &'a SlotMap<MeshId, Mesh>,
     changes: &'a mut Changes,
+    /// Nodes whose world matrix overflowed, less those that recovered, during this walk.
+    overflowed: isize,
 }
 
 impl Scene {
+    /// An error naming a node whose world transform overflowed at the last update (NaN or
+    /// infinite entries: finite local matrices can multiply past `f32::MAX` down a deep
+    /// chain); `Ok` when every world transform is finite. Renderers call it before drawing.
+    /// Costs nothing unless a node overflowed.
+    pub fn check_world_transforms(&self) -> Result<()> {
+        if self.overflowed == 0 {
+            return Ok(());
+        }
+        let name = self.nodes.values().find(|n| n.overflowed).map_or("", |n| &n.name);
+        Err(crate::Error::InvalidTransform {
+            what: format!("node '{name}'"),
+            why: "its world transform overflows (NaN or infinite entries): the scales or translations of it and its ancestors multiply past the largest f32".into(),
+        })
+    }
+
     /// True when an edit has not been propagated yet: a node's world transform, bounds or
     /// material in effect is out of date, or a node was removed or reparented since the last
     /// [`Scene::update_transforms`]. A renderer must not draw such a scene as it stands.
@@ -65,7 +82,7 @@ impl Scene {
         // A stable sort keeps marking order within a depth, and runs in linear time over
         // the long runs of one depth that animations mark (every vehicle, say).
         marked.sort_by_key(|&(depth, _)| depth);
-        let mut walk = Walk { nodes: &mut self.nodes, meshes: &self.meshes, changes: &mut changes };
+        let mut walk = Walk { nodes: &mut self.nodes, meshes: &self.meshes, changes: &mut changes, overflowed: 0 };
         let mut visited = 0;
         // The walk's stack holds one entry per level (a node, what it passes down and the
         // next child to visit), not one per pending node: a parent of 10^6 children costs
@@ -119,6 +136,7 @@ impl Scene {
                 }
             }
         }
+        self.overflowed = self.overflowed.saturating_add_signed(walk.overflowed);
         marked.clear();
         self.dirty = marked; // keep the allocation for the next update
         if changes.order_changed {
@@ -196,6 +214,9 @@ impl Walk<'_> {
         node.material_in_effect = material;
         node.drawn = node.mesh;
         node.dirty = false;
+        let overflowed = !world.is_finite();
+        self.overflowed += overflowed as isize - node.overflowed as isize;
+        node.overflowed = overflowed;
         node.world_aabb = match node.mesh.and_then(|m| self.meshes.get(m)) {
             Some(mesh) => mesh.aabb().transformed(&world),
             None => Aabb::EMPTY,
