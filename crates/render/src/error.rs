@@ -52,9 +52,12 @@ pub enum Error {
     },
     /// A culler or ray caster handed a scene other than the one it was built for.
     #[error(
-        "this culler or ray caster was built for another scene (a clone is another scene): build one for this scene"
+        "this {structure} was built for another scene (a clone is another scene): build one for this scene, or draw through a World, which does"
     )]
-    WrongScene,
+    WrongScene {
+        /// Which structure: "culler" or "ray caster".
+        structure: &'static str,
+    },
     /// A ray caster handed its scene after edits it has not followed yet.
     #[error("the scene changed since the ray caster was built or synced: call RayCaster::sync first")]
     NotSynced,

@@ -15,12 +15,18 @@ pub enum Error {
     #[error("stale material handle {0:?}")]
     StaleMaterial(crate::MaterialId),
     /// `set_parent` would make a node its own ancestor.
-    #[error("reparenting node {child:?} under {parent:?} would create a cycle in the hierarchy")]
+    #[error(
+        "reparenting node '{child_name}' under node '{parent_name}' would create a cycle in the hierarchy: '{parent_name}' is '{child_name}' or one of its descendants"
+    )]
     Cycle {
         /// The node being moved.
         child: crate::NodeId,
         /// The requested new parent (a descendant of `child`, or `child` itself).
         parent: crate::NodeId,
+        /// The moved node's name.
+        child_name: String,
+        /// The requested parent's name.
+        parent_name: String,
     },
     /// A transform with NaN or infinite entries, or one that cannot be inverted when it must be.
     #[error("invalid transform for {what}: {why}")]

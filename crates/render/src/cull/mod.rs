@@ -265,7 +265,7 @@ impl Culler {
     /// too) is an error; build a culler for it.
     pub fn sync(&mut self, scene: &Scene) -> Result<SyncOutcome> {
         if scene.id() != self.c.stamp.scene {
-            return Err(Error::WrongScene);
+            return Err(Error::WrongScene { structure: "culler" });
         }
         if scene.needs_update() {
             return Err(Error::NotPropagated);

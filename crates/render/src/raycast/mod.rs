@@ -205,7 +205,7 @@ impl RayCaster {
     /// Follows `scene` after edits (see the type's docs); `Ok(false)` when it was up to date.
     pub fn sync(&mut self, scene: &Scene) -> Result<bool> {
         if scene.id() != self.stamp.scene {
-            return Err(crate::Error::WrongScene);
+            return Err(crate::Error::WrongScene { structure: "ray caster" });
         }
         if scene.needs_update() {
             return Err(crate::Error::NotPropagated);
@@ -397,7 +397,7 @@ impl RayCaster {
         opts: &RaycastOptions,
     ) -> Result<RaycastStats> {
         if scene.id() != self.stamp.scene {
-            return Err(crate::Error::WrongScene);
+            return Err(crate::Error::WrongScene { structure: "ray caster" });
         }
         if scene.needs_update() {
             return Err(crate::Error::NotPropagated);

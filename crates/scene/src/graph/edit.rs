@@ -158,7 +158,8 @@ impl Scene {
             let mut cur = Some(p);
             while let Some(c) = cur {
                 if c == child {
-                    return Err(Error::Cycle { child, parent: p });
+                    let name = |id: NodeId| self.nodes.get(id).map_or_else(String::new, |n| n.name.to_string());
+                    return Err(Error::Cycle { child, parent: p, child_name: name(child), parent_name: name(p) });
                 }
                 cur = self.try_node(c)?.parent;
             }

@@ -132,6 +132,7 @@ fn cycles_are_refused() {
     let c = s.add_node(Some(b), NodeDesc::new("c")).unwrap();
     let e = s.set_parent(a, Some(c), Keep::Local).unwrap_err();
     assert!(matches!(e, Error::Cycle { .. }) && e.to_string().contains("cycle"), "{e}");
+    assert!(e.to_string().contains("node 'a' under node 'c'"), "the error names both nodes: {e}");
     assert!(s.set_parent(a, Some(a), Keep::World).is_err());
     assert_eq!(s.node(a).unwrap().parent(), None, "a failed reparent changes nothing");
 }
