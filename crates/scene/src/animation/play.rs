@@ -132,6 +132,9 @@ impl Scene {
     /// Errors as [`Animation::apply`]; every animation is applied before the first error is
     /// returned.
     pub fn animate(&mut self, t: f32) -> Result<usize> {
+        if std::mem::take(&mut self.dead_channels) {
+            self.drop_dead_animation_channels();
+        }
         let animations = std::mem::take(&mut self.animations);
         let result = play(&animations, self, t);
         self.animations = animations;

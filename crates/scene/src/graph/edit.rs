@@ -223,7 +223,10 @@ impl Scene {
 
     /// Removes a node and its whole subtree, and the cameras on them (returned in
     /// [`Removed::cameras`]) and the animation channels aimed at them. Their handles become
-    /// stale; every other handle stays valid.
+    /// stale; every other handle stays valid. The channels go before the next
+    /// [`Scene::animate`], in one pass however many nodes were removed (until then
+    /// [`Scene::animations`] still lists them; [`Scene::drop_dead_animation_channels`] drops
+    /// them at once).
     pub fn remove_node(&mut self, id: NodeId) -> Result<Removed> {
         let parent = self.try_node(id)?.parent;
         match parent {
@@ -252,8 +255,10 @@ impl Scene {
         let (gone, kept) =
             std::mem::take(&mut self.cameras).into_iter().partition(|c| !self.nodes.contains_key(c.node));
         self.cameras = kept;
-        // Animation channels aimed into the removed subtree go with it.
-        self.drop_dead_animation_channels();
+        // Animation channels aimed into the removed subtree go before the next `animate`, in
+        // one pass over the channels however many removals come first (a pass here would
+        // make removing n animated nodes one by one quadratic).
+        self.dead_channels |= !self.animations.is_empty();
         Ok(Removed { nodes: removed, cameras: gone })
     }
 }

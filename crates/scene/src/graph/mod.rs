@@ -241,6 +241,8 @@ pub struct Scene {
     trs: SecondaryMap<NodeId, Transform>,
     /// How many live nodes have an overflowed world matrix.
     overflowed: usize,
+    /// Nodes were removed since animation channels were last checked for dead targets.
+    pub(crate) dead_channels: bool,
 }
 
 impl Default for Scene {
@@ -261,6 +263,7 @@ impl Default for Scene {
             order: OnceLock::new(),
             trs: SecondaryMap::new(),
             overflowed: 0,
+            dead_channels: false,
         }
     }
 }
@@ -283,6 +286,7 @@ impl Clone for Scene {
             order: self.order.clone(),
             trs: self.trs.clone(),
             overflowed: self.overflowed,
+            dead_channels: self.dead_channels,
         }
     }
 }

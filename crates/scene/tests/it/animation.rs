@@ -225,6 +225,24 @@ fn a_removed_target_is_reported_and_can_be_dropped() {
     assert_eq!(scene.animate(1.0).unwrap(), 1);
 }
 
+/// Removing animated nodes one by one leaves their channels until the next `animate`, which
+/// drops them all in one pass (a pass per removal would be quadratic in the node count).
+#[test]
+fn channels_of_removed_nodes_go_at_the_next_animate() {
+    let mut scene = Scene::new();
+    let up = Sampler::new(vec![0.0, 1.0], vec![Vec3::ZERO, Vec3::Y], Interpolation::Linear).unwrap();
+    let nodes: Vec<NodeId> = (0..2000).map(|i| scene.add_node(None, NodeDesc::new(format!("n{i}"))).unwrap()).collect();
+    for (i, &n) in nodes.iter().enumerate() {
+        scene.animations.push(Animation::new(format!("a{i}")).with_channel(n, Curve::Translation(up.clone())));
+    }
+    for &n in nodes.iter().step_by(2) {
+        scene.remove_node(n).unwrap();
+    }
+    assert_eq!(scene.animations.len(), 2000, "still listed until the next animate");
+    assert_eq!(scene.animate(0.5).unwrap(), 1000, "the survivors play, with no error for the removed");
+    assert_eq!(scene.animations.len(), 1000);
+}
+
 // ---- broken animation data ----------------------------------------------------------------
 
 /// A glTF with one triangle on node 0 ("holder") and animation 0 ("ok") whose channel 0
