@@ -226,14 +226,41 @@ impl Scene {
     /// stale; every other handle stays valid. The channels go before the next
     /// [`Scene::animate`], in one pass however many nodes were removed (until then
     /// [`Scene::animations`] still lists them; [`Scene::drop_dead_animation_channels`] drops
-    /// them at once).
+    /// them at once). To remove many nodes, [`Scene::remove_nodes`] does it in one pass.
     pub fn remove_node(&mut self, id: NodeId) -> Result<Removed> {
-        let parent = self.try_node(id)?.parent;
-        match parent {
-            Some(p) => self.nodes[p].children.retain(|&c| c != id),
-            None => self.roots.retain(|&c| c != id),
+        self.remove_nodes(&[id])
+    }
+
+    /// [`Scene::remove_node`] for many nodes at once: each parent's child list and the
+    /// cameras are scanned once for the whole batch, where removing the nodes one by one
+    /// scans them once per node (quadratic for many children of one parent). Nodes inside
+    /// another removed subtree, and repeated handles, are fine. Errors on a stale handle,
+    /// removing nothing.
+    pub fn remove_nodes(&mut self, ids: &[NodeId]) -> Result<Removed> {
+        for &id in ids {
+            self.try_node(id)?;
         }
-        let mut stack = vec![id];
+        let gone: std::collections::HashSet<NodeId> = ids.iter().copied().collect();
+        // Each parent losing children keeps the others in order (the order sets IDs).
+        let mut parents: Vec<NodeId> = Vec::new();
+        let mut roots = false;
+        for &id in ids {
+            match self.nodes[id].parent {
+                Some(p) => parents.push(p),
+                None => roots = true,
+            }
+        }
+        parents.sort_unstable();
+        parents.dedup();
+        for p in parents {
+            if let Some(n) = self.nodes.get_mut(p) {
+                n.children.retain(|c| !gone.contains(c));
+            }
+        }
+        if roots {
+            self.roots.retain(|c| !gone.contains(c));
+        }
+        let mut stack: Vec<NodeId> = ids.to_vec();
         let mut removed = 0;
         let drawn_before = self.pending.removed.len();
         while let Some(n) = stack.pop() {
@@ -255,8 +282,8 @@ impl Scene {
         let (gone, kept) =
             std::mem::take(&mut self.cameras).into_iter().partition(|c| !self.nodes.contains_key(c.node));
         self.cameras = kept;
-        // Animation channels aimed into the removed subtree go before the next `animate`, in
-        // one pass over the channels however many removals come first (a pass here would
+        // Animation channels aimed into the removed subtrees go before the next `animate`,
+        // in one pass over the channels however many removals come first (a pass here would
         // make removing n animated nodes one by one quadratic).
         self.dead_channels |= !self.animations.is_empty();
         Ok(Removed { nodes: removed, cameras: gone })

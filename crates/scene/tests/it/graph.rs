@@ -220,3 +220,41 @@ fn bad_transforms_are_errors_naming_the_node() {
     assert!(s.set_parent(a, Some(flat), Keep::World).is_err());
     assert!(s.set_parent(a, Some(flat), Keep::Local).is_ok());
 }
+
+/// Removing a batch equals removing its nodes one by one: the survivors keep their order
+/// (and so their triangle IDs); nested and repeated handles are fine; a stale one removes
+/// nothing.
+#[test]
+fn removing_a_batch_equals_removing_one_by_one() {
+    let build = || {
+        let mut s = Scene::new();
+        let cube = s.add_mesh(shapes::cube("cube").unwrap());
+        let root = s.add_node(None, NodeDesc::new("root")).unwrap();
+        let kids: Vec<NodeId> =
+            (0..50).map(|i| s.add_node(Some(root), NodeDesc::new(format!("k{i}")).mesh(cube)).unwrap()).collect();
+        let grandkid = s.add_node(Some(kids[7]), NodeDesc::new("g").mesh(cube)).unwrap();
+        s.update_transforms();
+        (s, kids, grandkid)
+    };
+    let (mut one, kids, _) = build();
+    let (mut batch, kids_b, grandkid_b) = build();
+    let doomed: Vec<usize> = (0..50).filter(|i| i % 3 == 0 || *i == 7).collect();
+    let mut n = 0;
+    for &i in &doomed {
+        n += one.remove_node(kids[i]).unwrap().nodes;
+    }
+    let mut list: Vec<NodeId> = doomed.iter().map(|&i| kids_b[i]).collect();
+    list.push(grandkid_b); // inside a removed subtree
+    list.push(kids_b[3]); // repeated
+    assert_eq!(batch.remove_nodes(&list).unwrap().nodes, n);
+    one.update_transforms();
+    batch.update_transforms();
+    let names = |s: &Scene| {
+        s.instances().iter().map(|i| (s.node(i.node).unwrap().name().to_string(), i.first_triangle)).collect::<Vec<_>>()
+    };
+    assert_eq!(names(&one), names(&batch));
+    // A stale handle: nothing is removed.
+    let count = batch.node_count();
+    assert!(matches!(batch.remove_nodes(&[kids_b[1], kids_b[0]]), Err(Error::StaleNode(_))));
+    assert_eq!(batch.node_count(), count);
+}
