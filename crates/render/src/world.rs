@@ -237,6 +237,12 @@ mod tests {
     use super::*;
     use crate::SyncOutcome;
 
+    /// A camera at `eye` looking at `target`, and a 16 × 16 framebuffer.
+    fn view(eye: Vec3, target: Vec3) -> (Camera, Framebuffer) {
+        let look = sightline_scene::LookAt { eye, target, ..Default::default() };
+        (Camera::perspective(&look, 1.0).unwrap(), Framebuffer::new(16, 16).unwrap())
+    }
+
     #[test]
     fn update_brings_every_built_structure_up_to_date_and_builds_none() {
         let mut scene = Scene::new();
@@ -290,9 +296,7 @@ mod tests {
             assert!(matches!(e, crate::Error::TooManyTriangles { triangles: t, .. } if t == triangles), "{e}");
             assert!(e.to_string().contains(&triangles.to_string()), "{e}");
         };
-        let look = sightline_scene::LookAt { eye: Vec3::new(0.0, 0.0, 5.0), ..Default::default() };
-        let camera = sightline_scene::Camera::perspective(&look, 1.0).unwrap();
-        let mut fb = Framebuffer::new(16, 16).unwrap();
+        let (camera, mut fb) = view(Vec3::new(0.0, 0.0, 5.0), Vec3::ZERO);
         let mut culler = Culler::new(&scene);
         assert!(culler.instances().is_empty(), "nothing built for a scene that cannot be drawn");
         check(culler.render(&scene, &camera, Method::Hzb, &mut fb, &RenderOptions::default()).unwrap_err());
@@ -316,10 +320,7 @@ mod tests {
         *world.scene_mut() = scene_with(4.0);
         world.update().unwrap();
         assert_eq!(world.culler().unwrap().instances()[0].world_from_local.translation.x, 4.0);
-        let look =
-            sightline_scene::LookAt { eye: Vec3::new(4.0, 0.0, 5.0), target: Vec3::X * 4.0, ..Default::default() };
-        let camera = sightline_scene::Camera::perspective(&look, 1.0).unwrap();
-        let mut fb = Framebuffer::new(16, 16).unwrap();
+        let (camera, mut fb) = view(Vec3::new(4.0, 0.0, 5.0), Vec3::X * 4.0);
         world.render(&camera, Visibility::RayCast, &mut fb, &RenderOptions::default()).unwrap();
         assert_ne!(fb.ids[8 * 16 + 8], 0, "the ray caster sees the new scene's cube");
     }
@@ -332,9 +333,7 @@ mod tests {
         let a = scene.add_node(None, NodeDesc::new("a").transform(big)).unwrap();
         let b = scene.add_node(Some(a), NodeDesc::new("b").transform(big)).unwrap();
         scene.add_node(Some(b), NodeDesc::new("far cube").mesh(cube)).unwrap();
-        let look = sightline_scene::LookAt { eye: Vec3::new(0.0, 0.0, 5.0), ..Default::default() };
-        let camera = sightline_scene::Camera::perspective(&look, 1.0).unwrap();
-        let mut fb = Framebuffer::new(16, 16).unwrap();
+        let (camera, mut fb) = view(Vec3::new(0.0, 0.0, 5.0), Vec3::ZERO);
         let mut world = World::new(scene);
         for v in [Visibility::Cull(Method::Hzb), Visibility::RayCast] {
             let e = world.render(&camera, v, &mut fb, &RenderOptions::default()).unwrap_err().to_string();

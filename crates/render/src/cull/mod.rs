@@ -271,12 +271,6 @@ impl Culler {
             return Err(Error::NotPropagated);
         }
         crate::error::check_drawable(scene)?;
-        if self.c.instances.is_empty() && scene.instance_count() > 0 {
-            // Built empty for a scene that was too big (or for one that drew nothing): build
-            // anew rather than follow a change report; there are no clusters to keep.
-            self.c = Clusters::build(scene, None);
-            return Ok(SyncOutcome::Rebuilt);
-        }
         Ok(self.c.sync(scene))
     }
 

@@ -178,17 +178,7 @@ impl Clusters {
                 s.count += d.count;
                 continue;
             }
-            let ml = self.meshlets.by_slot(d.meshlets);
-            let next = DrawSource {
-                positions: &ml.positions,
-                indices: &ml.indices,
-                triangle_ids: Some(&ml.triangle_ids),
-                world_from_local: Affine3A::from_cols_array(&d.world_from_local),
-                first_triangle: d.first_triangle,
-                first: d.first,
-                count: d.count,
-            };
-            sources.extend(open.replace(next));
+            sources.extend(open.replace(self.draw_source(d)));
         }
         sources.extend(open);
     }

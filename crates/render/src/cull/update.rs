@@ -32,8 +32,12 @@ impl Clusters {
     }
 
     /// A state that draws nothing, for a scene it must not draw (see [`super::Culler::new`]).
+    /// Its stamp names a revision the scene has not reached, so the first sync that gets
+    /// through builds the whole state instead of following a change report.
     pub(super) fn empty(scene: &Scene) -> Clusters {
-        Self::build_for(scene, Vec::new(), None)
+        let mut c = Self::build_for(scene, Vec::new(), None);
+        c.stamp.revision = u64::MAX;
+        c
     }
 
     fn build_for(scene: &Scene, instances: Vec<Instance>, reuse: Option<(ClusteredScene, SceneMeshlets)>) -> Clusters {

@@ -9,7 +9,7 @@ use glam::Affine3A;
 use sightline_scene::Camera;
 use sightline_spatial::{prefetch, BoxProjector, CullOptions, FrontToBackCursor, Frustum, OctreeCursor, Visible};
 
-use super::{Clusters, CullStats, OcclusionQueries, PREFETCH_AHEAD};
+use super::{ClusterDraw, Clusters, CullStats, OcclusionQueries, PREFETCH_AHEAD};
 use crate::stats::ms_since;
 use crate::{DrawSource, FrameStats, RenderOptions, Result, Session};
 
@@ -104,20 +104,25 @@ impl Clusters {
             if d.count == 0 {
                 continue;
             }
-            let ml = self.meshlets.by_slot(d.meshlets);
-            sources.push(DrawSource {
-                positions: &ml.positions,
-                indices: &ml.indices,
-                triangle_ids: Some(&ml.triangle_ids),
-                world_from_local: Affine3A::from_cols_array(&d.world_from_local),
-                first_triangle: d.first_triangle,
-                first: d.first,
-                count: d.count,
-            });
+            sources.push(self.draw_source(d));
             cs.clusters_drawn += 1;
             cs.triangles_drawn += d.count as u64;
         }
         sources
+    }
+
+    /// The draw of one cluster record: its meshlet range under its instance's transform.
+    pub(super) fn draw_source(&self, d: &ClusterDraw) -> DrawSource<'_> {
+        let ml = self.meshlets.by_slot(d.meshlets);
+        DrawSource {
+            positions: &ml.positions,
+            indices: &ml.indices,
+            triangle_ids: Some(&ml.triangle_ids),
+            world_from_local: Affine3A::from_cols_array(&d.world_from_local),
+            first_triangle: d.first_triangle,
+            first: d.first,
+            count: d.count,
+        }
     }
 
     /// Draws the given items into the session, counting into `f`.

@@ -159,8 +159,8 @@ impl NodeDesc {
     /// Sets the local transform from TRS (checked when the node is added; a rotation that
     /// is not unit is normalized there).
     pub fn transform(mut self, t: Transform) -> Self {
-        let len = t.rotation.length();
-        let t = if len > 0.0 && len.is_finite() { Transform { rotation: t.rotation / len, ..t } } else { t };
+        // A transform `normalized` refuses is refused again, with its message, by `add_node`.
+        let t = t.normalized("").unwrap_or(t);
         self.local = t.matrix();
         self.trs = Some(t);
         self
