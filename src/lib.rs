@@ -186,7 +186,7 @@ mod tests {
         let stats = s.scene.stats();
         assert!(stats.instances > plain.instances + 20, "vehicles and cranes are drawn");
         // 20 vehicle animations and at least one crane.
-        assert!(s.scene.animations.len() > 20);
+        assert!(s.scene.animations().len() > 20);
         let before = s.scene.instances();
         s.scene.animate(1.0 / 30.0).unwrap();
         s.scene.update_transforms();

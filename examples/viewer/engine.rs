@@ -210,7 +210,7 @@ impl Engine {
 
     /// True when the scene has animations to play.
     pub fn animated(&self) -> bool {
-        !self.world.scene().animations.is_empty()
+        !self.world.scene().animations().is_empty()
     }
 
     /// Poses the scene's animations at `t` seconds; the next frame shows the pose.

@@ -23,11 +23,13 @@
 
 mod interpolate;
 mod play;
+mod playback;
 mod sampler;
 
 use glam::{Quat, Vec3};
 
 pub use interpolate::{slerp, Keyframe};
+pub(crate) use playback::Playback;
 pub use sampler::{Interpolation, Sampler};
 
 use crate::NodeId;

@@ -14,7 +14,8 @@
 //! Sampling at time `t` clamps: before the first key it gives the first key's value, after
 //! the last key the last key's value (the specification leaves time outside the keys to the
 //! implementation; clamping is what its sample viewer does). Inside, a binary search finds
-//! the key interval and [`Keyframe`] interpolates (see the `interpolate` module).
+//! the key interval (a player that remembers the last interval tries it and the next one
+//! first) and [`Keyframe`] interpolates (see the `interpolate` module).
 
 use super::interpolate::Keyframe;
 
@@ -126,35 +127,69 @@ impl<T: Keyframe> Sampler<T> {
         self.times[self.times.len() - 1]
     }
 
-    /// The value of key `k` (tangents left out).
-    fn key(&self, k: usize) -> T {
-        let per = self.interpolation.values_per_key();
-        self.values[k * per + per / 2]
-    }
-
     /// The value at time `t` (seconds), clamped to the first and last keys outside them; a
     /// NaN time gives the first key's value.
     pub fn sample(&self, t: f32) -> T {
-        let last = self.times.len() - 1;
-        if !(t > self.times[0]) {
-            return self.key(0);
+        interpolate(&self.values, self.interpolation, locate(&self.times, t, 0))
+    }
+}
+
+/// Where a time falls among a sampler's keys.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub(crate) enum Span {
+    /// On key `k`'s value: before the first key (or a NaN time), after the last, or the only key.
+    Key(usize),
+    /// Between keys `k` and `k + 1`: `s ∈ [0, 1]` of the way, over `td` seconds.
+    Between { k: usize, s: f32, td: f32 },
+}
+
+impl Span {
+    /// The key interval to try first at the next time (see [`locate`]).
+    pub(crate) fn hint(self) -> usize {
+        match self {
+            Span::Key(k) | Span::Between { k, .. } => k,
         }
-        if t >= self.times[last] {
-            return self.key(last);
-        }
-        // times[k] <= t < times[k + 1], with 0 <= k < last.
-        let k = self.times.partition_point(|&x| x <= t) - 1;
-        let (t0, t1) = (self.times[k], self.times[k + 1]);
-        let td = t1 - t0;
-        let s = ((t - t0) / td).clamp(0.0, 1.0);
-        match self.interpolation {
-            Interpolation::Step => self.key(k),
-            Interpolation::Linear => T::linear(self.key(k), self.key(k + 1), s),
-            Interpolation::CubicSpline => {
-                let (v0, out0) = (self.values[3 * k + 1], self.values[3 * k + 2]);
-                let (in1, v1) = (self.values[3 * k + 3], self.values[3 * k + 4]);
-                T::hermite(v0, out0, v1, in1, s, td)
-            }
+    }
+}
+
+/// Where `t` falls among the strictly increasing key `times` (at least one). `hint` is
+/// where an earlier time fell ([`Span::hint`]): an animation played forward falls in that
+/// interval or the next, which are tried before the binary search. The answer does not
+/// depend on the hint.
+pub(crate) fn locate(times: &[f32], t: f32, hint: usize) -> Span {
+    let last = times.len() - 1;
+    if !(t > times[0]) {
+        return Span::Key(0);
+    }
+    if t >= times[last] {
+        return Span::Key(last);
+    }
+    // times[k] <= t < times[k + 1], with 0 <= k < last.
+    let within = |k: usize| k < last && times[k] <= t && t < times[k + 1];
+    let k = if within(hint) {
+        hint
+    } else if within(hint + 1) {
+        hint + 1
+    } else {
+        times.partition_point(|&x| x <= t) - 1
+    };
+    let (t0, t1) = (times[k], times[k + 1]);
+    let td = t1 - t0;
+    Span::Between { k, s: ((t - t0) / td).clamp(0.0, 1.0), td }
+}
+
+/// The value at `span` of a sampler's `values` (three per key for CUBICSPLINE: in-tangent,
+/// value, out-tangent).
+pub(crate) fn interpolate<T: Keyframe>(values: &[T], interpolation: Interpolation, span: Span) -> T {
+    let per = interpolation.values_per_key();
+    let key = |k: usize| values[k * per + per / 2];
+    match (span, interpolation) {
+        (Span::Key(k), _) | (Span::Between { k, .. }, Interpolation::Step) => key(k),
+        (Span::Between { k, s, .. }, Interpolation::Linear) => T::linear(key(k), key(k + 1), s),
+        (Span::Between { k, s, td }, Interpolation::CubicSpline) => {
+            let (v0, out0) = (values[3 * k + 1], values[3 * k + 2]);
+            let (in1, v1) = (values[3 * k + 3], values[3 * k + 4]);
+            T::hermite(v0, out0, v1, in1, s, td)
         }
     }
 }

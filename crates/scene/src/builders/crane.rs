@@ -83,7 +83,7 @@ fn eased(values: impl Fn(usize) -> Vec3) -> Result<Sampler<Vec3>> {
 }
 
 /// Adds one crane under `parent` at `base` (world, on the ground), its jib `height` above the
-/// ground, and its looping animation to `scene.animations`. Returns the crane's group node.
+/// ground, and its looping animation to the scene's animations. Returns the crane's group node.
 pub(super) fn add_crane(
     scene: &mut Scene,
     meshes: &CraneMeshes,
@@ -140,7 +140,7 @@ pub(super) fn add_crane(
         Some(trolley),
         NodeDesc::new(name("hook")).transform(Transform::from_translation(start(&hook_curve))).mesh(meshes.hook),
     )?;
-    scene.animations.push(
+    scene.add_animation(
         Animation::new(format!("crane {index}"))
             .with_wrap(Wrap::Loop)
             .with_channel(jib, Curve::Rotation(jib_curve))

@@ -280,7 +280,7 @@ pub fn city_with_traffic(params: &TrafficParams) -> Result<City> {
         nodes.push(scene.add_node(Some(traffic), desc.mesh(meshes[*kind]).material(*paint))?);
     }
     for (v, ((_, _, t, r), node)) in drives.into_iter().zip(nodes).enumerate() {
-        scene.animations.push(
+        scene.add_animation(
             Animation::new(format!("vehicle {v}"))
                 .with_wrap(Wrap::Loop)
                 .with_channel(node, Curve::Translation(t))
@@ -421,7 +421,7 @@ mod tests {
             c.scene.instances().iter().zip(&before).filter(|(i, b)| !i.world_from_local.abs_diff_eq(**b, 1e-3)).count();
         // 50 vehicles and, per crane, jib, trolley, cable and hook.
         assert_eq!(moved, 50 + 2 * 4);
-        for a in &c.scene.animations {
+        for a in c.scene.animations() {
             for ch in &a.channels {
                 match &ch.curve {
                     Curve::Translation(s) => assert!(s.sample(0.0).abs_diff_eq(s.sample(a.duration()), 1e-4)),

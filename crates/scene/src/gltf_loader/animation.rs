@@ -58,7 +58,7 @@ impl Loader<'_> {
                 }
             }
             if !out.channels.is_empty() {
-                self.scene.animations.push(out);
+                self.scene.add_animation(out);
             }
         }
         self.warn_bind_pose();

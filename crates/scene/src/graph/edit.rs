@@ -71,12 +71,20 @@ impl Scene {
     /// Sets a node's local transform from translation, rotation and scale (the rotation
     /// made unit). The scene keeps the TRS beside the matrix (see [`NodeDesc::trs`]).
     pub fn set_local_transform(&mut self, id: NodeId, t: Transform) -> Result<()> {
-        self.try_node(id)?;
-        // The message names the node only when there is one to write: no allocation per edit.
-        let t = t.normalized("").map_err(|e| self.name_in(id, e))?;
-        self.node_mut(id)?.parent_from_local = t.matrix();
+        // One node lookup (animation sets thousands per frame); the message names the node
+        // only when there is one to write: no allocation per edit.
+        let t = match t.normalized("") {
+            Ok(t) => t,
+            Err(e) => return Err(self.try_node(id).err().unwrap_or_else(|| self.name_in(id, e))),
+        };
+        let n = self.node_mut(id)?;
+        n.parent_from_local = t.matrix();
+        if !n.dirty {
+            n.dirty = true;
+            let depth = n.depth;
+            self.dirty.push((depth, id));
+        }
         self.trs.insert(id, t);
-        self.mark_dirty(id);
         Ok(())
     }
 

@@ -150,7 +150,7 @@ impl Scene {
             }
         }
         for a in &animations {
-            self.animations.push(a.aimed(copy_of));
+            self.add_animation(a.aimed(copy_of));
         }
         Ok(id)
     }
@@ -196,7 +196,7 @@ impl Scene {
             }
         }
         for a in &prefab.animations {
-            self.animations.push(a.aimed(|i| created.get(i as usize).copied()));
+            self.add_animation(a.aimed(|i| created.get(i as usize).copied()));
         }
         Ok(root)
     }

@@ -229,7 +229,10 @@ pub struct Scene {
     /// Cameras defined by a loaded file. Removing a camera's node removes the camera.
     pub cameras: Vec<SceneCamera>,
     /// Animations of node transforms (from a file or a builder); see [`Scene::animate`].
-    pub animations: Vec<crate::animation::Animation>,
+    animations: Vec<crate::animation::Animation>,
+    /// The animations laid out for playing, made by the first [`Scene::animate`] after they
+    /// change (`None` until then).
+    pub(crate) playback: Option<crate::animation::Playback>,
     /// Non-fatal problems met while loading (missing textures, skipped primitives, ...).
     pub warnings: Vec<String>,
     id: SceneId,
@@ -255,6 +258,7 @@ impl Default for Scene {
             dirty: Vec::new(),
             cameras: Vec::new(),
             animations: Vec::new(),
+            playback: None,
             warnings: Vec::new(),
             id: SceneId::next(),
             revision: 0,
@@ -278,6 +282,7 @@ impl Clone for Scene {
             dirty: self.dirty.clone(),
             cameras: self.cameras.clone(),
             animations: self.animations.clone(),
+            playback: None,
             warnings: self.warnings.clone(),
             id: SceneId::next(),
             revision: self.revision,
@@ -327,6 +332,24 @@ impl Scene {
     pub fn materials(&self) -> impl Iterator<Item = (MaterialId, &Material)> {
         self.materials.iter()
     }
+    /// The animations [`Scene::animate`] plays, in order (a later one wins where two set the
+    /// same component of one node).
+    pub fn animations(&self) -> &[crate::animation::Animation] {
+        &self.animations
+    }
+    /// The animations, to change: the next [`Scene::animate`] lays them out for playing again.
+    pub fn animations_mut(&mut self) -> &mut Vec<crate::animation::Animation> {
+        self.playback = None;
+        &mut self.animations
+    }
+    /// The animations, to play them: their layout for playing stays (see `Scene::animate`).
+    pub(crate) fn animations_keeping_playback(&mut self) -> &mut Vec<crate::animation::Animation> {
+        &mut self.animations
+    }
+    /// Adds an animation, played after those already there.
+    pub fn add_animation(&mut self, animation: crate::animation::Animation) {
+        self.animations_mut().push(animation);
+    }
 
     // ---- nodes --------------------------------------------------------------------------
 
@@ -340,10 +363,18 @@ impl Scene {
     }
     /// A node by handle, or a "stale handle" error.
     pub fn try_node(&self, id: NodeId) -> Result<&Node> {
-        self.nodes.get(id).ok_or(Error::StaleNode(id))
+        // A match, not `ok_or`: the error built and dropped on every success costs a call to
+        // its destructor in hot loops (animation looks nodes up ten thousand times a frame).
+        match self.nodes.get(id) {
+            Some(n) => Ok(n),
+            None => Err(Error::StaleNode(id)),
+        }
     }
     pub(crate) fn node_mut(&mut self, id: NodeId) -> Result<&mut Node> {
-        self.nodes.get_mut(id).ok_or(Error::StaleNode(id))
+        match self.nodes.get_mut(id) {
+            Some(n) => Ok(n),
+            None => Err(Error::StaleNode(id)),
+        }
     }
     /// Root nodes in insertion order.
     pub fn roots(&self) -> &[NodeId] {

@@ -52,8 +52,8 @@ fn played(t: f32) -> Scene {
 fn animated_gltf_loads_one_animation() {
     let scene = load(asset("animated.gltf")).unwrap();
     assert!(scene.warnings.is_empty(), "{:?}", scene.warnings);
-    assert_eq!(scene.animations.len(), 1);
-    let a = &scene.animations[0];
+    assert_eq!(scene.animations().len(), 1);
+    let a = &scene.animations()[0];
     assert_eq!((a.name.as_str(), a.channels.len(), a.duration(), a.wrap), ("wave", 4, 2.0, Wrap::Clamp));
     let modes: Vec<_> = a.channels.iter().map(|c| (c.curve.property().to_string(), c.curve.interpolation())).collect();
     assert_eq!(
@@ -127,7 +127,10 @@ fn time_outside_the_keys_is_clamped() {
 #[test]
 fn looping_plays_time_modulo_the_duration() {
     let mut scene = load(asset("animated.gltf")).unwrap();
-    scene.animations[0].wrap = Wrap::Loop;
+    // Played once clamped first: a change through `animations_mut` must reach the next
+    // `animate` (the scene lays its animations out for playing once, and again on change).
+    scene.animate(2.5).unwrap();
+    scene.animations_mut()[0].wrap = Wrap::Loop;
     scene.animate(2.5).unwrap();
     scene.update_transforms();
     // 2.5 mod 2 = 0.5: the pose of poses_at_half_a_second.
@@ -160,7 +163,7 @@ fn a_mirrored_node_keeps_its_mirrored_axis() {
         .unwrap();
     let spin =
         Sampler::new(vec![0.0, 1.0], vec![Quat::IDENTITY, Quat::from_rotation_y(0.5)], Interpolation::Linear).unwrap();
-    scene.animations.push(Animation::new("spin").with_channel(wheel, Curve::Rotation(spin)));
+    scene.add_animation(Animation::new("spin").with_channel(wheel, Curve::Rotation(spin)));
     for t in [0.0, 0.5, 1.0, 0.0] {
         scene.animate(t).unwrap();
     }
@@ -179,7 +182,7 @@ fn a_scale_through_zero_keeps_the_nodes_rotation() {
     let node = scene.add_node(None, NodeDesc::new("popper").transform(turned)).unwrap();
     let grow = Sampler::new(vec![0.0, 1.0], vec![Vec3::ZERO, Vec3::ONE], Interpolation::Linear).unwrap();
     let slide = Sampler::new(vec![0.0, 1.0], vec![Vec3::ZERO, Vec3::X], Interpolation::Linear).unwrap();
-    scene.animations.push(
+    scene.add_animation(
         Animation::new("pop").with_channel(node, Curve::Scale(grow)).with_channel(node, Curve::Translation(slide)),
     );
     scene.animate(0.0).unwrap();
@@ -208,7 +211,7 @@ fn a_removed_target_is_reported_and_can_be_dropped() {
     let a = scene.add_node(None, NodeDesc::new("a")).unwrap();
     let b = scene.add_node(None, NodeDesc::new("b")).unwrap();
     let up = Sampler::new(vec![0.0, 1.0], vec![Vec3::ZERO, Vec3::Y], Interpolation::Linear).unwrap();
-    scene.animations.push(
+    scene.add_animation(
         Animation::new("lift")
             .with_channel(a, Curve::Translation(up.clone()))
             .with_channel(b, Curve::Translation(up.clone())),
@@ -218,7 +221,7 @@ fn a_removed_target_is_reported_and_can_be_dropped() {
     assert_eq!(scene.animate(0.5).unwrap(), 1);
     assert_vec(scene.node(b).unwrap().local_transform().translation, [0.0, 0.5, 0.0], "b");
     // A channel aimed at a stale handle afterwards is reported, and can be dropped.
-    scene.animations.push(Animation::new("late").with_channel(a, Curve::Translation(up)));
+    scene.add_animation(Animation::new("late").with_channel(a, Curve::Translation(up)));
     let e = scene.animate(0.5).unwrap_err().to_string();
     assert!(e.contains("'late'") && e.contains("channel 0 (translation)"), "{e}");
     assert_eq!(scene.drop_dead_animation_channels(), 1);
@@ -233,14 +236,14 @@ fn channels_of_removed_nodes_go_at_the_next_animate() {
     let up = Sampler::new(vec![0.0, 1.0], vec![Vec3::ZERO, Vec3::Y], Interpolation::Linear).unwrap();
     let nodes: Vec<NodeId> = (0..2000).map(|i| scene.add_node(None, NodeDesc::new(format!("n{i}"))).unwrap()).collect();
     for (i, &n) in nodes.iter().enumerate() {
-        scene.animations.push(Animation::new(format!("a{i}")).with_channel(n, Curve::Translation(up.clone())));
+        scene.add_animation(Animation::new(format!("a{i}")).with_channel(n, Curve::Translation(up.clone())));
     }
     for &n in nodes.iter().step_by(2) {
         scene.remove_node(n).unwrap();
     }
-    assert_eq!(scene.animations.len(), 2000, "still listed until the next animate");
+    assert_eq!(scene.animations().len(), 2000, "still listed until the next animate");
     assert_eq!(scene.animate(0.5).unwrap(), 1000, "the survivors play, with no error for the removed");
-    assert_eq!(scene.animations.len(), 1000);
+    assert_eq!(scene.animations().len(), 1000);
 }
 
 // ---- broken animation data ----------------------------------------------------------------
@@ -310,8 +313,8 @@ fn the_warning(test: &str, edit: impl FnOnce(&mut serde_json::Value)) -> String 
     let dir = tmp_dir(&format!("anim-{test}"));
     let scene = load(anim_gltf(&dir, &format!("{test}.gltf"), edit)).unwrap();
     assert_eq!(scene.stats().triangles, 1, "the model still loads");
-    assert_eq!(scene.animations.len(), 1);
-    assert_eq!(scene.animations[0].channels.len(), 1, "only the good channel is kept");
+    assert_eq!(scene.animations().len(), 1);
+    assert_eq!(scene.animations()[0].channels.len(), 1, "only the good channel is kept");
     assert_eq!(scene.warnings.len(), 1, "{:?}", scene.warnings);
     let w = scene.warnings[0].clone();
     assert!(w.contains(&format!("{test}.gltf")), "{w}");
@@ -330,7 +333,7 @@ fn the_good_file_has_no_warning() {
     let dir = tmp_dir("anim-good");
     let scene = load(anim_gltf(&dir, "good.gltf", |_| {})).unwrap();
     assert!(scene.warnings.is_empty(), "{:?}", scene.warnings);
-    assert_eq!(scene.animations[0].duration(), 2.0);
+    assert_eq!(scene.animations()[0].duration(), 2.0);
 }
 
 #[test]
@@ -407,7 +410,7 @@ fn copies_of_an_animated_model_play_its_animation() {
     let prefab = load_prefab(&mut scene, asset("animated.gltf"), &LoadOptions::default()).unwrap();
     let a = scene.instantiate_prefab(&prefab, None, Transform::from_translation(Vec3::X * 10.0)).unwrap();
     let b = scene.instantiate_prefab(&prefab, None, Transform::from_translation(Vec3::X * 20.0)).unwrap();
-    assert_eq!(scene.animations.len(), 2, "one animation per placement");
+    assert_eq!(scene.animations().len(), 2, "one animation per placement");
     // A copy of one placement's `base` subtree, made in the scene.
     let base_of = |scene: &Scene, root: NodeId| {
         let mut stack = vec![root];
@@ -422,7 +425,7 @@ fn copies_of_an_animated_model_play_its_animation() {
     };
     let base_a = base_of(&scene, a);
     let copy = scene.instantiate(base_a, None, Transform::default()).unwrap();
-    assert_eq!(scene.animations.len(), 3, "the copy got its own channels");
+    assert_eq!(scene.animations().len(), 3, "the copy got its own channels");
     assert_eq!(scene.animate(t).unwrap(), 9, "three nodes in each of three copies");
     scene.update_transforms();
     for root in [a, b] {
