@@ -35,7 +35,7 @@ fn play(animations: &[Animation], playback: &mut Playback, scene: &mut Scene, t:
         let Some(a) = animations.first() else { return Ok(0) };
         return Err(Error::Animation { name: a.name.clone(), why: format!("time {t} is not finite") });
     }
-    let parallel = playback.runs().len() >= PARALLEL_POSES;
+    let parallel = playback.run_count() >= PARALLEL_POSES;
     let mut set = 0;
     let mut first_error = None;
     for (run, pose) in playback.sample(t, parallel.then_some(PARALLEL_POSES / 4)) {

@@ -8,22 +8,24 @@
 //! sampling walks memory forward, as the hardware prefetcher likes.
 //!
 //! Two more things are done once here instead of every frame, as animation systems in games
-//! do (Gregory, *Game Engine Architecture*, 3rd ed., §12.4 "Clips" and §12.6 on pose
-//! extraction): each animation's duration is precomputed, and consecutive channels of one
-//! node whose key times are equal (a glTF file's samplers often share their input accessor;
-//! the built-in traffic's translation and rotation keys do) share one key track, searched
-//! once per pose. Each track remembers the key interval it was last found in, so that time
-//! moving forward costs one or two comparisons instead of a binary search (`locate`); the
-//! answer never depends on it, so a frame is the same whatever was played before.
+//! do (Gregory, *Game Engine Architecture*, 3rd ed., ch. 12 on clips and pose extraction):
+//! each animation's duration is precomputed, and consecutive channels of one node whose key
+//! times are equal (a glTF file's samplers often share their input accessor; the built-in
+//! traffic's translation and rotation keys do) store them once. And each channel keeps the
+//! key interval its last time fell in, with the two key values interpolating there reads
+//! (a `Segment`, in an array in channel order): while time stays in the interval — nearly
+//! every frame, for keys seconds apart — a channel reads its segment and nothing else, so
+//! sampling streams through two arrays in order. When time leaves it, the interval after it
+//! is tried before a binary search (`locate`). The answer never depends on what was kept:
+//! a frame is the same bits whatever was played before (test).
 //!
 //! The copy is made on the first [`Scene::animate`] after the scene's animations change
 //! ([`Scene::animations_mut`], [`Scene::add_animation`], loading, instantiating) and kept
 //! until they change again; [`Animation::apply`] makes one for the single animation.
 
 use std::ops::Range;
-use std::sync::atomic::{AtomicUsize, Ordering};
 
-use glam::{Quat, Vec3};
+use glam::{Quat, Vec3, Vec4};
 use rayon::prelude::*;
 
 use super::sampler::{interpolate, locate, Interpolation, Sampler, Span};
@@ -90,24 +92,51 @@ pub(crate) struct Run {
     channels: Range<u32>,
 }
 
-/// Key times shared by consecutive channels of one run, with the interval last found.
-#[derive(Debug)]
-struct Track {
-    times: Range<u32>,
-    /// The key interval the last sampled time fell in: where the next search starts. Only
-    /// the run owning the track touches it, so relaxed order is enough (the atomic only lets
-    /// poses be sampled in parallel through a shared reference).
-    hint: AtomicUsize,
-}
-
-/// One channel: what it drives, on which key track, with which values.
+/// One channel: what it drives, where its keys are, and whose time it plays.
 #[derive(Debug)]
 struct Channel {
     property: Property,
     interpolation: Interpolation,
-    track: u32,
-    /// Start of the channel's values in `vec3s` (translation, scale) or `quats` (rotation).
+    /// The animation ([`Playback::clips`]) whose local time the channel plays.
+    clip: u32,
+    /// The channel's key times in [`Keys::times`] (shared with the run's channel before it
+    /// when equal).
+    times: Range<u32>,
+    /// Start of the channel's values in [`Keys::vec3s`] (translation, scale) or
+    /// [`Keys::quats`] (rotation).
     values: u32,
+}
+
+/// Every channel's key times and values, one array of each kind.
+#[derive(Debug, Default)]
+struct Keys {
+    times: Vec<f32>,
+    vec3s: Vec<Vec3>,
+    quats: Vec<Quat>,
+}
+
+/// The key interval a channel's last time fell in, with the two key values interpolating in
+/// it reads (vectors with w = 0, quaternions as xyzw): while time stays in the interval, a
+/// channel reads this and nothing else. Not kept for CUBICSPLINE, which reads tangents too.
+#[derive(Debug, Clone, Copy)]
+struct Segment {
+    /// The interval's key times; NaN when there is none (every comparison fails).
+    t0: f32,
+    t1: f32,
+    /// The interval's first key; kept as the search hint when `t0` is NaN.
+    k: u32,
+    v0: Vec4,
+    v1: Vec4,
+}
+
+impl Segment {
+    const NONE: Segment = Segment { t0: f32::NAN, t1: f32::NAN, k: 0, v0: Vec4::ZERO, v1: Vec4::ZERO };
+
+    /// Whether `t` falls in the interval exactly as [`locate`] would place it there (in the
+    /// first interval only after the first key: at it, `locate` answers the key itself).
+    fn holds(&self, t: f32) -> bool {
+        t < self.t1 && (self.t0 < t || (self.t0 == t && self.k > 0))
+    }
 }
 
 /// The animations of a scene, flattened for playing (see the module documentation).
@@ -116,12 +145,14 @@ pub(crate) struct Playback {
     clips: Vec<Clip>,
     runs: Vec<Run>,
     channels: Vec<Channel>,
-    tracks: Vec<Track>,
-    times: Vec<f32>,
-    vec3s: Vec<Vec3>,
-    quats: Vec<Quat>,
-    /// The poses last sampled, one per run (kept to reuse the allocation).
-    poses: Vec<Pose>,
+    keys: Keys,
+    /// Per channel, the key interval last used.
+    segments: Vec<Segment>,
+    /// Per clip, its local time at the time last played.
+    clip_times: Vec<f32>,
+    /// Per channel, its value at the time last played (vectors with w = 0, quaternions as
+    /// xyzw).
+    values: Vec<Vec4>,
 }
 
 /// Appends `s`'s values to `store`, returning where they start.
@@ -139,84 +170,129 @@ impl Playback {
             p.clips.push(Clip { wrap: anim.wrap, duration: anim.duration() });
             for run in anim.runs() {
                 let first = p.channels.len() as u32;
-                let mut last_times: Option<&[f32]> = None;
+                let mut last: Option<(&[f32], Range<u32>)> = None;
                 for c in &anim.channels[run.clone()] {
                     let (times, interpolation) = match &c.curve {
                         Curve::Translation(s) | Curve::Scale(s) => (s.times(), s.interpolation()),
                         Curve::Rotation(s) => (s.times(), s.interpolation()),
                     };
-                    if last_times != Some(times) {
-                        let start = p.times.len() as u32;
-                        p.times.extend_from_slice(times);
-                        p.tracks.push(Track { times: start..p.times.len() as u32, hint: AtomicUsize::new(0) });
-                        last_times = Some(times);
-                    }
-                    let values = match &c.curve {
-                        Curve::Translation(s) | Curve::Scale(s) => push_values(&mut p.vec3s, s),
-                        Curve::Rotation(s) => push_values(&mut p.quats, s),
+                    let range = match &last {
+                        Some((shared, range)) if *shared == times => range.clone(),
+                        _ => {
+                            let start = p.keys.times.len() as u32;
+                            p.keys.times.extend_from_slice(times);
+                            let range = start..p.keys.times.len() as u32;
+                            last = Some((times, range.clone()));
+                            range
+                        }
                     };
-                    let track = p.tracks.len() as u32 - 1;
-                    p.channels.push(Channel { property: c.curve.property(), interpolation, track, values });
+                    let values = match &c.curve {
+                        Curve::Translation(s) | Curve::Scale(s) => push_values(&mut p.keys.vec3s, s),
+                        Curve::Rotation(s) => push_values(&mut p.keys.quats, s),
+                    };
+                    let property = c.curve.property();
+                    p.channels.push(Channel { property, interpolation, clip: a as u32, times: range, values });
                 }
                 let channels = first..p.channels.len() as u32;
                 let target = anim.channels[run.start].target;
                 p.runs.push(Run { target, animation: a, first_channel: run.start, channels });
             }
         }
+        p.segments = vec![Segment::NONE; p.channels.len()];
         p
     }
 
-    /// The node poses, in the order they are set (animation by animation).
-    pub(crate) fn runs(&self) -> &[Run] {
-        &self.runs
+    /// How many node poses a frame sets.
+    pub(crate) fn run_count(&self) -> usize {
+        self.runs.len()
     }
 
-    /// Every run with its pose at time `t`, in the order of [`Playback::runs`]; sampled on
-    /// the rayon pool in batches of at least `parallel` runs when given.
-    pub(crate) fn sample(&mut self, t: f32, parallel: Option<usize>) -> impl Iterator<Item = (&Run, &Pose)> {
-        let mut poses = std::mem::take(&mut self.poses);
+    /// Every run with its pose at time `t`, in the order the poses are set (animation by
+    /// animation). The channels are sampled first, on the rayon pool in batches of at least
+    /// `parallel` channels when given.
+    pub(crate) fn sample(&mut self, t: f32, parallel: Option<usize>) -> impl Iterator<Item = (&Run, Pose)> {
+        let Playback { clips, runs, channels, keys, segments, clip_times, values } = self;
+        let local = |c: &Clip| c.local_time(t);
+        match parallel {
+            Some(batch) => clips.par_iter().with_min_len(batch).map(local).collect_into_vec(clip_times),
+            None => {
+                clip_times.clear();
+                clip_times.extend(clips.iter().map(local));
+            }
+        }
+        let clip_times = &*clip_times;
+        let value = |(c, seg): (&Channel, &mut Segment)| keys.value(c, seg, clip_times[c.clip as usize]);
         match parallel {
             Some(batch) => {
-                self.runs.par_iter().with_min_len(batch).map(|r| self.pose(r, t)).collect_into_vec(&mut poses)
+                channels.par_iter().zip(segments.par_iter_mut()).with_min_len(batch).map(value).collect_into_vec(values)
             }
             None => {
-                poses.clear();
-                poses.extend(self.runs.iter().map(|r| self.pose(r, t)));
+                values.clear();
+                values.extend(channels.iter().zip(segments.iter_mut()).map(value));
             }
         }
-        self.poses = poses;
-        self.runs.iter().zip(&self.poses)
+        let (channels, values) = (&*channels, &*values);
+        runs.iter().map(move |run| {
+            let mut pose = Pose::default();
+            for i in run.channels.start as usize..run.channels.end as usize {
+                let v = values[i];
+                match channels[i].property {
+                    Property::Translation => pose.translation = Some(v.truncate()),
+                    Property::Rotation => pose.rotation = Some(Quat::from_vec4(v)),
+                    Property::Scale => pose.scale = Some(v.truncate()),
+                }
+            }
+            (run, pose)
+        })
     }
+}
 
-    /// The pose `run` gives its node when the animations play at time `t`.
-    pub(crate) fn pose(&self, run: &Run, t: f32) -> Pose {
-        let t = self.clips[run.animation].local_time(t);
-        let mut pose = Pose::default();
-        let mut found: Option<(u32, Span)> = None;
-        for c in &self.channels[run.channels.start as usize..run.channels.end as usize] {
-            let track = &self.tracks[c.track as usize];
-            let times = &self.times[track.times.start as usize..track.times.end as usize];
-            let span = match found {
-                Some((k, span)) if k == c.track => span,
-                _ => {
-                    let span = locate(times, t, track.hint.load(Ordering::Relaxed));
-                    track.hint.store(span.hint(), Ordering::Relaxed);
-                    found = Some((c.track, span));
-                    span
+impl Keys {
+    /// The value of channel `c` at its local time `t`, from its segment when `t` is still
+    /// in it, else from its keys (the segment then moves to where `t` fell).
+    fn value(&self, c: &Channel, seg: &mut Segment, t: f32) -> Vec4 {
+        if seg.holds(t) {
+            // `locate`'s arithmetic on the same two keys: the same bits.
+            let td = seg.t1 - seg.t0;
+            let s = ((t - seg.t0) / td).clamp(0.0, 1.0);
+            return match (c.interpolation, c.property) {
+                (Interpolation::Step, _) => seg.v0,
+                (_, Property::Rotation) => {
+                    Vec4::from(Quat::linear(Quat::from_vec4(seg.v0), Quat::from_vec4(seg.v1), s))
                 }
+                _ => Vec3::linear(seg.v0.truncate(), seg.v1.truncate(), s).extend(0.0),
             };
-            let n = times.len() * c.interpolation.values_per_key();
-            let at = c.values as usize;
-            match c.property {
-                Property::Translation => {
-                    pose.translation = Some(interpolate(&self.vec3s[at..at + n], c.interpolation, span))
-                }
-                Property::Rotation => pose.rotation = Some(interpolate(&self.quats[at..at + n], c.interpolation, span)),
-                Property::Scale => pose.scale = Some(interpolate(&self.vec3s[at..at + n], c.interpolation, span)),
-            }
         }
-        pose
+        let times = &self.times[c.times.start as usize..c.times.end as usize];
+        let span = locate(times, t, seg.k as usize);
+        let n = times.len() * c.interpolation.values_per_key();
+        let at = c.values as usize;
+        let (value, next) = match c.property {
+            Property::Rotation => sample_keys(&self.quats[at..at + n], c.interpolation, times, span, Vec4::from),
+            _ => sample_keys(&self.vec3s[at..at + n], c.interpolation, times, span, |v| v.extend(0.0)),
+        };
+        *seg = next;
+        value
     }
+}
+
+/// The value at `span` of one channel's `values`, and the segment to keep for the next time.
+fn sample_keys<T: Keyframe>(
+    values: &[T],
+    interpolation: Interpolation,
+    times: &[f32],
+    span: Span,
+    wide: impl Fn(T) -> Vec4,
+) -> (Vec4, Segment) {
+    let value = wide(interpolate(values, interpolation, span));
+    let segment = match span {
+        // One value per key for STEP and LINEAR: key k is values[k].
+        Span::Between { k, .. } if interpolation != Interpolation::CubicSpline => {
+            Segment { t0: times[k], t1: times[k + 1], k: k as u32, v0: wide(values[k]), v1: wide(values[k + 1]) }
+        }
+        _ => Segment { k: span.hint() as u32, ..Segment::NONE },
+    };
+    (value, segment)
 }
 
 impl Animation {
@@ -248,7 +324,10 @@ mod tests {
     fn animation(keys: &[f32], nodes: u64, interpolation: Interpolation, shared: bool, wrap: Wrap) -> Animation {
         let per = interpolation.values_per_key();
         let n = keys.len() * per;
-        let vecs: Vec<Vec3> = (0..n).map(|i| Vec3::new(i as f32, (i * i) as f32 * 0.1, 1.0 - i as f32)).collect();
+        // The first value is −0: a blend at the first key's time gives +0, the key itself −0.
+        let vecs: Vec<Vec3> = (0..n)
+            .map(|i| Vec3::new(i as f32, (i * i) as f32 * 0.1, 1.0 - i as f32) * (i.min(1) as f32 * 2.0 - 1.0))
+            .collect();
         let quats: Vec<Quat> = (0..n).map(|i| Quat::from_rotation_y(i as f32 * 0.7)).collect();
         let other: Vec<f32> = keys.iter().map(|k| k * 1.5).collect();
         let mut a = Animation::new("test").with_wrap(wrap);
@@ -280,19 +359,20 @@ mod tests {
     }
 
     #[test]
-    fn shared_key_times_make_one_track() {
+    fn equal_key_times_are_stored_once_per_run() {
         let keys = [0.0, 1.0, 2.0];
         let shared = Playback::new(&[animation(&keys, 3, Interpolation::Linear, true, Wrap::Clamp)]);
         let apart = Playback::new(&[animation(&keys, 3, Interpolation::Linear, false, Wrap::Clamp)]);
-        // Translation and rotation share; scale has the same times again: still one track.
-        assert_eq!((shared.runs.len(), shared.tracks.len()), (3, 3));
-        assert_eq!(apart.tracks.len(), 9);
-        assert_eq!(shared.times.len(), 9);
+        // Translation, rotation and scale with one set of times: stored once per node.
+        assert_eq!((shared.runs.len(), shared.keys.times.len()), (3, 9));
+        // Rotation on times of its own between two channels on `keys`: three sets per node.
+        assert_eq!(apart.keys.times.len(), 27);
     }
 
     proptest! {
-        /// Played forward, backward and at random, the playback's poses equal the samplers'
-        /// own: the remembered interval never changes an answer.
+        /// Played at random times, forward, backward, on the keys themselves and twice at one
+        /// time, serially and in parallel, the playback's poses are the samplers' own bits:
+        /// the kept intervals never change an answer.
         #[test]
         fn poses_equal_the_samplers(
             gaps in prop::collection::vec(0.01f32..3.0, 2..12),
@@ -300,22 +380,24 @@ mod tests {
             mode in 0usize..3,
             shared: bool,
             looped: bool,
+            parallel: bool,
         ) {
             let keys: Vec<f32> = gaps.iter().scan(-1.0, |t, g| { *t += g; Some(*t) }).collect();
             let interpolation = [Interpolation::Step, Interpolation::Linear, Interpolation::CubicSpline][mode];
             let wrap = if looped { Wrap::Loop } else { Wrap::Clamp };
             let a = animation(&keys, 2, interpolation, shared, wrap);
-            let p = Playback::new(std::slice::from_ref(&a));
+            let mut p = Playback::new(std::slice::from_ref(&a));
             let mut sorted = times.clone();
+            sorted.extend(keys.iter().flat_map(|&k| [k, k, k.next_down(), k.next_up(), 1.5 * k]));
             sorted.sort_by(f32::total_cmp);
-            for t in times.iter().chain(&sorted).chain(sorted.iter().rev()).copied().chain([f32::NAN]) {
-                for run in p.runs() {
-                    let pose = p.pose(run, t);
+            let order = times.iter().chain(&sorted).chain(sorted.iter().rev()).copied().chain([f32::NAN, 0.5]);
+            for t in order {
+                for (run, pose) in p.sample(t, parallel.then_some(1)) {
                     let got = (pose.translation.unwrap(), pose.rotation.unwrap(), pose.scale.unwrap());
                     let want = direct(&a, run.target, t);
-                    prop_assert_eq!(got.0.to_array(), want.0.to_array());
-                    prop_assert_eq!(got.1.to_array(), want.1.to_array());
-                    prop_assert_eq!(got.2.to_array(), want.2.to_array());
+                    prop_assert_eq!(got.0.to_array().map(f32::to_bits), want.0.to_array().map(f32::to_bits), "t {}", t);
+                    prop_assert_eq!(got.1.to_array().map(f32::to_bits), want.1.to_array().map(f32::to_bits), "t {}", t);
+                    prop_assert_eq!(got.2.to_array().map(f32::to_bits), want.2.to_array().map(f32::to_bits), "t {}", t);
                 }
             }
         }
