@@ -330,7 +330,11 @@ impl Culler {
         // No clear: a fresh draw or a frame session writes every depth and ID, and shading
         // every color.
         let t = Instant::now();
-        let frustum = self.c.frustum_cull(camera, &mut cs);
+        let frustum = if method == Method::Frustum {
+            self.c.frustum_cull(camera, &mut cs)
+        } else {
+            self.c.frustum_count(camera, &mut cs)
+        };
         cs.ms_cull = ms_since(t);
         let mut f = Frame { camera, opts: &opts, cs, fs: FrameStats::default() };
         let batching = self.batching();
@@ -396,7 +400,7 @@ impl Culler {
     ) -> Result<(CullStats, FrameStats, OccluderPass<'_>)> {
         let t0 = Instant::now();
         let mut cs = CullStats { clusters: self.c.clustered.item_count() as u64, ..Default::default() };
-        let frustum = self.c.frustum_cull(camera, &mut cs);
+        let frustum = self.c.frustum_count(camera, &mut cs);
         let batching = self.batching();
         let mut session = self.renderer.begin(fb, opts);
         // Front to back in growing batches, so that the coarse depth test of the rasterizer

@@ -245,6 +245,12 @@ impl ClusteredScene {
         self.bvh.cull_with(frustum, opts, out)
     }
 
+    /// How many items [`ClusteredScene::cull_with`] (plane masking on) would list, without
+    /// listing them; see [`Bvh::count_in_frustum`].
+    pub fn count_in_frustum(&self, frustum: &Frustum) -> u64 {
+        self.bvh.count_in_frustum(frustum)
+    }
+
     /// Front-to-back traversal over items, culled by `frustum` when given; `node_visit`
     /// answers "is this node/cluster box possibly visible?" (`Skip` prunes it). See
     /// [`Bvh::traverse_front_to_back`].

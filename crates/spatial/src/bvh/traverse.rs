@@ -238,6 +238,59 @@ impl Bvh {
         self.cull_impl(frustum, opts.plane_masking, None, out)
     }
 
+    /// How many items [`Bvh::cull_with`] with plane masking would return, without listing
+    /// them: a node found wholly inside the frustum adds its subtree's item count at once
+    /// (the depth-first layout keeps a subtree's items contiguous, so the count is the span
+    /// from its leftmost to its rightmost leaf), so the cost grows with the nodes the frustum
+    /// boundary cuts, not with the items inside.
+    pub fn count_in_frustum(&self, frustum: &Frustum) -> u64 {
+        let mut count = self.unbounded.len() as u64;
+        if self.nodes.is_empty() {
+            return count;
+        }
+        let mut tests = 0u32;
+        let mut stack: Vec<(u32, PlaneMask)> = Vec::with_capacity(64);
+        stack.push((0, ALL_PLANES));
+        while let Some((i, mut mask)) = stack.pop() {
+            let n = &self.nodes[i as usize];
+            if mask != 0 && frustum.classify_counted(&n.aabb(), &mut mask, &mut 0, &mut tests) == Containment::Outside {
+                continue;
+            }
+            if mask == 0 {
+                count += self.subtree_items(i).len() as u64;
+            } else if n.is_leaf() {
+                let r = n.index..n.index + n.count;
+                if n.count == 1 {
+                    count += 1;
+                } else {
+                    for s in r {
+                        let mut m = mask;
+                        let b = &self.item_boxes[s as usize];
+                        count +=
+                            (frustum.classify_counted(b, &mut m, &mut 0, &mut tests) != Containment::Outside) as u64;
+                    }
+                }
+            } else {
+                stack.push((n.index + 1, mask));
+                stack.push((n.index, mask));
+            }
+        }
+        count
+    }
+
+    /// The slots in `items` of node `i`'s subtree: from its leftmost leaf's first to its
+    /// rightmost leaf's last (contiguous in the depth-first layout).
+    fn subtree_items(&self, i: u32) -> std::ops::Range<u32> {
+        let (mut first, mut last) = (&self.nodes[i as usize], &self.nodes[i as usize]);
+        while !first.is_leaf() {
+            first = &self.nodes[first.index as usize];
+        }
+        while !last.is_leaf() {
+            last = &self.nodes[last.index as usize + 1];
+        }
+        first.index..last.index + last.count
+    }
+
     /// Frustum culling with plane masking and plane coherency: each node first tests the
     /// plane that rejected it last time (kept in `cache`).
     pub fn cull_coherent(&self, frustum: &Frustum, cache: &mut CoherencyCache, out: &mut Vec<Visible>) -> CullCounters {
@@ -406,6 +459,41 @@ mod tests {
         );
         got.sort_unstable();
         assert_eq!(got, brute);
+    }
+
+    #[test]
+    fn counting_in_the_frustum_equals_listing() {
+        // Random boxes (a few NaN, empty or unbounded) under random cameras, leaves of one
+        // and of several items: the count is the length of the list, cameras that see all,
+        // some or none of the boxes alike.
+        let mut rng = sightline_scene::rng::Rng::new(17);
+        let mut boxes: Vec<Aabb> = (0..3000)
+            .map(|_| {
+                let p = Vec3::new(rng.range(-60.0, 60.0), rng.range(-5.0, 5.0), rng.range(-60.0, 60.0));
+                Aabb::new(p, p + Vec3::new(rng.range(0.1, 4.0), rng.range(0.1, 4.0), rng.range(0.1, 4.0)))
+            })
+            .collect();
+        boxes[7] = Aabb::EMPTY;
+        boxes[11] = Aabb::new(Vec3::splat(f32::NEG_INFINITY), Vec3::splat(f32::INFINITY));
+        for leaf in [1, 4, 8] {
+            let bvh = Bvh::build(&boxes, BvhPreset::Fast, leaf);
+            for k in 0..60 {
+                let eye = Vec3::new(rng.range(-90.0, 90.0), rng.range(-10.0, 30.0), rng.range(-90.0, 90.0));
+                let target = Vec3::new(rng.range(-30.0, 30.0), 0.0, rng.range(-30.0, 30.0));
+                let look = LookAt {
+                    eye,
+                    target,
+                    up: Vec3::Y,
+                    fovy: Angle::degrees(rng.range(10.0, 120.0)),
+                    near: 0.1,
+                    far: [5.0, 40.0, 400.0][k % 3],
+                };
+                let f = Frustum::from_camera(&Camera::perspective(&look, 1.5).unwrap());
+                let mut out = Vec::new();
+                bvh.cull_with(&f, CullOptions::default(), &mut out);
+                assert_eq!(bvh.count_in_frustum(&f), out.len() as u64, "leaf {leaf}, camera {k}");
+            }
+        }
     }
 
     #[test]
