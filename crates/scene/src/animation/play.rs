@@ -5,9 +5,9 @@
 //! is marked dirty (and whatever else the scene records about edits happens) exactly as for an
 //! edit made by hand.
 
-use super::playback::Playback;
-use super::Animation;
-use crate::{Error, Result, Scene};
+use super::playback::{Playback, Pose};
+use super::{Animation, Curve};
+use crate::{Error, NodeId, Result, Scene};
 
 /// From this many node poses on, they are sampled on several threads.
 const PARALLEL_POSES: usize = 1024;
@@ -21,8 +21,66 @@ impl Animation {
     /// Errors: a non-finite `t`; a channel aimed at a node no longer in `scene` (the other
     /// channels are still applied, the error names the first such channel).
     pub fn apply(&self, scene: &mut Scene, t: f32) -> Result<usize> {
-        let one = std::slice::from_ref(self);
-        play(one, &mut Playback::new(one), scene, t)
+        finite_time(std::slice::from_ref(self), t)?;
+        let local = self.local_time(t);
+        let mut out = Outcome::default();
+        for run in self.runs() {
+            let mut pose = Pose::default();
+            for c in &self.channels[run.clone()] {
+                match &c.curve {
+                    Curve::Translation(s) => pose.translation = Some(s.sample(local)),
+                    Curve::Rotation(s) => pose.rotation = Some(s.sample(local)),
+                    Curve::Scale(s) => pose.scale = Some(s.sample(local)),
+                }
+            }
+            out.set(scene, (self, run.start), self.channels[run.start].target, &pose);
+        }
+        out.result()
+    }
+}
+
+/// An error unless `t` is finite (named after the first animation).
+fn finite_time(animations: &[Animation], t: f32) -> Result<()> {
+    match animations.first() {
+        Some(a) if !t.is_finite() => {
+            Err(Error::Animation { name: a.name.clone(), why: format!("time {t} is not finite") })
+        }
+        _ => Ok(()),
+    }
+}
+
+/// Poses set so far, and the first that could not be.
+#[derive(Default)]
+struct Outcome {
+    set: usize,
+    first_error: Option<Error>,
+}
+
+impl Outcome {
+    /// Lays `pose` over `target`, the node that channel `first` of `a` (and those after it in
+    /// its run) drives, and sets it; a failure is kept (the first one) naming the animation
+    /// and channel.
+    #[inline(always)]
+    fn set(&mut self, scene: &mut Scene, (a, first): (&Animation, usize), target: NodeId, pose: &Pose) {
+        match pose.over(scene, target).and_then(|t| scene.set_local_transform(target, t)) {
+            Ok(()) => self.set += 1,
+            Err(e) => self.fail(a, first, e),
+        }
+    }
+
+    #[cold]
+    fn fail(&mut self, a: &Animation, first: usize, e: Error) {
+        if self.first_error.is_none() {
+            let why = format!("channel {first} ({}): {e}", a.channels[first].curve.property());
+            self.first_error = Some(Error::Animation { name: a.name.clone(), why });
+        }
+    }
+
+    fn result(self) -> Result<usize> {
+        match self.first_error {
+            Some(e) => Err(e),
+            None => Ok(self.set),
+        }
     }
 }
 
@@ -31,33 +89,13 @@ impl Animation {
 /// current transforms and set one after another, in the animations' order, so that a later
 /// animation wins exactly where it sets a component.
 fn play(animations: &[Animation], playback: &mut Playback, scene: &mut Scene, t: f32) -> Result<usize> {
-    if !t.is_finite() {
-        let Some(a) = animations.first() else { return Ok(0) };
-        return Err(Error::Animation { name: a.name.clone(), why: format!("time {t} is not finite") });
-    }
+    finite_time(animations, t)?;
     let parallel = playback.run_count() >= PARALLEL_POSES;
-    let mut set = 0;
-    let mut first_error = None;
+    let mut out = Outcome::default();
     for (run, pose) in playback.sample(t, parallel.then_some(PARALLEL_POSES / 4)) {
-        match pose.over(scene, run.target).and_then(|t| scene.set_local_transform(run.target, t)) {
-            Ok(()) => set += 1,
-            Err(e) => {
-                let a = &animations[run.animation];
-                first_error.get_or_insert(Error::Animation {
-                    name: a.name.clone(),
-                    why: format!(
-                        "channel {} ({}): {e}",
-                        run.first_channel,
-                        a.channels[run.first_channel].curve.property()
-                    ),
-                });
-            }
-        }
+        out.set(scene, (&animations[run.animation], run.first_channel), run.target, &pose);
     }
-    match first_error {
-        Some(e) => Err(e),
-        None => Ok(set),
-    }
+    out.result()
 }
 
 impl Scene {
@@ -90,6 +128,10 @@ impl Scene {
     /// [`Scene::remove_node`]), and animations left without channels; returns how many
     /// channels were dropped.
     pub fn drop_dead_animation_channels(&mut self) -> usize {
+        // Removing a node no channel drives keeps the layout for playing.
+        if self.animations().iter().all(|a| a.channels.iter().all(|c| self.node(c.target).is_some())) {
+            return 0;
+        }
         let animations = std::mem::take(self.animations_mut());
         let mut dropped = 0;
         let kept = animations

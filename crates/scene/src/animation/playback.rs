@@ -20,8 +20,9 @@
 //! a frame is the same bits whatever was played before (test).
 //!
 //! The copy is made on the first [`Scene::animate`] after the scene's animations change
-//! ([`Scene::animations_mut`], [`Scene::add_animation`], loading, instantiating) and kept
-//! until they change again; [`Animation::apply`] makes one for the single animation.
+//! ([`Scene::animations_mut`], or removing a node some channel drives) and kept until they
+//! change again; [`Scene::add_animation`] (loading and instantiating too) extends it.
+//! [`Animation::apply`] plays one animation from its own samplers, with no copy.
 
 use std::ops::Range;
 
@@ -166,40 +167,51 @@ impl Playback {
     /// The flat copy of `animations` (played in this order).
     pub(crate) fn new(animations: &[Animation]) -> Playback {
         let mut p = Playback::default();
-        for (a, anim) in animations.iter().enumerate() {
-            p.clips.push(Clip { wrap: anim.wrap, duration: anim.duration() });
-            for run in anim.runs() {
-                let first = p.channels.len() as u32;
-                let mut last: Option<(&[f32], Range<u32>)> = None;
-                for c in &anim.channels[run.clone()] {
-                    let (times, interpolation) = match &c.curve {
-                        Curve::Translation(s) | Curve::Scale(s) => (s.times(), s.interpolation()),
-                        Curve::Rotation(s) => (s.times(), s.interpolation()),
-                    };
-                    let range = match &last {
-                        Some((shared, range)) if *shared == times => range.clone(),
-                        _ => {
-                            let start = p.keys.times.len() as u32;
-                            p.keys.times.extend_from_slice(times);
-                            let range = start..p.keys.times.len() as u32;
-                            last = Some((times, range.clone()));
-                            range
-                        }
-                    };
-                    let values = match &c.curve {
-                        Curve::Translation(s) | Curve::Scale(s) => push_values(&mut p.keys.vec3s, s),
-                        Curve::Rotation(s) => push_values(&mut p.keys.quats, s),
-                    };
-                    let property = c.curve.property();
-                    p.channels.push(Channel { property, interpolation, clip: a as u32, times: range, values });
-                }
-                let channels = first..p.channels.len() as u32;
-                let target = anim.channels[run.start].target;
-                p.runs.push(Run { target, animation: a, first_channel: run.start, channels });
-            }
+        for anim in animations {
+            p.push(anim);
         }
-        p.segments = vec![Segment::NONE; p.channels.len()];
         p
+    }
+
+    /// Lays out one more animation, played after the others (a scene that adds an animation
+    /// extends its layout instead of making it again).
+    pub(crate) fn push(&mut self, anim: &Animation) {
+        let clip = self.clips.len() as u32;
+        self.clips.push(Clip { wrap: anim.wrap, duration: anim.duration() });
+        for run in anim.runs() {
+            let first = self.channels.len() as u32;
+            let mut last: Option<(&[f32], Range<u32>)> = None;
+            for c in &anim.channels[run.clone()] {
+                let (times, interpolation) = match &c.curve {
+                    Curve::Translation(s) | Curve::Scale(s) => (s.times(), s.interpolation()),
+                    Curve::Rotation(s) => (s.times(), s.interpolation()),
+                };
+                // Shared only when equal bit for bit: −0 and +0 key times would give blends
+                // of opposite zero signs.
+                let same =
+                    |a: &[f32]| a.len() == times.len() && a.iter().zip(times).all(|(x, y)| x.to_bits() == y.to_bits());
+                let range = match &last {
+                    Some((shared, range)) if same(shared) => range.clone(),
+                    _ => {
+                        let start = self.keys.times.len() as u32;
+                        self.keys.times.extend_from_slice(times);
+                        let range = start..self.keys.times.len() as u32;
+                        last = Some((times, range.clone()));
+                        range
+                    }
+                };
+                let values = match &c.curve {
+                    Curve::Translation(s) | Curve::Scale(s) => push_values(&mut self.keys.vec3s, s),
+                    Curve::Rotation(s) => push_values(&mut self.keys.quats, s),
+                };
+                let property = c.curve.property();
+                self.channels.push(Channel { property, interpolation, clip, times: range, values });
+                self.segments.push(Segment::NONE);
+            }
+            let channels = first..self.channels.len() as u32;
+            let target = anim.channels[run.start].target;
+            self.runs.push(Run { target, animation: clip as usize, first_channel: run.start, channels });
+        }
     }
 
     /// How many node poses a frame sets.
@@ -297,7 +309,7 @@ fn sample_keys<T: Keyframe>(
 
 impl Animation {
     /// The runs of consecutive channels with one target: each makes one node's pose.
-    fn runs(&self) -> impl Iterator<Item = Range<usize>> + '_ {
+    pub(super) fn runs(&self) -> impl Iterator<Item = Range<usize>> + '_ {
         let mut first = 0;
         std::iter::from_fn(move || {
             let target = self.channels.get(first)?.target;
@@ -367,6 +379,26 @@ mod tests {
         assert_eq!((shared.runs.len(), shared.keys.times.len()), (3, 9));
         // Rotation on times of its own between two channels on `keys`: three sets per node.
         assert_eq!(apart.keys.times.len(), 27);
+    }
+
+    #[test]
+    fn key_times_differing_in_the_sign_of_a_zero_are_not_shared() {
+        // At t = −0 both channels sit in the interval starting at their zero key; blending
+        // from −0 and from +0 gives zeros of opposite signs in the result.
+        let v = vec![Vec3::splat(-1.0), Vec3::new(-0.0, 5.0, 0.0), Vec3::ONE];
+        let plus = Sampler::new(vec![-1.0, 0.0, 1.0], v.clone(), Interpolation::Linear).unwrap();
+        let minus = Sampler::new(vec![-1.0, -0.0, 1.0], v, Interpolation::Linear).unwrap();
+        let a = Animation::new("zeros")
+            .with_channel(node(0), Curve::Translation(plus.clone()))
+            .with_channel(node(0), Curve::Scale(minus.clone()));
+        let mut p = Playback::new(std::slice::from_ref(&a));
+        assert_eq!(p.keys.times.len(), 6, "two tracks");
+        for t in [-0.0, 0.0, 0.5, -0.5] {
+            let (_, pose) = p.sample(t, None).next().unwrap();
+            let bits = |v: Vec3| v.to_array().map(f32::to_bits);
+            assert_eq!(bits(pose.translation.unwrap()), bits(plus.sample(t)), "t {t}");
+            assert_eq!(bits(pose.scale.unwrap()), bits(minus.sample(t)), "t {t}");
+        }
     }
 
     proptest! {

@@ -216,7 +216,8 @@ pub struct Instance {
 /// A scene: nodes, meshes, materials and the cameras a file brought.
 ///
 /// `Clone` copies everything but the identity: the clone gets a new [`SceneId`] (and keeps
-/// the revision and the last change report).
+/// the revision and the last change report). The animations' layout for playing is not
+/// copied: the clone's first [`Scene::animate`] makes its own.
 #[derive(Debug)]
 pub struct Scene {
     nodes: SlotMap<NodeId, Node>,
@@ -348,7 +349,10 @@ impl Scene {
     }
     /// Adds an animation, played after those already there.
     pub fn add_animation(&mut self, animation: crate::animation::Animation) {
-        self.animations_mut().push(animation);
+        if let Some(p) = &mut self.playback {
+            p.push(&animation);
+        }
+        self.animations.push(animation);
     }
 
     // ---- nodes --------------------------------------------------------------------------

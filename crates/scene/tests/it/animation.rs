@@ -228,6 +228,36 @@ fn a_removed_target_is_reported_and_can_be_dropped() {
     assert_eq!(scene.animate(1.0).unwrap(), 1);
 }
 
+#[test]
+fn apply_plays_one_animation_as_animate_does() {
+    // One animation applied by itself sets the very bits `Scene::animate` sets, at times in
+    // and outside its keys.
+    for t in [0.0, 0.37, 1.0, 1.5, 2.0, 5.0] {
+        let mut by_scene = load(asset("animated.gltf")).unwrap();
+        by_scene.animate(t).unwrap();
+        let mut by_apply = load(asset("animated.gltf")).unwrap();
+        let wave = by_apply.animations()[0].clone();
+        assert_eq!(wave.apply(&mut by_apply, t).unwrap(), 3);
+        for name in ["base", "arm", "hand"] {
+            let (a, b) = (local(&by_scene, name), local(&by_apply, name));
+            assert_eq!(
+                (a.translation.to_array(), a.rotation.to_array(), a.scale.to_array()),
+                (b.translation.to_array(), b.rotation.to_array(), b.scale.to_array()),
+                "{name} at {t}"
+            );
+        }
+    }
+    // A channel aimed at a removed node is named; the other channels still play.
+    let mut scene = load(asset("animated.gltf")).unwrap();
+    let wave = scene.animations()[0].clone();
+    let hand = scene.find("hand").unwrap();
+    scene.remove_node(hand).unwrap();
+    let e = wave.apply(&mut scene, 1.0).unwrap_err().to_string();
+    assert!(e.contains("wave") && e.contains("channel"), "{e}");
+    assert!((z_degrees(local(&scene, "arm").rotation) - 90.0).abs() < 1e-3, "the arm still turned");
+    assert!(wave.apply(&mut scene, f32::INFINITY).unwrap_err().to_string().contains("not finite"));
+}
+
 /// Removing animated nodes one by one leaves their channels until the next `animate`, which
 /// drops them all in one pass (a pass per removal would be quadratic in the node count).
 #[test]
