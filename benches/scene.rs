@@ -65,7 +65,7 @@ fn propagate(c: &mut Criterion) {
     let mut g = c.benchmark_group("propagate_1e6");
     g.sample_size(10);
     for (name, (mut scene, ids)) in [("flat", flat()), ("deep", deep()), ("flat_drawn", flat_drawn())] {
-        let roots: Vec<NodeId> = scene.roots().to_vec();
+        let roots: Vec<NodeId> = scene.roots().collect();
         let mut rng = Rng::new(5);
         let some: Vec<NodeId> = (0..NODES / 100).map(|_| ids[rng.below(ids.len() as u32) as usize]).collect();
         g.bench_function(format!("{name}/full"), |b| {

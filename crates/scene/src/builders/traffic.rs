@@ -386,7 +386,7 @@ mod tests {
             c.scene.animate(t).unwrap();
             c.scene.update_transforms();
             let (traffic, _) = named_roots(&c.scene);
-            let vehicles = c.scene.node(traffic.unwrap()).unwrap().children().to_vec();
+            let vehicles: Vec<_> = c.scene.node(traffic.unwrap()).unwrap().children().collect();
             assert_eq!(vehicles.len(), 300);
             for v in vehicles {
                 let n = c.scene.node(v).unwrap();

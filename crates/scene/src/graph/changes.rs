@@ -21,7 +21,7 @@ use std::sync::OnceLock;
 
 use slotmap::SecondaryMap;
 
-use super::{Instance, NodeId, Scene};
+use super::{live, Instance, NodeId, Scene};
 
 /// Identity of one [`Scene`] value: unique per process, never reused. `Clone` on a scene gives
 /// the clone a new id, so state built for one scene is never mistaken for another's.
@@ -224,7 +224,7 @@ impl Scene {
         let mut out = Vec::new();
         let mut first = 0u32;
         let mut stack: Vec<(NodeId, glam::Affine3A, Option<crate::MaterialId>)> =
-            self.roots.iter().rev().map(|&r| (r, glam::Affine3A::IDENTITY, None)).collect();
+            live(&self.roots).rev().map(|r| (r, glam::Affine3A::IDENTITY, None)).collect();
         while let Some((id, parent_world, inherited)) = stack.pop() {
             let n = &self.nodes[id];
             let world = parent_world * n.parent_from_local;
@@ -243,7 +243,7 @@ impl Scene {
                 });
                 first = first.saturating_add(count);
             }
-            stack.extend(n.children.iter().rev().map(|&c| (c, world, material)));
+            stack.extend(live(&n.children).rev().map(|c| (c, world, material)));
         }
         out
     }

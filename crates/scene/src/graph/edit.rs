@@ -4,8 +4,9 @@
 //! until [`Scene::update_transforms`] runs, [`Scene::needs_update`] is true after any edit.
 
 use glam::Affine3A;
+use slotmap::Key;
 
-use super::{Keep, Node, NodeDesc, NodeId, Scene};
+use super::{live, Keep, Node, NodeDesc, NodeId, Scene};
 use crate::{Aabb, Error, MaterialId, MeshId, Result, SceneCamera, Transform};
 
 /// What [`Scene::remove_node`] removed.
@@ -49,10 +50,7 @@ impl Scene {
             material_in_effect: None,
             drawn: None,
         });
-        match parent {
-            Some(p) => self.nodes[p].children.push(id),
-            None => self.roots.push(id),
-        }
+        self.link(id, parent);
         if let Some(t) = desc.trs.filter(|t| t.matrix() == desc.local) {
             self.trs.insert(id, t);
         }
@@ -194,22 +192,11 @@ impl Scene {
             self.nodes[child].parent_from_local = local;
             self.trs.remove(child);
         }
-        // Unlink from the old place, link into the new one.
-        match self.nodes[child].parent {
-            Some(old) => self.nodes[old].children.retain(|&c| c != child),
-            None => self.roots.retain(|&c| c != child),
-        }
-        let base_depth = match parent {
-            Some(p) => {
-                self.nodes[p].children.push(child);
-                self.nodes[p].depth + 1
-            }
-            None => {
-                self.roots.push(child);
-                0
-            }
-        };
+        // Unlink from the old place, link into the new one (last among its new siblings).
+        self.unlink(child);
+        let base_depth = parent.map_or(0, |p| self.nodes[p].depth + 1);
         self.nodes[child].parent = parent;
+        self.link(child, parent);
         // Depths of the whole subtree change by the same amount; a drawn node in it moves in
         // the flattened order.
         let mut stack = vec![(child, base_depth)];
@@ -218,7 +205,7 @@ impl Scene {
             let n = &mut self.nodes[id];
             n.depth = d;
             draws |= n.drawn.is_some();
-            stack.extend(n.children.iter().map(|&c| (c, d + 1)));
+            stack.extend(live(&n.children).map(|c| (c, d + 1)));
         }
         self.pending.depths_changed = true;
         if draws {
@@ -234,39 +221,23 @@ impl Scene {
     /// stale; every other handle stays valid. The channels go before the next
     /// [`Scene::animate`], in one pass however many nodes were removed (until then
     /// [`Scene::animations`] still lists them; [`Scene::drop_dead_animation_channels`] drops
-    /// them at once). To remove many nodes, [`Scene::remove_nodes`] does it in one pass.
+    /// them at once). Removing a node costs the size of its subtree, however many siblings it
+    /// has (its place in its parent's list is left empty and the list compacted once half of
+    /// it is empty), so removing all children of a parent one at a time is linear.
     pub fn remove_node(&mut self, id: NodeId) -> Result<Removed> {
         self.remove_nodes(&[id])
     }
 
-    /// [`Scene::remove_node`] for many nodes at once: each parent's child list and the
-    /// cameras are scanned once for the whole batch, where removing the nodes one by one
-    /// scans them once per node (quadratic for many children of one parent). Nodes inside
-    /// another removed subtree, and repeated handles, are fine. Errors on a stale handle,
-    /// removing nothing.
+    /// [`Scene::remove_node`] for many nodes at once: the scene's cameras are scanned once
+    /// for the whole batch instead of once per node. Nodes inside another removed subtree,
+    /// and repeated handles, are fine. Errors on a stale handle, removing nothing.
     pub fn remove_nodes(&mut self, ids: &[NodeId]) -> Result<Removed> {
         for &id in ids {
             self.try_node(id)?;
         }
-        let gone: std::collections::HashSet<NodeId> = ids.iter().copied().collect();
         // Each parent losing children keeps the others in order (the order sets IDs).
-        let mut parents: Vec<NodeId> = Vec::new();
-        let mut roots = false;
         for &id in ids {
-            match self.nodes[id].parent {
-                Some(p) => parents.push(p),
-                None => roots = true,
-            }
-        }
-        parents.sort_unstable();
-        parents.dedup();
-        for p in parents {
-            if let Some(n) = self.nodes.get_mut(p) {
-                n.children.retain(|c| !gone.contains(c));
-            }
-        }
-        if roots {
-            self.roots.retain(|c| !gone.contains(c));
+            self.unlink(id);
         }
         let mut stack: Vec<NodeId> = ids.to_vec();
         let mut removed = 0;
@@ -274,11 +245,13 @@ impl Scene {
         while let Some(n) = stack.pop() {
             if let Some(node) = self.nodes.remove(n) {
                 self.trs.remove(n);
+                self.slots.remove(n);
+                self.dead.remove(n);
                 self.overflowed -= node.overflowed as usize;
                 if node.drawn.is_some() {
                     self.pending.removed.push(n);
                 }
-                stack.extend(node.children);
+                stack.extend(live(&node.children));
                 removed += 1;
             }
         }
@@ -295,5 +268,49 @@ impl Scene {
         // make removing n animated nodes one by one quadratic).
         self.dead_channels |= !self.animations.is_empty();
         Ok(Removed { nodes: removed, cameras: gone })
+    }
+
+    /// Appends `id` to `parent`'s child list (or the roots), remembering its place.
+    fn link(&mut self, id: NodeId, parent: Option<NodeId>) {
+        let list = match parent {
+            Some(p) => &mut self.nodes[p].children,
+            None => &mut self.roots,
+        };
+        list.push(id);
+        let slot = list.len() as u32 - 1;
+        self.slots.insert(id, slot);
+    }
+
+    /// Takes `id` out of its parent's child list (or the roots) in O(1): its place becomes a
+    /// null handle, so the others keep their order (the order sets triangle IDs) without a
+    /// shift of the list. Once nulls are half of the list it is compacted, which is linear
+    /// in its length and so costs O(1) per removal over time. A node not linked (already
+    /// unlinked in this batch) is left alone.
+    fn unlink(&mut self, id: NodeId) {
+        let Some(slot) = self.slots.remove(id) else { return };
+        let parent = self.nodes[id].parent;
+        let (list, dead) = match parent {
+            Some(p) => {
+                let dead = match self.dead.get_mut(p) {
+                    Some(d) => d,
+                    None => {
+                        self.dead.insert(p, 0);
+                        &mut self.dead[p]
+                    }
+                };
+                (&mut self.nodes[p].children, dead)
+            }
+            None => (&mut self.roots, &mut self.dead_roots),
+        };
+        debug_assert_eq!(list[slot as usize], id, "a node's slot names its place in its parent's list");
+        list[slot as usize] = NodeId::null();
+        *dead += 1;
+        if 2 * *dead as usize >= list.len() {
+            *dead = 0;
+            list.retain(|c| !c.is_null());
+            for (k, &c) in list.iter().enumerate() {
+                self.slots.insert(c, k as u32);
+            }
+        }
     }
 }

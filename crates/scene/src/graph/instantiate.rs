@@ -22,7 +22,7 @@ use std::collections::HashMap;
 
 use glam::Affine3A;
 
-use super::{MaterialId, MeshId, NodeDesc, NodeId, Scene, SceneCamera, SceneId};
+use super::{live, MaterialId, MeshId, NodeDesc, NodeId, Scene, SceneCamera, SceneId};
 use crate::animation::{Animation, Channel};
 use crate::{Error, Mesh, Projection, Result, Transform};
 
@@ -227,7 +227,7 @@ impl Scene {
         let mut meshes: HashMap<MeshId, Option<MeshId>> = HashMap::new();
         let mut materials: HashMap<MaterialId, Option<MaterialId>> = HashMap::new();
         let Template { nodes, cameras, animations } = other.template(
-            other.roots(),
+            &other.roots().collect::<Vec<_>>(),
             |m| *meshes.entry(m).or_insert_with(|| take_mesh(m).map(|mesh| self.meshes.insert(mesh))),
             |m| *materials.entry(m).or_insert_with(|| other.materials.get(m).map(|x| self.materials.insert(x.clone()))),
         );
@@ -259,7 +259,7 @@ impl Scene {
                 mesh: n.mesh.and_then(&mut mesh),
                 material: n.material.and_then(&mut material),
             });
-            stack.extend(n.children.iter().rev().map(|&c| (c, Some(i))));
+            stack.extend(live(&n.children).rev().map(|c| (c, Some(i))));
         }
         let cameras = self
             .cameras

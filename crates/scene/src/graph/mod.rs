@@ -18,7 +18,7 @@
 use std::sync::OnceLock;
 
 use glam::{Affine3A, Vec3};
-use slotmap::{new_key_type, SecondaryMap, SlotMap};
+use slotmap::{new_key_type, Key, SecondaryMap, SlotMap};
 
 use crate::{Aabb, Error, Material, Mesh, Result, Transform};
 
@@ -38,6 +38,13 @@ new_key_type! {
     pub struct MeshId;
     /// Handle of a material in the scene's material store.
     pub struct MaterialId;
+}
+
+/// The handles of a child list (or the roots) that are not null: removing a node leaves a
+/// null handle in its parent's list, so that removing many children of one parent one at a
+/// time costs O(1) each instead of a shift of the whole list (see `Scene::unlink`).
+pub(crate) fn live(list: &[NodeId]) -> impl DoubleEndedIterator<Item = NodeId> + '_ {
+    list.iter().copied().filter(|c| !c.is_null())
 }
 
 /// What `set_parent` keeps unchanged when a node moves in the hierarchy.
@@ -84,8 +91,8 @@ impl Node {
         self.parent
     }
     /// Children in insertion order (this order defines triangle IDs).
-    pub fn children(&self) -> &[NodeId] {
-        &self.children
+    pub fn children(&self) -> impl DoubleEndedIterator<Item = NodeId> + '_ {
+        live(&self.children)
     }
     /// The local transform (`parent_from_local`).
     pub fn local_matrix(&self) -> Affine3A {
@@ -221,7 +228,14 @@ pub struct Instance {
 #[derive(Debug)]
 pub struct Scene {
     nodes: SlotMap<NodeId, Node>,
+    /// Root nodes in order; like child lists, may hold null handles where nodes were
+    /// removed (see `Scene::unlink`).
     roots: Vec<NodeId>,
+    /// Each node's place in its parent's child list (or in `roots`).
+    slots: SecondaryMap<NodeId, u32>,
+    /// Per parent, the null handles its child list holds; `dead_roots`: those in `roots`.
+    dead: SecondaryMap<NodeId, u32>,
+    dead_roots: u32,
     meshes: SlotMap<MeshId, Mesh>,
     materials: SlotMap<MaterialId, Material>,
     /// Nodes marked dirty since the last update, with their depth when marked (so that
@@ -254,6 +268,9 @@ impl Default for Scene {
         Self {
             nodes: SlotMap::default(),
             roots: Vec::new(),
+            slots: SecondaryMap::new(),
+            dead: SecondaryMap::new(),
+            dead_roots: 0,
             meshes: SlotMap::default(),
             materials: SlotMap::default(),
             dirty: Vec::new(),
@@ -278,6 +295,9 @@ impl Clone for Scene {
         Self {
             nodes: self.nodes.clone(),
             roots: self.roots.clone(),
+            slots: self.slots.clone(),
+            dead: self.dead.clone(),
+            dead_roots: self.dead_roots,
             meshes: self.meshes.clone(),
             materials: self.materials.clone(),
             dirty: self.dirty.clone(),
@@ -381,8 +401,8 @@ impl Scene {
         }
     }
     /// Root nodes in insertion order.
-    pub fn roots(&self) -> &[NodeId] {
-        &self.roots
+    pub fn roots(&self) -> impl DoubleEndedIterator<Item = NodeId> + '_ {
+        live(&self.roots)
     }
     /// The first node with this name, in depth-first order.
     pub fn find(&self, name: &str) -> Option<NodeId> {
@@ -392,10 +412,10 @@ impl Scene {
     /// Depth-first pre-order over all nodes: roots in order, children in order. This order
     /// defines the flattened triangle order (and so triangle IDs).
     pub fn depth_first(&self) -> impl Iterator<Item = NodeId> + '_ {
-        let mut stack: Vec<NodeId> = self.roots.iter().rev().copied().collect();
+        let mut stack: Vec<NodeId> = live(&self.roots).rev().collect();
         std::iter::from_fn(move || {
             let id = stack.pop()?;
-            stack.extend(self.nodes[id].children.iter().rev());
+            stack.extend(live(&self.nodes[id].children).rev());
             Some(id)
         })
     }

@@ -2,7 +2,7 @@
 //! changed for drawn nodes as it goes (O(1) per visited node, see [`super::changes`]).
 
 use glam::Affine3A;
-use slotmap::SlotMap;
+use slotmap::{Key, SlotMap};
 
 use super::{Changes, MaterialId, MeshId, Node, NodeId, Scene};
 use crate::{Aabb, Mesh, Result};
@@ -122,12 +122,20 @@ impl Scene {
                 } else if let Some(top) = stack.last_mut() {
                     top.2 += 1;
                 }
+                if child.is_null() {
+                    continue; // the place of a removed child (see `Scene::unlink`)
+                }
                 let (mut frame, mut n) = walk.visit(child, &frame);
                 visited += 1;
                 // Down a chain of only children without the stack.
                 let mut node = child;
                 while n == 1 {
-                    node = walk.nodes[node].children[0];
+                    let only = walk.nodes[node].children[0];
+                    if only.is_null() {
+                        n = 0;
+                        break;
+                    }
+                    node = only;
                     (frame, n) = walk.visit(node, &frame);
                     visited += 1;
                 }

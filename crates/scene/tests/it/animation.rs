@@ -449,7 +449,7 @@ fn copies_of_an_animated_model_play_its_animation() {
             if node.name() == "base" {
                 return n;
             }
-            stack.extend_from_slice(node.children());
+            stack.extend(node.children());
         }
         panic!("no base under the placement");
     };
@@ -460,8 +460,8 @@ fn copies_of_an_animated_model_play_its_animation() {
     scene.update_transforms();
     for root in [a, b] {
         let base = base_of(&scene, root);
-        let arm = scene.node(base).unwrap().children()[0];
-        let hand = scene.node(arm).unwrap().children()[0];
+        let arm = scene.node(base).unwrap().children().next().unwrap();
+        let hand = scene.node(arm).unwrap().children().next().unwrap();
         for (id, name) in [(base, "base"), (arm, "arm"), (hand, "hand")] {
             let got = scene.node(id).unwrap().local_transform();
             assert_vec(got.translation, want(name).translation.into(), name);
@@ -471,7 +471,7 @@ fn copies_of_an_animated_model_play_its_animation() {
     // `instantiate` replaces the copy root's transform, but the animation sets it again.
     let got = scene.node(copy).unwrap().local_transform();
     assert_vec(got.translation, want("base").translation.into(), "copied base");
-    let arm = scene.node(copy).unwrap().children()[0];
+    let arm = scene.node(copy).unwrap().children().next().unwrap();
     assert!(scene.node(arm).unwrap().local_transform().rotation.angle_between(want("arm").rotation) < 1e-5);
     // Removing a copy drops its channels only.
     scene.remove_node(copy).unwrap();

@@ -168,7 +168,7 @@ fn node_cycles_are_errors() {
         d["nodes"] = serde_json::json!([{"mesh": 0}, {"mesh": 0, "children": [0]}]);
     });
     let scene = load(&path).unwrap();
-    assert_eq!(scene.roots().len(), 1);
+    assert_eq!(scene.roots().count(), 1);
     assert_eq!(scene.node_count(), 2);
 }
 

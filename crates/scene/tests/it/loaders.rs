@@ -171,7 +171,7 @@ fn gltf_camera_becomes_a_camera_for_any_aspect() {
 fn cube_obj_loads_with_mtl_color() {
     let scene = load(asset("cube.obj")).unwrap();
     assert!(scene.warnings.is_empty(), "{:?}", scene.warnings);
-    let root = scene.roots()[0];
+    let root = scene.roots().next().unwrap();
     assert_eq!(scene.node(root).unwrap().name(), "cube.obj");
     let inst = scene.instances();
     assert_eq!(inst.len(), 1);
@@ -403,8 +403,8 @@ fn obj_groups_become_child_nodes_and_unreferenced_vertices_are_fine() {
     );
     let scene = load(&path).unwrap();
     assert!(scene.warnings.is_empty(), "{:?}", scene.warnings);
-    let root = scene.roots()[0];
-    let kids: Vec<&str> = scene.node(root).unwrap().children().iter().map(|&c| scene.node(c).unwrap().name()).collect();
+    let root = scene.roots().next().unwrap();
+    let kids: Vec<&str> = scene.node(root).unwrap().children().map(|c| scene.node(c).unwrap().name()).collect();
     assert_eq!(kids, ["first", "second"]);
     assert_eq!(scene.stats().triangles, 3);
     // The unreferenced vertex (9, 9, 9) does not inflate any bounds.

@@ -49,7 +49,7 @@ fn instantiate_copies_nodes_and_shares_meshes() {
         ("body", s.node(body).unwrap().mesh(), s.node(body).unwrap().material())
     );
     assert!(close(origin(&s, copy), Vec3::new(0.0, 0.0, 5.0)), "the copy takes the given transform");
-    let hand_copy = s.node(s.node(copy).unwrap().children()[0]).unwrap().children()[0];
+    let hand_copy = s.node(s.node(copy).unwrap().children().next().unwrap()).unwrap().children().next().unwrap();
     assert!(close(origin(&s, hand_copy), Vec3::new(1.0, 0.0, 5.0)));
     assert_eq!(s.instance(hand_copy).unwrap().material, s.node(body).unwrap().material(), "inherited in the copy");
     // The camera on the hand came along, on the copy's hand.
@@ -139,8 +139,8 @@ fn instantiate_from_places_a_whole_scene_once() {
     model.warnings.push("robot.gltf: a warning".into());
     let mut s = Scene::new();
     let root = s.instantiate_from(&model, None, Transform::from_scale(Vec3::splat(2.0))).unwrap();
-    assert_eq!(s.roots(), &[root]);
-    assert_eq!(s.node(root).unwrap().children().len(), 2, "body and ground");
+    assert_eq!(s.roots().collect::<Vec<_>>(), [root]);
+    assert_eq!(s.node(root).unwrap().children().count(), 2, "body and ground");
     s.update_transforms();
     let want: Vec<[Vec3; 3]> = world_triangles(&model)
         .iter()
