@@ -223,7 +223,9 @@ impl Scene {
     /// [`Scene::animations`] still lists them; [`Scene::drop_dead_animation_channels`] drops
     /// them at once). Removing a node costs the size of its subtree, however many siblings it
     /// has (its place in its parent's list is left empty and the list compacted once half of
-    /// it is empty), so removing all children of a parent one at a time is linear.
+    /// it is empty), so removing all children of a parent one at a time is linear when their
+    /// handles are collected first; taking `children().next()` again after each removal
+    /// walks past the empty places every time.
     pub fn remove_node(&mut self, id: NodeId) -> Result<Removed> {
         self.remove_nodes(&[id])
     }

@@ -130,12 +130,9 @@ impl Scene {
                 // Down a chain of only children without the stack.
                 let mut node = child;
                 while n == 1 {
-                    let only = walk.nodes[node].children[0];
-                    if only.is_null() {
-                        n = 0;
-                        break;
-                    }
-                    node = only;
+                    // A list of one entry holds no null place (compaction comes at half).
+                    node = walk.nodes[node].children[0];
+                    debug_assert!(!node.is_null());
                     (frame, n) = walk.visit(node, &frame);
                     visited += 1;
                 }
@@ -188,7 +185,8 @@ impl Walk<'_> {
     }
 
     /// Recomputes one node from what its parent passes down, records the change a consumer
-    /// must hear about, and returns what the node passes down and its number of children.
+    /// must hear about, and returns what the node passes down and the length of its child
+    /// list (null places of removed children included).
     #[inline(always)]
     fn visit(&mut self, id: NodeId, parent: &Frame) -> (Frame, usize) {
         let node = &mut self.nodes[id];

@@ -261,9 +261,11 @@ fn removing_a_batch_equals_removing_one_by_one() {
 
 /// Removing the children of one parent one at a time costs O(1) each (a removed child's
 /// place is left empty and the list compacted when half of it is): 10^5 children, removed
-/// first to last, used to shift the whole list each time. Interleaved with adds, moves
-/// between parents and updates, every child list and the flattened order (triangle IDs)
-/// stay those of a plain list model.
+/// first to last, used to shift the whole list each time. Interleaved with adds, removals
+/// (one at a time and in batches, of children and of roots), moves between parents keeping
+/// the local or the world transform, parents moving, and updates, every child list, the
+/// roots, the world positions and the flattened order (triangle IDs) stay those of a plain
+/// list model.
 #[test]
 fn child_lists_follow_removals_adds_and_moves_in_order() {
     let mut s = Scene::new();
@@ -276,44 +278,85 @@ fn child_lists_follow_removals_adds_and_moves_in_order() {
     assert_eq!(s.node(root).unwrap().children().count(), 0);
     assert_eq!(s.node_count(), 1);
 
-    // A model: each parent's children as a plain list.
+    // The model: each parent's translation and children (with their local translations),
+    // and the extra roots after `root`, in order. Everything is a translation, so a world
+    // position is a parent's translation plus a local one.
     let cube = s.add_mesh(shapes::cube("cube").unwrap());
-    let parents: Vec<NodeId> =
-        (0..4).map(|i| s.add_node(Some(root), NodeDesc::new(format!("p{i}"))).unwrap()).collect();
-    let mut model: Vec<Vec<NodeId>> = vec![Vec::new(); parents.len()];
+    let at = |x: f32| Transform::from_translation(Vec3::new(x, 0.0, 0.0));
+    let parents: Vec<NodeId> = (0..4)
+        .map(|i| s.add_node(Some(root), NodeDesc::new(format!("p{i}")).transform(at(i as f32))).unwrap())
+        .collect();
+    let mut place: Vec<f32> = (0..4).map(|i| i as f32).collect();
+    let mut model: Vec<Vec<(NodeId, f32)>> = vec![Vec::new(); parents.len()];
+    let mut roots: Vec<NodeId> = vec![root];
     let mut rng = rng::Rng::new(99);
-    for step in 0..6000u32 {
+    for step in 0..8000u32 {
         let p = rng.below(parents.len() as u32) as usize;
-        match rng.below(10) {
+        let x = (step % 50) as f32;
+        match rng.below(14) {
             0..=3 => {
-                let n = s.add_node(Some(parents[p]), NodeDesc::new(format!("n{step}")).mesh(cube)).unwrap();
-                model[p].push(n);
+                let n = s
+                    .add_node(Some(parents[p]), NodeDesc::new(format!("n{step}")).transform(at(x)).mesh(cube))
+                    .unwrap();
+                model[p].push((n, x));
             }
-            4..=6 if !model[p].is_empty() => {
+            4..=5 if !model[p].is_empty() => {
                 let k = rng.below(model[p].len() as u32) as usize;
-                s.remove_node(model[p].remove(k)).unwrap();
+                s.remove_node(model[p].remove(k).0).unwrap();
+            }
+            6 if model[p].len() > 2 => {
+                // A batch: two children, one of them named twice.
+                let (a, b) = (model[p].remove(0).0, model[p].remove(1).0);
+                s.remove_nodes(&[b, a, b]).unwrap();
             }
             7..=8 if !model[p].is_empty() => {
                 let k = rng.below(model[p].len() as u32) as usize;
                 let to = rng.below(parents.len() as u32) as usize;
-                let n = model[p].remove(k);
-                s.set_parent(n, Some(parents[to]), Keep::Local).unwrap();
-                model[to].push(n);
+                let (n, local) = model[p].remove(k);
+                let keep_world = rng.below(2) == 0;
+                s.set_parent(n, Some(parents[to]), if keep_world { Keep::World } else { Keep::Local }).unwrap();
+                // Keeping the world position needs the world matrices as of now.
+                let local = if keep_world { place[p] + local - place[to] } else { local };
+                model[to].push((n, local));
+            }
+            9 => {
+                place[p] = x;
+                s.set_local_transform(parents[p], at(x)).unwrap();
+            }
+            10 => roots.push(s.add_node(None, NodeDesc::new(format!("r{step}")).mesh(cube)).unwrap()),
+            11 if roots.len() > 1 => {
+                let k = 1 + rng.below(roots.len() as u32 - 1) as usize;
+                s.remove_node(roots.remove(k)).unwrap();
             }
             _ => {
                 s.update_transforms();
             }
         }
+        // Keep::World reads world matrices: keep them current.
+        s.update_transforms();
         if step % 97 == 0 {
             for (p, want) in parents.iter().zip(&model) {
-                assert_eq!(&s.node(*p).unwrap().children().collect::<Vec<_>>(), want, "step {step}");
+                let want: Vec<NodeId> = want.iter().map(|c| c.0).collect();
+                assert_eq!(s.node(*p).unwrap().children().collect::<Vec<_>>(), want, "step {step}");
             }
+            assert_eq!(s.roots().collect::<Vec<_>>(), roots, "step {step}");
         }
     }
-    s.update_transforms();
-    // Instances in depth-first order, with first triangles counted up from 0.
-    let want: Vec<(NodeId, u32)> = model.iter().flatten().enumerate().map(|(k, &n)| (n, 12 * k as u32)).collect();
-    let got: Vec<(NodeId, u32)> = s.instances().iter().map(|i| (i.node, i.first_triangle)).collect();
-    assert_eq!(got, want);
-    assert_eq!(s.depth_first().count(), 1 + parents.len() + want.len());
+    // Instances in depth-first order, with first triangles counted up from 0, where the
+    // model puts them.
+    let want: Vec<(NodeId, u32, f32)> = model
+        .iter()
+        .enumerate()
+        .flat_map(|(p, kids)| kids.iter().map(move |&(n, local)| (n, p, local)))
+        .chain(roots[1..].iter().map(|&r| (r, usize::MAX, 0.0)))
+        .enumerate()
+        .map(|(k, (n, p, local))| (n, 12 * k as u32, if p == usize::MAX { 0.0 } else { place[p] + local }))
+        .collect();
+    let got = s.instances();
+    assert_eq!(got.len(), want.len());
+    for (i, (n, first, x)) in got.iter().zip(&want) {
+        assert_eq!((i.node, i.first_triangle), (*n, *first));
+        assert!((i.world_from_local.translation.x - x).abs() < 1e-3, "{} vs {x}", i.world_from_local.translation.x);
+    }
+    assert_eq!(s.depth_first().count(), roots.len() + parents.len() + got.len() - (roots.len() - 1));
 }
