@@ -9,13 +9,13 @@
 //! Inside the rasterizer every format is a `u32` *key* whose order equals depth order: the
 //! integer value itself, or the bit pattern of a non-negative `f32` (IEEE 754 floats of one
 //! sign compare like their bit patterns). One comparison serves all formats. Each format is
-//! a zero-sized type implementing [`DepthCodec`] (scalar, four- and eight-wide keys, decode,
+//! a zero-sized type implementing `DepthCodec` (scalar, four- and eight-wide keys, decode,
 //! tie margin); the kernels are generic over it and the format is chosen once per frame.
 //!
 //! # NaN
 //!
 //! A fragment whose depth is NaN is never written, as on GPUs, where every comparison with
-//! NaN fails: its key is [`NAN_KEY`], above every key a depth can have, so it is never LESS
+//! NaN fails: its key is `NAN_KEY`, above every key a depth can have, so it is never LESS
 //! than a stored key nor equal to one. A NaN *stored* in a framebuffer handed in by a user
 //! reads as the far plane ([`DepthFormat::key_of_stored`]).
 
@@ -44,7 +44,7 @@ impl DepthFormat {
         }
     }
 
-    /// The key of window depth `z` (clamped to [0, 1]); NaN gives [`NAN_KEY`], which never
+    /// The key of window depth `z` (clamped to [0, 1]); NaN gives `NAN_KEY`, which never
     /// passes a depth test.
     #[inline]
     pub fn key(self, z: f32) -> u32 {

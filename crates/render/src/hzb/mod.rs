@@ -2,7 +2,7 @@
 //! "Hierarchical Z-Buffer Visibility", SIGGRAPH 1993), every level of it in one place.
 //!
 //! Level 0 is the depth buffer itself; level k + 1 stores for each texel the FARTHEST (max)
-//! window depth of the up to 2 × 2 texels below it ([`reduce_2x2`]). Odd sizes round up
+//! window depth of the up to 2 × 2 texels below it (`reduce_2x2`). Odd sizes round up
 //! (`ceil(w / 2)`), and an edge texel takes the max of the children that exist: those are
 //! the only pixels it stands for, so the bound stays exact. A screen rectangle whose
 //! nearest possible depth is farther than the max stored over every texel it touches cannot
@@ -10,15 +10,15 @@
 //! is drawn, so a level that lags behind the pixels is still a safe (conservative) bound.
 //!
 //! The pyramid lives in three parts, finest first:
-//! * [`tile`]: levels 1–6 inside each 64 × 64 rasterizer tile ([`TileLevels`]), kept up to
+//! * `tile`: levels 1–6 inside each 64 × 64 rasterizer tile (`TileLevels`), kept up to
 //!   date by the rasterizer block by block as it draws (the texel of an 8 × 8 block is
 //!   refreshed right after a triangle writes into it, so the next triangles of the same
 //!   batch are tested against it, as Masked Occlusion Culling does), and the coarse tests
 //!   that skip hidden triangles at binning and hidden 8 × 8 blocks in the rasterizer;
-//! * [`upper`]: the levels from one texel per tile up to one texel over the screen;
-//! * [`session`]: [`TilePyramid`], box queries against both, during a frame session.
+//! * `upper`: the levels from one texel per tile up to one texel over the screen;
+//! * `session`: [`TilePyramid`], box queries against both, during a frame session.
 //!
-//! [`DepthPyramid`] ([`screen`]) is the same pyramid over a finished whole-screen depth
+//! [`DepthPyramid`] (`screen`) is the same pyramid over a finished whole-screen depth
 //! buffer, for tests against a frame after the fact and for pictures of the levels.
 
 pub(crate) mod screen;

@@ -11,8 +11,8 @@ use super::{Level, Rect, TileLevels, UpperLevels};
 
 /// The z-pyramid of a frame session, read straight from the renderer's tiles: levels 1..=6
 /// live in each 64 × 64 tile (computed in the tile's own raster task, right after it drew),
-/// levels 6 and up over the tile grid. Same answers as [`DepthPyramid`] on the same depth,
-/// except that it never reads level 0 (its finest level is 2 × 2 pixels).
+/// levels 6 and up over the tile grid. Same answers as [`DepthPyramid`](super::DepthPyramid)
+/// on the same depth, except that it never reads level 0 (its finest level is 2 × 2 pixels).
 #[derive(Debug, Clone, Copy)]
 pub struct TilePyramid<'a> {
     tiles: &'a [TileLevels],

@@ -6,11 +6,11 @@
 //! values and an [`Interpolation`] (STEP, LINEAR, CUBICSPLINE). The property and the value
 //! type travel together in a [`Curve`], so a rotation channel cannot carry vectors.
 //!
-//! Playing ([`Scene::animate`], [`Animation::apply`]) samples every channel at time `t` and
-//! sets the targeted nodes' local transforms through [`Scene::set_local_transform`], so they
-//! are marked dirty and the next [`Scene::update_transforms`] propagates them. Components no
+//! Playing ([`Scene::animate`](crate::Scene::animate), [`Animation::apply`]) samples every channel at time `t` and
+//! sets the targeted nodes' local transforms through [`Scene::set_local_transform`](crate::Scene::set_local_transform), so they
+//! are marked dirty and the next [`Scene::update_transforms`](crate::Scene::update_transforms) propagates them. Components no
 //! channel targets keep the node's current value (glTF: "the node's own TRS"): the scene
-//! keeps each TRS it was given beside the matrix ([`Scene::local_transform`]), so a zero scale
+//! keeps each TRS it was given beside the matrix ([`Scene::local_transform`](crate::Scene::local_transform)), so a zero scale
 //! keeps its rotation and a negative one its mirrored axes. Channels of the
 //! same node that follow one another are set in one call.
 //!

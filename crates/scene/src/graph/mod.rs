@@ -420,7 +420,7 @@ impl Scene {
         })
     }
 
-    /// The file's camera `index` (in [`Scene::cameras`]) as a [`Camera`] for an image of
+    /// The file's camera `index` (in [`Scene::cameras`]) as a [`Camera`](crate::Camera) for an image of
     /// `aspect` = width / height: the view from its node's world matrix as of the last
     /// update (eye at the node's origin, looking down its −z with its +y up, scale ignored),
     /// the projection the file gave with its vertical extent kept and its horizontal one
