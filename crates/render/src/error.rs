@@ -113,6 +113,22 @@ pub enum Error {
 /// Result alias for the render crate.
 pub type Result<T, E = Error> = std::result::Result<T, E>;
 
+/// Whether the `structure` ("culler", "ray caster") built for the scene `built_for` may
+/// follow `scene`: it must be that scene, propagated, and drawable ([`check_drawable`]).
+pub(crate) fn check_followable(
+    scene: &sightline_scene::Scene,
+    built_for: sightline_scene::SceneId,
+    structure: &'static str,
+) -> Result<()> {
+    if scene.id() != built_for {
+        return Err(Error::WrongScene { structure });
+    }
+    if scene.needs_update() {
+        return Err(Error::NotPropagated);
+    }
+    check_drawable(scene)
+}
+
 /// Whether `scene` (propagated) can be drawn: [`Error::TooManyTriangles`] when it draws more
 /// triangles than IDs can name (its instances' first IDs would stop at `u32::MAX` and
 /// repeat), the scene's error when a world transform overflowed.

@@ -232,10 +232,18 @@ impl World {
 #[cfg(test)]
 mod tests {
     use glam::Vec3;
-    use sightline_scene::{shapes, NodeDesc, Transform};
+    use sightline_scene::{shapes, NodeDesc, NodeId, Transform};
 
     use super::*;
     use crate::SyncOutcome;
+
+    /// A world of one unit cube at the origin, and the cube's node.
+    fn one_cube() -> (World, NodeId) {
+        let mut scene = Scene::new();
+        let cube = scene.add_mesh(shapes::cube("cube").unwrap());
+        let node = scene.add_node(None, NodeDesc::new("cube").mesh(cube)).unwrap();
+        (World::new(scene), node)
+    }
 
     /// A camera at `eye` looking at `target`, and a 16 × 16 framebuffer.
     fn view(eye: Vec3, target: Vec3) -> (Camera, Framebuffer) {
@@ -245,10 +253,7 @@ mod tests {
 
     #[test]
     fn update_brings_every_built_structure_up_to_date_and_builds_none() {
-        let mut scene = Scene::new();
-        let cube = scene.add_mesh(shapes::cube("cube").unwrap());
-        let node = scene.add_node(None, NodeDesc::new("cube").mesh(cube)).unwrap();
-        let mut world = World::new(scene);
+        let (mut world, node) = one_cube();
         world.update().unwrap();
         assert!(world.culler.is_none() && world.caster.is_none(), "update builds nothing");
         world.prepare(Method::Hzb).unwrap();
@@ -265,10 +270,7 @@ mod tests {
 
     #[test]
     fn the_culler_outside_a_frame_follows_the_scene() {
-        let mut scene = Scene::new();
-        let cube = scene.add_mesh(shapes::cube("cube").unwrap());
-        let node = scene.add_node(None, NodeDesc::new("cube").mesh(cube)).unwrap();
-        let mut world = World::new(scene);
+        let (mut world, node) = one_cube();
         assert_eq!(world.culler().unwrap().instances()[0].world_from_local.translation.x, 0.0);
         let moved = Transform::from_translation(Vec3::new(3.0, 0.0, 0.0));
         world.scene_mut().set_local_transform(node, moved).unwrap();

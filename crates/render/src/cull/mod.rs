@@ -61,7 +61,7 @@ pub use verify::{compare_ids, Mismatch};
 
 use crate::pipeline::Target;
 use crate::stats::ms_since;
-use crate::{draw_all, Error, FrameStats, Framebuffer, RenderOptions, Renderer, Result, Session};
+use crate::{draw_all, FrameStats, Framebuffer, RenderOptions, Renderer, Result, Session};
 use walk::{Batching, Frame, Source, Walk};
 
 /// How a frame decides what to draw.
@@ -236,7 +236,7 @@ impl Culler {
     /// Builds clusters, meshlets, BVH and octree for the scene's instances (world transforms
     /// must be up to date). A scene of more triangles than IDs can name
     /// ([`sightline_scene::MAX_DRAWN_TRIANGLES`]) is not built for: its frames are refused
-    /// with [`Error::TooManyTriangles`] until it draws few enough.
+    /// with [`Error::TooManyTriangles`](crate::Error::TooManyTriangles) until it draws few enough.
     pub fn new(scene: &Scene) -> Self {
         let c = match crate::error::check_drawable(scene) {
             Ok(()) => Clusters::build(scene, None),
@@ -264,13 +264,7 @@ impl Culler {
     /// culler serves the scene it was built for: another scene (a clone is another scene
     /// too) is an error; build a culler for it.
     pub fn sync(&mut self, scene: &Scene) -> Result<SyncOutcome> {
-        if scene.id() != self.c.stamp.scene {
-            return Err(Error::WrongScene { structure: "culler" });
-        }
-        if scene.needs_update() {
-            return Err(Error::NotPropagated);
-        }
-        crate::error::check_drawable(scene)?;
+        crate::error::check_followable(scene, self.c.stamp.scene, "culler")?;
         Ok(self.c.sync(scene))
     }
 

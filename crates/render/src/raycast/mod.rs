@@ -204,13 +204,7 @@ impl RayCaster {
 
     /// Follows `scene` after edits (see the type's docs); `Ok(false)` when it was up to date.
     pub fn sync(&mut self, scene: &Scene) -> Result<bool> {
-        if scene.id() != self.stamp.scene {
-            return Err(crate::Error::WrongScene { structure: "ray caster" });
-        }
-        if scene.needs_update() {
-            return Err(crate::Error::NotPropagated);
-        }
-        crate::error::check_drawable(scene)?;
+        crate::error::check_followable(scene, self.stamp.scene, "ray caster")?;
         match scene.delta_since(self.stamp) {
             SceneDelta::UpToDate => return Ok(false),
             // Only moves and material changes: follow them in place unless a move needs a

@@ -144,6 +144,13 @@ pub(crate) enum Span {
 }
 
 impl Span {
+    /// Time `t` between key `k` at `t0` and key `k + 1` at `t1`.
+    #[inline]
+    pub(crate) fn between(k: usize, t0: f32, t1: f32, t: f32) -> Span {
+        let td = t1 - t0;
+        Span::Between { k, s: ((t - t0) / td).clamp(0.0, 1.0), td }
+    }
+
     /// The key interval to try first at the next time (see [`locate`]).
     pub(crate) fn hint(self) -> usize {
         match self {
@@ -173,9 +180,7 @@ pub(crate) fn locate(times: &[f32], t: f32, hint: usize) -> Span {
     } else {
         times.partition_point(|&x| x <= t) - 1
     };
-    let (t0, t1) = (times[k], times[k + 1]);
-    let td = t1 - t0;
-    Span::Between { k, s: ((t - t0) / td).clamp(0.0, 1.0), td }
+    Span::between(k, times[k], times[k + 1], t)
 }
 
 /// The value at `span` of a sampler's `values` (three per key for CUBICSPLINE: in-tangent,

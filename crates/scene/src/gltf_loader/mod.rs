@@ -282,23 +282,20 @@ impl Loader<'_> {
             let label = node_label(root, i);
             let name = node.name.clone().unwrap_or_else(|| format!("node {i}"));
             // A TRS node keeps its TRS (animation lays samples over it); a matrix node its matrix.
-            let place = |desc: NodeDesc| -> crate::Result<NodeDesc> {
-                Ok(match node.matrix {
-                    Some(m) => desc.matrix(crate::affine_from_mat4(&Mat4::from_cols_array(&m), &label)?),
-                    None => {
-                        let t = node.translation.unwrap_or([0.0; 3]);
-                        let r = node.rotation.map_or([0.0, 0.0, 0.0, 1.0], |q| q.0);
-                        let s = node.scale.unwrap_or([1.0; 3]);
-                        let trs = Transform {
-                            translation: Vec3::from(t),
-                            rotation: Quat::from_array(r),
-                            scale: Vec3::from(s),
-                        };
-                        desc.transform(trs.normalized(&label)?)
-                    }
-                })
+            let mut desc = NodeDesc::new(name.clone());
+            desc = match node.matrix {
+                Some(m) => {
+                    desc.matrix(crate::affine_from_mat4(&Mat4::from_cols_array(&m), &label).map_err(|e| e.to_string())?)
+                }
+                None => {
+                    let t = node.translation.unwrap_or([0.0; 3]);
+                    let r = node.rotation.map_or([0.0, 0.0, 0.0, 1.0], |q| q.0);
+                    let s = node.scale.unwrap_or([1.0; 3]);
+                    let trs =
+                        Transform { translation: Vec3::from(t), rotation: Quat::from_array(r), scale: Vec3::from(s) };
+                    desc.transform(trs.normalized(&label).map_err(|e| e.to_string())?)
+                }
             };
-            let desc = place(NodeDesc::new(name.clone())).map_err(|e| e.to_string())?;
 
             // The primitives this node draws.
             let mut prims = Vec::new();
@@ -312,7 +309,6 @@ impl Loader<'_> {
                     }
                 }
             }
-            let mut desc = desc;
             if let [(_, mesh_id, mat)] = prims[..] {
                 desc.mesh = Some(mesh_id);
                 desc.material = self.resolve_material(mat, inherits);

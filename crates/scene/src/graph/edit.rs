@@ -59,11 +59,7 @@ impl Scene {
     }
 
     pub(crate) fn mark_dirty(&mut self, id: NodeId) {
-        let n = &mut self.nodes[id];
-        if !n.dirty {
-            n.dirty = true;
-            self.dirty.push((n.depth, id));
-        }
+        mark(&mut self.dirty, &mut self.nodes[id], id);
     }
 
     /// Sets a node's local transform from translation, rotation and scale (the rotation
@@ -75,13 +71,12 @@ impl Scene {
             Ok(t) => t,
             Err(e) => return Err(self.try_node(id).err().unwrap_or_else(|| self.name_in(id, e))),
         };
-        let n = self.node_mut(id)?;
+        let n = match self.nodes.get_mut(id) {
+            Some(n) => n,
+            None => return Err(Error::StaleNode(id)),
+        };
         n.parent_from_local = t.matrix();
-        if !n.dirty {
-            n.dirty = true;
-            let depth = n.depth;
-            self.dirty.push((depth, id));
-        }
+        mark(&mut self.dirty, n, id);
         self.trs.insert(id, t);
         Ok(())
     }
@@ -293,13 +288,7 @@ impl Scene {
         let parent = self.nodes[id].parent;
         let (list, dead) = match parent {
             Some(p) => {
-                let dead = match self.dead.get_mut(p) {
-                    Some(d) => d,
-                    None => {
-                        self.dead.insert(p, 0);
-                        &mut self.dead[p]
-                    }
-                };
+                let dead = self.dead.entry(p).expect("a linked node's parent is live").or_insert(0);
                 (&mut self.nodes[p].children, dead)
             }
             None => (&mut self.roots, &mut self.dead_roots),
@@ -314,5 +303,14 @@ impl Scene {
                 self.slots.insert(c, k as u32);
             }
         }
+    }
+}
+
+/// Marks node `n` (handle `id`) dirty for the next update, once: its depth goes with the mark
+/// so that ordering the marks reads no node.
+fn mark(dirty: &mut Vec<(u32, NodeId)>, n: &mut Node, id: NodeId) {
+    if !n.dirty {
+        n.dirty = true;
+        dirty.push((n.depth, id));
     }
 }

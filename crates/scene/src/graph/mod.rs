@@ -153,15 +153,10 @@ pub struct NodeDesc {
 }
 
 impl NodeDesc {
-    /// A group node with an identity transform.
+    /// A group node with an identity transform (kept as the matrix alone: the identity's TRS
+    /// is the matrix's own, so a plain node costs no entry beside it).
     pub fn new(name: impl Into<String>) -> Self {
-        Self {
-            name: name.into(),
-            local: Affine3A::IDENTITY,
-            trs: Some(Transform::IDENTITY),
-            mesh: None,
-            material: None,
-        }
+        Self { name: name.into(), local: Affine3A::IDENTITY, trs: None, mesh: None, material: None }
     }
     /// Sets the local transform from TRS (checked when the node is added; a rotation that
     /// is not unit is normalized there).
@@ -449,6 +444,20 @@ mod tests {
     fn a_node_slot_stays_at_256_bytes() {
         // Propagation is bound by cache misses on nodes: keep a slot (node + version) at 256.
         assert!(std::mem::size_of::<super::Node>() <= 240, "{}", std::mem::size_of::<super::Node>());
+    }
+
+    /// A plain node is its matrix alone; a node given as TRS keeps it beside the matrix, and
+    /// both read back as the same local transform.
+    #[test]
+    fn only_nodes_given_as_trs_keep_one() {
+        use crate::{NodeDesc, Scene, Transform};
+        let mut s = Scene::new();
+        let plain = s.add_node(None, NodeDesc::new("plain")).unwrap();
+        let t = Transform::from_translation(glam::Vec3::X).with_scale(glam::Vec3::new(2.0, -1.0, 1.0));
+        let given = s.add_node(Some(plain), NodeDesc::new("given").transform(t)).unwrap();
+        assert_eq!((s.trs.len(), s.trs.contains_key(given)), (1, true));
+        assert_eq!(s.local_transform(plain).unwrap(), Transform::IDENTITY);
+        assert_eq!(s.local_transform(given).unwrap(), t, "the mirrored axis is y, as given");
     }
 
     /// Finite local scales can multiply past f32's range down a chain: the update says which
