@@ -12,10 +12,11 @@
 //! not depend on the thread count. The whole packet step is compiled once per instruction
 //! set (AVX-512, AVX2, portable) and picked at run time.
 
+use std::sync::atomic::{AtomicUsize, Ordering};
+use std::sync::Mutex;
 use std::time::Instant;
 
 use glam::{DAffine3, DMat4, DVec3, DVec4, Vec3, Vec3A};
-use rayon::prelude::*;
 use sightline_scene::{Camera, Material, Scene};
 
 use super::camera::CameraRays;
@@ -134,51 +135,68 @@ pub(crate) fn render(
     let band_len = w * TILE as usize;
     let (tlas_depth, blas_depth) =
         (caster.tlas.bvh().depth(), caster.blases.iter().map(|b| b.bvh().depth()).max().unwrap_or(0));
-    let (shadow_rays, hit_count) = fb
+    // Bands are claimed one at a time from a shared counter by one worker per thread, each
+    // with its own scratch: a street view's bands differ in cost by orders of magnitude
+    // (sky against facades), and rayon's adaptive split of an indexed iterator leaves a
+    // thread idle while the other works through a run of costly bands it cannot hand over.
+    let bands: Vec<Mutex<Option<Out<'_>>>> = fb
         .color
-        .par_chunks_mut(band_len)
-        .zip(fb.depth.par_chunks_mut(band_len))
-        .zip(fb.ids.par_chunks_mut(band_len))
-        .enumerate()
-        .map_init(
-            || Band {
-                scratch: Scratch::new(tlas_depth, blas_depth),
-                rays: Rays::new(),
-                hits: Hits::new(),
-                srays: Rays::new(),
-                shits: Hits::new(),
-                csg: CsgScratch::default(),
-                csg_hit: [(u32::MAX, Vec3::ZERO); LANES],
-                cache: vec![None; CACHE],
-                shadow_rays: 0,
-                hit_count: 0,
-            },
-            |band, (b, ((color, depth), ids))| {
-                band.shadow_rays = 0;
-                band.hit_count = 0;
-                let y0 = b as u32 * TILE;
-                // The background: the sky's row colors (as the raster's deferred shading
-                // paints them) or the flat clear color; hit pixels are shaded over it.
-                match &sky {
-                    Some(rows) => {
-                        for (r, row) in color.chunks_mut(width as usize).enumerate() {
-                            row.fill(rows.get(y0 as usize + r).copied().unwrap_or(opts.background));
-                        }
+        .chunks_mut(band_len)
+        .zip(fb.depth.chunks_mut(band_len))
+        .zip(fb.ids.chunks_mut(band_len))
+        .map(|((color, depth), ids)| Mutex::new(Some(Out { color, depth, ids })))
+        .collect();
+    let next = AtomicUsize::new(0);
+    let totals = Mutex::new((0u64, 0u64));
+    let work = || {
+        let mut band = Band {
+            scratch: Scratch::new(tlas_depth, blas_depth),
+            rays: Rays::new(),
+            hits: Hits::new(),
+            srays: Rays::new(),
+            shits: Hits::new(),
+            csg: CsgScratch::default(),
+            csg_hit: [(u32::MAX, Vec3::ZERO); LANES],
+            cache: vec![None; CACHE],
+            shadow_rays: 0,
+            hit_count: 0,
+        };
+        loop {
+            let b = next.fetch_add(1, Ordering::Relaxed);
+            let Some(slot) = bands.get(b) else { break };
+            let Some(mut out) = slot.lock().ok().and_then(|mut o| o.take()) else { continue };
+            let y0 = b as u32 * TILE;
+            // The background: the sky's row colors (as the raster's deferred shading
+            // paints them) or the flat clear color; hit pixels are shaded over it.
+            match &sky {
+                Some(rows) => {
+                    for (r, row) in out.color.chunks_mut(w).enumerate() {
+                        row.fill(rows.get(y0 as usize + r).copied().unwrap_or(opts.background));
                     }
-                    None => color.fill(opts.background),
                 }
-                depth.fill(1.0);
-                ids.fill(0);
-                let mut out = Out { color, depth, ids };
-                let mut x0 = 0;
-                while x0 < width {
-                    frame.packet(band, x0, y0, &mut out);
-                    x0 += TILE;
-                }
-                (band.shadow_rays, band.hit_count)
-            },
-        )
-        .reduce(|| (0, 0), |a, b| (a.0 + b.0, a.1 + b.1));
+                None => out.color.fill(opts.background),
+            }
+            out.depth.fill(1.0);
+            out.ids.fill(0);
+            let mut x0 = 0;
+            while x0 < width {
+                frame.packet(&mut band, x0, y0, &mut out);
+                x0 += TILE;
+            }
+        }
+        if let Ok(mut t) = totals.lock() {
+            t.0 += band.shadow_rays;
+            t.1 += band.hit_count;
+        }
+    };
+    // One worker per thread; a worker that starts late finds the bands taken and stops.
+    rayon::scope(|s| {
+        for _ in 1..rayon::current_num_threads().min(bands.len()) {
+            s.spawn(|_| work());
+        }
+        work();
+    });
+    let (shadow_rays, hit_count) = totals.into_inner().unwrap_or_default();
     Ok(RaycastStats {
         primary_rays: width as u64 * height as u64,
         shadow_rays,
