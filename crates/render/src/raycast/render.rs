@@ -73,6 +73,27 @@ struct Out<'o> {
     ids: &'o mut [u32],
 }
 
+impl Out<'_> {
+    /// Writes a packet's IDs and depths (lane `ly · TILE + lx` at column `x0 + lx` of the
+    /// band's row `ly`), every lane inside the image: the band needs no clearing first.
+    #[inline(always)]
+    fn write_rows(&mut self, w: usize, x0: u32, ids: &[u32; LANES], zs: &[f32; LANES]) {
+        let (x0, tile) = (x0 as usize, TILE as usize);
+        let n = tile.min(w.saturating_sub(x0));
+        let rows = self.ids.len() / w.max(1);
+        for ly in 0..tile.min(rows) {
+            let at = ly * w + x0;
+            let lanes = ly * tile..ly * tile + n;
+            if let (Some(d), Some(s)) = (self.ids.get_mut(at..at + n), ids.get(lanes.clone())) {
+                d.copy_from_slice(s);
+            }
+            if let (Some(d), Some(s)) = (self.depth.get_mut(at..at + n), zs.get(lanes)) {
+                d.copy_from_slice(s);
+            }
+        }
+    }
+}
+
 fn to_f64(m: &glam::Affine3A) -> DAffine3 {
     DAffine3::from_cols(
         m.matrix3.x_axis.as_dvec3(),
@@ -176,8 +197,7 @@ pub(crate) fn render(
                 }
                 None => out.color.fill(opts.background),
             }
-            out.depth.fill(1.0);
-            out.ids.fill(0);
+            // Depth and IDs: each packet writes its whole square (see `Out::write_rows`).
             let mut x0 = 0;
             while x0 < width {
                 frame.packet(&mut band, x0, y0, &mut out);
@@ -253,7 +273,9 @@ impl<'a> CastFrame<'a> {
         let caster = self.caster;
         let Band { scratch, rays, hits, srays, shits, csg, csg_hit, .. } = band;
         let mask = self.gen.fill(x0, y0, rays, hits);
+        let w = self.width as usize;
         if mask == 0 {
+            out.write_rows(w, x0, &[0; LANES], &[1.0; LANES]);
             return;
         }
         let frustum = self.gen.beam(x0, y0, x0 + TILE, y0 + TILE).frustum();
@@ -286,30 +308,28 @@ impl<'a> CastFrame<'a> {
                 hits.t[i / CHUNK][i % CHUNK] = t;
             }
         }
-        // IDs of the hit lanes.
-        let w = self.width as usize;
-        let mut hit_mask = 0u64;
-        let mut bits = mask;
-        while bits != 0 {
-            let i = bits.trailing_zeros() as usize;
-            bits &= bits - 1;
-            let (c, j) = (i / CHUNK, i % CHUNK);
-            let id = if has_csg && csg_hit[i].0 != u32::MAX {
-                caster.csg_id(csg_hit[i].0 as usize)
-            } else if hits.inst[c][j] != NO_HIT {
-                hits.gid[c][j]
-            } else {
-                continue;
-            };
-            let at = (i / TILE as usize) * w + x0 as usize + i % TILE as usize;
-            if let Some(dst) = out.ids.get_mut(at) {
-                *dst = id;
-                hit_mask |= 1 << i;
+        // IDs of every lane (0: miss; every triangle and CSG ID is at least 1).
+        let mut ids = [0u32; LANES];
+        for c in 0..CHUNKS {
+            for j in 0..CHUNK {
+                let hit = hits.inst[c][j] != NO_HIT;
+                ids[c * CHUNK + j] = if hit { hits.gid[c][j] } else { 0 };
             }
+        }
+        if has_csg {
+            for (id, ch) in ids.iter_mut().zip(csg_hit.iter()) {
+                if ch.0 != u32::MAX {
+                    *id = caster.csg_id(ch.0 as usize);
+                }
+            }
+        }
+        let mut hit_mask = 0u64;
+        for (i, &id) in ids.iter().enumerate() {
+            hit_mask |= ((id != 0) as u64) << i;
         }
         // Window depth of every lane's world point `o + t·d` (f64; t is the same in every
         // space, instances map directions without normalizing), in one vectorizable loop;
-        // only the hit lanes' values are written.
+        // a miss reads as the far plane.
         let [rz, rw] = self.world_zw;
         let (mut cz, mut cw) = ([0f64; LANES], [1f64; LANES]);
         for c in 0..CHUNKS {
@@ -324,7 +344,7 @@ impl<'a> CastFrame<'a> {
         for i in 0..LANES {
             let z = (cz[i] / cw[i] + 1.0) * 0.5;
             // Clamped to [0, 1]; NaN (a degenerate w) reads as the far plane.
-            zs[i] = if z >= 0.0 {
+            let z = if z >= 0.0 {
                 if z <= 1.0 {
                     z as f32
                 } else {
@@ -335,22 +355,9 @@ impl<'a> CastFrame<'a> {
             } else {
                 1.0
             };
+            zs[i] = if ids[i] != 0 { z } else { 1.0 };
         }
-        for ly in 0..TILE as usize {
-            let row = (hit_mask >> (ly * TILE as usize)) & 0xFF;
-            if row == 0 {
-                continue;
-            }
-            let at = ly * w + x0 as usize;
-            let n = (TILE as usize).min(w.saturating_sub(x0 as usize));
-            if let Some(dst) = out.depth.get_mut(at..at + n) {
-                for (lx, d) in dst.iter_mut().enumerate() {
-                    if row >> lx & 1 != 0 {
-                        *d = zs[ly * TILE as usize + lx];
-                    }
-                }
-            }
-        }
+        out.write_rows(w, x0, &ids, &zs);
         band.hit_count += hit_mask.count_ones() as u64;
         if self.opts.shading.mode == ShadingMode::None || hit_mask == 0 {
             return;
