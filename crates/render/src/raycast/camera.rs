@@ -11,7 +11,10 @@
 use glam::{DVec2, DVec3, Vec3A};
 use sightline_scene::Camera;
 
-use super::packet::{Beam, Hits, Rays, CHUNKS, TILE};
+use super::isa::Isa;
+#[cfg(test)]
+use super::packet::Beam;
+use super::packet::{BeamPlanes, Hits, Rays, CHUNK, CHUNKS, TILE};
 
 /// Per-frame ray generator.
 #[derive(Debug, Clone)]
@@ -51,6 +54,13 @@ pub(crate) struct CameraRays {
     corner_rows: Vec<[f64; 2]>,
     /// View-space (origin z, direction z), the same for every ray.
     view_z: [f64; 2],
+    /// Per packet row boundary `k` (pixel corner row `min(8k, height)`), the plane holding
+    /// every ray through that corner row as `(n, c)` with `n·x + c ≥ 0` below it (`None`:
+    /// degenerate); a packet's top and bottom beam planes are two of these.
+    row_planes: Vec<Option<[f32; 4]>>,
+    /// Per packet column boundary (corner column `min(8k, width)`), likewise, with the
+    /// columns to the right inside; a packet's left and right beam planes.
+    col_planes: Vec<Option<[f32; 4]>>,
     width: u32,
     height: u32,
 }
@@ -92,13 +102,15 @@ impl CameraRays {
         let col_terms = cols.iter().map(|&c| terms(u, c)).collect();
         let row_terms = rows.iter().map(|&r| terms(v, r)).collect();
         let z_terms = terms(w, [o.z, d.z]);
-        Self {
+        let mut g = Self {
             col_terms,
             row_terms,
             z_terms,
             corner_cols,
             corner_rows,
             view_z: [o.z, d.z],
+            row_planes: Vec::new(),
+            col_planes: Vec::new(),
             eye: view.eye.as_dvec3(),
             u: view.u.as_dvec3(),
             v: view.v.as_dvec3(),
@@ -116,7 +128,66 @@ impl CameraRays {
             z: [o.z, d.z],
             width,
             height,
+        };
+        let bounds = |n: u32| (0..=n.div_ceil(TILE)).map(move |k| (k * TILE).min(n));
+        g.row_planes = bounds(height).map(|y| g.boundary_plane((0, y), (width, y), (width / 2, y), false)).collect();
+        g.col_planes = bounds(width).map(|x| g.boundary_plane((x, 0), (x, height), (x, height / 2), true)).collect();
+        g
+    }
+
+    /// The world ray through pixel corner (x, y), in f64.
+    fn corner_ray(&self, (x, y): (u32, u32)) -> (DVec3, DVec3) {
+        let [ox, dx] = self.corner_cols[(x as usize).min(self.width as usize)];
+        let [oy, dy] = self.corner_rows[(y as usize).min(self.height as usize)];
+        (
+            self.eye + self.to_world(DVec3::new(ox, oy, self.view_z[0])),
+            self.to_world(DVec3::new(dx, dy, self.view_z[1])),
+        )
+    }
+
+    /// The plane holding the corner rays through `a` and `b` (every ray of a pixel-corner row
+    /// or column: the rays of a pinhole or parallel camera through a line of the image lie in
+    /// one plane), oriented so that the rays next to corner `m` on the side of larger image
+    /// y (`column`: larger x) are inside. `None` when degenerate.
+    fn boundary_plane(&self, a: (u32, u32), b: (u32, u32), m: (u32, u32), column: bool) -> Option<[f32; 4]> {
+        let ((oa, da), (ob, db)) = (self.corner_ray(a), self.corner_ray(b));
+        // Perspective: oa = ob, n = da × db. Parallel: da = db, n = d × (ob − oa).
+        let n = da.cross(ob + db - oa);
+        let c = -n.dot(oa);
+        // A point on a ray one pixel past the boundary, or before it at the image's end.
+        let (last, (mx, my)) = if column { (m.0 >= self.width, m) } else { (m.1 >= self.height, m) };
+        let step = |v: u32| if last { v.saturating_sub(1) } else { v + 1 };
+        let probe = if column { (step(mx), my) } else { (mx, step(my)) };
+        let (op, dp) = self.corner_ray(probe);
+        let side = n.dot(op + dp) + c;
+        let (n, c) = if (side < 0.0) != last { (-n, -c) } else { (n, c) };
+        let f = [n.x as f32, n.y as f32, n.z as f32, c as f32];
+        (f.iter().all(|v| v.is_finite()) && f[..3].iter().any(|&v| v != 0.0) && side != 0.0).then_some(f)
+    }
+
+    /// The four side planes of the packet whose top-left pixel is (x0, y0), oriented inwards,
+    /// read from the per-frame boundary planes (culling off when one is degenerate).
+    #[inline]
+    pub fn frustum(&self, x0: u32, y0: u32) -> BeamPlanes {
+        let (kx, ky) = ((x0 / TILE) as usize, (y0 / TILE) as usize);
+        let flip = |p: [f32; 4]| p.map(|v| -v);
+        let planes = [
+            self.row_planes.get(ky).copied().flatten(),
+            self.col_planes.get(kx + 1).copied().flatten().map(flip),
+            self.row_planes.get(ky + 1).copied().flatten().map(flip),
+            self.col_planes.get(kx).copied().flatten(),
+        ];
+        let mut f = BeamPlanes::OFF;
+        if planes.iter().all(Option::is_some) {
+            f.on = true;
+            for (k, p) in planes.into_iter().flatten().enumerate() {
+                for (n, v) in f.n.iter_mut().zip(p) {
+                    n[k] = v;
+                }
+                f.c[k] = p[3];
+            }
         }
+        f
     }
 
     #[inline]
@@ -154,7 +225,7 @@ impl CameraRays {
     // Index loops over SoA lanes: the form LLVM vectorizes.
     #[allow(clippy::needless_range_loop)]
     #[inline(always)]
-    pub fn fill(&self, x0: u32, y0: u32, rays: &mut Rays, hits: &mut Hits) -> u64 {
+    pub fn fill<I: Isa>(&self, x0: u32, y0: u32, rays: &mut Rays, hits: &mut Hits) -> u64 {
         let (w, h) = (self.width, self.height);
         let tile = TILE as usize;
         // The packet's column terms, SoA: [d or o][axis][lx].
@@ -170,12 +241,10 @@ impl CameraRays {
         let [wd, wo] = self.z_terms;
         let (g, eye) = (self.gaze.to_array(), self.eye.to_array());
         let mut inside = 0u64;
-        let mut mask = 0u64;
         for ly in 0..tile {
             let r = (y0 + ly as u32).min(h - 1) as usize;
             let [rd, ro] = self.row_terms[r];
             let (c, j0) = (ly / 2, (ly % 2) * tile);
-            let mut m = 0u64;
             for lx in 0..tile {
                 let j = j0 + lx;
                 let d = [0, 1, 2].map(|a| ((ct[0][a][lx] + rd[a]) + wd[a]) as f32);
@@ -197,17 +266,17 @@ impl CameraRays {
                 } else {
                     g[0] * (o[0] as f64 - eye[0]) + g[1] * (o[1] as f64 - eye[1]) + g[2] * (o[2] as f64 - eye[2])
                 };
-                let t0 = (self.near - og) / dg;
+                // One division for both ends (a division costs several multiplications).
+                let rdg = 1.0 / dg;
+                let t0 = (self.near - og) * rdg;
                 let t0 = if t0 > 0.0 { t0 } else { 0.0 };
-                let t1 = (self.far - og) / dg;
+                let t1 = (self.far - og) * rdg;
                 let ok = (dg > 0.0) & (t1 > t0) & (t1 < f64::INFINITY);
                 hits.tmin[c][j] = if ok { t0 as f32 } else { f32::INFINITY };
                 hits.t[c][j] = if ok { t1 as f32 } else { f32::NEG_INFINITY };
                 hits.inst[c][j] = super::packet::NO_HIT;
                 hits.gid[c][j] = super::packet::NO_GID;
-                m |= (ok as u64) << lx;
             }
-            mask |= m << (ly * tile);
             if y0 + (ly as u32) < h {
                 let cols = (w.saturating_sub(x0)).min(TILE);
                 inside |= ((1u64 << cols) - 1) << (ly * tile);
@@ -216,6 +285,14 @@ impl CameraRays {
         rays.shared = self.perspective.then_some(self.eye32);
         for c in 0..CHUNKS {
             rays.derive_chunk(c);
+        }
+        // Lanes with an interval: `t1 > t0` survives rounding to f32 as `tmin ≤ t`, and a lane
+        // without one has (∞, −∞). Compared per chunk in SIMD: a bit mask built lane by lane
+        // in the loop above is what auto-vectorization does badly (see `isa`).
+        let mut mask = 0u64;
+        for c in 0..CHUNKS {
+            // SAFETY: `I` is only instantiated for an instruction set the CPU has.
+            mask |= unsafe { I::le16(&hits.tmin[c], &hits.t[c]) } << (c * CHUNK);
         }
         mask & inside
     }
@@ -231,7 +308,9 @@ impl CameraRays {
     /// The corner rays of the pixel block `[x0, x1) × [y0, y1)` (at pixel corners; the
     /// corners lie inside the image's `(width + 1) × (height + 1)` grid). The view-space
     /// ray's x part depends on the column only and its y part on the row only, so the
-    /// corners come from tables: the same rays as [`CameraRays::ray_at`] gives there.
+    /// corners come from tables: the same rays as [`CameraRays::ray_at`] gives there. (The
+    /// reference the tests hold [`CameraRays::frustum`]'s planes to.)
+    #[cfg(test)]
     pub fn beam(&self, x0: u32, y0: u32, x1: u32, y1: u32) -> Beam {
         let (w, h) = (self.width as usize, self.height as usize);
         let pts = [(x0, y0), (x1, y0), (x1, y1), (x0, y1)];
@@ -254,8 +333,9 @@ impl CameraRays {
         if dg.is_nan() || dg <= 0.0 || !dg.is_finite() || !og.is_finite() {
             return None;
         }
-        let t0 = ((self.near - og) / dg).max(0.0);
-        let t1 = (self.far - og) / dg;
+        let rdg = 1.0 / dg;
+        let t0 = ((self.near - og) * rdg).max(0.0);
+        let t1 = (self.far - og) * rdg;
         (t1 > t0).then_some((t0 as f32, t1 as f32))
     }
 
@@ -272,6 +352,7 @@ impl CameraRays {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::raycast::isa::Portable;
     use glam::Vec3;
     use sightline_scene::{Projection, View};
 
@@ -313,12 +394,34 @@ mod tests {
             let g = CameraRays::new(&cam, 13, 11);
             let (mut rays, mut hits) = (Rays::new(), Hits::new());
             for (x0, y0) in [(0, 0), (8, 0), (0, 8), (8, 8)] {
-                let mask = g.fill(x0, y0, &mut rays, &mut hits);
+                let mask = g.fill::<Portable>(x0, y0, &mut rays, &mut hits);
                 // The beam's corners: the rays through the packet's pixel corners, clamped to
                 // the image.
                 let b = g.beam(x0, y0, x0 + 8, y0 + 8);
                 for (k, (x, y)) in [(x0, y0), (x0 + 8, y0), (x0 + 8, y0 + 8), (x0, y0 + 8)].into_iter().enumerate() {
                     assert_eq!((b.o[k], b.d[k]), g.ray_at(x.min(13) as f64, y.min(11) as f64, &cam));
+                }
+                // The packet's frustum from the per-frame boundary planes: the planes of the
+                // beam's own corner rays, and it keeps every lane's ray from near to far.
+                let (fr, fb) = (g.frustum(x0, y0), b.frustum());
+                assert!(fr.on && fb.on);
+                for k in 0..4 {
+                    let n = |f: &BeamPlanes| Vec3::new(f.n[0][k], f.n[1][k], f.n[2][k]).normalize();
+                    assert!(n(&fr).dot(n(&fb)) > 0.99999, "plane {k} of packet ({x0}, {y0})");
+                }
+                let culled = |p: Vec3| fr.culls(&(p - 1e-4).to_array(), &(p + 1e-4).to_array());
+                for i in (0..64).filter(|i| mask >> i & 1 == 1) {
+                    let (o, d) = (Vec3::from(rays.origin(i)), Vec3::from(rays.dir(i)));
+                    let (t0, t1) = hits.range(i);
+                    for t in [t0, 0.5 * (t0 + t1), t1] {
+                        assert!(!culled(o + d * t), "lane {i} of packet ({x0}, {y0}) at t = {t}");
+                    }
+                }
+                // A ray two pixels left of the packet, halfway along: outside.
+                if x0 >= 8 {
+                    let (o, d) = g.ray(x0 - 2, y0);
+                    let (t0, t1) = g.interval(o, d).unwrap();
+                    assert!(culled(Vec3::from(o + d * (0.5 * (t0 + t1)))));
                 }
                 for i in 0..64 {
                     let (c, r) = (x0 + i as u32 % 8, y0 + i as u32 / 8);

@@ -1,5 +1,5 @@
-//! The one kernel written per instruction set: the slab test of 16 packet lanes against a
-//! box, returning a lane bit mask.
+//! The kernels written per instruction set: the slab test of 16 packet lanes against a
+//! box, and a lane comparison, each returning a lane bit mask.
 //!
 //! Everything else is plain Rust that LLVM vectorizes for whichever target features the
 //! calling function enables; this test is the exception because building a bit mask from
@@ -35,6 +35,12 @@ pub(crate) trait Isa: Copy {
     /// # Safety
     /// The CPU must support the instruction set (checked once by `SimdLevel::resolve`).
     unsafe fn slab16(s: &Slab<'_>, lo: &[f32; 3], hi: &[f32; 3]) -> u64;
+
+    /// Bit `j` set when `a[j] ≤ b[j]` (false for NaN).
+    ///
+    /// # Safety
+    /// As for [`Isa::slab16`].
+    unsafe fn le16(a: &[f32; CHUNK], b: &[f32; CHUNK]) -> u64;
 }
 
 /// Scalar code (LLVM may vectorize the arithmetic; the mask is built bit by bit).
@@ -55,6 +61,15 @@ impl Isa for Portable {
                 far = mn(mx(t0, t1), far);
             }
             m |= ((near <= far * ROBUST) as u64) << j;
+        }
+        m
+    }
+
+    #[inline(always)]
+    unsafe fn le16(a: &[f32; CHUNK], b: &[f32; CHUNK]) -> u64 {
+        let mut m = 0u64;
+        for j in 0..CHUNK {
+            m |= ((a[j] <= b[j]) as u64) << j;
         }
         m
     }
@@ -100,6 +115,24 @@ mod x86 {
         unsafe fn slab16(s: &Slab<'_>, lo: &[f32; 3], hi: &[f32; 3]) -> u64 {
             (half(s, lo, hi, 0) | half(s, lo, hi, 8) << 8) as u64
         }
+
+        #[inline(always)]
+        unsafe fn le16(a: &[f32; CHUNK], b: &[f32; CHUNK]) -> u64 {
+            le_avx2(a, b)
+        }
+    }
+
+    #[target_feature(enable = "avx2")]
+    #[inline]
+    unsafe fn le_avx2(a: &[f32; CHUNK], b: &[f32; CHUNK]) -> u64 {
+        let mut m = 0u64;
+        for at in [0, 8] {
+            // SAFETY: `at` is 0 or 8 and both arrays have 16 lanes.
+            let ok =
+                _mm256_cmp_ps::<_CMP_LE_OQ>(_mm256_loadu_ps(a.as_ptr().add(at)), _mm256_loadu_ps(b.as_ptr().add(at)));
+            m |= (_mm256_movemask_ps(ok) as u32 as u64) << at;
+        }
+        m
     }
 
     // AVX-512 intrinsics and target features are stable since Rust 1.89 (the workspace
@@ -126,6 +159,18 @@ mod x86 {
         unsafe fn slab16(s: &Slab<'_>, lo: &[f32; 3], hi: &[f32; 3]) -> u64 {
             full(s, lo, hi)
         }
+
+        #[inline(always)]
+        unsafe fn le16(a: &[f32; CHUNK], b: &[f32; CHUNK]) -> u64 {
+            le_avx512(a, b)
+        }
+    }
+
+    #[allow(clippy::incompatible_msrv)]
+    #[target_feature(enable = "avx512f")]
+    #[inline]
+    unsafe fn le_avx512(a: &[f32; CHUNK], b: &[f32; CHUNK]) -> u64 {
+        _mm512_cmp_ps_mask::<_CMP_LE_OQ>(_mm512_loadu_ps(a.as_ptr()), _mm512_loadu_ps(b.as_ptr())) as u64
     }
 }
 
@@ -135,6 +180,11 @@ impl Isa for Avx2 {
     unsafe fn slab16(s: &Slab<'_>, lo: &[f32; 3], hi: &[f32; 3]) -> u64 {
         Portable::slab16(s, lo, hi)
     }
+
+    #[inline(always)]
+    unsafe fn le16(a: &[f32; CHUNK], b: &[f32; CHUNK]) -> u64 {
+        Portable::le16(a, b)
+    }
 }
 
 #[cfg(not(target_arch = "x86_64"))]
@@ -142,5 +192,10 @@ impl Isa for Avx512 {
     #[inline(always)]
     unsafe fn slab16(s: &Slab<'_>, lo: &[f32; 3], hi: &[f32; 3]) -> u64 {
         Portable::slab16(s, lo, hi)
+    }
+
+    #[inline(always)]
+    unsafe fn le16(a: &[f32; CHUNK], b: &[f32; CHUNK]) -> u64 {
+        Portable::le16(a, b)
     }
 }

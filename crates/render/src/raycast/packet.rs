@@ -250,7 +250,9 @@ impl Hits {
     }
 }
 
-/// The four corner rays of a packet, in cyclic order around the tile.
+/// The four corner rays of a packet, in cyclic order around the tile (a test reference:
+/// the ray caster reads its packets' planes from `CameraRays::frustum`).
+#[cfg(test)]
 #[derive(Debug, Clone, Copy)]
 pub(crate) struct Beam {
     /// Corner origins.
@@ -259,6 +261,7 @@ pub(crate) struct Beam {
     pub d: [Vec3A; 4],
 }
 
+#[cfg(test)]
 impl Beam {
     /// The beam mapped by `local_from_world`.
     #[cfg(test)]

@@ -272,13 +272,13 @@ impl<'a> CastFrame<'a> {
     fn packet_impl<I: Isa>(&self, band: &mut Band<'a>, x0: u32, y0: u32, out: &mut Out<'_>) {
         let caster = self.caster;
         let Band { scratch, rays, hits, srays, shits, csg, csg_hit, .. } = band;
-        let mask = self.gen.fill(x0, y0, rays, hits);
+        let mask = self.gen.fill::<I>(x0, y0, rays, hits);
         let w = self.width as usize;
         if mask == 0 {
             out.write_rows(w, x0, &[0; LANES], &[1.0; LANES]);
             return;
         }
-        let frustum = self.gen.beam(x0, y0, x0 + TILE, y0 + TILE).frustum();
+        let frustum = self.gen.frustum(x0, y0);
         trace::<I, false>(
             &caster.blases,
             &caster.tlas,
@@ -326,6 +326,10 @@ impl<'a> CastFrame<'a> {
         let mut hit_mask = 0u64;
         for (i, &id) in ids.iter().enumerate() {
             hit_mask |= ((id != 0) as u64) << i;
+        }
+        if hit_mask == 0 {
+            out.write_rows(w, x0, &ids, &[1.0; LANES]);
+            return;
         }
         // Window depth of every lane's world point `o + t·d` (f64; t is the same in every
         // space, instances map directions without normalizing), in one vectorizable loop;
