@@ -199,3 +199,33 @@ impl Isa for Avx512 {
         Portable::le16(a, b)
     }
 }
+
+/// Asks for the cache lines of `bytes` bytes from `at` ahead of use: a hint, which never
+/// faults and changes no result (without x86-64 it does nothing).
+#[inline(always)]
+fn prefetch_bytes(at: usize, bytes: usize) {
+    #[cfg(target_arch = "x86_64")]
+    {
+        use std::arch::x86_64::{_mm_prefetch, _MM_HINT_T0};
+        let mut p = at & !63;
+        while p < at + bytes {
+            // SAFETY: prefetching never faults, whatever the address.
+            unsafe { _mm_prefetch::<_MM_HINT_T0>(p as *const i8) };
+            p += 64;
+        }
+    }
+    #[cfg(not(target_arch = "x86_64"))]
+    let _ = (at, bytes);
+}
+
+/// Asks for every cache line of `items` ahead of use.
+#[inline(always)]
+pub(crate) fn prefetch<T>(items: &[T]) {
+    prefetch_bytes(items.as_ptr() as usize, std::mem::size_of_val(items));
+}
+
+/// Asks for the cache lines of `item` ahead of use (a loop of constant length).
+#[inline(always)]
+pub(crate) fn prefetch_one<T>(item: &T) {
+    prefetch_bytes(item as *const T as usize, std::mem::size_of::<T>());
+}

