@@ -63,7 +63,7 @@ pub use bvh::traverse::{CoherencyCache, FrontToBackCursor};
 pub use bvh::triangles::{TriangleBvh, TriangleHit};
 pub use bvh::{Bvh, BvhNode, BvhPreset};
 pub use frustum::{Containment, Frustum, PlaneMask, ALL_PLANES};
-pub use hint::prefetch;
+pub use hint::{prefetch, prefetch_all};
 pub use octree::occupancy::{occupancy_string, occupancy_voxels, Occupancy};
 pub use octree::{octant_order, LooseOctree, OctreeCursor};
 pub use plane::Plane;

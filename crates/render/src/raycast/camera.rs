@@ -266,7 +266,9 @@ impl CameraRays {
                 } else {
                     g[0] * (o[0] as f64 - eye[0]) + g[1] * (o[1] as f64 - eye[1]) + g[2] * (o[2] as f64 - eye[2])
                 };
-                // One division for both ends (a division costs several multiplications).
+                // The interval's ends share one reciprocal of `dg` (a division costs several
+                // multiplications); this is the interval's definition, `interval` below
+                // computes the same.
                 let rdg = 1.0 / dg;
                 let t0 = (self.near - og) * rdg;
                 let t0 = if t0 > 0.0 { t0 } else { 0.0 };
@@ -432,6 +434,62 @@ mod tests {
                         assert_eq!((rays.origin(i), rays.dir(i)), (o, d));
                         assert_eq!(hits.range(i), g.interval(o, d).unwrap());
                         assert_eq!(rays.shared.is_some(), p.is_perspective());
+                    }
+                }
+            }
+        }
+    }
+
+    /// The packets' beam planes from the per-frame boundary tables, as the traversal uses
+    /// them (`culls4`): every packet of images down to one pixel, three kinds of projection.
+    /// Each plane keeps every ray of its packet from near to far, and the rays of the pixels
+    /// just outside each side are culled.
+    #[test]
+    fn boundary_planes_keep_each_packets_rays_and_cull_its_neighbours() {
+        let view = View::look_at(Vec3::new(1.0, 2.0, 5.0), Vec3::ZERO, Vec3::Y).unwrap();
+        let projections = [
+            Projection::perspective(sightline_scene::Angle::radians(1.0), 1.3, 0.1, 100.0).unwrap(),
+            Projection::orthographic(-2.0, 2.0, -1.5, 1.5, 0.5, 50.0).unwrap(),
+            Projection::cavalier(-2.0, 2.0, -2.0, 2.0, 0.5, 50.0, 0.3).unwrap(),
+        ];
+        for p in projections {
+            let cam = Camera::new(view, p).unwrap();
+            for (w, h) in [(1, 1), (1, 17), (9, 1), (16, 16), (13, 11), (24, 9)] {
+                let g = CameraRays::new(&cam, w, h);
+                let point = |x: u32, y: u32, f: f32| {
+                    let (o, d) = g.ray(x, y);
+                    let (t0, t1) = g.interval(o, d).unwrap();
+                    Vec3::from(o + d * (t0 + f * (t1 - t0)))
+                };
+                for y0 in (0..h).step_by(8) {
+                    for x0 in (0..w).step_by(8) {
+                        let fr = g.frustum(x0, y0);
+                        assert!(fr.on);
+                        let culled = |p: Vec3| {
+                            let (mut lo, mut hi) = ([[f32::INFINITY; 4]; 3], [[f32::NEG_INFINITY; 4]; 3]);
+                            for a in 0..3 {
+                                (lo[a][0], hi[a][0]) = (p[a] - 1e-4, p[a] + 1e-4);
+                            }
+                            fr.culls4(&lo, &hi) & 1 == 1
+                        };
+                        let (x1, y1) = ((x0 + 8).min(w), (y0 + 8).min(h));
+                        for y in y0..y1 {
+                            for x in x0..x1 {
+                                for f in [0.0, 0.5, 1.0] {
+                                    assert!(!culled(point(x, y, f)), "{w}x{h}: pixel ({x}, {y}) at {f}");
+                                }
+                            }
+                        }
+                        let (xm, ym) = ((x0 + x1) / 2, (y0 + y1) / 2);
+                        let outside = [
+                            (x0 > 0).then(|| (x0 - 1, ym)),
+                            (x1 < w).then_some((x1, ym)),
+                            (y0 > 0).then(|| (xm, y0 - 1)),
+                            (y1 < h).then_some((xm, y1)),
+                        ];
+                        for (x, y) in outside.into_iter().flatten() {
+                            assert!(culled(point(x, y, 0.5)), "{w}x{h}: packet ({x0}, {y0}) keeps pixel ({x}, {y})");
+                        }
                     }
                 }
             }

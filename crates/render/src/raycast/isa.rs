@@ -1,10 +1,11 @@
 //! The kernels written per instruction set: the slab test of 16 packet lanes against a
-//! box, and a lane comparison, each returning a lane bit mask.
+//! box, and a lane comparison (`le16`), each returning a lane bit mask.
 //!
 //! Everything else is plain Rust that LLVM vectorizes for whichever target features the
 //! calling function enables; this test is the exception because building a bit mask from
 //! vectorized comparisons is exactly what auto-vectorization does badly (it OR-reduces
-//! shifted bits across the vector instead of one `vcmpps → k-mask` or `movmskps`). The
+//! shifted bits across the vector instead of one `vcmpps → k-mask` or `movmskps`); these
+//! kernels are the exceptions. The
 //! three versions perform the same IEEE operations in the same order — `(lo − o)·r`, then
 //! `min`/`max` with the semantics of `if a < b { a } else { b }` (which is what `minps` /
 //! `maxps` do with NaNs), then `near ≤ far·(1 + 2⁻²⁰)` as an ordered comparison — so every
@@ -28,7 +29,7 @@ pub(crate) struct Slab<'a> {
     pub tmax: &'a [f32; CHUNK],
 }
 
-/// An instruction set for the slab test.
+/// An instruction set for the lane-mask kernels.
 pub(crate) trait Isa: Copy {
     /// Bit `j` set when lane `j` meets the box `[lo, hi]`.
     ///
@@ -200,32 +201,37 @@ impl Isa for Avx512 {
     }
 }
 
-/// Asks for the cache lines of `bytes` bytes from `at` ahead of use: a hint, which never
-/// faults and changes no result (without x86-64 it does nothing).
-#[inline(always)]
-fn prefetch_bytes(at: usize, bytes: usize) {
-    #[cfg(target_arch = "x86_64")]
-    {
-        use std::arch::x86_64::{_mm_prefetch, _MM_HINT_T0};
-        let mut p = at & !63;
-        while p < at + bytes {
-            // SAFETY: prefetching never faults, whatever the address.
-            unsafe { _mm_prefetch::<_MM_HINT_T0>(p as *const i8) };
-            p += 64;
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Every instruction set's lane comparison gives the portable bits, on signed zeros,
+    /// infinities, NaN and equal values.
+    #[test]
+    fn lane_comparisons_agree_across_instruction_sets() {
+        let vals = [0.0f32, -0.0, 1.0, -1.0, f32::INFINITY, f32::NEG_INFINITY, f32::NAN, 1e-30, 3.5, 3.5];
+        let mut a = [0f32; CHUNK];
+        let mut b = [0f32; CHUNK];
+        for k in 0..vals.len() * vals.len() / CHUNK + 1 {
+            for j in 0..CHUNK {
+                let n = k * CHUNK + j;
+                a[j] = vals[n % vals.len()];
+                b[j] = vals[(n / vals.len()) % vals.len()];
+            }
+            // SAFETY: the portable kernel needs nothing; the others run only when detected.
+            let want = unsafe { Portable::le16(&a, &b) };
+            for j in 0..CHUNK {
+                assert_eq!(want >> j & 1 == 1, a[j] <= b[j]);
+            }
+            #[cfg(target_arch = "x86_64")]
+            {
+                if std::is_x86_feature_detected!("avx2") {
+                    assert_eq!(unsafe { Avx2::le16(&a, &b) }, want);
+                }
+                if std::is_x86_feature_detected!("avx512f") {
+                    assert_eq!(unsafe { Avx512::le16(&a, &b) }, want);
+                }
+            }
         }
     }
-    #[cfg(not(target_arch = "x86_64"))]
-    let _ = (at, bytes);
-}
-
-/// Asks for every cache line of `items` ahead of use.
-#[inline(always)]
-pub(crate) fn prefetch<T>(items: &[T]) {
-    prefetch_bytes(items.as_ptr() as usize, std::mem::size_of_val(items));
-}
-
-/// Asks for the cache lines of `item` ahead of use (a loop of constant length).
-#[inline(always)]
-pub(crate) fn prefetch_one<T>(item: &T) {
-    prefetch_bytes(item as *const T as usize, std::mem::size_of::<T>());
 }

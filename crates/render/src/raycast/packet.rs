@@ -264,7 +264,6 @@ pub(crate) struct Beam {
 #[cfg(test)]
 impl Beam {
     /// The beam mapped by `local_from_world`.
-    #[cfg(test)]
     pub fn transformed(&self, m: &Affine3A) -> Beam {
         Beam { o: self.o.map(|p| m.transform_point3a(p)), d: self.d.map(|v| m.transform_vector3a(v)) }
     }

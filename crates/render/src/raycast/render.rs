@@ -12,7 +12,7 @@
 //! not depend on the thread count. The whole packet step is compiled once per instruction
 //! set (AVX-512, AVX2, portable) and picked at run time.
 
-use std::sync::atomic::{AtomicUsize, Ordering};
+use std::sync::atomic::{AtomicU64, AtomicUsize, Ordering};
 use std::sync::Mutex;
 use std::time::Instant;
 
@@ -114,7 +114,8 @@ pub(crate) fn render(
     let t0 = Instant::now();
     camera.projection.validate()?;
     let (width, height) = (fb.width(), fb.height());
-    // Each band clears its own rows below, while they are in cache; only the raster's
+    // Each band paints its own rows' background below, while they are in cache (each packet
+    // writes its depth and IDs whole); only the raster's
     // depth-test counters are cleared here.
     if let Some(c) = &mut fb.depth_tests {
         c.fill(0);
@@ -168,8 +169,13 @@ pub(crate) fn render(
         .map(|((color, depth), ids)| Mutex::new(Some(Out { color, depth, ids })))
         .collect();
     let next = AtomicUsize::new(0);
-    let totals = Mutex::new((0u64, 0u64));
+    let (shadow_total, hit_total) = (AtomicU64::new(0), AtomicU64::new(0));
     let work = || {
+        // Claim before making scratch: a worker that starts late finds nothing and stops.
+        let mut b = next.fetch_add(1, Ordering::Relaxed);
+        if b >= bands.len() {
+            return;
+        }
         let mut band = Band {
             scratch: Scratch::new(tlas_depth, blas_depth),
             rays: Rays::new(),
@@ -182,11 +188,12 @@ pub(crate) fn render(
             shadow_rays: 0,
             hit_count: 0,
         };
-        loop {
-            let b = next.fetch_add(1, Ordering::Relaxed);
-            let Some(slot) = bands.get(b) else { break };
-            let Some(mut out) = slot.lock().ok().and_then(|mut o| o.take()) else { continue };
-            let y0 = b as u32 * TILE;
+        while let Some(slot) = bands.get(b) {
+            let claimed = slot.lock().ok().and_then(|mut o| o.take());
+            let this = b;
+            b = next.fetch_add(1, Ordering::Relaxed);
+            let Some(mut out) = claimed else { continue };
+            let y0 = this as u32 * TILE;
             // The background: the sky's row colors (as the raster's deferred shading
             // paints them) or the flat clear color; hit pixels are shaded over it.
             match &sky {
@@ -204,10 +211,8 @@ pub(crate) fn render(
                 x0 += TILE;
             }
         }
-        if let Ok(mut t) = totals.lock() {
-            t.0 += band.shadow_rays;
-            t.1 += band.hit_count;
-        }
+        shadow_total.fetch_add(band.shadow_rays, Ordering::Relaxed);
+        hit_total.fetch_add(band.hit_count, Ordering::Relaxed);
     };
     // One worker per thread; a worker that starts late finds the bands taken and stops.
     rayon::scope(|s| {
@@ -216,7 +221,7 @@ pub(crate) fn render(
         }
         work();
     });
-    let (shadow_rays, hit_count) = totals.into_inner().unwrap_or_default();
+    let (shadow_rays, hit_count) = (shadow_total.into_inner(), hit_total.into_inner());
     Ok(RaycastStats {
         primary_rays: width as u64 * height as u64,
         shadow_rays,
@@ -308,24 +313,24 @@ impl<'a> CastFrame<'a> {
                 hits.t[i / CHUNK][i % CHUNK] = t;
             }
         }
-        // IDs of every lane (0: miss; every triangle and CSG ID is at least 1).
-        let mut ids = [0u32; LANES];
+        // Which lanes hit, and the ID of every lane (0 for a miss).
+        let (mut hit, mut ids) = ([false; LANES], [0u32; LANES]);
         for c in 0..CHUNKS {
             for j in 0..CHUNK {
-                let hit = hits.inst[c][j] != NO_HIT;
-                ids[c * CHUNK + j] = if hit { hits.gid[c][j] } else { 0 };
+                hit[c * CHUNK + j] = hits.inst[c][j] != NO_HIT;
+                ids[c * CHUNK + j] = if hit[c * CHUNK + j] { hits.gid[c][j] } else { 0 };
             }
         }
         if has_csg {
-            for (id, ch) in ids.iter_mut().zip(csg_hit.iter()) {
+            for ((id, h), ch) in ids.iter_mut().zip(hit.iter_mut()).zip(csg_hit.iter()) {
                 if ch.0 != u32::MAX {
-                    *id = caster.csg_id(ch.0 as usize);
+                    (*id, *h) = (caster.csg_id(ch.0 as usize), true);
                 }
             }
         }
         let mut hit_mask = 0u64;
-        for (i, &id) in ids.iter().enumerate() {
-            hit_mask |= ((id != 0) as u64) << i;
+        for (i, &h) in hit.iter().enumerate() {
+            hit_mask |= (h as u64) << i;
         }
         if hit_mask == 0 {
             out.write_rows(w, x0, &ids, &[1.0; LANES]);
@@ -359,11 +364,11 @@ impl<'a> CastFrame<'a> {
             } else {
                 1.0
             };
-            zs[i] = if ids[i] != 0 { z } else { 1.0 };
+            zs[i] = if hit[i] { z } else { 1.0 };
         }
         out.write_rows(w, x0, &ids, &zs);
         band.hit_count += hit_mask.count_ones() as u64;
-        if self.opts.shading.mode == ShadingMode::None || hit_mask == 0 {
+        if self.opts.shading.mode == ShadingMode::None {
             return;
         }
         // World point and normal of each hit (for shadows and CSG shading).

@@ -5,8 +5,9 @@
 //! (`ANY = true`, shadow rays) close a lane at its first hit and stop when all are closed.
 
 use sightline_spatial::bvh::wide::{WideBlas, WideTlas};
+use sightline_spatial::prefetch_all;
 
-use super::isa::{prefetch, prefetch_one, Isa};
+use super::isa::Isa;
 use super::packet::{chunk_bits, BeamPlanes, Hits, Rays, CHUNK, CHUNKS};
 use super::traverse::{traverse, Entry};
 use super::triangle::{intersect_general, intersect_shared, shared_setup, Job};
@@ -137,13 +138,9 @@ fn instance<I: Isa, const ANY: bool>(
 /// `traverse`'s `soon`).
 #[inline(always)]
 fn prefetch_leaf(blas: &WideBlas, first: u32, count: u32) {
-    let s = first as usize;
-    let e = s.saturating_add(count as usize);
-    let tris = blas.tris();
-    prefetch(tris.get(s..e.min(tris.len())).unwrap_or_default());
-    if let Some(o) = blas.bvh().order().get(s) {
-        prefetch_one(o);
-    }
+    let (s, e) = (first as usize, first as usize + count as usize);
+    prefetch_all(blas.tris().get(s..e).unwrap_or_default());
+    prefetch_all(blas.bvh().order().get(s..e).unwrap_or_default());
 }
 
 /// Traces the lanes of `mask` through the scene. `frustum` (world space; planes bounding

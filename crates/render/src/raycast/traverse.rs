@@ -24,8 +24,9 @@
 
 use glam::Vec4;
 use sightline_spatial::bvh::wide::{WideBvh, WideNode, EMPTY_LINK, WIDTH};
+use sightline_spatial::prefetch;
 
-use super::isa::{prefetch_one, Isa, Slab, ROBUST};
+use super::isa::{Isa, Slab, ROBUST};
 use super::packet::{chunk_bits, BeamPlanes, Hits, Rays, CHUNK, CHUNKS};
 
 /// A pending subtree: (link, primitive count, lane mask).
@@ -124,10 +125,10 @@ where
                     if node.link[k] != EMPTY_LINK {
                         if node.count[k] != 0 {
                             soon(node.link[k], node.count[k]);
-                        } else {
-                            if let Some(n) = bvh.nodes().get(node.link[k] as usize) {
-                                prefetch_one(n);
-                            }
+                        } else if let Some(n) = bvh.nodes().get(node.link[k] as usize) {
+                            // A node's two cache lines: boxes from offset 0, links from 96.
+                            prefetch(n);
+                            prefetch(&n.link);
                         }
                     }
                 }
