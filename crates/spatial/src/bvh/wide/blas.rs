@@ -22,14 +22,14 @@ pub struct WideBlas {
 }
 
 impl WideBlas {
-    /// Builds over `count` triangles whose corners `corners(i)` gives.
-    /// Triangles, boxes and the leaf-order copy are made in parallel.
+    /// Builds over `count` triangles whose corners `corners(i)` gives (read twice: for the
+    /// boxes, and for the copy in leaf order, both made in parallel).
     pub fn build(count: usize, corners: impl Fn(usize) -> [Vec3; 3] + Sync) -> WideBlas {
-        let all: Vec<[Vec3A; 3]> = (0..count).into_par_iter().map(|i| corners(i).map(Vec3A::from)).collect();
-        let boxes: Vec<ObAabb> =
-            all.par_iter().map(|t| ObAabb::new(t[0].min(t[1]).min(t[2]), t[0].max(t[1]).max(t[2]))).collect();
-        let bvh = WideBvh::build_obvhs(&boxes, WideBuildParams::BLAS);
-        let tris = bvh.order().par_iter().map(|&i| all[i as usize]).collect();
+        let bvh = WideBvh::build_fn(count, WideBuildParams::BLAS, |i| {
+            let t = corners(i).map(Vec3A::from);
+            ObAabb::new(t[0].min(t[1]).min(t[2]), t[0].max(t[1]).max(t[2]))
+        });
+        let tris = bvh.order().par_iter().map(|&i| corners(i as usize).map(Vec3A::from)).collect();
         WideBlas { tris, bvh }
     }
 

@@ -1,21 +1,24 @@
-//! The ray caster's BVH: a 4-wide BVH collapsed from a binary BVH, and the
-//! two levels built from it ([`WideBlas`] over a mesh's triangles, [`WideTlas`] over placed
-//! instances).
+//! The ray caster's BVH: a 4-wide BVH, and the two levels built from it ([`WideBlas`]
+//! over a mesh's triangles, [`WideTlas`] over placed instances).
 //!
-//! The binary tree comes from our PLOC builder (Meister & Bittner 2018, "Parallel
-//! Locally-Ordered Clustering for Bounding Volume Hierarchy Construction"; see
-//! the `ploc` module for why not obvhs's), then obvhs's reinsertion and leaf collapsing; this
-//! module collapses it to four children per node, the way wide BVHs for
-//! SIMD traversal are made (Wald, Benthin & Boulos 2008, "Getting Rid of Packets"; Dammertz
-//! et al. 2008, "Shallow Bounding Volume Hierarchies for Fast SIMD Ray Tracing"): each node
-//! keeps an inner child's place for its two children, opening the child with the largest
-//! surface area first, until four slots are used. A [`WideNode`] stores its children's boxes
-//! as structure of arrays (two cache lines), so one ray is tested against all four boxes in
-//! one SIMD operation. A child is a leaf naming a run of primitives in *leaf order*;
-//! `order[k]` maps leaf-order position `k` back to the caller's primitive index, so
-//! primitive data can be stored in leaf order and read sequentially.
+//! Two builders make it. Triangle BVHs are built top-down by binned SAH, writing four-wide
+//! nodes directly, as Embree builds its triangle BVHs (the `sah` module). The instance
+//! level is collapsed from a binary BVH: that tree comes from our PLOC builder (Meister &
+//! Bittner 2018, "Parallel Locally-Ordered Clustering for Bounding Volume Hierarchy
+//! Construction"; see the `ploc` module for why not obvhs's), then obvhs's reinsertion and
+//! leaf collapsing; this module collapses it to four children per node, the way wide BVHs
+//! for SIMD traversal are made (Wald, Benthin & Boulos 2008, "Getting Rid of Packets";
+//! Dammertz et al. 2008, "Shallow Bounding Volume Hierarchies for Fast SIMD Ray Tracing"):
+//! each node keeps an inner child's place for its two children, opening the child with the
+//! largest surface area first, until four slots are used.
 //!
-//! This module holds the data structure and its builder only; casting rays through it
+//! A [`WideNode`] stores its children's boxes as structure of arrays (two cache lines), so
+//! one ray is tested against all four boxes in one SIMD operation. A child is a leaf naming
+//! a run of primitives in *leaf order*; `order[k]` maps leaf-order position `k` back to the
+//! caller's primitive index, so primitive data can be stored in leaf order and read
+//! sequentially.
+//!
+//! This module holds the data structure and its builders only; casting rays through it
 //! (packets, traversal, triangle tests) is the ray caster's business in `sightline-render`.
 //! Unlike [`crate::Bvh`] (binary, for culling and front-to-back order), a wide BVH has no
 //! rule for unbounded boxes: every box it is built from must be finite. It can be refitted
@@ -23,6 +26,7 @@
 
 mod blas;
 mod refit;
+mod sah;
 mod split;
 mod tlas;
 
@@ -32,6 +36,7 @@ pub use tlas::{invertible, InstanceRecord, WideTlas};
 use obvhs::aabb::Aabb as ObAabb;
 use obvhs::bvh2::{leaf_collapser::collapse, reinsertion::ReinsertionOptimizer, Bvh2};
 use obvhs::ploc::PlocSearchDistance;
+use rayon::prelude::*;
 use sightline_scene::Aabb;
 
 use crate::AabbExt;
@@ -120,27 +125,40 @@ impl WideNode {
     }
 }
 
-/// How hard the builder works: leaf size, PLOC search effort, reinsertion effort. The two
-/// settings are the ones the ray caster's levels use.
+/// Which builder runs and how hard it works: leaf size, PLOC search effort, reinsertion
+/// effort. The two settings are the ones the ray caster's levels use.
 #[derive(Debug, Clone, Copy)]
 pub struct WideBuildParams {
     /// Largest leaf.
     max_leaf: u32,
-    /// obvhs collapse cost of a traversal step relative to a primitive test.
+    /// Cost of a traversal step relative to a primitive test (obvhs's leaf collapse; the
+    /// SAH builder's choice between a leaf and two).
     traversal_cost: f32,
     /// PLOC neighbourhood.
     search: PlocSearchDistance,
     /// Reinsertion effort (0 = none).
     reinsertion: f32,
+    /// Build top-down by binned SAH (`sah`) instead of PLOC, reinsertion and collapse.
+    binned_sah: bool,
 }
 
 impl WideBuildParams {
-    /// For triangle BVHs traversed by packets: up to four triangles per leaf.
-    pub const BLAS: WideBuildParams =
-        WideBuildParams { max_leaf: 4, traversal_cost: 1.0, search: PlocSearchDistance::Low, reinsertion: 0.05 };
-    /// For the instance BVH: one instance per leaf.
-    pub const TLAS: WideBuildParams =
-        WideBuildParams { max_leaf: 1, traversal_cost: 1.0, search: PlocSearchDistance::Medium, reinsertion: 0.1 };
+    /// For triangle BVHs traversed by packets: binned SAH, up to four triangles per leaf.
+    pub const BLAS: WideBuildParams = WideBuildParams {
+        max_leaf: 4,
+        traversal_cost: 1.0,
+        search: PlocSearchDistance::Low,
+        reinsertion: 0.05,
+        binned_sah: true,
+    };
+    /// For the instance BVH: PLOC, one instance per leaf.
+    pub const TLAS: WideBuildParams = WideBuildParams {
+        max_leaf: 1,
+        traversal_cost: 1.0,
+        search: PlocSearchDistance::Medium,
+        reinsertion: 0.1,
+        binned_sah: false,
+    };
 }
 
 /// A 4-wide BVH over a list of boxes (primitive `i` is `boxes[i]` of the build).
@@ -190,12 +208,25 @@ impl WideBvh {
     }
 
     /// Builds over obvhs boxes (all finite); what [`WideBvh::build`] does after converting.
-    /// Large inputs are built as four Morton runs in parallel (see `split`).
+    /// Large PLOC builds run as four Morton runs in parallel (see `split`).
     pub(crate) fn build_obvhs(boxes: &[ObAabb], params: WideBuildParams) -> WideBvh {
+        if params.binned_sah {
+            return sah::build(boxes.len(), params.max_leaf, params.traversal_cost, |i| boxes[i]);
+        }
         if boxes.len() >= split::SPLIT_MIN {
             return split::build_split(boxes, params);
         }
         Self::build_serial(boxes, params)
+    }
+
+    /// Builds over `count` primitives whose boxes (all finite) `bounds(i)` gives, without
+    /// gathering the boxes first where the builder does not need them in an array.
+    pub(crate) fn build_fn(count: usize, params: WideBuildParams, bounds: impl Fn(usize) -> ObAabb + Sync) -> WideBvh {
+        if params.binned_sah {
+            return sah::build(count, params.max_leaf, params.traversal_cost, bounds);
+        }
+        let boxes: Vec<ObAabb> = (0..count).into_par_iter().map(&bounds).collect();
+        Self::build_obvhs(&boxes, params)
     }
 
     /// One PLOC build, reinsertion and collapse over all of `boxes`.

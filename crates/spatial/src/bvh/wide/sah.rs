@@ -1,0 +1,561 @@
+//! Top-down binned SAH construction writing 4-wide nodes directly, as Embree builds its
+//! triangle BVHs (Wald 2007, "On fast Construction of SAH-based Bounding Volume
+//! Hierarchies"; Wald et al. 2014, "Embree: A Kernel Framework for Efficient CPU Ray
+//! Tracing").
+//!
+//! A set of primitives is split in two by the surface area heuristic evaluated on
+//! [`BINS`] bins of box centroids per axis: one pass drops every primitive into its bin on
+//! each of the three axes (growing the bin's box and count), a sweep from each end gives
+//! the area and count on either side of every bin boundary, and the boundary with the
+//! smallest `area(left)·count(left) + area(right)·count(right)` wins. The primitives are
+//! then partitioned in place. A wide node is made by splitting its set, then splitting the
+//! child with the largest surface area again, until it has [`WIDTH`] children or none is
+//! worth splitting; each child with more than a leaf's primitives is built the same way.
+//! A child that fits in a leaf is split only when the SAH says two leaves are cheaper
+//! (`area·count` summed over both against the set's `area·(count − traversal cost)`): a
+//! quad's two triangles stay together, two facing walls do not.
+//! Because partitioning is in place, a leaf is a run of the primitive array: the final
+//! array *is* the leaf order.
+//!
+//! Bounded work on any input: when the bins cannot separate a set (all centroids in one
+//! bin, e.g. coincident triangles) or a path grows deeper than [`MAX_SAH_DEPTH`] binary
+//! splits, the set is cut in the middle of its range instead (Embree's fallback). Every
+//! split leaves both sides non-empty and middle cuts halve, so the tree depth is at most
+//! `MAX_SAH_DEPTH + log2(n)` binary levels and the build is O(n log n).
+//!
+//! Deterministic for any thread count: bins are merged with exact operations (min, max,
+//! integer counts), partitions run serially, and subtrees built in parallel are appended
+//! in a fixed order. Inner nodes come out depth first, as `refit` requires.
+
+use glam::Vec4;
+use obvhs::aabb::Aabb as ObAabb;
+use rayon::prelude::*;
+
+use super::{WideBvh, WideChild, WideNode, EMPTY_LINK, WIDTH};
+
+/// Most centroid bins per axis (Embree's count for object splits); smaller sets use
+/// fewer, `4 + n / 20` as Embree does, since sweeping empty bins costs more than it finds.
+const BINS: usize = 32;
+
+/// Binary splits along one path beyond which sets are cut in the middle.
+const MAX_SAH_DEPTH: u32 = 48;
+
+/// Sets at least this large are binned in parallel chunks.
+const PARALLEL_BINNING: usize = 1 << 15;
+
+/// Chunk size of parallel binning.
+const BIN_CHUNK: usize = 1 << 13;
+
+/// Subtrees at least this large are built as parallel tasks.
+const PARALLEL_SUBTREE: usize = 1 << 12;
+
+/// A primitive's box; the `w` lanes are zero.
+#[derive(Clone, Copy)]
+struct Prim {
+    lo: Vec4,
+    hi: Vec4,
+}
+
+impl Prim {
+    /// Twice the centroid (the bins are scaled to match, saving a multiply).
+    #[inline(always)]
+    fn centroid2(&self) -> Vec4 {
+        self.lo + self.hi
+    }
+}
+
+/// A box accumulated by min and max; starts inverted.
+#[derive(Clone, Copy)]
+struct Bounds {
+    lo: Vec4,
+    hi: Vec4,
+}
+
+impl Bounds {
+    const EMPTY: Bounds = Bounds { lo: Vec4::splat(f32::INFINITY), hi: Vec4::splat(f32::NEG_INFINITY) };
+
+    #[inline(always)]
+    fn grow(&mut self, lo: Vec4, hi: Vec4) {
+        self.lo = self.lo.min(lo);
+        self.hi = self.hi.max(hi);
+    }
+
+    #[inline(always)]
+    fn union(&self, o: &Bounds) -> Bounds {
+        Bounds { lo: self.lo.min(o.lo), hi: self.hi.max(o.hi) }
+    }
+
+    /// Half the surface area (only called on non-empty boxes).
+    #[inline(always)]
+    fn half_area(&self) -> f32 {
+        let d = self.hi - self.lo;
+        d.x * d.y + d.y * d.z + d.z * d.x
+    }
+}
+
+/// A contiguous range of the primitive array with its box and its centroids' box.
+#[derive(Clone, Copy)]
+struct Set {
+    start: usize,
+    end: usize,
+    bounds: Bounds,
+    /// Box of the doubled centroids.
+    centroids: Bounds,
+    /// Binary splits made above this set.
+    depth: u32,
+}
+
+impl Set {
+    fn len(&self) -> usize {
+        self.end - self.start
+    }
+}
+
+/// Maps doubled centroids to bin numbers on all three axes at once.
+#[derive(Clone, Copy)]
+struct Mapping {
+    origin: Vec4,
+    scale: Vec4,
+    /// Bins in use, at most [`BINS`].
+    count: usize,
+}
+
+impl Mapping {
+    fn new(centroids: &Bounds, prims: usize) -> Mapping {
+        let count = (4 + prims / 20).min(BINS);
+        let extent = centroids.hi - centroids.lo;
+        // Slightly under `count` so the largest centroid lands in the last bin; an axis with
+        // no (or no finite) extent puts everything in bin 0.
+        let s = |e: f32| if e > 0.0 && e.is_finite() { count as f32 * (1.0 - 1e-6) / e } else { 0.0 };
+        Mapping { origin: centroids.lo, scale: Vec4::new(s(extent.x), s(extent.y), s(extent.z), 0.0), count }
+    }
+
+    /// Bin number of a doubled centroid on `axis` (NaN from an overflowing sum maps to 0).
+    #[inline(always)]
+    fn bin(&self, c: Vec4, axis: usize) -> usize {
+        let f = ((c[axis] - self.origin[axis]) * self.scale[axis]).max(0.0).min((self.count - 1) as f32);
+        // SAFETY: `f` is a number in 0 ..= count - 1 (`max` maps NaN to 0), so it fits.
+        unsafe { f.to_int_unchecked::<u32>() as usize }
+    }
+}
+
+/// Boxes and counts of the bins on each axis.
+#[derive(Clone)]
+struct Bins {
+    boxes: [[Bounds; BINS]; 3],
+    counts: [[u32; BINS]; 3],
+}
+
+impl Bins {
+    fn new() -> Bins {
+        Bins { boxes: [[Bounds::EMPTY; BINS]; 3], counts: [[0; BINS]; 3] }
+    }
+
+    /// Empties the first `count` bins of each axis (the ones a mapping of `count` uses):
+    /// reusing one `Bins` this way saves clearing all of them for every small set.
+    fn reset(&mut self, count: usize) {
+        for a in 0..3 {
+            self.boxes[a][..count].fill(Bounds::EMPTY);
+            self.counts[a][..count].fill(0);
+        }
+    }
+
+    fn add(&mut self, prims: &[Prim], map: &Mapping) {
+        for p in prims {
+            let c = p.centroid2();
+            for a in 0..3 {
+                let k = map.bin(c, a);
+                self.boxes[a][k].grow(p.lo, p.hi);
+                self.counts[a][k] += 1;
+            }
+        }
+    }
+
+    fn merge(mut self, o: Bins) -> Bins {
+        for a in 0..3 {
+            for k in 0..BINS {
+                self.boxes[a][k] = self.boxes[a][k].union(&o.boxes[a][k]);
+                self.counts[a][k] += o.counts[a][k];
+            }
+        }
+        self
+    }
+
+    /// The cheapest boundary: (axis, first bin on the right, left box, right box), or
+    /// `None` when every axis has all primitives in one bin.
+    fn best(&self, bins: usize) -> Option<(f32, usize, usize, Bounds, Bounds)> {
+        let mut best: Option<(f32, usize, usize)> = None;
+        for a in 0..3 {
+            // Right-side area·count for each boundary k (bins k.. on the right).
+            let mut right = [0.0f32; BINS];
+            let (mut acc, mut n) = (Bounds::EMPTY, 0u32);
+            for k in (1..bins).rev() {
+                acc = acc.union(&self.boxes[a][k]);
+                n += self.counts[a][k];
+                right[k] = if n > 0 { acc.half_area() * n as f32 } else { f32::NAN };
+            }
+            let (mut acc, mut n) = (Bounds::EMPTY, 0u32);
+            for (k, &r) in right.iter().enumerate().take(bins).skip(1) {
+                acc = acc.union(&self.boxes[a][k - 1]);
+                n += self.counts[a][k - 1];
+                if n == 0 || r.is_nan() {
+                    continue;
+                }
+                let cost = acc.half_area() * n as f32 + r;
+                if best.is_none_or(|(c, _, _)| cost < c) {
+                    best = Some((cost, a, k));
+                }
+            }
+        }
+        let (cost, a, k) = best?;
+        let side = |r: std::ops::Range<usize>| r.fold(Bounds::EMPTY, |acc, j| acc.union(&self.boxes[a][j]));
+        Some((cost, a, k, side(0..k), side(k..bins)))
+    }
+}
+
+/// Builds the 4-wide tree over `boxes` (all finite), at most `max_leaf` primitives per leaf.
+pub(crate) fn build(n: usize, max_leaf: u32, traversal: f32, bounds: impl Fn(usize) -> ObAabb + Sync) -> WideBvh {
+    if n == 0 {
+        return WideBvh { root: WideChild::EMPTY, nodes: Vec::new(), order: Vec::new(), depth: 0 };
+    }
+    let mut prims: Vec<Prim> = (0..n)
+        .into_par_iter()
+        .map(|i| {
+            let b = bounds(i);
+            Prim { lo: b.min.extend(0.0), hi: b.max.extend(0.0) }
+        })
+        .collect();
+    let mut ids: Vec<u32> = (0..n as u32).collect();
+    let set = prims
+        .par_chunks(BIN_CHUNK)
+        .map(|c| {
+            let mut s = (Bounds::EMPTY, Bounds::EMPTY);
+            for p in c {
+                s.0.grow(p.lo, p.hi);
+                let m = p.centroid2();
+                s.1.grow(m, m);
+            }
+            s
+        })
+        .reduce(|| (Bounds::EMPTY, Bounds::EMPTY), |a, b| (a.0.union(&b.0), a.1.union(&b.1)));
+    let set = Set { start: 0, end: n, bounds: set.0, centroids: set.1, depth: 0 };
+    let builder = Builder { max_leaf: max_leaf.max(1) as usize, traversal };
+    let mut nodes = Vec::with_capacity(n / 2);
+    let part = Part { prims: &mut prims, ids: &mut ids, offset: 0 };
+    let (root, depth) = builder.node(part, set, &mut nodes, &mut Box::new(Bins::new()));
+    WideBvh { root, nodes, order: ids, depth }
+}
+
+/// The primitives (and their indices) a subtree is built over, which start at leaf-order
+/// position `offset`.
+struct Part<'a> {
+    prims: &'a mut [Prim],
+    ids: &'a mut [u32],
+    offset: usize,
+}
+
+struct Builder {
+    max_leaf: usize,
+    traversal: f32,
+}
+
+impl Builder {
+    /// Builds the subtree over `set` (a range of `part`), appending its inner nodes to
+    /// `out`; returns its root and its depth in nodes counted as `WideBvh::depth` does.
+    fn subtree(&self, part: Part, set: Set, out: &mut Vec<WideNode>, scratch: &mut Bins) -> (WideChild, usize) {
+        if set.len() <= self.max_leaf {
+            return (leaf(&part, &set), 0);
+        }
+        self.node(part, set, out, scratch)
+    }
+
+    /// [`Builder::subtree`] for a set that may be split even if it fits in a leaf (the
+    /// root; a child that fits was already weighed by its parent).
+    fn node(&self, part: Part, set: Set, out: &mut Vec<WideNode>, scratch: &mut Bins) -> (WideChild, usize) {
+        let Part { prims, ids, offset } = part;
+        let (lo, hi) = (set.bounds.lo.truncate().to_array(), set.bounds.hi.truncate().to_array());
+        // Split the child with the largest area until four are made or none is worth it.
+        let mut kids = [set; WIDTH];
+        let mut done = [false; WIDTH];
+        let mut nk = 1;
+        while nk < WIDTH {
+            let mut pick: Option<(usize, f32)> = None;
+            for (k, s) in kids[..nk].iter().enumerate() {
+                let a = s.bounds.half_area();
+                if !done[k] && s.len() > 1 && pick.is_none_or(|(_, b)| a > b) {
+                    pick = Some((k, a));
+                }
+            }
+            let Some((k, a)) = pick else { break };
+            // A set that fits in a leaf is split only when the SAH says two leaves are cheaper.
+            let leaf_cost = (kids[k].len() <= self.max_leaf).then(|| a * (kids[k].len() as f32 - self.traversal));
+            let Some((l, r)) = split(prims, ids, &kids[k], leaf_cost, scratch) else {
+                done[k] = true;
+                continue;
+            };
+            kids[k] = l;
+            kids[nk] = r;
+            nk += 1;
+        }
+        if nk == 1 {
+            return (leaf(&Part { prims, ids, offset }, &set), 0);
+        }
+        // Children in array order, so leaf order follows the node's slots.
+        let mut idx = [0, 1, 2, 3];
+        idx[..nk].sort_unstable_by_key(|&k| kids[k].start);
+        let idx = &idx[..nk];
+        let me = out.len();
+        out.push(WideNode::EMPTY);
+        let mut node = WideNode::EMPTY;
+        let mut depth = 0;
+        if set.len() >= PARALLEL_SUBTREE {
+            // Cut the arrays into the children's ranges and build them as parallel tasks,
+            // each into its own node list, appended afterwards in slot order.
+            let mut parts = Vec::with_capacity(nk);
+            let (mut p_rest, mut i_rest) = (prims, ids);
+            let mut at = 0;
+            for &k in idx {
+                let s = kids[k];
+                let (_, p) = p_rest.split_at_mut(s.start - at);
+                let (_, i) = i_rest.split_at_mut(s.start - at);
+                let (p, p_next) = p.split_at_mut(s.len());
+                let (i, i_next) = i.split_at_mut(s.len());
+                parts.push((Part { prims: p, ids: i, offset: offset + s.start }, Set { start: 0, end: s.len(), ..s }));
+                (p_rest, i_rest, at) = (p_next, i_next, s.end);
+            }
+            let built: Vec<(WideChild, usize, Vec<WideNode>)> = parts
+                .into_par_iter()
+                .map(|(part, s)| {
+                    let mut local = Vec::new();
+                    let (c, depth) = self.subtree(part, s, &mut local, &mut Box::new(Bins::new()));
+                    (c, depth, local)
+                })
+                .collect();
+            for (slot, (mut c, d, local)) in built.into_iter().enumerate() {
+                let base = out.len() as u32;
+                if !c.is_leaf() {
+                    c.link += base;
+                }
+                out.extend(local.into_iter().map(|mut n| {
+                    for s in 0..WIDTH {
+                        if n.count[s] == 0 && n.link[s] != EMPTY_LINK {
+                            n.link[s] += base;
+                        }
+                    }
+                    n
+                }));
+                node.set(slot, &c);
+                depth = depth.max(d);
+            }
+        } else {
+            for (slot, &k) in idx.iter().enumerate() {
+                let part = Part { prims: &mut *prims, ids: &mut *ids, offset };
+                let (c, d) = self.subtree(part, kids[k], out, scratch);
+                node.set(slot, &c);
+                depth = depth.max(d);
+            }
+        }
+        out[me] = node;
+        (WideChild { lo, link: me as u32, hi, count: 0 }, depth + 1)
+    }
+}
+
+/// The leaf holding all of `set`.
+fn leaf(part: &Part, set: &Set) -> WideChild {
+    let (lo, hi) = (set.bounds.lo.truncate().to_array(), set.bounds.hi.truncate().to_array());
+    WideChild { lo, link: (part.offset + set.start) as u32, hi, count: set.len() as u32 }
+}
+
+/// Splits `set` (a range of `prims` and `ids`) in two non-empty sets: the binned SAH's
+/// best boundary, or the middle of the range when the bins cannot separate it or the path
+/// is already `MAX_SAH_DEPTH` splits deep. With a `leaf_cost` (the set fits in a leaf),
+/// `None` instead when no boundary costs less.
+fn split(
+    prims: &mut [Prim],
+    ids: &mut [u32],
+    set: &Set,
+    leaf_cost: Option<f32>,
+    scratch: &mut Bins,
+) -> Option<(Set, Set)> {
+    let range = &prims[set.start..set.end];
+    let map = Mapping::new(&set.centroids, set.len());
+    let best = if set.depth >= MAX_SAH_DEPTH {
+        None
+    } else if range.len() >= PARALLEL_BINNING {
+        range
+            .par_chunks(BIN_CHUNK)
+            .fold(Bins::new, |mut b, c| {
+                b.add(c, &map);
+                b
+            })
+            .reduce(Bins::new, Bins::merge)
+            .best(map.count)
+    } else {
+        scratch.reset(map.count);
+        scratch.add(range, &map);
+        scratch.best(map.count)
+    };
+    let Some((cost, axis, boundary, left_box, right_box)) = best else {
+        return if leaf_cost.is_some() { None } else { Some(split_middle(prims, set)) };
+    };
+    if leaf_cost.is_some_and(|c| cost >= c) {
+        return None;
+    }
+    // Partition in place (Hoare), collecting each side's centroid box on the way. The
+    // test is the binning's own, so the sides match the bins the boxes came from.
+    let left_of = |p: &Prim| map.bin(p.centroid2(), axis) < boundary;
+    let (mut lc, mut rc) = (Bounds::EMPTY, Bounds::EMPTY);
+    let (mut i, mut j) = (set.start, set.end);
+    loop {
+        while i < j && left_of(&prims[i]) {
+            let c = prims[i].centroid2();
+            lc.grow(c, c);
+            i += 1;
+        }
+        while i < j && !left_of(&prims[j - 1]) {
+            let c = prims[j - 1].centroid2();
+            rc.grow(c, c);
+            j -= 1;
+        }
+        if i >= j {
+            break;
+        }
+        prims.swap(i, j - 1);
+        ids.swap(i, j - 1);
+    }
+    Some((
+        Set { start: set.start, end: i, bounds: left_box, centroids: lc, depth: set.depth + 1 },
+        Set { start: i, end: set.end, bounds: right_box, centroids: rc, depth: set.depth + 1 },
+    ))
+}
+
+/// Cuts `set` in the middle of its range, recomputing both sides' boxes.
+fn split_middle(prims: &[Prim], set: &Set) -> (Set, Set) {
+    let mid = set.start + set.len() / 2;
+    let side = |start: usize, end: usize| {
+        let (mut b, mut c) = (Bounds::EMPTY, Bounds::EMPTY);
+        for p in &prims[start..end] {
+            b.grow(p.lo, p.hi);
+            let m = p.centroid2();
+            c.grow(m, m);
+        }
+        Set { start, end, bounds: b, centroids: c, depth: set.depth + 1 }
+    };
+    (side(set.start, mid), side(mid, set.end))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::bvh::wide::WideBuildParams;
+    use glam::Vec3A;
+
+    fn random_boxes(n: usize, seed: u64) -> Vec<ObAabb> {
+        let mut h = seed;
+        (0..n)
+            .map(|_| {
+                h = h.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+                let p = Vec3A::new((h >> 40) as f32 / 1e3, (h >> 20 & 0xfff) as f32 / 1e2, (h & 0xfff) as f32 / 1e2);
+                ObAabb::new(p, p + 0.5)
+            })
+            .collect()
+    }
+
+    #[test]
+    fn builds_are_valid_and_thread_independent() {
+        for n in [1usize, 2, 4, 5, 17, 1000, 50_000] {
+            let boxes = random_boxes(n, n as u64);
+            let one = rayon::ThreadPoolBuilder::new().num_threads(1).build().unwrap();
+            let two = rayon::ThreadPoolBuilder::new().num_threads(2).build().unwrap();
+            let a = one.install(|| build(n, 4, 1.0, |i| boxes[i]));
+            let b = two.install(|| build(n, 4, 1.0, |i| boxes[i]));
+            a.validate(n).unwrap();
+            assert_eq!(a.order, b.order);
+            assert_eq!(a.nodes.len(), b.nodes.len());
+            assert!(a.nodes.iter().zip(&b.nodes).all(|(x, y)| x.lo == y.lo && x.hi == y.hi && x.link == y.link));
+            // Leaves hold at most four primitives; inner nodes come after their parents.
+            for (i, node) in a.nodes.iter().enumerate() {
+                for k in 0..WIDTH {
+                    assert!(node.count[k] <= 4);
+                    if node.count[k] == 0 && node.link[k] != EMPTY_LINK {
+                        assert!(node.link[k] as usize > i);
+                    }
+                }
+            }
+        }
+    }
+
+    /// A leaf of `count` primitives holding exactly the primitives `want`, in any order.
+    fn has_leaf(t: &WideBvh, want: &[u32]) -> bool {
+        t.nodes.iter().chain(std::iter::once(&WideNode::EMPTY)).any(|n| {
+            (0..WIDTH).any(|k| {
+                let c = n.child(k);
+                let mut got =
+                    if c.is_leaf() { t.order[c.link as usize..][..c.count as usize].to_vec() } else { vec![] };
+                got.sort_unstable();
+                got == want
+            })
+        }) || (t.root.is_leaf() && t.order == want)
+    }
+
+    #[test]
+    fn a_leaf_is_split_only_when_two_are_cheaper() {
+        // Two triangles of one quad share a box: one leaf. Two quads far apart: two leaves.
+        let quad = |x: f32| ObAabb::new(Vec3A::new(x, 0.0, 0.0), Vec3A::new(x + 1.0, 1.0, 0.0));
+        let boxes = [quad(0.0), quad(0.0), quad(10.0), quad(10.0)];
+        let t = build(4, 4, 1.0, |i| boxes[i]);
+        t.validate(4).unwrap();
+        assert!(has_leaf(&t, &[0, 1]) && has_leaf(&t, &[2, 3]), "{:?}", t.nodes);
+        // Four copies of one quad stay one leaf.
+        let t = build(4, 4, 1.0, |_| quad(0.0));
+        assert!(t.root.is_leaf() && t.root.count == 4);
+    }
+
+    #[test]
+    fn hostile_inputs_build_bounded_trees() {
+        // Every wide level makes at least one binary split on each path below it.
+        let bound = |n: usize| MAX_SAH_DEPTH as usize + (usize::BITS - n.leading_zeros()) as usize + 2;
+        let n = 20_000;
+        // Coincident boxes, centroids spaced geometrically (each binning peels off few), and
+        // boxes at the ends of the float range (centroid sums overflow to infinity).
+        let same = vec![ObAabb::new(Vec3A::ZERO, Vec3A::ONE); n];
+        let geometric: Vec<ObAabb> = (0..n)
+            .map(|i| {
+                let x = 1.01f32.powi(i as i32 % 8000) * if i % 2 == 0 { 1.0 } else { -1.0 };
+                ObAabb::new(Vec3A::splat(x), Vec3A::splat(x))
+            })
+            .collect();
+        let huge: Vec<ObAabb> = (0..n)
+            .map(|i| {
+                let s = if i % 3 == 0 { f32::MAX } else { -f32::MAX * (i % 7) as f32 / 7.0 };
+                ObAabb::new(Vec3A::new(s, 0.0, i as f32), Vec3A::new(f32::MAX, 1.0, i as f32 + 1.0))
+            })
+            .collect();
+        for boxes in [same, geometric, huge] {
+            let t = build(n, 4, 1.0, |i| boxes[i]);
+            t.validate(n).unwrap();
+            assert!(t.depth <= bound(n), "depth {} > {}", t.depth, bound(n));
+        }
+    }
+
+    #[test]
+    fn costs_no_more_than_the_ploc_tree_on_a_city_of_quads() {
+        // Walls of quads (two triangles each) on a grid of blocks, as the builders' city.
+        let mut boxes = Vec::new();
+        for b in 0..400 {
+            let (bx, bz) = ((b % 20) as f32 * 30.0, (b / 20) as f32 * 30.0);
+            for f in 0..40 {
+                let (y, x) = ((f / 8) as f32 * 3.0, bx + (f % 8) as f32 * 2.5);
+                for z in [bz, bz + 20.0] {
+                    let q = ObAabb::new(Vec3A::new(x, y, z), Vec3A::new(x + 2.5, y + 3.0, z));
+                    boxes.extend([q, q]);
+                }
+            }
+        }
+        let n = boxes.len();
+        let sah = build(n, 4, 1.0, |i| boxes[i]);
+        let ploc = WideBvh::build_obvhs(&boxes, WideBuildParams { binned_sah: false, ..WideBuildParams::BLAS });
+        sah.validate(n).unwrap();
+        assert!(sah.sah_cost() <= ploc.sah_cost(), "SAH {} against PLOC {}", sah.sah_cost(), ploc.sah_cost());
+    }
+}
