@@ -134,9 +134,9 @@ pub struct WideBuildParams {
     /// Cost of a traversal step relative to a primitive test (obvhs's leaf collapse; the
     /// SAH builder's choice between a leaf and two).
     traversal_cost: f32,
-    /// PLOC neighbourhood.
+    /// PLOC neighbourhood (PLOC builds only).
     search: PlocSearchDistance,
-    /// Reinsertion effort (0 = none).
+    /// Reinsertion effort (0 = none; PLOC builds only).
     reinsertion: f32,
     /// Build top-down by binned SAH (`sah`) instead of PLOC, reinsertion and collapse.
     binned_sah: bool,
@@ -170,7 +170,7 @@ pub struct WideBvh {
     nodes: Vec<WideNode>,
     /// Leaf-order position → caller's primitive index.
     order: Vec<u32>,
-    /// Longest root-to-leaf path in nodes (sizes traversal stacks).
+    /// Levels on the longest root-to-leaf path, the leaf's included (sizes traversal stacks).
     depth: usize,
 }
 
@@ -201,7 +201,8 @@ impl WideBvh {
         &self.order
     }
 
-    /// The longest root-to-leaf path in nodes (what a traversal stack needs; 0 when empty).
+    /// Levels on the longest root-to-leaf path, the leaf's included (0 when empty; a
+    /// traversal stack holds up to three entries per level).
     #[inline]
     pub fn depth(&self) -> usize {
         self.depth

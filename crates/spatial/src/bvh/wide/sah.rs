@@ -130,7 +130,8 @@ impl Mapping {
         Mapping { origin: centroids.lo, scale: Vec4::new(s(extent.x), s(extent.y), s(extent.z), 0.0), count }
     }
 
-    /// Bin number of a doubled centroid on `axis` (NaN from an overflowing sum maps to 0).
+    /// Bin number of a doubled centroid on `axis` (NaN, from an infinite centroid on an
+    /// axis of infinite extent, maps to 0).
     #[inline(always)]
     fn bin(&self, c: Vec4, axis: usize) -> usize {
         let f = ((c[axis] - self.origin[axis]) * self.scale[axis]).max(0.0).min((self.count - 1) as f32);
@@ -140,7 +141,6 @@ impl Mapping {
 }
 
 /// Boxes and counts of the bins on each axis.
-#[derive(Clone)]
 struct Bins {
     boxes: [[Bounds; BINS]; 3],
     counts: [[u32; BINS]; 3],
@@ -181,8 +181,9 @@ impl Bins {
         self
     }
 
-    /// The cheapest boundary: (axis, first bin on the right, left box, right box), or
-    /// `None` when every axis has all primitives in one bin.
+    /// The cheapest boundary: (its cost, axis, first bin on the right, left box, right
+    /// box), or `None` when every axis has all primitives in one bin (or only costs that
+    /// overflowed to NaN).
     fn best(&self, bins: usize) -> Option<(f32, usize, usize, Bounds, Bounds)> {
         let mut best: Option<(f32, usize, usize)> = None;
         for a in 0..3 {
@@ -202,7 +203,7 @@ impl Bins {
                     continue;
                 }
                 let cost = acc.half_area() * n as f32 + r;
-                if best.is_none_or(|(c, _, _)| cost < c) {
+                if !cost.is_nan() && best.is_none_or(|(c, _, _)| cost < c) {
                     best = Some((cost, a, k));
                 }
             }
@@ -213,8 +214,12 @@ impl Bins {
     }
 }
 
-/// Builds the 4-wide tree over `boxes` (all finite), at most `max_leaf` primitives per leaf.
+/// Builds the 4-wide tree over `n` primitives whose boxes (all finite) `bounds(i)` gives, at
+/// most `max_leaf` primitives per leaf; `traversal` is the cost of a traversal step
+/// against a primitive test, which decides when a set that fits in a leaf is split.
 pub(crate) fn build(n: usize, max_leaf: u32, traversal: f32, bounds: impl Fn(usize) -> ObAabb + Sync) -> WideBvh {
+    // Primitive indices are 32 bits; the renderers refuse larger scenes before this.
+    assert!(u32::try_from(n).is_ok(), "{n} primitives: at most 2^32 - 1 fit a wide BVH");
     if n == 0 {
         return WideBvh { root: WideChild::EMPTY, nodes: Vec::new(), order: Vec::new(), depth: 0 };
     }
@@ -222,7 +227,9 @@ pub(crate) fn build(n: usize, max_leaf: u32, traversal: f32, bounds: impl Fn(usi
         .into_par_iter()
         .map(|i| {
             let b = bounds(i);
-            Prim { lo: b.min.extend(0.0), hi: b.max.extend(0.0) }
+            // Adding +0 turns -0 into +0, so no box's bits depend on which of two equal
+            // zeros `min` and `max` return.
+            Prim { lo: b.min.extend(0.0) + Vec4::ZERO, hi: b.max.extend(0.0) + Vec4::ZERO }
         })
         .collect();
     let mut ids: Vec<u32> = (0..n as u32).collect();
@@ -264,13 +271,14 @@ impl Builder {
     /// `out`; returns its root and its depth in nodes counted as `WideBvh::depth` does.
     fn subtree(&self, part: Part, set: Set, out: &mut Vec<WideNode>, scratch: &mut Bins) -> (WideChild, usize) {
         if set.len() <= self.max_leaf {
-            return (leaf(&part, &set), 0);
+            return (leaf(&part, &set), 1);
         }
         self.node(part, set, out, scratch)
     }
 
-    /// [`Builder::subtree`] for a set that may be split even if it fits in a leaf (the
-    /// root; a child that fits was already weighed by its parent).
+    /// [`Builder::subtree`] for a set that may be split even if it fits in a leaf: the
+    /// root. (A child that fits in a leaf was weighed by its parent, or left whole when the
+    /// parent's four slots filled first.)
     fn node(&self, part: Part, set: Set, out: &mut Vec<WideNode>, scratch: &mut Bins) -> (WideChild, usize) {
         let Part { prims, ids, offset } = part;
         let (lo, hi) = (set.bounds.lo.truncate().to_array(), set.bounds.hi.truncate().to_array());
@@ -298,7 +306,7 @@ impl Builder {
             nk += 1;
         }
         if nk == 1 {
-            return (leaf(&Part { prims, ids, offset }, &set), 0);
+            return (leaf(&Part { prims, ids, offset }, &set), 1);
         }
         // Children in array order, so leaf order follows the node's slots.
         let mut idx = [0, 1, 2, 3];
@@ -456,6 +464,10 @@ mod tests {
             .map(|_| {
                 h = h.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
                 let p = Vec3A::new((h >> 40) as f32 / 1e3, (h >> 20 & 0xfff) as f32 / 1e2, (h & 0xfff) as f32 / 1e2);
+                if h.is_multiple_of(7) {
+                    // Flat on the plane x = 0, its sides given as -0 and +0.
+                    return ObAabb::new(Vec3A::new(-0.0, p.y, p.z), Vec3A::new(0.0, p.y + 0.5, p.z + 0.5));
+                }
                 ObAabb::new(p, p + 0.5)
             })
             .collect()
@@ -470,9 +482,14 @@ mod tests {
             let a = one.install(|| build(n, 4, 1.0, |i| boxes[i]));
             let b = two.install(|| build(n, 4, 1.0, |i| boxes[i]));
             a.validate(n).unwrap();
-            assert_eq!(a.order, b.order);
+            b.validate(n).unwrap();
+            assert_eq!((a.order.as_slice(), a.root, a.depth), (b.order.as_slice(), b.root, b.depth));
             assert_eq!(a.nodes.len(), b.nodes.len());
-            assert!(a.nodes.iter().zip(&b.nodes).all(|(x, y)| x.lo == y.lo && x.hi == y.hi && x.link == y.link));
+            let bits = |v: &[[f32; WIDTH]; 3]| v.map(|r| r.map(f32::to_bits));
+            assert!(a.nodes.iter().zip(&b.nodes).all(|(x, y)| bits(&x.lo) == bits(&y.lo)
+                && bits(&x.hi) == bits(&y.hi)
+                && x.link == y.link
+                && x.count == y.count));
             // Leaves hold at most four primitives; inner nodes come after their parents.
             for (i, node) in a.nodes.iter().enumerate() {
                 for k in 0..WIDTH {
@@ -485,17 +502,14 @@ mod tests {
         }
     }
 
-    /// A leaf of `count` primitives holding exactly the primitives `want`, in any order.
+    /// True when some leaf holds exactly the primitives `want` (sorted), in any order.
     fn has_leaf(t: &WideBvh, want: &[u32]) -> bool {
-        t.nodes.iter().chain(std::iter::once(&WideNode::EMPTY)).any(|n| {
-            (0..WIDTH).any(|k| {
-                let c = n.child(k);
-                let mut got =
-                    if c.is_leaf() { t.order[c.link as usize..][..c.count as usize].to_vec() } else { vec![] };
-                got.sort_unstable();
-                got == want
-            })
-        }) || (t.root.is_leaf() && t.order == want)
+        let leaves = t.nodes.iter().flat_map(|n| (0..WIDTH).map(|k| n.child(k))).chain([t.root]);
+        leaves.filter(|c| c.is_leaf()).any(|c| {
+            let mut got = t.order[c.link as usize..][..c.count as usize].to_vec();
+            got.sort_unstable();
+            got == want
+        })
     }
 
     #[test]
