@@ -297,6 +297,17 @@ impl Builder {
             let Some((k, a)) = pick else { break };
             // A set that fits in a leaf is split only when the SAH says two leaves are cheaper.
             let leaf_cost = (kids[k].len() <= self.max_leaf).then(|| a * (kids[k].len() as f32 - self.traversal));
+            // No split costs less than the primitives' own areas summed (each side's box
+            // holds its primitives): when that is already too much, skip the binning. Two
+            // triangles of one quad end here.
+            if leaf_cost.is_some_and(|c| {
+                let own: f32 =
+                    prims[kids[k].start..kids[k].end].iter().map(|p| Bounds { lo: p.lo, hi: p.hi }.half_area()).sum();
+                own >= c
+            }) {
+                done[k] = true;
+                continue;
+            }
             let Some((l, r)) = split(prims, ids, &kids[k], leaf_cost, scratch) else {
                 done[k] = true;
                 continue;
