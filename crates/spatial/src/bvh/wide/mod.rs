@@ -115,6 +115,16 @@ impl WideNode {
         }
     }
 
+    /// This node with its inner links moved by `node_base` and its leaf links by
+    /// `prim_base`, for a subtree appended behind others.
+    fn shifted(&self, node_base: u32, prim_base: u32) -> WideNode {
+        let mut n = *self;
+        for k in 0..WIDTH {
+            n.link[k] = shift_link(n.link[k], n.count[k], node_base, prim_base);
+        }
+        n
+    }
+
     fn set(&mut self, k: usize, c: &WideChild) {
         for a in 0..3 {
             self.lo[a][k] = c.lo[a];
@@ -122,6 +132,16 @@ impl WideNode {
         }
         self.link[k] = c.link;
         self.count[k] = c.count;
+    }
+}
+
+/// A child link (inner node when `count` is 0, else first primitive) moved by `node_base` or
+/// `prim_base`; an unused slot stays unused.
+fn shift_link(link: u32, count: u32, node_base: u32, prim_base: u32) -> u32 {
+    match (link, count) {
+        (EMPTY_LINK, _) => EMPTY_LINK,
+        (l, 0) => l + node_base,
+        (l, _) => l + prim_base,
     }
 }
 

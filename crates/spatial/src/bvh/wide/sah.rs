@@ -31,7 +31,7 @@ use glam::Vec4;
 use obvhs::aabb::Aabb as ObAabb;
 use rayon::prelude::*;
 
-use super::{WideBvh, WideChild, WideNode, EMPTY_LINK, WIDTH};
+use super::{WideBvh, WideChild, WideNode, WIDTH};
 
 /// Most centroid bins per axis (Embree's count for object splits); smaller sets use
 /// fewer, `4 + n / 20` as Embree does, since sweeping empty bins costs more than it finds.
@@ -49,20 +49,8 @@ const BIN_CHUNK: usize = 1 << 13;
 /// Subtrees at least this large are built as parallel tasks.
 const PARALLEL_SUBTREE: usize = 1 << 12;
 
-/// A primitive's box; the `w` lanes are zero.
-#[derive(Clone, Copy)]
-struct Prim {
-    lo: Vec4,
-    hi: Vec4,
-}
-
-impl Prim {
-    /// Twice the centroid (the bins are scaled to match, saving a multiply).
-    #[inline(always)]
-    fn centroid2(&self) -> Vec4 {
-        self.lo + self.hi
-    }
-}
+/// A primitive's box (the `w` lanes are zero).
+type Prim = Bounds;
 
 /// A box accumulated by min and max; starts inverted.
 #[derive(Clone, Copy)]
@@ -83,6 +71,23 @@ impl Bounds {
     #[inline(always)]
     fn union(&self, o: &Bounds) -> Bounds {
         Bounds { lo: self.lo.min(o.lo), hi: self.hi.max(o.hi) }
+    }
+
+    /// Twice the centre (the bins are scaled to match, saving a multiply).
+    #[inline(always)]
+    fn centroid2(&self) -> Vec4 {
+        self.lo + self.hi
+    }
+
+    /// The box of `prims` and the box of their doubled centroids.
+    fn of(prims: &[Prim]) -> (Bounds, Bounds) {
+        let (mut b, mut c) = (Bounds::EMPTY, Bounds::EMPTY);
+        for p in prims {
+            b.grow(p.lo, p.hi);
+            let m = p.centroid2();
+            c.grow(m, m);
+        }
+        (b, c)
     }
 
     /// Half the surface area (only called on non-empty boxes).
@@ -111,7 +116,7 @@ impl Set {
     }
 }
 
-/// Maps doubled centroids to bin numbers on all three axes at once.
+/// Maps doubled centroids to bin numbers, per axis.
 #[derive(Clone, Copy)]
 struct Mapping {
     origin: Vec4,
@@ -235,15 +240,7 @@ pub(crate) fn build(n: usize, max_leaf: u32, traversal: f32, bounds: impl Fn(usi
     let mut ids: Vec<u32> = (0..n as u32).collect();
     let set = prims
         .par_chunks(BIN_CHUNK)
-        .map(|c| {
-            let mut s = (Bounds::EMPTY, Bounds::EMPTY);
-            for p in c {
-                s.0.grow(p.lo, p.hi);
-                let m = p.centroid2();
-                s.1.grow(m, m);
-            }
-            s
-        })
+        .map(Bounds::of)
         .reduce(|| (Bounds::EMPTY, Bounds::EMPTY), |a, b| (a.0.union(&b.0), a.1.union(&b.1)));
     let set = Set { start: 0, end: n, bounds: set.0, centroids: set.1, depth: 0 };
     let builder = Builder { max_leaf: max_leaf.max(1) as usize, traversal };
@@ -301,8 +298,7 @@ impl Builder {
             // holds its primitives): when that is already too much, skip the binning. Two
             // triangles of one quad end here.
             if leaf_cost.is_some_and(|c| {
-                let own: f32 =
-                    prims[kids[k].start..kids[k].end].iter().map(|p| Bounds { lo: p.lo, hi: p.hi }.half_area()).sum();
+                let own: f32 = prims[kids[k].start..kids[k].end].iter().map(Bounds::half_area).sum();
                 own >= c
             }) {
                 done[k] = true;
@@ -352,17 +348,8 @@ impl Builder {
                 .collect();
             for (slot, (mut c, d, local)) in built.into_iter().enumerate() {
                 let base = out.len() as u32;
-                if !c.is_leaf() {
-                    c.link += base;
-                }
-                out.extend(local.into_iter().map(|mut n| {
-                    for s in 0..WIDTH {
-                        if n.count[s] == 0 && n.link[s] != EMPTY_LINK {
-                            n.link[s] += base;
-                        }
-                    }
-                    n
-                }));
+                c.link = super::shift_link(c.link, c.count, base, 0);
+                out.extend(local.iter().map(|n| n.shifted(base, 0)));
                 node.set(slot, &c);
                 depth = depth.max(d);
             }
@@ -452,13 +439,8 @@ fn split(
 fn split_middle(prims: &[Prim], set: &Set) -> (Set, Set) {
     let mid = set.start + set.len() / 2;
     let side = |start: usize, end: usize| {
-        let (mut b, mut c) = (Bounds::EMPTY, Bounds::EMPTY);
-        for p in &prims[start..end] {
-            b.grow(p.lo, p.hi);
-            let m = p.centroid2();
-            c.grow(m, m);
-        }
-        Set { start, end, bounds: b, centroids: c, depth: set.depth + 1 }
+        let (bounds, centroids) = Bounds::of(&prims[start..end]);
+        Set { start, end, bounds, centroids, depth: set.depth + 1 }
     };
     (side(set.start, mid), side(mid, set.end))
 }
@@ -466,7 +448,7 @@ fn split_middle(prims: &[Prim], set: &Set) -> (Set, Set) {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::bvh::wide::WideBuildParams;
+    use crate::bvh::wide::{WideBuildParams, EMPTY_LINK};
     use glam::Vec3A;
 
     fn random_boxes(n: usize, seed: u64) -> Vec<ObAabb> {

@@ -13,7 +13,7 @@
 use obvhs::aabb::Aabb as ObAabb;
 use rayon::prelude::*;
 
-use super::{WideBuildParams, WideBvh, WideChild, WideNode, EMPTY_LINK, WIDTH};
+use super::{WideBuildParams, WideBvh, WideChild, WideNode, WIDTH};
 
 /// Smallest input built in parallel runs; below it one serial build is fast enough (and
 /// small trees, such as the instanced city's building meshes, keep their serial shape).
@@ -76,28 +76,17 @@ fn join(parts: Vec<WideBvh>) -> WideBvh {
     let (mut lo, mut hi) = ([f32::INFINITY; 3], [f32::NEG_INFINITY; 3]);
     for (k, p) in parts.into_iter().enumerate() {
         let (node_base, prim_base) = (nodes.len() as u32, order.len() as u32);
-        let shift = |link: u32, count: u32| match (link, count) {
-            (EMPTY_LINK, _) => EMPTY_LINK,
-            (l, 0) => l + node_base,
-            (l, _) => l + prim_base,
-        };
         let mut r = p.root;
         if r.is_empty() {
             continue;
         }
-        r.link = shift(r.link, r.count);
+        r.link = super::shift_link(r.link, r.count, node_base, prim_base);
         root.set(k, &r);
         for a in 0..3 {
             lo[a] = lo[a].min(r.lo[a]);
             hi[a] = hi[a].max(r.hi[a]);
         }
-        nodes.extend(p.nodes.iter().map(|n| {
-            let mut n = *n;
-            for s in 0..WIDTH {
-                n.link[s] = shift(n.link[s], n.count[s]);
-            }
-            n
-        }));
+        nodes.extend(p.nodes.iter().map(|n| n.shifted(node_base, prim_base)));
         order.extend_from_slice(&p.order);
         depth = depth.max(p.depth);
     }
@@ -108,6 +97,7 @@ fn join(parts: Vec<WideBvh>) -> WideBvh {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::bvh::wide::EMPTY_LINK;
     use glam::Vec3A;
 
     #[test]
