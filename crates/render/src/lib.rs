@@ -11,6 +11,7 @@
 
 pub mod aa;
 mod bin;
+mod claim;
 pub mod clip;
 mod color;
 pub mod csg;

@@ -29,9 +29,9 @@ pub(crate) mod tile;
 
 use std::sync::atomic::Ordering;
 
-use rayon::prelude::*;
 use sightline_spatial::SimdLevel;
 
+use crate::claim::for_each_claimed;
 use crate::depth::{with_codec, DepthCodec, DepthFormat};
 use crate::edge::{edges, wide_block, BlockSetup, Edge, FastEdges, Tri};
 use crate::geometry::Chunk;
@@ -234,12 +234,33 @@ fn tiles_in<D: DepthCodec>(
         (_, false) => |t, l, i, p| unsafe { raster_tile::<D, false, Rows>(t, l, i, p) },
         (_, true) => |t, l, i, p| unsafe { raster_tile::<D, true, Rows>(t, l, i, p) },
     };
-    tiles
-        .par_iter_mut()
-        .zip(levels.par_iter_mut())
-        .enumerate()
-        .map(|(i, (tile, lv))| f(tile, lv, i, pass))
-        .reduce(TileStats::default, TileStats::sum)
+    // Costliest tiles first (by binned triangles), claimed one at a time (see
+    // [`crate::claim`]).
+    let cost = |i: usize| pass.chunks.iter().map(|c| c.bins[i].len()).sum::<usize>();
+    let mut order: Vec<(usize, usize, (&mut TileBuf, &mut TileLevels))> =
+        tiles.iter_mut().zip(levels.iter_mut()).enumerate().map(|(i, p)| (cost(i), i, p)).collect();
+    order.sort_unstable_by_key(|&(c, i, _)| (std::cmp::Reverse(c), i));
+    // Outside sessions a tile's pixels live in the target between passes, so the tile is
+    // drawn in one scratch buffer per worker: it stays in the core's cache, where the 240
+    // tile buffers of a frame would be cleared and read back from the shared cache.
+    let scratch = !pass.session && pass.target.is_some();
+    let workers = for_each_claimed(
+        order,
+        || (TileStats::default(), scratch.then(|| TileBuf::new(0, 0, 0, 0))),
+        |(sum, buf), (_, i, (tile, lv))| {
+            let st = match buf {
+                Some(s) => {
+                    (s.x0, s.y0, s.w, s.h) = (tile.x0, tile.y0, tile.w, tile.h);
+                    let st = f(s, lv, i, pass);
+                    tile.dirty = s.dirty;
+                    st
+                }
+                None => f(tile, lv, i, pass),
+            };
+            *sum = TileStats::sum(*sum, st);
+        },
+    );
+    workers.into_iter().fold(TileStats::default(), |a, (b, _)| TileStats::sum(a, b))
 }
 
 /// One tile of the tile stage: in a session, clear on first use and keep the pyramid

@@ -12,8 +12,6 @@
 //! not depend on the thread count. The whole packet step is compiled once per instruction
 //! set (AVX-512, AVX2, portable) and picked at run time.
 
-use std::sync::atomic::{AtomicU64, AtomicUsize, Ordering};
-use std::sync::Mutex;
 use std::time::Instant;
 
 use glam::{DAffine3, DMat4, DVec3, DVec4, Vec3, Vec3A};
@@ -26,6 +24,7 @@ use super::isa::{Isa, Portable};
 use super::packet::{BeamPlanes, Hits, Rays, CHUNK, CHUNKS, LANES, NO_HIT, TILE};
 use super::trace::{trace, Scratch};
 use super::{RayCaster, RaycastOptions, RaycastStats, SimdLevel};
+use crate::claim::for_each_claimed;
 use crate::csg::CsgScratch;
 use crate::shading::{shade, InstanceShading, ShadeOptions, ShadingMode, TriangleShader};
 use crate::{Framebuffer, Result};
@@ -157,71 +156,43 @@ pub(crate) fn render(
     let band_len = w * TILE as usize;
     let (tlas_depth, blas_depth) =
         (caster.tlas.bvh().depth(), caster.blases.iter().map(|b| b.bvh().depth()).max().unwrap_or(0));
-    // Bands are claimed one at a time from a shared counter by one worker per thread, each
-    // with its own scratch: a street view's bands differ in cost by orders of magnitude
-    // (sky against facades), and rayon's adaptive split of an indexed iterator leaves a
-    // thread idle while the other works through a run of costly bands it cannot hand over.
-    let bands: Vec<Mutex<Option<Out<'_>>>> = fb
-        .color
-        .chunks_mut(band_len)
-        .zip(fb.depth.chunks_mut(band_len))
-        .zip(fb.ids.chunks_mut(band_len))
-        .map(|((color, depth), ids)| Mutex::new(Some(Out { color, depth, ids })))
-        .collect();
-    let next = AtomicUsize::new(0);
-    let (shadow_total, hit_total) = (AtomicU64::new(0), AtomicU64::new(0));
-    let work = || {
-        // Claim before making scratch: a worker that starts late finds nothing and stops.
-        let mut b = next.fetch_add(1, Ordering::Relaxed);
-        if b >= bands.len() {
-            return;
-        }
-        let mut band = Band {
-            scratch: Scratch::new(tlas_depth, blas_depth),
-            rays: Rays::new(),
-            hits: Hits::new(),
-            srays: Rays::new(),
-            shits: Hits::new(),
-            csg: CsgScratch::default(),
-            csg_hit: [(u32::MAX, Vec3::ZERO); LANES],
-            cache: vec![None; CACHE],
-            shadow_rays: 0,
-            hit_count: 0,
-        };
-        while let Some(slot) = bands.get(b) {
-            let claimed = slot.lock().ok().and_then(|mut o| o.take());
-            let this = b;
-            b = next.fetch_add(1, Ordering::Relaxed);
-            let Some(mut out) = claimed else { continue };
-            let y0 = this as u32 * TILE;
-            // The background: the sky's row colors (as the raster's deferred shading
-            // paints them) or the flat clear color; hit pixels are shaded over it.
-            match &sky {
-                Some(rows) => {
-                    for (r, row) in out.color.chunks_mut(w).enumerate() {
-                        row.fill(rows.get(y0 as usize + r).copied().unwrap_or(opts.background));
-                    }
-                }
-                None => out.color.fill(opts.background),
-            }
-            // Depth and IDs: each packet writes its whole square (see `Out::write_rows`).
-            let mut x0 = 0;
-            while x0 < width {
-                frame.packet(&mut band, x0, y0, &mut out);
-                x0 += TILE;
-            }
-        }
-        shadow_total.fetch_add(band.shadow_rays, Ordering::Relaxed);
-        hit_total.fetch_add(band.hit_count, Ordering::Relaxed);
+    // Bands are claimed one at a time (see [`crate::claim`]: a street view's bands differ
+    // in cost by orders of magnitude, sky against facades), each worker with its scratch.
+    let bands = fb.color.chunks_mut(band_len).zip(fb.depth.chunks_mut(band_len)).zip(fb.ids.chunks_mut(band_len));
+    let scratch = || Band {
+        scratch: Scratch::new(tlas_depth, blas_depth),
+        rays: Rays::new(),
+        hits: Hits::new(),
+        srays: Rays::new(),
+        shits: Hits::new(),
+        csg: CsgScratch::default(),
+        csg_hit: [(u32::MAX, Vec3::ZERO); LANES],
+        cache: vec![None; CACHE],
+        shadow_rays: 0,
+        hit_count: 0,
     };
-    // One worker per thread; a worker that starts late finds the bands taken and stops.
-    rayon::scope(|s| {
-        for _ in 1..rayon::current_num_threads().min(bands.len()) {
-            s.spawn(|_| work());
+    let workers = for_each_claimed(bands.enumerate(), scratch, |band, (b, ((color, depth), ids))| {
+        let mut out = Out { color, depth, ids };
+        let y0 = b as u32 * TILE;
+        // The background: the sky's row colors (as the raster's deferred shading paints
+        // them) or the flat clear color; hit pixels are shaded over it.
+        match &sky {
+            Some(rows) => {
+                for (r, row) in out.color.chunks_mut(w).enumerate() {
+                    row.fill(rows.get(y0 as usize + r).copied().unwrap_or(opts.background));
+                }
+            }
+            None => out.color.fill(opts.background),
         }
-        work();
+        // Depth and IDs: each packet writes its whole square (see `Out::write_rows`).
+        let mut x0 = 0;
+        while x0 < width {
+            frame.packet(band, x0, y0, &mut out);
+            x0 += TILE;
+        }
     });
-    let (shadow_rays, hit_count) = (shadow_total.into_inner(), hit_total.into_inner());
+    let shadow_rays = workers.iter().map(|b| b.shadow_rays).sum();
+    let hit_count = workers.iter().map(|b| b.hit_count).sum();
     Ok(RaycastStats {
         primary_rays: width as u64 * height as u64,
         shadow_rays,
