@@ -10,22 +10,22 @@
 //! needs no clipped vertices, and works for triangles crossing the eye plane. Affine
 //! (screen-space) weights, for comparison, are `β_i·w_i` renormalized.
 //!
-//! Triangles and instances are prepared once and cached per band of rows (direct-mapped
-//! caches), so a triangle covering many pixels costs one setup.
+//! Triangles and instances are prepared once and cached per worker (direct-mapped caches,
+//! see [`Shader`]), so a triangle covering many pixels costs one setup. Bands of rows are
+//! claimed one at a time ([`crate::claim`]). With AVX2 eight pixels find their cached
+//! colors at once, by two gathers, so the common case (flat shading) has no branch that
+//! depends on where a triangle's run of pixels ends.
 
 use glam::{Mat4, Vec3, Vec3A};
-use rayon::prelude::*;
 use sightline_scene::{Camera, Instance, Material, Mesh, Scene};
+use sightline_spatial::SimdLevel;
 
+use crate::claim::for_each_claimed;
 use crate::shading::{InstanceShading, ShadeOptions, ShadingMode, TriangleShader};
 use crate::Framebuffer;
 
-/// Rows per parallel band for plain fills.
-const BAND_ROWS: usize = 16;
-/// Bands per worker thread when shading: few and tall, because a triangle spanning several
-/// bands is prepared once in each (a measurable cost at street level, where triangles
-/// are large), yet more than one per thread to balance uneven bands.
-const BANDS_PER_THREAD: usize = 3;
+/// Rows per band of the shading pass.
+const BAND_ROWS: usize = 8;
 const TRI_CACHE: usize = 4096;
 const INST_CACHE: usize = 64;
 
@@ -161,81 +161,263 @@ pub fn shade_pass(
     opts: &ShadeOptions,
     background: [u8; 4],
 ) {
-    if opts.mode == ShadingMode::None {
-        let chunk = fb.width() as usize * BAND_ROWS;
-        fb.color.par_chunks_mut(chunk).for_each(|c| c.fill(background));
-        return;
-    }
-    let lookup = Lookup::new(instances);
-    let default = Material::default();
     let (w, h) = (fb.width() as usize, fb.height() as usize);
-    let eye = camera.view.eye;
-    let (sx, sy) = (2.0 / w as f32, 2.0 / h as f32);
+    let frame = ShadeFrame::new(scene, instances, camera, (w, h), opts, background);
     let ids = &fb.ids;
-    let sky = opts.sky.map(|s| s.rows(camera, h));
-    let band_rows = h.div_ceil(rayon::current_num_threads().max(1) * BANDS_PER_THREAD).max(1);
-    fb.color.par_chunks_mut(w * band_rows).enumerate().for_each(|(band, color)| {
-        let mut insts: Vec<Option<InstEntry>> = (0..INST_CACHE).map(|_| None).collect();
-        // Direct-mapped triangle cache: a small slot per entry (flat triangles need nothing
-        // but their color), full interpolation data only for the others.
-        let mut slots = vec![Slot { id: 0, color: background, full: NO_FULL }; TRI_CACHE];
-        let mut fulls: Vec<TriEntry> = Vec::new();
-        let mut hint = 0u32;
-        let y0 = band * band_rows;
+    // Bands of rows claimed one at a time (see [`crate::claim`]: the sky's rows cost next
+    // to nothing, the street's much more), each worker keeping its caches across its bands.
+    let bands = fb.color.chunks_mut(w * BAND_ROWS).enumerate();
+    for_each_claimed(bands, Shader::default, |shader, (band, color)| {
         for (r, crow) in color.chunks_mut(w).enumerate() {
-            let y = y0 + r;
-            if y >= h {
-                break;
-            }
-            let row_y = ndc_y(y, sy);
-            let irow = &ids[y * w..(y + 1) * w];
-            // Runs of one ID along the row: one cache lookup and one fill per run.
-            let mut x = 0;
-            while x < w {
-                let id = irow[x];
-                let end = run_end(irow, x + 1, id);
-                if id == 0 {
-                    crow[x..end].fill(sky.as_ref().map_or(background, |s| s[y]));
-                    x = end;
-                    continue;
-                }
-                let slot = (id as usize).wrapping_mul(0x9E37_79B1) >> 20 & (TRI_CACHE - 1);
-                if slots[slot].id != id {
-                    slots[slot] = match prepare(id, &lookup, &mut insts, scene, camera, eye, &default, opts, &mut hint)
-                    {
-                        None => Slot { id, color: background, full: NO_FULL },
-                        Some(Prepared::Constant(k)) => Slot { id, color: k, full: NO_FULL },
-                        Some(Prepared::Full(e)) => {
-                            // Reuse the entry this slot pointed at, else append.
-                            let old = slots[slot].full;
-                            let at = if (old as usize) < fulls.len() {
-                                fulls[old as usize] = e;
-                                old
-                            } else {
-                                fulls.push(e);
-                                fulls.len() as u32 - 1
-                            };
-                            Slot { id, color: [0; 4], full: at }
-                        }
-                    };
-                }
-                let sl = &slots[slot];
-                let Some(entry) = fulls.get(sl.full as usize) else {
-                    crow[x..end].fill(sl.color);
-                    x = end;
-                    continue;
-                };
-                for (px, c) in crow[x..end].iter_mut().enumerate() {
-                    let p = Vec3A::new(ndc_x(x + px, sx), row_y, 1.0);
-                    *c = entry.shader.shade(entry.weights(p, opts.perspective_correct), opts);
-                }
-                x = end;
-            }
+            let y = band * BAND_ROWS + r;
+            frame.row(shader, &ids[y * w..(y + 1) * w], y, crow);
         }
     });
 }
 
-const NO_FULL: u32 = u32::MAX;
+/// What shading one frame needs, shared by every task that shades part of it: the scene
+/// and its instances, the camera, the options, the background and the sky's row colors.
+pub(crate) struct ShadeFrame<'a> {
+    scene: &'a Scene,
+    lookup: Lookup<'a>,
+    camera: &'a Camera,
+    opts: &'a ShadeOptions,
+    background: [u8; 4],
+    /// The sky's color of each row, when there is a sky.
+    sky: Option<Vec<[u8; 4]>>,
+    default: Material,
+    /// 2 / width and 2 / height: NDC per pixel.
+    sx: f32,
+    sy: f32,
+    /// The CPU has AVX2 (cache lookups by gathers).
+    avx2: bool,
+}
+
+/// One worker's caches of prepared instances and triangles (see [`ShadeFrame::row`]);
+/// empty, and allocation-free, until it first shades a triangle.
+///
+/// The triangle cache is direct-mapped ([`slot`]) and kept in flat arrays, so that eight
+/// pixels find their slots with two gathers: `pairs[s] = [key, color]`, where `key` is
+/// the ID whose constant color (flat shading, the common case) is `color`, or 0 when the
+/// slot holds a triangle that needs interpolation, whose ID is then `full_ids[s]` (else 0)
+/// and whose entry is `fulls[full_at[s]]`; a slot keeps its entry in `fulls` for the next
+/// such triangle. (ID 0, the background, is never cached.)
+#[derive(Default)]
+pub(crate) struct Shader<'a> {
+    insts: Vec<Option<InstEntry<'a>>>,
+    pairs: Vec<[u32; 2]>,
+    full_ids: Vec<u32>,
+    full_at: Vec<u32>,
+    fulls: Vec<TriEntry<'a>>,
+    hint: u32,
+}
+
+/// No full entry: a slot's `full_at` before it first holds one.
+const NONE: u32 = u32::MAX;
+
+/// The triangle cache slot of ID `id`: bits 20..32 of a multiplicative hash (Knuth's
+/// constant), so that neighboring IDs spread.
+#[inline(always)]
+fn slot(id: u32) -> usize {
+    (id.wrapping_mul(0x9E37_79B1) >> 20) as usize & (TRI_CACHE - 1)
+}
+
+impl<'a> ShadeFrame<'a> {
+    /// The shading of a `width × height` frame of `scene` seen by `camera`.
+    pub(crate) fn new(
+        scene: &'a Scene,
+        instances: &'a [Instance],
+        camera: &'a Camera,
+        (width, height): (usize, usize),
+        opts: &'a ShadeOptions,
+        background: [u8; 4],
+    ) -> Self {
+        let sky = (opts.mode != ShadingMode::None).then(|| opts.sky.map(|s| s.rows(camera, height))).flatten();
+        Self {
+            scene,
+            lookup: Lookup::new(instances),
+            camera,
+            opts,
+            background,
+            sky,
+            default: Material::default(),
+            sx: 2.0 / width.max(1) as f32,
+            sy: 2.0 / height.max(1) as f32,
+            avx2: SimdLevel::Auto.resolve() >= SimdLevel::Avx2,
+        }
+    }
+
+    /// The color of an empty pixel (ID 0) in row `y`.
+    #[inline]
+    pub(crate) fn empty(&self, y: usize) -> [u8; 4] {
+        self.sky.as_ref().map_or(self.background, |s| s[y])
+    }
+
+    /// Colors `out[x]` of pixel `(x, y)` from its triangle ID `ids[x]`, with the task's
+    /// caches `st`.
+    pub(crate) fn row(&'a self, st: &mut Shader<'a>, ids: &[u32], y: usize, out: &mut [[u8; 4]]) {
+        let ids = &ids[..out.len()];
+        if self.opts.mode == ShadingMode::None {
+            out.fill(self.background);
+            return;
+        }
+        if st.pairs.is_empty() {
+            st.insts = (0..INST_CACHE).map(|_| None).collect();
+            st.pairs = vec![[0; 2]; TRI_CACHE];
+            st.full_ids = vec![0; TRI_CACHE];
+            st.full_at = vec![NONE; TRI_CACHE];
+        }
+        #[cfg(target_arch = "x86_64")]
+        if self.avx2 {
+            // SAFETY: the CPU has AVX2 (checked when the frame was made).
+            unsafe { self.row_avx2(st, ids, y, out) };
+            return;
+        }
+        self.row_runs(st, ids, 0, y, out);
+    }
+
+    /// [`ShadeFrame::row`] eight pixels at a time. Eight pixels of one ID (inside a
+    /// triangle) take one scalar cache lookup; others look up their eight slots with two
+    /// 64-bit gathers of (key, color) pairs. When every pixel is empty or finds its
+    /// triangle's constant color, the eight colors are stored at once; otherwise (a
+    /// triangle not yet prepared, or one that needs interpolation) those eight go through
+    /// [`ShadeFrame::row_runs`]. No branch depends on where a run of one ID ends, which on
+    /// small triangles was most of the cost of the run-by-run loop.
+    ///
+    /// # Safety
+    /// The CPU must have AVX2, and the caches must be allocated.
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2")]
+    unsafe fn row_avx2(&'a self, st: &mut Shader<'a>, ids: &[u32], y: usize, out: &mut [[u8; 4]]) {
+        use std::arch::x86_64::*;
+        let n = out.len() / 8 * 8;
+        let empty_color = u32::from_ne_bytes(self.empty(y));
+        let empty = _mm256_set1_epi32(empty_color as i32);
+        let (zero, mul) = (_mm256_setzero_si256(), _mm256_set1_epi32(0x9E37_79B1_u32 as i32));
+        let mask = _mm256_set1_epi32((TRI_CACHE - 1) as i32);
+        let order = _mm256_setr_epi32(0, 2, 4, 6, 1, 3, 5, 7);
+        let mut i = 0;
+        while i < n {
+            // SAFETY: `i + 8 <= n <= ids.len() == out.len()`, so the loads and the store
+            // stay inside the slices; slots are below TRI_CACHE, the length of `pairs` (the
+            // caller allocated it); `[u8; 4]` has the layout of a u32.
+            let (hit, color) = unsafe {
+                let v = _mm256_loadu_si256(ids.as_ptr().add(i) as *const __m256i);
+                let first = *ids.get_unchecked(i);
+                if _mm256_movemask_epi8(_mm256_cmpeq_epi32(v, _mm256_set1_epi32(first as i32))) == -1 {
+                    let [key, c] = *st.pairs.get_unchecked(slot(first));
+                    let c = if first == 0 { empty_color } else { c };
+                    (key == first || first == 0, _mm256_set1_epi32(c as i32))
+                } else {
+                    let s = _mm256_and_si256(_mm256_srli_epi32(_mm256_mullo_epi32(v, mul), 20), mask);
+                    // Taken afresh: `row_runs` below writes to the cache.
+                    let pairs = st.pairs.as_ptr() as *const i64;
+                    let lo = _mm256_i32gather_epi64(pairs, _mm256_castsi256_si128(s), 8);
+                    let hi = _mm256_i32gather_epi64(pairs, _mm256_extracti128_si256(s, 1), 8);
+                    // Each gather holds four (key, color) pairs: keys to the low half, colors
+                    // to the high half, then the two gathers' halves joined in lane order.
+                    let (lo, hi) = (_mm256_permutevar8x32_epi32(lo, order), _mm256_permutevar8x32_epi32(hi, order));
+                    let k = _mm256_permute2x128_si256(lo, hi, 0x20);
+                    let c = _mm256_permute2x128_si256(lo, hi, 0x31);
+                    let bg = _mm256_cmpeq_epi32(v, zero);
+                    // A key of 0 never matches a non-zero ID: full entries miss here.
+                    let hit = _mm256_or_si256(_mm256_cmpeq_epi32(k, v), bg);
+                    (_mm256_movemask_epi8(hit) == -1, _mm256_blendv_epi8(c, empty, bg))
+                }
+            };
+            if hit {
+                // SAFETY: as above.
+                unsafe { _mm256_storeu_si256(out.as_mut_ptr().add(i) as *mut __m256i, color) };
+            } else {
+                self.row_runs(st, &ids[i..i + 8], i, y, &mut out[i..i + 8]);
+            }
+            i += 8;
+        }
+        self.row_runs(st, &ids[n..], n, y, &mut out[n..]);
+    }
+
+    /// [`ShadeFrame::row`] run by run, for the pixels from column `x0` on: one cache lookup
+    /// (and, on a miss, the triangle's preparation) and one fill per run of one ID. The
+    /// caches must be allocated.
+    fn row_runs(&'a self, st: &mut Shader<'a>, ids: &[u32], x0: usize, y: usize, out: &mut [[u8; 4]]) {
+        let row_y = ndc_y(y, self.sy);
+        let mut x = 0;
+        while x < out.len() {
+            let id = ids[x];
+            let end = run_end(ids, x + 1, id);
+            if id == 0 {
+                out[x..end].fill(self.empty(y));
+                x = end;
+                continue;
+            }
+            let s = slot(id);
+            if st.pairs[s][0] != id && st.full_ids[s] != id {
+                match self.prepare(id, &mut st.insts, &mut st.hint) {
+                    Some(Prepared::Full(e)) => {
+                        // Reuse the entry this slot last held, else append one.
+                        match st.full_at[s] {
+                            NONE => {
+                                st.full_at[s] = st.fulls.len() as u32;
+                                st.fulls.push(e);
+                            }
+                            at => st.fulls[at as usize] = e,
+                        }
+                        (st.pairs[s][0], st.full_ids[s]) = (0, id);
+                    }
+                    // An ID no instance claims is drawn in the background color.
+                    p => {
+                        let c = match p {
+                            Some(Prepared::Constant(k)) => k,
+                            _ => self.background,
+                        };
+                        (st.pairs[s], st.full_ids[s]) = ([id, u32::from_ne_bytes(c)], 0);
+                    }
+                }
+            }
+            if st.pairs[s][0] == id {
+                out[x..end].fill(st.pairs[s][1].to_ne_bytes());
+            } else {
+                let entry = &st.fulls[st.full_at[s] as usize];
+                for (px, c) in out[x..end].iter_mut().enumerate() {
+                    let p = Vec3A::new(ndc_x(x0 + x + px, self.sx), row_y, 1.0);
+                    *c = entry.shader.shade(entry.weights(p, self.opts.perspective_correct), self.opts);
+                }
+            }
+            x = end;
+        }
+    }
+
+    /// Prepares triangle `id` for shading: its constant color, or its full entry.
+    fn prepare(&'a self, id: u32, insts: &mut [Option<InstEntry<'a>>], hint: &mut u32) -> Option<Prepared<'a>> {
+        let (scene, opts) = (self.scene, self.opts);
+        let g = id - 1;
+        let index = self.lookup.find_hinted(g, hint)?;
+        let inst = &self.lookup.instances[index as usize];
+        let slot = index as usize & (INST_CACHE - 1);
+        if !matches!(&insts[slot], Some(e) if e.index == index) {
+            let mesh = scene.mesh(inst.mesh)?;
+            let material = inst.material.and_then(|m| scene.material(m)).unwrap_or(&self.default);
+            insts[slot] = Some(InstEntry {
+                index,
+                clip: self.camera.clip_from_local(&inst.world_from_local),
+                shading: InstanceShading::new(inst.world_from_local, material),
+                mesh,
+            });
+        }
+        let e = insts[slot].as_ref()?;
+        let t = (g - inst.first_triangle) as usize;
+        if t >= e.mesh.triangle_count() {
+            return None;
+        }
+        let eye = self.camera.view.eye;
+        if let Some(k) = crate::shading::flat_color(&e.shading, e.mesh, t, eye, opts) {
+            // No interpolation needed: skip the clip-space rows.
+            return Some(Prepared::Constant(k));
+        }
+        let shader = TriangleShader::new(&e.shading, e.mesh, t, eye, opts);
+        Some(Prepared::Full(TriEntry::new(&e.clip, e.mesh, t, shader)))
+    }
+}
 
 /// The end of the run of `id` in `row` that continues at `from`: the first position at or
 /// after `from` holding another ID, or the row's length. Eight IDs per step while the run
@@ -256,62 +438,59 @@ fn run_end(row: &[u32], from: usize, id: u32) -> usize {
     x
 }
 
-/// A triangle cache slot: the ID it holds, its color when constant, else its full entry.
-#[derive(Clone, Copy)]
-struct Slot {
-    id: u32,
-    color: [u8; 4],
-    full: u32,
-}
-
 #[allow(clippy::large_enum_variant)] // a short-lived return value; boxing would allocate
 enum Prepared<'a> {
     Constant([u8; 4]),
     Full(TriEntry<'a>),
 }
 
-#[allow(clippy::too_many_arguments)]
-fn prepare<'a>(
-    id: u32,
-    lookup: &Lookup,
-    insts: &mut [Option<InstEntry<'a>>],
-    scene: &'a Scene,
-    camera: &Camera,
-    eye: Vec3,
-    default: &'a Material,
-    opts: &ShadeOptions,
-    hint: &mut u32,
-) -> Option<Prepared<'a>> {
-    let g = id - 1;
-    let index = lookup.find_hinted(g, hint)?;
-    let inst = &lookup.instances[index as usize];
-    let slot = index as usize & (INST_CACHE - 1);
-    if !matches!(&insts[slot], Some(e) if e.index == index) {
-        let mesh = scene.mesh(inst.mesh)?;
-        let material = inst.material.and_then(|m| scene.material(m)).unwrap_or(default);
-        insts[slot] = Some(InstEntry {
-            index,
-            clip: camera.clip_from_local(&inst.world_from_local),
-            shading: InstanceShading::new(inst.world_from_local, material),
-            mesh,
-        });
-    }
-    let e = insts[slot].as_ref()?;
-    let t = (g - inst.first_triangle) as usize;
-    if t >= e.mesh.triangle_count() {
-        return None;
-    }
-    if let Some(k) = crate::shading::flat_color(&e.shading, e.mesh, t, eye, opts) {
-        // No interpolation needed: skip the clip-space rows.
-        return Some(Prepared::Constant(k));
-    }
-    let shader = TriangleShader::new(&e.shading, e.mesh, t, eye, opts);
-    Some(Prepared::Full(TriEntry::new(&e.clip, e.mesh, t, shader)))
-}
-
 #[cfg(test)]
 mod tests {
-    use super::run_end;
+    use super::*;
+    use crate::{RenderOptions, Renderer, Sky};
+    use sightline_scene::builders::{city, CityParams};
+
+    /// The gathered eight-pixel rows give the colors of the run-by-run rows, bit for bit:
+    /// flat triangles (the gathers' fast path), interpolated ones (entries the gathers
+    /// miss), the sky, and a cache with many triangles sharing slots (a small city seen
+    /// along a street, at two sizes so rows end mid-group).
+    #[test]
+    fn gathered_rows_equal_run_by_run_rows() {
+        if SimdLevel::Auto.resolve() < SimdLevel::Avx2 {
+            return; // only the run-by-run rows exist here
+        }
+        let c = city(&CityParams::for_triangles(30_000)).unwrap();
+        let instances = c.scene.instances();
+        let items = crate::draw_all(&instances);
+        let mut renderer = Renderer::new();
+        for (w, h) in [(320, 180), (203, 97)] {
+            let mut fb = Framebuffer::new(w, h).unwrap();
+            for key in c.layout.street_path(3, 5) {
+                let cam = key.camera(w as f32 / h as f32).unwrap();
+                renderer.render(&c.scene, &instances, &items, &cam, &mut fb, &RenderOptions::ids_only()).unwrap();
+                assert!(fb.ids.contains(&0) && fb.ids.iter().any(|&i| i != 0));
+                for mode in [ShadingMode::Flat, ShadingMode::Gouraud, ShadingMode::PerPixel] {
+                    for sky in [None, Some(Sky::default())] {
+                        let opts = ShadeOptions { mode, sky, ..Default::default() };
+                        let size = (w as usize, h as usize);
+                        let frames = [false, true].map(|avx2| ShadeFrame {
+                            avx2,
+                            ..ShadeFrame::new(&c.scene, &instances, &cam, size, &opts, [9, 8, 7, 255])
+                        });
+                        let mut colors = [vec![[0u8; 4]; w as usize], vec![[0u8; 4]; w as usize]];
+                        let mut shaders = [Shader::default(), Shader::default()];
+                        for y in 0..h as usize {
+                            let ids = &fb.ids[y * w as usize..(y + 1) * w as usize];
+                            for (k, frame) in frames.iter().enumerate() {
+                                frame.row(&mut shaders[k], ids, y, &mut colors[k]);
+                            }
+                            assert_eq!(colors[0], colors[1], "{mode:?}, sky {}, row {y}", sky.is_some());
+                        }
+                    }
+                }
+            }
+        }
+    }
 
     /// The eight-at-a-time scan ends every run where a plain scan does, at every run length
     /// and start, at the row's end too.
