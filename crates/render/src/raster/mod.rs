@@ -236,9 +236,19 @@ fn tiles_in<D: DepthCodec>(
     };
     // Costliest tiles first (by binned triangles), claimed one at a time (see
     // [`crate::claim`]).
-    let cost = |i: usize| pass.chunks.iter().map(|c| c.bins[i].len()).sum::<usize>();
-    let mut order: Vec<(usize, usize, (&mut TileBuf, &mut TileLevels))> =
-        tiles.iter_mut().zip(levels.iter_mut()).enumerate().map(|(i, p)| (cost(i), i, p)).collect();
+    // A tile with nothing binned only needs work when a fresh target is cleared through it;
+    // otherwise it is settled here, so that the many small batches of an occlusion pass
+    // hand out only the few tiles they touch.
+    let clears = pass.fresh && pass.target.is_some();
+    let mut order: Vec<(usize, usize, (&mut TileBuf, &mut TileLevels))> = Vec::with_capacity(tiles.len());
+    for (i, (tile, lv)) in tiles.iter_mut().zip(levels.iter_mut()).enumerate() {
+        let cost = pass.chunks.iter().map(|c| c.bins[i].len()).sum::<usize>();
+        if cost == 0 && !clears {
+            tile.dirty = false;
+        } else {
+            order.push((cost, i, (tile, lv)));
+        }
+    }
     order.sort_unstable_by_key(|&(c, i, _)| (std::cmp::Reverse(c), i));
     // Outside sessions a tile's pixels live in the target between passes, so the tile is
     // drawn in one scratch buffer per worker: it stays in the core's cache, where the 240
