@@ -177,7 +177,7 @@ pub fn shade_pass(
 
 /// What shading one frame needs, shared by every task that shades part of it: the scene
 /// and its instances, the camera, the options, the background and the sky's row colors.
-pub(crate) struct ShadeFrame<'a> {
+struct ShadeFrame<'a> {
     scene: &'a Scene,
     lookup: Lookup<'a>,
     camera: &'a Camera,
@@ -203,7 +203,7 @@ pub(crate) struct ShadeFrame<'a> {
 /// and whose entry is `fulls[full_at[s]]`; a slot keeps its entry in `fulls` for the next
 /// such triangle. (ID 0, the background, is never cached.)
 #[derive(Default)]
-pub(crate) struct Shader<'a> {
+struct Shader<'a> {
     insts: Vec<Option<InstEntry<'a>>>,
     pairs: Vec<[u32; 2]>,
     full_ids: Vec<u32>,
@@ -224,7 +224,7 @@ fn slot(id: u32) -> usize {
 
 impl<'a> ShadeFrame<'a> {
     /// The shading of a `width × height` frame of `scene` seen by `camera`.
-    pub(crate) fn new(
+    fn new(
         scene: &'a Scene,
         instances: &'a [Instance],
         camera: &'a Camera,
@@ -249,13 +249,13 @@ impl<'a> ShadeFrame<'a> {
 
     /// The color of an empty pixel (ID 0) in row `y`.
     #[inline]
-    pub(crate) fn empty(&self, y: usize) -> [u8; 4] {
+    fn empty(&self, y: usize) -> [u8; 4] {
         self.sky.as_ref().map_or(self.background, |s| s[y])
     }
 
     /// Colors `out[x]` of pixel `(x, y)` from its triangle ID `ids[x]`, with the task's
     /// caches `st`.
-    pub(crate) fn row(&'a self, st: &mut Shader<'a>, ids: &[u32], y: usize, out: &mut [[u8; 4]]) {
+    fn row(&'a self, st: &mut Shader<'a>, ids: &[u32], y: usize, out: &mut [[u8; 4]]) {
         let ids = &ids[..out.len()];
         if self.opts.mode == ShadingMode::None {
             out.fill(self.background);

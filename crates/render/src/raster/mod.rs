@@ -234,11 +234,10 @@ fn tiles_in<D: DepthCodec>(
         (_, false) => |t, l, i, p| unsafe { raster_tile::<D, false, Rows>(t, l, i, p) },
         (_, true) => |t, l, i, p| unsafe { raster_tile::<D, true, Rows>(t, l, i, p) },
     };
-    // Costliest tiles first (by binned triangles), claimed one at a time (see
-    // [`crate::claim`]).
-    // A tile with nothing binned only needs work when a fresh target is cleared through it;
-    // otherwise it is settled here, so that the many small batches of an occlusion pass
-    // hand out only the few tiles they touch.
+    // Tiles are claimed one at a time, costliest (most binned triangles) first; see
+    // [`crate::claim`]. A tile with nothing binned needs work only when a fresh target is
+    // cleared through it; otherwise it is settled here, so that the many small batches of
+    // an occlusion pass hand out only the few tiles they touch.
     let clears = pass.fresh && pass.target.is_some();
     let mut order: Vec<(usize, usize, (&mut TileBuf, &mut TileLevels))> = Vec::with_capacity(tiles.len());
     for (i, (tile, lv)) in tiles.iter_mut().zip(levels.iter_mut()).enumerate() {
