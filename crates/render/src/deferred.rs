@@ -311,6 +311,7 @@ impl<'a> ShadeFrame<'a> {
                     let c = if first == 0 { empty_color } else { c };
                     (key == first || first == 0, _mm256_set1_epi32(c as i32))
                 } else {
+                    // `slot` in eight lanes.
                     let s = _mm256_and_si256(_mm256_srli_epi32(_mm256_mullo_epi32(v, mul), 20), mask);
                     // Taken afresh: `row_runs` below writes to the cache.
                     let pairs = st.pairs.as_ptr() as *const i64;

@@ -242,9 +242,9 @@ fn tiles_in<D: DepthCodec>(
     let mut order: Vec<(usize, usize, (&mut TileBuf, &mut TileLevels))> = Vec::with_capacity(tiles.len());
     for (i, (tile, lv)) in tiles.iter_mut().zip(levels.iter_mut()).enumerate() {
         let cost = pass.chunks.iter().map(|c| c.bins[i].len()).sum::<usize>();
-        if cost == 0 && !clears {
-            tile.dirty = false;
-        } else {
+        // Whether the tile draws in this pass, decided here once for `raster_tile`.
+        tile.dirty = cost > 0;
+        if tile.dirty || clears {
             order.push((cost, i, (tile, lv)));
         }
     }
@@ -259,10 +259,8 @@ fn tiles_in<D: DepthCodec>(
         |(sum, buf), (_, i, (tile, lv))| {
             let st = match buf {
                 Some(s) => {
-                    (s.x0, s.y0, s.w, s.h) = (tile.x0, tile.y0, tile.w, tile.h);
-                    let st = f(s, lv, i, pass);
-                    tile.dirty = s.dirty;
-                    st
+                    (s.x0, s.y0, s.w, s.h, s.dirty) = (tile.x0, tile.y0, tile.w, tile.h, tile.dirty);
+                    f(s, lv, i, pass)
                 }
                 None => f(tile, lv, i, pass),
             };
@@ -274,6 +272,7 @@ fn tiles_in<D: DepthCodec>(
 
 /// One tile of the tile stage: in a session, clear on first use and keep the pyramid
 /// levels; otherwise start from the clear values (fresh) or load the target's pixels.
+/// `tile.dirty` says whether anything is binned to it ([`tiles_in`] sets it).
 ///
 /// # Safety
 /// The CPU must support `K`'s instruction set.
@@ -285,7 +284,6 @@ unsafe fn raster_tile<D: DepthCodec, const C: bool, K: Kernel>(
     pass: &TilePass,
 ) -> TileStats {
     let mut st = TileStats::default();
-    tile.dirty = pass.chunks.iter().any(|c| !c.bins[index].is_empty());
     if !tile.dirty {
         if let (Some(out), true) = (pass.target, pass.fresh) {
             // SAFETY: this task is the only one on tile `index`, whose rectangle no other

@@ -145,8 +145,8 @@ fn shift_link(link: u32, count: u32, node_base: u32, prim_base: u32) -> u32 {
     }
 }
 
-/// Which builder runs and how hard it works: leaf size, PLOC search effort, reinsertion
-/// effort. The two settings are the ones the ray caster's levels use.
+/// Which builder runs and how hard it works. The two settings are the ones the ray
+/// caster's levels use.
 #[derive(Debug, Clone, Copy)]
 pub struct WideBuildParams {
     /// Largest leaf.
@@ -154,30 +154,42 @@ pub struct WideBuildParams {
     /// Cost of a traversal step relative to a primitive test (obvhs's leaf collapse; the
     /// SAH builder's choice between a leaf and two).
     traversal_cost: f32,
-    /// PLOC neighbourhood (PLOC builds only).
+    builder: Builder,
+}
+
+/// The builder of a [`WideBvh`], with the settings only it reads.
+#[derive(Debug, Clone, Copy)]
+pub(crate) enum Builder {
+    /// Top-down binned SAH writing 4-wide nodes directly (`sah`).
+    BinnedSah,
+    /// PLOC, then obvhs's reinsertion and leaf collapse, then the 4-wide layout.
+    Ploc(Ploc),
+}
+
+/// The PLOC builder's settings.
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct Ploc {
+    /// PLOC neighbourhood.
     search: PlocSearchDistance,
-    /// Reinsertion effort (0 = none; PLOC builds only).
+    /// Reinsertion effort (0 = none).
     reinsertion: f32,
-    /// Build top-down by binned SAH (`sah`) instead of PLOC, reinsertion and collapse.
-    binned_sah: bool,
 }
 
 impl WideBuildParams {
     /// For triangle BVHs traversed by packets: binned SAH, up to four triangles per leaf.
-    pub const BLAS: WideBuildParams = WideBuildParams {
-        max_leaf: 4,
-        traversal_cost: 1.0,
-        search: PlocSearchDistance::Low,
-        reinsertion: 0.05,
-        binned_sah: true,
-    };
+    pub const BLAS: WideBuildParams = WideBuildParams { max_leaf: 4, traversal_cost: 1.0, builder: Builder::BinnedSah };
     /// For the instance BVH: PLOC, one instance per leaf.
     pub const TLAS: WideBuildParams = WideBuildParams {
         max_leaf: 1,
         traversal_cost: 1.0,
-        search: PlocSearchDistance::Medium,
-        reinsertion: 0.1,
-        binned_sah: false,
+        builder: Builder::Ploc(Ploc { search: PlocSearchDistance::Medium, reinsertion: 0.1 }),
+    };
+    /// [`WideBuildParams::BLAS`] built by PLOC (what BLASes used before the SAH builder),
+    /// for tests that hold the two builders side by side.
+    #[cfg(test)]
+    pub(crate) const BLAS_PLOC: WideBuildParams = WideBuildParams {
+        builder: Builder::Ploc(Ploc { search: PlocSearchDistance::Low, reinsertion: 0.05 }),
+        ..WideBuildParams::BLAS
     };
 }
 
@@ -231,19 +243,17 @@ impl WideBvh {
     /// Builds over obvhs boxes (all finite); what [`WideBvh::build`] does after converting.
     /// Large PLOC builds run as four Morton runs in parallel (see `split`).
     pub(crate) fn build_obvhs(boxes: &[ObAabb], params: WideBuildParams) -> WideBvh {
-        if params.binned_sah {
-            return sah::build(boxes.len(), params.max_leaf, params.traversal_cost, |i| boxes[i]);
+        match params.builder {
+            Builder::BinnedSah => sah::build(boxes.len(), params.max_leaf, params.traversal_cost, |i| boxes[i]),
+            Builder::Ploc(ploc) if boxes.len() >= split::SPLIT_MIN => split::build_split(boxes, params, ploc),
+            Builder::Ploc(ploc) => Self::build_serial(boxes, params, ploc),
         }
-        if boxes.len() >= split::SPLIT_MIN {
-            return split::build_split(boxes, params);
-        }
-        Self::build_serial(boxes, params)
     }
 
     /// Builds over `count` primitives whose boxes (all finite) `bounds(i)` gives, without
     /// gathering the boxes first where the builder does not need them in an array.
     pub(crate) fn build_fn(count: usize, params: WideBuildParams, bounds: impl Fn(usize) -> ObAabb + Sync) -> WideBvh {
-        if params.binned_sah {
+        if let Builder::BinnedSah = params.builder {
             return sah::build(count, params.max_leaf, params.traversal_cost, bounds);
         }
         let boxes: Vec<ObAabb> = (0..count).into_par_iter().map(&bounds).collect();
@@ -251,13 +261,13 @@ impl WideBvh {
     }
 
     /// One PLOC build, reinsertion and collapse over all of `boxes`.
-    fn build_serial(boxes: &[ObAabb], params: WideBuildParams) -> WideBvh {
+    fn build_serial(boxes: &[ObAabb], params: WideBuildParams, ploc: Ploc) -> WideBvh {
         if boxes.is_empty() {
             return WideBvh { root: WideChild::EMPTY, nodes: Vec::new(), order: Vec::new(), depth: 0 };
         }
-        let (mut bvh2, _) = super::ploc::build(boxes, params.search, 2);
+        let (mut bvh2, _) = super::ploc::build(boxes, ploc.search, 2);
         let mut reinsert = ReinsertionOptimizer::default();
-        reinsert.run(&mut bvh2, params.reinsertion, None);
+        reinsert.run(&mut bvh2, ploc.reinsertion, None);
         collapse(&mut bvh2, params.max_leaf.clamp(1, 255), params.traversal_cost);
         Self::from_bvh2(&bvh2)
     }

@@ -561,7 +561,7 @@ mod tests {
         }
         let n = boxes.len();
         let sah = build(n, 4, 1.0, |i| boxes[i]);
-        let ploc = WideBvh::build_obvhs(&boxes, WideBuildParams { binned_sah: false, ..WideBuildParams::BLAS });
+        let ploc = WideBvh::build_obvhs(&boxes, WideBuildParams::BLAS_PLOC);
         sah.validate(n).unwrap();
         assert!(sah.sah_cost() <= ploc.sah_cost(), "SAH {} against PLOC {}", sah.sah_cost(), ploc.sah_cost());
     }

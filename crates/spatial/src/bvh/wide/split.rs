@@ -13,14 +13,15 @@
 use obvhs::aabb::Aabb as ObAabb;
 use rayon::prelude::*;
 
-use super::{WideBuildParams, WideBvh, WideChild, WideNode, WIDTH};
+use super::{Ploc, WideBuildParams, WideBvh, WideChild, WideNode, WIDTH};
 
 /// Smallest input built in parallel runs; below it one serial build is fast enough (and
 /// small trees, such as the instanced city's building meshes, keep their serial shape).
 pub(crate) const SPLIT_MIN: usize = 1 << 17;
 
-/// Builds over `boxes` as [`WIDTH`] Morton runs in parallel, joined under one root.
-pub(crate) fn build_split(boxes: &[ObAabb], params: WideBuildParams) -> WideBvh {
+/// Builds over `boxes` as [`WIDTH`] Morton runs in parallel by PLOC (settings `ploc`),
+/// joined under one root.
+pub(crate) fn build_split(boxes: &[ObAabb], params: WideBuildParams, ploc: Ploc) -> WideBvh {
     let keys = crate::bvh::ploc::morton_keys(boxes);
     let order: Vec<u32> = keys.iter().map(|k| k.1).collect();
     let mut bounds = vec![0];
@@ -34,7 +35,7 @@ pub(crate) fn build_split(boxes: &[ObAabb], params: WideBuildParams) -> WideBvh 
         .into_par_iter()
         .map(|ids| {
             let sub: Vec<ObAabb> = ids.iter().map(|&i| boxes[i as usize]).collect();
-            let mut t = WideBvh::build_serial(&sub, params);
+            let mut t = WideBvh::build_serial(&sub, params, ploc);
             for o in &mut t.order {
                 *o = ids[*o as usize];
             }
@@ -97,8 +98,15 @@ fn join(parts: Vec<WideBvh>) -> WideBvh {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::bvh::wide::EMPTY_LINK;
+    use crate::bvh::wide::{Builder, EMPTY_LINK};
     use glam::Vec3A;
+
+    /// A split PLOC build with the BLAS settings.
+    fn blas_split(boxes: &[ObAabb]) -> WideBvh {
+        let params = WideBuildParams::BLAS_PLOC;
+        let Builder::Ploc(ploc) = params.builder else { unreachable!("BLAS_PLOC builds by PLOC") };
+        build_split(boxes, params, ploc)
+    }
 
     #[test]
     fn split_builds_are_valid_and_thread_independent() {
@@ -113,8 +121,8 @@ mod tests {
             .collect();
         let one = rayon::ThreadPoolBuilder::new().num_threads(1).build().unwrap();
         let two = rayon::ThreadPoolBuilder::new().num_threads(2).build().unwrap();
-        let a = one.install(|| build_split(&boxes, WideBuildParams::BLAS));
-        let b = two.install(|| build_split(&boxes, WideBuildParams::BLAS));
+        let a = one.install(|| blas_split(&boxes));
+        let b = two.install(|| blas_split(&boxes));
         a.validate(n).unwrap();
         assert_eq!(a.order, b.order);
         assert_eq!(a.nodes.len(), b.nodes.len());
@@ -130,7 +138,7 @@ mod tests {
         assert_eq!(cell_cut(&keys, 50, 1), 50);
         // Fewer than four primitives: some runs empty, still valid.
         for m in [1usize, 2, 3, 5] {
-            build_split(&boxes[..m], WideBuildParams::BLAS).validate(m).unwrap();
+            blas_split(&boxes[..m]).validate(m).unwrap();
         }
     }
 }
