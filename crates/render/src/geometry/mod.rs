@@ -18,6 +18,7 @@
 //! At the AVX-512 level the AVX2 code runs.
 
 use glam::{Mat4, Vec3, Vec4};
+use sightline_spatial::prefetch_all;
 use sightline_spatial::simd::SimdLevel;
 
 use crate::clip::{self, BAD, GUARD, VIEW_BITS};
@@ -135,7 +136,16 @@ impl Chunk {
     ) {
         self.tris.clear();
         self.stats = FrameStats::default();
-        for p in pieces {
+        for (n, p) in pieces.iter().enumerate() {
+            // Pieces are often small clusters scattered over memory: ask for the indices
+            // and IDs two pieces ahead, and for the vertices of the next one (its indices
+            // asked for one piece earlier).
+            if let Some(a) = pieces.get(n + 2) {
+                prefetch_piece(items, a, false);
+            }
+            if let Some(a) = pieces.get(n + 1) {
+                prefetch_piece(items, a, true);
+            }
             let item = &items[p.item as usize];
             match item.src {
                 Source::Mesh { positions, indices, ref clip_from_local, ids } => {
@@ -265,6 +275,28 @@ impl Chunk {
             // Facing was decided above; each fan piece is oriented by its own area.
             let o = setup_into([s[0], s[i], s[i + 1]], id, false, vp, &mut self.tris);
             self.count(o);
+        }
+    }
+}
+
+/// Prefetches piece `p`'s indices and triangle IDs, or (`vertices`) its first vertices:
+/// those from its first index on, as many as it has triangles (a meshlet numbers its
+/// vertices in order of first use, so they start at its first index).
+#[inline(always)]
+fn prefetch_piece(items: &[Item], p: &Piece, vertices: bool) {
+    if let Source::Mesh { positions, indices, ids, .. } = items[p.item as usize].src {
+        let (s, c) = (p.start as usize, p.count as usize);
+        let Some(idx) = indices.get(3 * s..3 * (s + c)) else { return };
+        if vertices {
+            if let Some(&lo) = idx.first() {
+                let lo = lo as usize;
+                prefetch_all(positions.get(lo..(lo + c).min(positions.len())).unwrap_or(&[]));
+            }
+        } else {
+            prefetch_all(idx);
+            if let Some(m) = ids.and_then(|m| m.get(s..s + c)) {
+                prefetch_all(m);
+            }
         }
     }
 }
