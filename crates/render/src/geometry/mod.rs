@@ -138,13 +138,13 @@ impl Chunk {
         self.stats = FrameStats::default();
         for (n, p) in pieces.iter().enumerate() {
             // Pieces are often small clusters scattered over memory: ask for the indices
-            // and IDs two pieces ahead, and for the vertices of the next one (its indices
-            // asked for one piece earlier).
+            // and IDs two pieces ahead, and for the vertices of the next one (whose indices
+            // were asked for one piece earlier).
             if let Some(a) = pieces.get(n + 2) {
-                prefetch_piece(items, a, false);
+                prefetch_indices(items, a);
             }
             if let Some(a) = pieces.get(n + 1) {
-                prefetch_piece(items, a, true);
+                prefetch_vertices(items, a);
             }
             let item = &items[p.item as usize];
             match item.src {
@@ -279,24 +279,38 @@ impl Chunk {
     }
 }
 
-/// Prefetches piece `p`'s indices and triangle IDs, or (`vertices`) its first vertices:
-/// those from its first index on, as many as it has triangles (a meshlet numbers its
-/// vertices in order of first use, so they start at its first index).
+/// Triangles of a piece whose data [`prefetch_indices`] and [`prefetch_vertices`] ask for:
+/// enough for a cluster (about 1 KB of indices); past that, a long piece's sequential
+/// reads are the hardware prefetcher's to follow, and asking for all of a whole mesh would
+/// only evict what is in use.
+const PREFETCH_TRIANGLES: usize = 96;
+
+/// The mesh and triangle range of piece `p` (the first [`PREFETCH_TRIANGLES`]), if it has one.
 #[inline(always)]
-fn prefetch_piece(items: &[Item], p: &Piece, vertices: bool) {
-    if let Source::Mesh { positions, indices, ids, .. } = items[p.item as usize].src {
-        let (s, c) = (p.start as usize, p.count as usize);
-        let Some(idx) = indices.get(3 * s..3 * (s + c)) else { return };
-        if vertices {
-            if let Some(&lo) = idx.first() {
-                let lo = lo as usize;
-                prefetch_all(positions.get(lo..(lo + c).min(positions.len())).unwrap_or(&[]));
-            }
-        } else {
-            prefetch_all(idx);
-            if let Some(m) = ids.and_then(|m| m.get(s..s + c)) {
-                prefetch_all(m);
-            }
+fn piece_head<'a>(items: &[Item<'a>], p: &Piece) -> Option<(&'a [Vec3], &'a [u32], Option<&'a [u32]>)> {
+    let Source::Mesh { positions, indices, ids, .. } = items[p.item as usize].src else { return None };
+    let (s, c) = (p.start as usize, (p.count as usize).min(PREFETCH_TRIANGLES));
+    let ids = ids.and_then(|m| m.get(s..s + c));
+    Some((positions, indices.get(3 * s..3 * (s + c))?, ids))
+}
+
+/// Asks for the indices and triangle IDs of piece `p`.
+#[inline(always)]
+fn prefetch_indices(items: &[Item], p: &Piece) {
+    if let Some((_, idx, ids)) = piece_head(items, p) {
+        prefetch_all(idx);
+        prefetch_all(ids.unwrap_or(&[]));
+    }
+}
+
+/// Asks for the first vertices of piece `p`: from its first index on, as many as it has
+/// triangles (a meshlet numbers its vertices in order of first use, so they start there).
+#[inline(always)]
+fn prefetch_vertices(items: &[Item], p: &Piece) {
+    if let Some((positions, idx, _)) = piece_head(items, p) {
+        if let Some(&lo) = idx.first() {
+            let lo = lo as usize;
+            prefetch_all(positions.get(lo..(lo + idx.len() / 3).min(positions.len())).unwrap_or(&[]));
         }
     }
 }
