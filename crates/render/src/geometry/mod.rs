@@ -285,21 +285,29 @@ impl Chunk {
 /// only evict what is in use.
 const PREFETCH_TRIANGLES: usize = 96;
 
-/// The mesh and triangle range of piece `p` (the first [`PREFETCH_TRIANGLES`]), if it has one.
+/// What the prefetches of a piece read: its mesh's positions, and its first
+/// [`PREFETCH_TRIANGLES`] triangles' indices and IDs (empty without IDs).
+struct PieceHead<'a> {
+    positions: &'a [Vec3],
+    indices: &'a [u32],
+    ids: &'a [u32],
+}
+
+/// The [`PieceHead`] of piece `p`, when it draws from a mesh.
 #[inline(always)]
-fn piece_head<'a>(items: &[Item<'a>], p: &Piece) -> Option<(&'a [Vec3], &'a [u32], Option<&'a [u32]>)> {
+fn piece_head<'a>(items: &[Item<'a>], p: &Piece) -> Option<PieceHead<'a>> {
     let Source::Mesh { positions, indices, ids, .. } = items[p.item as usize].src else { return None };
     let (s, c) = (p.start as usize, (p.count as usize).min(PREFETCH_TRIANGLES));
-    let ids = ids.and_then(|m| m.get(s..s + c));
-    Some((positions, indices.get(3 * s..3 * (s + c))?, ids))
+    let ids = ids.and_then(|m| m.get(s..s + c)).unwrap_or(&[]);
+    Some(PieceHead { positions, indices: indices.get(3 * s..3 * (s + c))?, ids })
 }
 
 /// Asks for the indices and triangle IDs of piece `p`.
 #[inline(always)]
 fn prefetch_indices(items: &[Item], p: &Piece) {
-    if let Some((_, idx, ids)) = piece_head(items, p) {
-        prefetch_all(idx);
-        prefetch_all(ids.unwrap_or(&[]));
+    if let Some(h) = piece_head(items, p) {
+        prefetch_all(h.indices);
+        prefetch_all(h.ids);
     }
 }
 
@@ -307,10 +315,10 @@ fn prefetch_indices(items: &[Item], p: &Piece) {
 /// triangles (a meshlet numbers its vertices in order of first use, so they start there).
 #[inline(always)]
 fn prefetch_vertices(items: &[Item], p: &Piece) {
-    if let Some((positions, idx, _)) = piece_head(items, p) {
-        if let Some(&lo) = idx.first() {
+    if let Some(h) = piece_head(items, p) {
+        if let Some(&lo) = h.indices.first() {
             let lo = lo as usize;
-            prefetch_all(positions.get(lo..(lo + idx.len() / 3).min(positions.len())).unwrap_or(&[]));
+            prefetch_all(h.positions.get(lo..(lo + h.indices.len() / 3).min(h.positions.len())).unwrap_or(&[]));
         }
     }
 }
