@@ -367,9 +367,7 @@ impl Culler {
             // Counting walks the BVH nodes the frustum's boundary cuts: about 3 ms of cache
             // misses on one thread in the street view of a 10^9-triangle city. It overlaps
             // the shading pass, whose bands go to whichever worker is free.
-            let (in_frustum, ms) = rayon::join(|| self.c.clustered.count_in_frustum(&frustum), shade);
-            (cs.clusters_in_frustum, cs.culled_by_frustum) = (in_frustum, cs.clusters - in_frustum);
-            ms
+            rayon::join(|| self.c.count_in_frustum(&frustum, &mut cs), shade).1
         };
         cs.culled_by_occlusion = cs.clusters_in_frustum.saturating_sub(cs.clusters_drawn + cs.culled_by_backface);
         fs.ms_shading = cs.ms_shading;
@@ -405,7 +403,8 @@ impl Culler {
     ) -> Result<(CullStats, FrameStats, OccluderPass<'_>)> {
         let t0 = Instant::now();
         let mut cs = CullStats { clusters: self.c.clustered.item_count() as u64, ..Default::default() };
-        let frustum = self.c.frustum_count(camera, &mut cs);
+        let frustum = Frustum::from_camera(camera);
+        self.c.count_in_frustum(&frustum, &mut cs);
         let batching = self.batching();
         let mut session = self.renderer.begin(fb, opts);
         // Front to back in growing batches, so that the coarse depth test of the rasterizer

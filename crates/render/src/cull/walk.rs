@@ -69,16 +69,13 @@ impl Clusters {
         frustum
     }
 
-    /// Starts an occluder pass, whose walk tests the frustum itself: only the clusters in
-    /// the view frustum are counted into `cs`, through whole BVH subtrees inside it, not
-    /// listed (a listing costs as much as the clusters in view: 2 × 10^6 and 15 ms in the
-    /// street view of a 10^9-triangle city); returns the frustum. (The occlusion methods'
-    /// frames count the same way, while they shade.)
-    pub(super) fn frustum_count(&self, camera: &Camera, cs: &mut CullStats) -> Frustum {
-        let frustum = Frustum::from_camera(camera);
-        cs.clusters_in_frustum = self.clustered.count_in_frustum(&frustum);
+    /// Counts the clusters in `frustum` into `cs`, for the occlusion methods, whose walks
+    /// test the frustum themselves: through whole BVH subtrees inside it, not listed (a
+    /// listing costs as much as the clusters in view: 2 × 10^6 and 15 ms in the street view
+    /// of a 10^9-triangle city).
+    pub(super) fn count_in_frustum(&self, frustum: &Frustum, cs: &mut CullStats) {
+        cs.clusters_in_frustum = self.clustered.count_in_frustum(frustum);
         cs.culled_by_frustum = cs.clusters - cs.clusters_in_frustum;
-        frustum
     }
 
     /// Drops clusters whose triangles all face away from the eye (normal cones), counting them.
