@@ -13,6 +13,14 @@
 //! depend on culling, so `brute / oracle` is the largest speed-up any culling can give this
 //! renderer. Each oracle frame's ID buffer is checked to equal the brute-force one.
 //!
+//! A second bound is for culling by cluster boxes, as `hzb` does: a cluster can be skipped
+//! only when its box's screen rectangle, at the box's nearest depth, lies behind every pixel
+//! of the finished depth buffer. The example counts the clusters (and their triangles) that
+//! pass this exact per-pixel test against the final frame: no box test against any
+//! z-pyramid of this frame can skip them, so no box-culling method draws fewer. Beside them:
+//! the clusters `hzb` drew, and those holding a visible triangle (what perfect culling at
+//! cluster granularity would draw).
+//!
 //! `--triangles N` builds the city of about N triangles (10^3 to 10^9; default 10^6), as
 //! `city:N` in the CLI. Brute force costs about 1 s per frame at 10^8 and 10 s at 10^9, so
 //! `--no-brute` leaves it out: the visible triangles are then read from the `hzb` frame,
@@ -33,7 +41,8 @@ use std::time::Instant;
 
 use sightline::render::{compare_ids, DrawItem, FrameStats, Framebuffer, Method, RenderOptions, Renderer, World};
 use sightline::scene::builders::{city, CityParams};
-use sightline::scene::Instance;
+use sightline::scene::{Aabb, Camera, Instance};
+use sightline::spatial::{BoxImage, BoxProjector, ClusteredScene};
 
 type Error = Box<dyn std::error::Error + Send + Sync>;
 
@@ -80,11 +89,18 @@ fn run() -> Result<(), Error> {
     let instances = c.scene.instances();
     let mut world = World::new(c.scene);
     world.prepare(Method::Hzb)?;
+    // The clusters' world boxes, for the box-test bound.
+    let boxes = {
+        let culler = world.culler()?;
+        culler.clustered().item_boxes(culler.instances())
+    };
     let mut renderer = Renderer::new();
     let (mut reference, mut fb) = (Framebuffer::new(1280, 720)?, Framebuffer::new(1280, 720)?);
     let opts = RenderOptions::default();
     let mut runs: [Vec<f64>; 3] = Default::default();
     let (mut visible, mut stages) = (Vec::new(), Vec::new());
+    // Per frame: [hzb drew, box test passes, holding a visible triangle], as (clusters, triangles).
+    let mut clusters: Vec<[(u64, u64); 3]> = Vec::new();
     // The first round warms caches and buffers; the second is measured.
     for round in 0..2 {
         for (k, cam) in cams.iter().enumerate() {
@@ -96,8 +112,9 @@ fn run() -> Result<(), Error> {
             }
             // Without brute force, the hzb frame is the reference: drawn into it directly.
             let t = Instant::now();
-            world.render(cam, Method::Hzb, if with_brute { &mut fb } else { &mut reference }, &opts)?;
+            let report = world.render(cam, Method::Hzb, if with_brute { &mut fb } else { &mut reference }, &opts)?;
             let hzb = ms(t);
+            let drew = report.cull.map_or((0, 0), |c| (c.clusters_drawn, c.triangles_drawn));
             let items = visible_items(&reference.ids, &instances);
             let t = Instant::now();
             let st = renderer.render(world.scene(), &instances, &items.0, cam, &mut fb, &opts)?;
@@ -112,6 +129,10 @@ fn run() -> Result<(), Error> {
                 }
                 visible.push(items.1 as f64);
                 stages.push(st);
+                let final_depth = if with_brute { &reference } else { &fb };
+                let clustered = world.culler()?.clustered();
+                let passing = box_test_bound(&boxes, clustered, cam, final_depth);
+                clusters.push([drew, passing, holding_visible(&items.0, clustered)]);
             }
         }
     }
@@ -130,6 +151,11 @@ fn run() -> Result<(), Error> {
         );
     }
     let stage = |f: fn(&FrameStats) -> f64| median(stages.iter().map(f).collect());
+    let count =
+        |k: usize, tris: bool| median(clusters.iter().map(|c| if tris { c[k].1 } else { c[k].0 } as f64).collect());
+    for (k, what) in ["hzb drew", "the box test passes", "hold a visible triangle"].iter().enumerate() {
+        println!("  clusters {what:<24} {:>8.0} ({:.0} triangles)", count(k, false), count(k, true));
+    }
     println!(
         "  oracle stages: geometry {:.2}, binning {:.2}, raster and write-out {:.2}, shading {:.2} ms",
         stage(|s| s.ms_geometry),
@@ -159,6 +185,50 @@ fn visible_items(ids: &[u32], instances: &[Instance]) -> (Vec<DrawItem>, usize) 
         }
     }
     (items, seen.len())
+}
+
+/// The clusters (and their triangles) whose box passes the exact box test against the
+/// finished depth buffer of `fb`: some pixel of the box's screen rectangle is at least as far
+/// as the box's nearest depth (or the box crosses the near plane).
+fn box_test_bound(boxes: &[Aabb], clustered: &ClusteredScene, camera: &Camera, fb: &Framebuffer) -> (u64, u64) {
+    let (w, h) = (fb.width(), fb.height());
+    let projector = BoxProjector::new(camera.clip_from_world(), w, h);
+    let (mut n, mut tris) = (0, 0);
+    for (i, b) in boxes.iter().enumerate() {
+        let passes = match projector.classify(b) {
+            BoxImage::Outside => false,
+            BoxImage::CrossesNear => true,
+            BoxImage::Rect(r) => (r.y0..r.y1.min(h)).any(|y| {
+                let row = &fb.depth[(y * w) as usize..][..w as usize];
+                row[r.x0 as usize..r.x1.min(w) as usize].iter().any(|&d| r.depth <= d)
+            }),
+        };
+        if passes {
+            n += 1;
+            tris += clustered.triangles(i as u32).len() as u64;
+        }
+    }
+    (n, tris)
+}
+
+/// The clusters (and their triangles) holding at least one of the visible triangles `items`.
+fn holding_visible(items: &[DrawItem], clustered: &ClusteredScene) -> (u64, u64) {
+    let mut by_instance: std::collections::HashMap<u32, Vec<u32>> = std::collections::HashMap::new();
+    for it in items {
+        by_instance.entry(it.instance).or_default().extend(it.first..it.first + it.count);
+    }
+    let (mut n, mut tris) = (0, 0);
+    for (&k, visible) in &mut by_instance {
+        visible.sort_unstable();
+        for i in clustered.instance_items(k) {
+            let t = clustered.triangles(i);
+            if t.iter().any(|l| visible.binary_search(l).is_ok()) {
+                n += 1;
+                tris += t.len() as u64;
+            }
+        }
+    }
+    (n, tris)
 }
 
 fn ms(t: Instant) -> f64 {

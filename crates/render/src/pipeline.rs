@@ -323,7 +323,13 @@ impl Renderer {
     /// The z-pyramid of a session's frame drawn so far.
     pub(crate) fn session_pyramid(&self, format: DepthFormat) -> Option<TilePyramid<'_>> {
         let grid = self.grid?;
-        Some(TilePyramid::new(&self.levels, grid.tiles_x, (grid.width, grid.height), &self.upper, format))
+        Some(TilePyramid::new(
+            (&self.levels, &self.tiles),
+            grid.tiles_x,
+            (grid.width, grid.height),
+            &self.upper,
+            format,
+        ))
     }
 
     /// Draws raw clip-space triangles (no scene), triangle `k` with ID `first_id + k`: the
