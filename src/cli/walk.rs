@@ -236,8 +236,8 @@ fn walk(
         if list.iter().any(|m| matches!(m, Visibility::Cull(_))) || a.verify {
             world.culler()?.first_batch = a.first_batch.max(1);
         }
-        if list.contains(&Visibility::RayCast) {
-            world.prepare(Visibility::RayCast)?;
+        for &m in &list {
+            world.prepare(m)?;
         }
         Ok(())
     })?;

@@ -142,9 +142,7 @@ impl World {
     /// build is not paid by the first frame.
     pub fn prepare(&mut self, method: impl Into<Visibility>) -> Result<()> {
         match method.into() {
-            Visibility::Cull(_) => {
-                self.culler()?;
-            }
+            Visibility::Cull(m) => self.culler()?.prepare(m),
             Visibility::RayCast => {
                 self.caster()?;
             }

@@ -233,7 +233,7 @@ impl Culler {
         Batching { first: self.first_batch.max(1), cap: self.max_batch.min(cap).max(1) }
     }
 
-    /// Builds clusters, meshlets, BVH and octree for the scene's instances (world transforms
+    /// Builds clusters, meshlets and BVH for the scene's instances (world transforms
     /// must be up to date). A scene of more triangles than IDs can name
     /// ([`sightline_scene::MAX_DRAWN_TRIANGLES`]) is not built for: its frames are refused
     /// with [`Error::TooManyTriangles`](crate::Error::TooManyTriangles) until it draws few enough.
@@ -248,6 +248,14 @@ impl Culler {
             first_batch: Self::DEFAULT_FIRST_BATCH,
             max_batch: Self::DEFAULT_MAX_BATCH,
             one_thread_max_batch: Self::ONE_THREAD_MAX_BATCH,
+        }
+    }
+
+    /// Builds what `method` walks that is made on first use (the loose octree of
+    /// [`Method::OctreeHzb`]), so that the first frame does not pay for it.
+    pub fn prepare(&mut self, method: Method) {
+        if method == Method::OctreeHzb {
+            self.c.settle_octree();
         }
     }
 

@@ -3,8 +3,8 @@
 //! Rigid motion is the common change (vehicles drive, a crane turns): clusters and meshlets
 //! are mesh-local and stay; what moves is the world side — each moved instance's transform
 //! in its per-cluster draw records, its clusters' world boxes, their entries in the loose
-//! octree (moved when the octree walk next runs, so that the other methods do not pay for
-//! it) and their normal cones — and the BVH over all cluster boxes is refitted bottom-up,
+//! octree (built and moved when the octree walk next runs, so that the other methods do not
+//! pay for it) and their normal cones — and the BVH over all cluster boxes is refitted bottom-up,
 //! or rebuilt once refitting has let its SAH cost grow past `REBUILD_RATIO` times that of a
 //! fresh build (the rule of Wald, Boulos and Shirley 2007, "Ray tracing deformable scenes
 //! using dynamic bounding volume hierarchies": refit while the tree stays good, rebuild when
@@ -18,7 +18,7 @@
 //! picture), and every other cluster is tested against the pyramid as usual.
 
 use rayon::prelude::*;
-use sightline_scene::{Instance, NodeId, Scene, SceneDelta};
+use sightline_scene::{Aabb, Instance, NodeId, Scene, SceneDelta};
 use sightline_spatial::{ClusteredScene, LooseOctree, RefitOutcome};
 use slotmap::SecondaryMap;
 
@@ -64,7 +64,6 @@ impl Clusters {
         for (i, c) in cones.iter().enumerate() {
             cone_can_cull[i / 64] |= (c.can_cull() as u64) << (i % 64);
         }
-        let octree = LooseOctree::from_boxes(&item_boxes, OCTREE_DEPTH);
         let draws = items
             .map(|i| {
                 let it = clustered.item(i);
@@ -96,9 +95,11 @@ impl Clusters {
             local_cones,
             cones,
             cone_can_cull,
-            octree,
+            // Built when the octree walk first runs (`settle_octree`): the other methods
+            // never read it, and over 10^7 clusters it takes seconds.
+            octree: LooseOctree::new(&Aabb::EMPTY, 0),
             octree_pending: Vec::new(),
-            octree_rebuild: false,
+            octree_rebuild: true,
             moves: Vec::new(),
             changed: Vec::new(),
             visible: Vec::new(),
@@ -110,7 +111,8 @@ impl Clusters {
 }
 
 impl Clusters {
-    /// Moves the octree entries of clusters that moved since the octree was last used.
+    /// Brings the octree up to date: built on first use, then the entries of clusters that
+    /// moved since it was last used are moved.
     pub(super) fn settle_octree(&mut self) {
         if std::mem::take(&mut self.octree_rebuild) {
             self.octree = LooseOctree::from_boxes(&self.item_boxes, OCTREE_DEPTH);
@@ -225,5 +227,41 @@ impl Clusters {
         };
         self.stamp = scene.stamp();
         outcome
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use glam::Vec3;
+    use sightline_scene::{shapes, NodeDesc, Scene, Transform};
+
+    use crate::cull::{Culler, Method};
+
+    /// The octree is built when first needed (by `prepare` or the octree walk), holding every
+    /// cluster at its place then, including a cluster that moved before.
+    #[test]
+    fn the_octree_is_built_on_first_use_with_the_clusters_where_they_are() {
+        let mut scene = Scene::new();
+        let cube = scene.add_mesh(shapes::cube("c").unwrap());
+        let at = |i: usize| Transform::from_translation(Vec3::new(i as f32 * 3.0, 0.0, 0.0));
+        let nodes: Vec<_> =
+            (0..5).map(|i| scene.add_node(None, NodeDesc::new("c").mesh(cube).transform(at(i))).unwrap()).collect();
+        scene.update_transforms();
+        let mut culler = Culler::new(&scene);
+        assert!(culler.c.octree.is_empty(), "no octree before the octree walk needs one");
+        scene.set_local_transform(nodes[2], Transform::from_translation(Vec3::new(0.0, 50.0, 0.0))).unwrap();
+        scene.update_transforms();
+        culler.sync(&scene).unwrap();
+        assert!(culler.c.octree.is_empty(), "a move does not build it either");
+        culler.prepare(Method::Hzb);
+        assert!(culler.c.octree.is_empty(), "nor does preparing another method");
+        culler.prepare(Method::OctreeHzb);
+        let octree = &culler.c.octree;
+        octree.validate().unwrap();
+        assert_eq!(octree.len(), culler.clustered().item_count());
+        for item in 0..culler.clustered().item_count() as u32 {
+            assert_eq!(octree.aabb(item), Some(culler.c.item_boxes[item as usize]), "cluster {item}");
+        }
+        assert!(octree.aabb(2).is_some_and(|b| b.min.y > 45.0), "the moved cube is in its new place");
     }
 }
