@@ -13,13 +13,14 @@
 //! depend on culling, so `brute / oracle` is the largest speed-up any culling can give this
 //! renderer. Each oracle frame's ID buffer is checked to equal the brute-force one.
 //!
-//! A second bound is for culling by cluster boxes, as `hzb` does: a cluster can be skipped
-//! only when its box's screen rectangle, at the box's nearest depth, lies behind every pixel
+//! A second bound is for culling whole clusters by their boxes and normal cones, as `hzb`
+//! does: a cluster can be skipped only when all its triangles face away (its cone says so),
+//! or when its box's screen rectangle, at the box's nearest depth, lies behind every pixel
 //! of the finished depth buffer. The example counts the clusters (and their triangles) that
-//! pass this exact per-pixel test against the final frame: no box test against any
-//! z-pyramid of this frame can skip them, so no box-culling method draws fewer. Beside them:
-//! the clusters `hzb` drew, and those holding a visible triangle (what perfect culling at
-//! cluster granularity would draw).
+//! survive both tests against the final frame: no z-pyramid of this frame can skip them, so
+//! no method culling these clusters this way draws fewer. Beside them: the clusters `hzb`
+//! drew, and those holding a visible triangle (what perfect culling at cluster granularity
+//! would draw).
 //!
 //! `--triangles N` builds the city of about N triangles (10^3 to 10^9; default 10^6), as
 //! `city:N` in the CLI. Brute force costs about 1 s per frame at 10^8 and 10 s at 10^9, so
@@ -37,11 +38,14 @@
 
 #![forbid(unsafe_code)]
 
+use std::collections::HashMap;
 use std::time::Instant;
 
+use rayon::prelude::*;
+use sightline::render::cull::cone::{Cone, LocalCone};
 use sightline::render::{compare_ids, DrawItem, FrameStats, Framebuffer, Method, RenderOptions, Renderer, World};
 use sightline::scene::builders::{city, CityParams};
-use sightline::scene::{Aabb, Camera, Instance};
+use sightline::scene::{Aabb, Camera, Instance, MeshId, Scene};
 use sightline::spatial::{BoxImage, BoxProjector, ClusteredScene};
 
 type Error = Box<dyn std::error::Error + Send + Sync>;
@@ -89,10 +93,11 @@ fn run() -> Result<(), Error> {
     let instances = c.scene.instances();
     let mut world = World::new(c.scene);
     world.prepare(Method::Hzb)?;
-    // The clusters' world boxes, for the box-test bound.
-    let boxes = {
-        let culler = world.culler()?;
-        culler.clustered().item_boxes(culler.instances())
+    // The clusters' world boxes and normal cones, for the box-test bound.
+    let (boxes, cones) = {
+        let (culler, scene) = world.culler_and_scene()?;
+        let boxes = culler.clustered().item_boxes(culler.instances());
+        (boxes, item_cones(scene, culler.instances(), culler.clustered()))
     };
     let mut renderer = Renderer::new();
     let (mut reference, mut fb) = (Framebuffer::new(1280, 720)?, Framebuffer::new(1280, 720)?);
@@ -131,7 +136,7 @@ fn run() -> Result<(), Error> {
                 stages.push(st);
                 let final_depth = if with_brute { &reference } else { &fb };
                 let clustered = world.culler()?.clustered();
-                let passing = box_test_bound(&boxes, clustered, cam, final_depth);
+                let passing = box_test_bound((&boxes, &cones), clustered, cam, final_depth);
                 clusters.push([drew, passing, holding_visible(&items.0, clustered)]);
             }
         }
@@ -153,7 +158,7 @@ fn run() -> Result<(), Error> {
     let stage = |f: fn(&FrameStats) -> f64| median(stages.iter().map(f).collect());
     let count =
         |k: usize, tris: bool| median(clusters.iter().map(|c| if tris { c[k].1 } else { c[k].0 } as f64).collect());
-    for (k, what) in ["hzb drew", "the box test passes", "hold a visible triangle"].iter().enumerate() {
+    for (k, what) in ["hzb drew", "no box or cone test skips", "hold a visible triangle"].iter().enumerate() {
         println!("  clusters {what:<24} {:>8.0} ({:.0} triangles)", count(k, false), count(k, true));
     }
     println!(
@@ -187,14 +192,23 @@ fn visible_items(ids: &[u32], instances: &[Instance]) -> (Vec<DrawItem>, usize) 
     (items, seen.len())
 }
 
-/// The clusters (and their triangles) whose box passes the exact box test against the
-/// finished depth buffer of `fb`: some pixel of the box's screen rectangle is at least as far
-/// as the box's nearest depth (or the box crosses the near plane).
-fn box_test_bound(boxes: &[Aabb], clustered: &ClusteredScene, camera: &Camera, fb: &Framebuffer) -> (u64, u64) {
+/// The clusters (and their triangles) that face the eye by their normal cones and whose box
+/// passes the exact box test against the finished depth buffer of `fb`: some pixel of the
+/// box's screen rectangle is at least as far as the box's nearest depth (or the box crosses
+/// the near plane).
+fn box_test_bound(
+    (boxes, cones): (&[Aabb], &[Cone]),
+    clustered: &ClusteredScene,
+    camera: &Camera,
+    fb: &Framebuffer,
+) -> (u64, u64) {
     let (w, h) = (fb.width(), fb.height());
     let projector = BoxProjector::new(camera.clip_from_world(), w, h);
     let (mut n, mut tris) = (0, 0);
     for (i, b) in boxes.iter().enumerate() {
+        if cones[i].backfacing(camera.view.eye) {
+            continue;
+        }
         let passes = match projector.classify(b) {
             BoxImage::Outside => false,
             BoxImage::CrossesNear => true,
@@ -211,9 +225,33 @@ fn box_test_bound(boxes: &[Aabb], clustered: &ClusteredScene, camera: &Camera, f
     (n, tris)
 }
 
+/// Each cluster's normal cone in world space, as the culler makes them: one cone per mesh
+/// cluster in mesh space, carried to each instance.
+fn item_cones(scene: &Scene, instances: &[Instance], clustered: &ClusteredScene) -> Vec<Cone> {
+    let mut local: HashMap<MeshId, Vec<LocalCone>> = HashMap::new();
+    for (k, inst) in instances.iter().enumerate() {
+        if let (Some(mesh), false) = (scene.mesh(inst.mesh), local.contains_key(&inst.mesh)) {
+            let cones = clustered
+                .instance_items(k as u32)
+                .map(|i| LocalCone::of_cluster(mesh.positions(), mesh.indices(), clustered.triangles(i)))
+                .collect();
+            local.insert(inst.mesh, cones);
+        }
+    }
+    (0..clustered.item_count() as u32)
+        .into_par_iter()
+        .map(|i| {
+            let it = clustered.item(i);
+            let inst = &instances[it.instance as usize];
+            let cone = local.get(&inst.mesh).and_then(|v| v.get(it.cluster as usize));
+            cone.map_or(Cone::NEVER, |c| c.to_world(&inst.world_from_local))
+        })
+        .collect()
+}
+
 /// The clusters (and their triangles) holding at least one of the visible triangles `items`.
 fn holding_visible(items: &[DrawItem], clustered: &ClusteredScene) -> (u64, u64) {
-    let mut by_instance: std::collections::HashMap<u32, Vec<u32>> = std::collections::HashMap::new();
+    let mut by_instance: HashMap<u32, Vec<u32>> = HashMap::new();
     for it in items {
         by_instance.entry(it.instance).or_default().extend(it.first..it.first + it.count);
     }
