@@ -107,7 +107,7 @@ impl<'a> TilePyramid<'a> {
     ///
     /// The answer is that of the finest level ≥ 1 where the rectangle spans at most 4 texels
     /// per axis (span >> level ≤ 3, up to 5 × 5 texels read), each texel there that does not
-    /// occlude refined two levels further ([`TilePyramid::texel_occludes`]), reached in two
+    /// occlude refined two levels further (see the module docs), reached in two
     /// steps:
     /// 1. Greene's 2 × 2 test on the grid over the tiles, at the finest level ≥ 6 where
     ///    2^level is at least the rectangle's span in pixels (so it touches at most 2 × 2
