@@ -41,11 +41,11 @@
 use std::collections::HashMap;
 use std::time::Instant;
 
-use rayon::prelude::*;
-use sightline::render::cull::cone::{Cone, LocalCone};
-use sightline::render::{compare_ids, DrawItem, FrameStats, Framebuffer, Method, RenderOptions, Renderer, World};
+use sightline::render::{
+    compare_ids, Culler, DrawItem, FrameStats, Framebuffer, Method, RenderOptions, Renderer, World,
+};
 use sightline::scene::builders::{city, CityParams};
-use sightline::scene::{Aabb, Camera, Instance, MeshId, Scene};
+use sightline::scene::{Aabb, Camera, Instance};
 use sightline::spatial::{BoxImage, BoxProjector, ClusteredScene};
 
 type Error = Box<dyn std::error::Error + Send + Sync>;
@@ -93,11 +93,10 @@ fn run() -> Result<(), Error> {
     let instances = c.scene.instances();
     let mut world = World::new(c.scene);
     world.prepare(Method::Hzb)?;
-    // The clusters' world boxes and normal cones, for the box-test bound.
-    let (boxes, cones) = {
-        let (culler, scene) = world.culler_and_scene()?;
-        let boxes = culler.clustered().item_boxes(culler.instances());
-        (boxes, item_cones(scene, culler.instances(), culler.clustered()))
+    // The clusters' world boxes, for the box-test bound.
+    let boxes = {
+        let culler = world.culler()?;
+        culler.clustered().item_boxes(culler.instances())
     };
     let mut renderer = Renderer::new();
     let (mut reference, mut fb) = (Framebuffer::new(1280, 720)?, Framebuffer::new(1280, 720)?);
@@ -135,9 +134,9 @@ fn run() -> Result<(), Error> {
                 visible.push(items.1 as f64);
                 stages.push(st);
                 let final_depth = if with_brute { &reference } else { &fb };
-                let clustered = world.culler()?.clustered();
-                let passing = box_test_bound((&boxes, &cones), clustered, cam, final_depth);
-                clusters.push([drew, passing, holding_visible(&items.0, clustered)]);
+                let culler = world.culler()?;
+                let passing = box_test_bound(&boxes, culler, cam, final_depth);
+                clusters.push([drew, passing, holding_visible(&items.0, culler.clustered())]);
             }
         }
     }
@@ -196,17 +195,12 @@ fn visible_items(ids: &[u32], instances: &[Instance]) -> (Vec<DrawItem>, usize) 
 /// passes the exact box test against the finished depth buffer of `fb`: some pixel of the
 /// box's screen rectangle is at least as far as the box's nearest depth (or the box crosses
 /// the near plane).
-fn box_test_bound(
-    (boxes, cones): (&[Aabb], &[Cone]),
-    clustered: &ClusteredScene,
-    camera: &Camera,
-    fb: &Framebuffer,
-) -> (u64, u64) {
+fn box_test_bound(boxes: &[Aabb], culler: &Culler, camera: &Camera, fb: &Framebuffer) -> (u64, u64) {
     let (w, h) = (fb.width(), fb.height());
     let projector = BoxProjector::new(camera.clip_from_world(), w, h);
     let (mut n, mut tris) = (0, 0);
     for (i, b) in boxes.iter().enumerate() {
-        if cones[i].backfacing(camera.view.eye) {
+        if culler.cluster_faces_away(i as u32, camera.view.eye) {
             continue;
         }
         let passes = match projector.classify(b) {
@@ -219,34 +213,10 @@ fn box_test_bound(
         };
         if passes {
             n += 1;
-            tris += clustered.triangles(i as u32).len() as u64;
+            tris += culler.clustered().triangles(i as u32).len() as u64;
         }
     }
     (n, tris)
-}
-
-/// Each cluster's normal cone in world space, as the culler makes them: one cone per mesh
-/// cluster in mesh space, carried to each instance.
-fn item_cones(scene: &Scene, instances: &[Instance], clustered: &ClusteredScene) -> Vec<Cone> {
-    let mut local: HashMap<MeshId, Vec<LocalCone>> = HashMap::new();
-    for (k, inst) in instances.iter().enumerate() {
-        if let (Some(mesh), false) = (scene.mesh(inst.mesh), local.contains_key(&inst.mesh)) {
-            let cones = clustered
-                .instance_items(k as u32)
-                .map(|i| LocalCone::of_cluster(mesh.positions(), mesh.indices(), clustered.triangles(i)))
-                .collect();
-            local.insert(inst.mesh, cones);
-        }
-    }
-    (0..clustered.item_count() as u32)
-        .into_par_iter()
-        .map(|i| {
-            let it = clustered.item(i);
-            let inst = &instances[it.instance as usize];
-            let cone = local.get(&inst.mesh).and_then(|v| v.get(it.cluster as usize));
-            cone.map_or(Cone::NEVER, |c| c.to_world(&inst.world_from_local))
-        })
-        .collect()
 }
 
 /// The clusters (and their triangles) holding at least one of the visible triangles `items`.

@@ -286,6 +286,13 @@ impl Culler {
         &self.c.clustered
     }
 
+    /// True when every triangle of cluster `item` (an item of [`Culler::clustered`]) faces
+    /// away from `eye`, by the normal cone the culling methods test: what they drop without
+    /// drawing.
+    pub fn cluster_faces_away(&self, item: u32, eye: glam::Vec3) -> bool {
+        (item as usize) < self.c.cones.len() && self.c.faces_away(item, eye)
+    }
+
     /// Heap bytes of the culling structures (clusters, BVH, meshlets, octree).
     pub fn memory_bytes(&self) -> usize {
         let c = &self.c;

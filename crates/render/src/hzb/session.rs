@@ -279,7 +279,7 @@ mod tests {
     fn tile_pyramid_refinement_matches_a_reference_from_the_depth_buffer() {
         let mut rng = Rng::new(12);
         for fmt in [DepthFormat::F32, DepthFormat::Unorm16, DepthFormat::Unorm24] {
-            let (queries, fb) = ask_pyramid(fmt, &mut rng, |pyramid, rng| {
+            let ((queries, top), fb) = ask_pyramid(fmt, &mut rng, |pyramid, rng| {
                 let top = pyramid.top();
                 let queries: Vec<(Rect, f32, bool)> = (0..20_000)
                     .map(|_| {
@@ -290,7 +290,6 @@ mod tests {
                     .collect();
                 (queries, top)
             });
-            let (queries, top) = queries;
             let margin = fmt.tie_margin();
             // The farthest depth under texel (x, y) of `level`, over the pixels that exist.
             let texel_max = |level: u32, x: u32, y: u32| {
