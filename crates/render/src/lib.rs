@@ -10,6 +10,7 @@
 #![allow(clippy::neg_cmp_op_on_partial_ord)]
 
 pub mod aa;
+mod awake;
 mod bin;
 mod claim;
 pub mod clip;

@@ -12,6 +12,7 @@ use sightline_spatial::{
 };
 
 use super::{ClusterDraw, Clusters, CullStats, OcclusionQueries, PREFETCH_AHEAD};
+use crate::awake::KeepAwake;
 use crate::stats::ms_since;
 use crate::{DrawSource, FrameStats, RenderOptions, Result, Session};
 
@@ -182,6 +183,8 @@ impl Clusters {
         loop {
             let t = Instant::now();
             out.clear();
+            // The walk is serial: the other workers spin through it, ready for the batch.
+            let awake = KeepAwake::start();
             let more = {
                 let q = OcclusionQueries::with_projector(projector, s.pyramid());
                 let cs = &mut f.cs;
@@ -198,6 +201,7 @@ impl Clusters {
             if f.opts.backface_culling {
                 self.drop_backfacing(&mut out, eye, &mut f.cs);
             }
+            drop(awake);
             f.cs.ms_cull += ms_since(t);
             if !out.is_empty() {
                 let t = Instant::now();
