@@ -95,15 +95,14 @@ impl Clusters {
     /// Drops clusters whose triangles all face away from the eye (normal cones), counting them.
     fn drop_backfacing(&self, items: &mut Vec<Visible>, eye: glam::Vec3, cs: &mut CullStats) {
         let n = items.len();
-        let can_cull = |i: u32| self.can_cull(i);
         // The clusters' records are scattered over memory: ask for the cones a few ahead,
         // and for the draw records that `sources` reads next.
-        for v in items.iter().take(PREFETCH_AHEAD).filter(|v| can_cull(v.index)) {
+        for v in items.iter().take(PREFETCH_AHEAD).filter(|v| self.can_cull(v.index)) {
             prefetch(&self.cones[v.index as usize]);
         }
         let mut kept = 0;
         for k in 0..n {
-            if let Some(a) = items.get(k + PREFETCH_AHEAD).filter(|a| can_cull(a.index)) {
+            if let Some(a) = items.get(k + PREFETCH_AHEAD).filter(|a| self.can_cull(a.index)) {
                 prefetch(&self.cones[a.index as usize]);
             }
             let v = items[k];
