@@ -13,7 +13,7 @@
 
 use super::{reduce_2x2, Rect};
 use crate::depth::DepthCodec;
-use crate::edge::Tri;
+use crate::edge::{max, min, Tri};
 use crate::tiling::{BLOCK, TILE, TILE_SHIFT};
 
 /// Offsets of levels 1..=6 in [`TileLevels::mips`] (index = level − 1), and the total length.
@@ -97,12 +97,12 @@ impl TileLevels {
         // least its value at the nearest corner. For a big triangle reaching far behind
         // this tile, that bound is much tighter than its nearest vertex. Small triangles
         // (most of them) are not worth the second bound.
-        let near = t.z0.min(z1).min(z2) - err;
+        let near = min(min(t.z0, z1), z2) - err;
         let near = if t.bbox[2] - t.bbox[0] < 8 && t.bbox[3] - t.bbox[1] < 8 {
             near
         } else {
             let (sx, sy) = (self.x0 as i32, self.y0 as i32);
-            near.max(t.plane_min([x0 as i32 + sx, y0 as i32 + sy, x1 as i32 + sx, y1 as i32 + sy]))
+            max(near, t.plane_min([x0 as i32 + sx, y0 as i32 + sy, x1 as i32 + sx, y1 as i32 + sy]))
         };
         if !(near > 0.0) {
             return false;
