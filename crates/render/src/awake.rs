@@ -9,6 +9,11 @@
 //! [`KeepAwake`] gives every other worker a job that spins until the step ends, at most
 //! [`MAX_SPIN`]: the cores are idle then anyway, and they start the batch at once. This is
 //! the "active" wait policy of OpenMP runtimes, limited to the steps that need it.
+//!
+//! The occluder pass draws every cluster, so its walk does not wait for the pyramid: one
+//! worker finds the next batch while the others draw the current one. [`join_helping`]
+//! keeps the finder, once done, running the drawing's jobs (`rayon::yield_now`) instead of
+//! going idle, so it is awake for each of the drawing's parallel stages.
 
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Arc;
@@ -55,6 +60,44 @@ fn spin_until(done: &AtomicBool, limit: Duration) -> bool {
     }
 }
 
+/// `rayon::join(a, b)`, except that the worker which runs `b` does not go idle when `b` is
+/// done: until `a` returns it runs the pool's pending jobs (those `a`'s parallel steps
+/// spawn) or spins, for at most [`MAX_SPIN`] at a time without a job. `a` alternates short
+/// serial steps with parallel ones; a worker that slept through a serial step would be
+/// woken late for the next parallel one.
+pub(crate) fn join_helping<RA: Send, RB: Send>(
+    a: impl FnOnce() -> RA + Send,
+    b: impl FnOnce() -> RB + Send,
+) -> (RA, RB) {
+    let done = AtomicBool::new(false);
+    rayon::join(
+        || {
+            let r = a();
+            done.store(true, Ordering::Release);
+            r
+        },
+        || {
+            let r = b();
+            help_until(&done, MAX_SPIN);
+            r
+        },
+    )
+}
+
+/// Runs pending jobs of the current pool, or spins, until `done` is set (true) or `limit`
+/// has passed since the last job ran (false). Outside a pool it returns false at once.
+fn help_until(done: &AtomicBool, limit: Duration) -> bool {
+    let mut idle = Instant::now();
+    while !done.load(Ordering::Acquire) {
+        match rayon::yield_now() {
+            Some(rayon::Yield::Executed) => idle = Instant::now(),
+            Some(rayon::Yield::Idle) if idle.elapsed() < limit => std::hint::spin_loop(),
+            _ => return false,
+        }
+    }
+    true
+}
+
 impl Drop for KeepAwake {
     fn drop(&mut self) {
         if let Some(d) = &self.done {
@@ -82,6 +125,8 @@ mod tests {
         setter.join().unwrap();
         assert!(!spin_until(&AtomicBool::new(false), Duration::from_micros(100)));
 
+        assert!(!help_until(&AtomicBool::new(false), Duration::from_secs(60)), "outside a pool: no wait");
+
         let one = rayon::ThreadPoolBuilder::new().num_threads(1).build().unwrap();
         one.install(|| assert!(KeepAwake::start().done.is_none()));
         let two = rayon::ThreadPoolBuilder::new().num_threads(2).build().unwrap();
@@ -91,6 +136,36 @@ mod tests {
             assert!(!flag.load(Ordering::Acquire));
             drop(awake);
             assert!(flag.load(Ordering::Acquire));
+        });
+    }
+
+    /// `join_helping` gives both results whether or not another worker takes `b`, and the
+    /// helper returns once `a` ends, having run `a`'s jobs in the meantime.
+    #[test]
+    fn join_helping_runs_both_and_helps() {
+        use rayon::prelude::*;
+        for threads in [1, 2] {
+            let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap();
+            let (sum, b) = pool.install(|| {
+                join_helping(
+                    || (0..100_000u32).into_par_iter().with_min_len(1000).map(u64::from).map(|i| i * i).sum::<u64>(),
+                    || 7,
+                )
+            });
+            assert_eq!(sum, (0..100_000u64).map(|i| i * i).sum::<u64>());
+            assert_eq!(b, 7);
+        }
+        // A helper in a two-thread pool: true once the flag is set, false at its limit.
+        let two = rayon::ThreadPoolBuilder::new().num_threads(2).build().unwrap();
+        two.install(|| {
+            let done = Arc::new(AtomicBool::new(false));
+            let d = Arc::clone(&done);
+            rayon::spawn(move || {
+                std::thread::sleep(Duration::from_millis(1));
+                d.store(true, Ordering::Release);
+            });
+            assert!(help_until(&done, Duration::from_secs(60)));
+            assert!(!help_until(&AtomicBool::new(false), Duration::from_micros(100)));
         });
     }
 }

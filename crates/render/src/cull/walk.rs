@@ -12,7 +12,7 @@ use sightline_spatial::{
 };
 
 use super::{ClusterDraw, Clusters, CullStats, OcclusionQueries, PREFETCH_AHEAD};
-use crate::awake::KeepAwake;
+use crate::awake::{join_helping, KeepAwake};
 use crate::stats::ms_since;
 use crate::{DrawSource, FrameStats, RenderOptions, Result, Session};
 
@@ -222,10 +222,12 @@ impl Clusters {
     }
 
     /// The occluder pass's walk when nothing is tested: every cluster in the frustum, front
-    /// to back in batches growing from `first_batch` clusters, with no pyramid tests. No batch depends on the pyramid here, so the walk is pipelined: the
-    /// next batch is found (BVH walk, back-facing clusters dropped) on one thread while the
-    /// current one is drawn with the others (`rayon::join`), so that the serial traversal
-    /// and the parallel drawing overlap. The batches, and so the frame, are the same.
+    /// to back in batches growing from `first_batch` clusters, with no pyramid tests. No
+    /// batch depends on the pyramid here, so the walk is pipelined: the next batch is found
+    /// (BVH walk, back-facing clusters dropped) on one worker while the current one is drawn
+    /// on the others ([`join_helping`]: the finder then joins the drawing), so that the
+    /// serial traversal and the parallel drawing overlap. The batches, and so the frame, are
+    /// the same.
     pub(super) fn draw_front_to_back(
         &mut self,
         s: &mut Session,
@@ -267,7 +269,8 @@ impl Clusters {
                 Ok(())
             };
             if more {
-                let (drawn, next) = rayon::join(|| draw(s, f), || find(&mut cursor, batch));
+                // The worker that finds the next batch then helps draw this one.
+                let (drawn, next) = join_helping(|| draw(s, f), || find(&mut cursor, batch));
                 drawn?;
                 found = Some(next);
             } else {
