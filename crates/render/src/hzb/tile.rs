@@ -13,7 +13,7 @@
 
 use super::{reduce_2x2, Rect};
 use crate::depth::DepthCodec;
-use crate::edge::{max, min, Tri};
+use crate::edge::{min, Tri};
 use crate::tiling::{BLOCK, TILE, TILE_SHIFT};
 
 /// Offsets of levels 1..=6 in [`TileLevels::mips`] (index = level − 1), and the total length.
@@ -93,35 +93,39 @@ impl TileLevels {
         if x0 > x1 || y0 > y1 {
             return false;
         }
-        // Depth is affine in the window: over the pixel centers of this rectangle it is at
-        // least its value at the nearest corner. For a big triangle reaching far behind
-        // this tile, that bound is much tighter than its nearest vertex. Small triangles
-        // (most of them) are not worth the second bound.
-        let near = min(min(t.z0, z1), z2) - err;
-        let near = if t.bbox[2] - t.bbox[0] < 8 && t.bbox[3] - t.bbox[1] < 8 {
-            near
-        } else {
-            let (sx, sy) = (self.x0 as i32, self.y0 as i32);
-            max(near, t.plane_min([x0 as i32 + sx, y0 as i32 + sy, x1 as i32 + sx, y1 as i32 + sy]))
-        };
-        if !(near > 0.0) {
-            return false;
-        }
+        // The texels of the smallest level whose texels are at least half the rectangle's
+        // longer side: at most 3 × 3 of them.
         let span = (x1 - x0).max(y1 - y0) + 1;
-        let mut level = 1usize;
-        while (span >> level) > 1 && level < 6 {
-            level += 1;
-        }
-        let s = (TILE >> level) as usize;
-        let off = OFFSETS[level - 1];
-        for y in (y0 >> level) as usize..=(y1 >> level) as usize {
-            for x in (x0 >> level) as usize..=(x1 >> level) as usize {
-                if near <= self.mips[off + y * s + x] + self.tie_margin {
-                    return false;
+        let level = (31 - span.leading_zeros()).clamp(1, 6) as usize;
+        let behind = |near: f32| {
+            let s = (TILE >> level) as usize;
+            let off = OFFSETS[level - 1];
+            // Half-open ranges: inclusive ones cost a check per step.
+            let (tx0, tx1) = ((x0 >> level) as usize, (x1 >> level) as usize + 1);
+            for y in (y0 >> level) as usize..(y1 >> level) as usize + 1 {
+                for &texel in &self.mips[off + y * s..][tx0..tx1] {
+                    if near <= texel + self.tie_margin {
+                        return false;
+                    }
                 }
             }
+            true
+        };
+        let near = min(min(t.z0, z1), z2) - err;
+        if near > 0.0 && behind(near) {
+            return true;
         }
-        true
+        // Depth is affine in the window: over the pixel centers of this rectangle it is at
+        // least its value at the nearest corner. For a big triangle reaching far behind
+        // this tile, that bound is much tighter than its nearest vertex; it is only worth
+        // computing when the vertex bound did not already hide the triangle, and small
+        // triangles (most of them) are not worth it at all.
+        if t.bbox[2] - t.bbox[0] < 8 && t.bbox[3] - t.bbox[1] < 8 {
+            return false;
+        }
+        let (sx, sy) = (self.x0 as i32, self.y0 as i32);
+        let plane = t.plane_min([x0 as i32 + sx, y0 as i32 + sy, x1 as i32 + sx, y1 as i32 + sy]);
+        plane > near && plane > 0.0 && behind(plane)
     }
 
     /// Coarse depth per 8×8 block: true when the triangle's plane over the block's pixel
