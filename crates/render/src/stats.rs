@@ -41,9 +41,12 @@ pub struct FrameStats {
     pub covered_pixels: u64,
     /// `fragments_written / covered_pixels`.
     pub overdraw: f64,
-    /// Milliseconds in the geometry stage (transform, outcodes, clipping, setup).
+    /// Milliseconds in the geometry stage (transform, outcodes, clipping, setup). Each
+    /// chunk of triangles is binned right after its setup, in one parallel step; the step's
+    /// time is split between this and [`FrameStats::ms_binning`] in proportion to the time
+    /// the chunks spent in each.
     pub ms_geometry: f64,
-    /// Milliseconds binning triangles to tiles.
+    /// Milliseconds binning triangles to tiles (see [`FrameStats::ms_geometry`]).
     pub ms_binning: f64,
     /// Milliseconds rasterizing tiles (edge functions, depth test).
     pub ms_raster: f64,

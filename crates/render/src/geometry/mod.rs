@@ -102,6 +102,8 @@ pub(crate) struct Chunk {
     pub stats: FrameStats,
     /// Single-tile triangles that binning found hidden (set up, but never rasterized).
     pub hidden_at_binning: u64,
+    /// Milliseconds this chunk spent in the geometry stage and in binning, last time.
+    pub ms: (f64, f64),
     /// The instruction set the stage runs on, resolved at each [`Chunk::process`] (`Auto`,
     /// the default: the best available). Every level gives the same output bit for bit.
     pub simd: SimdLevel,
