@@ -189,9 +189,13 @@ fn skipping_hidden_occluders_changes_nothing() {
             let (cs, _, q) = culler.occluder_pass_with(&camera, &fb, &opts, skip_hidden).unwrap();
             let answers: Vec<_> = queries.iter().map(|b| q.test(b)).collect();
             q.finish(&mut fb).unwrap();
-            results.push((fb.depth, fb.ids, answers, cs.triangles_drawn));
+            results.push((fb.depth, fb.ids, answers, cs.triangles_drawn, (cs.clusters_in_frustum, cs.clusters)));
         }
         let (all, skipped) = (&results[0], &results[1]);
+        // The pass that draws every occluder counts the clusters in the frustum as its walk
+        // lists them; the other counts them in a traversal of its own.
+        assert!(all.4 .0 > 0 && all.4 .0 < all.4 .1, "{layout:?}: {:?} clusters in the frustum, of all", all.4);
+        assert_eq!(all.4, skipped.4, "{layout:?}: clusters in the frustum");
         assert!(skipped.3 * 2 < all.3, "{layout:?}: {} of {} triangles drawn", skipped.3, all.3);
         assert!(all.1.iter().any(|&i| i != 0));
         assert_eq!(all.0, skipped.0, "{layout:?}: depth");

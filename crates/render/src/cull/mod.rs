@@ -419,7 +419,10 @@ impl Culler {
         let t0 = Instant::now();
         let mut cs = CullStats { clusters: self.c.clustered.item_count() as u64, ..Default::default() };
         let frustum = Frustum::from_camera(camera);
-        self.c.count_in_frustum(&frustum, &mut cs);
+        if skip_hidden {
+            // The walk without tests lists (and counts) every cluster in the frustum.
+            self.c.count_in_frustum(&frustum, &mut cs);
+        }
         let batching = self.batching();
         let mut session = self.renderer.begin(fb, opts);
         // Front to back in growing batches, so that the coarse depth test of the rasterizer

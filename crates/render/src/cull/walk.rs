@@ -227,7 +227,8 @@ impl Clusters {
     /// (BVH walk, back-facing clusters dropped) on one worker while the current one is drawn
     /// on the others ([`join_helping`]: the finder then joins the drawing), so that the
     /// serial traversal and the parallel drawing overlap. The batches, and so the frame, are
-    /// the same.
+    /// the same. The walk lists every cluster in the frustum, so it counts them too
+    /// (`clusters_in_frustum`, the number [`Clusters::count_in_frustum`] gives).
     pub(super) fn draw_front_to_back(
         &mut self,
         s: &mut Session,
@@ -246,6 +247,7 @@ impl Clusters {
             let mut out = Vec::new();
             let mut cs = CullStats::default();
             let more = cursor.next_batch(this.clustered.bvh(), |_| true, batch, &mut out);
+            cs.clusters_in_frustum = out.len() as u64;
             if backface {
                 this.drop_backfacing(&mut out, eye, &mut cs);
             }
@@ -255,6 +257,7 @@ impl Clusters {
         let mut batch = first_batch.max(1);
         let mut found = Some(find(&mut cursor, batch));
         while let Some((out, more, cs)) = found.take() {
+            f.cs.clusters_in_frustum += cs.clusters_in_frustum;
             f.cs.culled_by_backface += cs.culled_by_backface;
             f.cs.ms_cull += cs.ms_cull;
             batch = (batch * 2).min(batching.cap);
@@ -277,6 +280,7 @@ impl Clusters {
                 draw(s, f)?;
             }
         }
+        f.cs.culled_by_frustum = f.cs.clusters - f.cs.clusters_in_frustum;
         Ok(())
     }
 
