@@ -14,6 +14,7 @@ mod awake;
 mod bin;
 mod claim;
 pub mod clip;
+mod clip_matrix;
 mod color;
 pub mod csg;
 pub mod cull;

@@ -29,6 +29,7 @@ use sightline_scene::{Camera, Instance, Scene};
 use sightline_spatial::SimdLevel;
 
 use crate::bin::bin_chunk;
+use crate::clip_matrix::clip_from_local;
 use crate::depth::{with_codec, DepthCodec, DepthFormat};
 use crate::geometry::{split, Chunk, Item, Source};
 use crate::hzb::{TileLevels, TilePyramid, UpperLevels};
@@ -206,6 +207,7 @@ impl Renderer {
         self.ranges.clear();
         let mut last: Option<(u32, glam::Mat4)> = None;
         let clip_from_world = camera.clip_from_world_f64();
+        let simd = SimdLevel::Auto.resolve();
         for (k, d) in items.iter().enumerate() {
             let inst = instances.get(d.instance as usize).ok_or_else(|| {
                 Error::InvalidDraw(format!("item {k} names instance {} of {}", d.instance, instances.len()))
@@ -223,7 +225,7 @@ impl Renderer {
             // Consecutive clusters of one instance share the matrix.
             let m = match last {
                 Some((i, m)) if i == d.instance => m,
-                _ => Camera::clip_from_local_with(&clip_from_world, &inst.world_from_local),
+                _ => clip_from_local(&clip_from_world, &inst.world_from_local, simd),
             };
             last = Some((d.instance, m));
             resolved.push(Item {
@@ -274,6 +276,7 @@ impl Renderer {
         self.ranges.clear();
         let mut m = glam::Mat4::ZERO;
         let clip_from_world = camera.clip_from_world_f64();
+        let simd = SimdLevel::Auto.resolve();
         for (k, d) in sources.iter().enumerate() {
             let n = (d.indices.len() / 3) as u64;
             let bad = |why: String| Err(Error::InvalidDraw(format!("source {k}: {why}")));
@@ -291,7 +294,7 @@ impl Renderer {
             // Consecutive clusters of one instance share the matrix.
             let same = k > 0 && same_matrix(&sources[k - 1].world_from_local, &d.world_from_local);
             if !same {
-                m = Camera::clip_from_local_with(&clip_from_world, &d.world_from_local);
+                m = clip_from_local(&clip_from_world, &d.world_from_local, simd);
             }
             resolved.push(Item {
                 src: Source::Mesh {
