@@ -146,6 +146,11 @@ pub struct Culler {
     /// change which clusters and triangles get tested and skipped, so counters such as
     /// `triangles_drawn` depend on the thread count (never the image).
     pub one_thread_max_batch: usize,
+    /// Clusters nearest the eye (by box distance, among those in the frustum) that the BVH
+    /// walks take first, before their depth-first front-to-back order;
+    /// [`Culler::DEFAULT_NEAREST_FIRST`] by default, 0 for none. The frame is the same for
+    /// any value; what is drawn, and so the time, is not.
+    pub nearest_first: usize,
 }
 
 /// Everything a culled frame reads and updates besides the renderer (so that a walk can
@@ -227,10 +232,22 @@ impl Culler {
     /// 256 rejects 10% more triangle-tile pairs there than 2048 and is about 0.8 ms faster.
     pub const ONE_THREAD_MAX_BATCH: usize = 256;
 
+    /// The default [`Culler::nearest_first`]. The depth-first walk finishes the nearer
+    /// child's whole subtree first, so a box beside the eye can wait behind thousands of
+    /// farther ones. On the boxfield's occluder pass the nearest box (0.14 units from the
+    /// eye) came in the 15th batch, after 2,800 clusters, and then overwrote a million
+    /// pixels; taking the 32 nearest first made the pass 15% faster on one thread. 16 to
+    /// 256 do about as well there; 1,024 and more cost more to find than they save.
+    pub const DEFAULT_NEAREST_FIRST: usize = 32;
+
     /// The batch sizes for the calling thread pool.
     fn batching(&self) -> Batching {
         let cap = if rayon::current_num_threads() == 1 { self.one_thread_max_batch } else { usize::MAX };
-        Batching { first: self.first_batch.max(1), cap: self.max_batch.min(cap).max(1) }
+        Batching {
+            first: self.first_batch.max(1),
+            cap: self.max_batch.min(cap).max(1),
+            nearest_first: self.nearest_first,
+        }
     }
 
     /// Builds clusters, meshlets and BVH for the scene's instances (world transforms
@@ -248,6 +265,7 @@ impl Culler {
             first_batch: Self::DEFAULT_FIRST_BATCH,
             max_batch: Self::DEFAULT_MAX_BATCH,
             one_thread_max_batch: Self::ONE_THREAD_MAX_BATCH,
+            nearest_first: Self::DEFAULT_NEAREST_FIRST,
         }
     }
 

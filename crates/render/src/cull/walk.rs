@@ -31,6 +31,9 @@ pub(super) struct Batching {
     pub first: usize,
     /// Largest batch (batches double up to it).
     pub cap: usize,
+    /// Clusters nearest the eye that a BVH walk takes before its depth-first order
+    /// ([`FrontToBackCursor::nearest_first`]).
+    pub nearest_first: usize,
 }
 
 /// How [`Clusters::hzb_walk`] walks.
@@ -174,7 +177,9 @@ impl Clusters {
         let projector = BoxProjector::new(f.camera.clip_from_world(), pyramid.width(), pyramid.height());
         let eye = f.camera.view.eye;
         let mut cursor = match source {
-            Source::Bvh => Cursor::Bvh(self.clustered.cursor(Some(frustum), eye)),
+            Source::Bvh => Cursor::Bvh(
+                self.clustered.cursor(Some(frustum), eye).nearest_first(self.clustered.bvh(), batching.nearest_first),
+            ),
             Source::Octree => Cursor::Octree(OctreeCursor::new(&self.octree, Some(frustum), eye)),
         };
         let mut batch = walk.first_batch.max(1);
@@ -240,7 +245,8 @@ impl Clusters {
         let this: &Clusters = self;
         let eye = f.camera.view.eye;
         let backface = f.opts.backface_culling;
-        let mut cursor = this.clustered.cursor(Some(frustum), eye);
+        let mut cursor =
+            this.clustered.cursor(Some(frustum), eye).nearest_first(this.clustered.bvh(), batching.nearest_first);
         // One batch: the clusters, whether more may follow, and what dropping back faces counted.
         let find = |cursor: &mut FrontToBackCursor, batch: usize| {
             let t = Instant::now();

@@ -9,7 +9,11 @@
 //! distance to the box, 0 when the eye is inside; ties broken by the distance to the box
 //! center) is visited first, and a leaf's items are visited nearest first. This is the order
 //! an occlusion culler wants (Greene, Kass & Miller 1993): near occluders are drawn before
-//! the far nodes are tested against the depth pyramid. [`FrontToBackCursor`] stops after a
+//! the far nodes are tested against the depth pyramid. Depth first, it is only roughly front
+//! to back (a nearer child's whole subtree comes before its sibling), so
+//! [`FrontToBackCursor::nearest_first`] can put the k nearest items ahead of it, found
+//! best-first with a priority queue (the k-nearest-neighbor search of Roussopoulos, Kelley
+//! & Vincent, SIGMOD 1995, with box distances). [`FrontToBackCursor`] stops after a
 //! batch of items and resumes where it stopped, so the caller can draw a batch and refresh its
 //! pyramid between batches without fighting the borrow checker over callbacks.
 
@@ -37,6 +41,9 @@ impl CoherencyCache {
 const KIND_NODE: u8 = 0;
 const KIND_ITEM: u8 = 1;
 const KIND_UNBOUNDED: u8 = 2;
+/// An item put ahead of the walk, already classified against the frustum (its mask is the
+/// one after that test).
+const KIND_SEED: u8 = 3;
 
 #[derive(Debug, Clone, Copy)]
 struct Entry {
@@ -69,6 +76,9 @@ pub struct FrontToBackCursor {
     stack: Vec<Entry>,
     frustum: Option<Frustum>,
     eye: Vec3,
+    /// The slots of the items put ahead of the walk ([`FrontToBackCursor::nearest_first`]),
+    /// sorted: the walk passes over them.
+    seeded: Vec<u32>,
 }
 
 impl FrontToBackCursor {
@@ -82,7 +92,28 @@ impl FrontToBackCursor {
         for k in (0..bvh.unbounded.len()).rev() {
             stack.push(Entry { id: k as u32, mask: ALL_PLANES, kind: KIND_UNBOUNDED });
         }
-        Self { stack, frustum: frustum.copied(), eye }
+        Self { stack, frustum: frustum.copied(), eye, seeded: Vec::new() }
+    }
+
+    /// Puts the `k` items nearest the eye ahead of the walk, nearest first: the items in the
+    /// frustum whose boxes are nearest (squared distance to the box), found best-first with a
+    /// priority queue over nodes. The depth-first walk only approximates front to back: it
+    /// finishes the nearer child's whole subtree first, so a box beside the eye can wait
+    /// behind thousands of farther ones in a sibling whose box holds the eye. Drawing the
+    /// nearest boxes first gives the depth pyramid its best occluders at once. The walk then
+    /// passes over the seeds; every item is still emitted once, and the set is the same.
+    /// Unbounded items still come first. Call before the first batch.
+    pub fn nearest_first(mut self, bvh: &Bvh, k: usize) -> Self {
+        let found = nearest_items(bvh, self.frustum.as_ref(), self.eye, k);
+        self.seeded = found.iter().map(|s| s.0).collect();
+        self.seeded.sort_unstable();
+        // Above the root (the stack's bottom), below the unbounded items; farthest first,
+        // so that the nearest pops first.
+        if !self.stack.is_empty() && self.stack[0].kind == KIND_NODE {
+            let seeds = found.iter().rev().map(|&(id, mask)| Entry { id, mask, kind: KIND_SEED });
+            self.stack.splice(1..1, seeds);
+        }
+        self
     }
 
     /// True when the traversal has finished.
@@ -107,6 +138,7 @@ impl FrontToBackCursor {
             self.frustum.as_ref(),
             self.eye,
             &mut self.stack,
+            &self.seeded,
             |b| {
                 if possibly_visible(b) {
                     Visit::Continue
@@ -135,6 +167,7 @@ fn run(
     frustum: Option<&Frustum>,
     eye: Vec3,
     stack: &mut Vec<Entry>,
+    seeded: &[u32],
     mut node_visit: impl FnMut(&Aabb) -> Visit,
     mut item_visit: impl FnMut(Visible) -> Visit,
 ) {
@@ -154,7 +187,21 @@ fn run(
                     return;
                 }
             }
+            KIND_SEED => {
+                match node_visit(&bvh.item_boxes[e.id as usize]) {
+                    Visit::Stop => return,
+                    Visit::Skip => continue,
+                    Visit::Continue => {}
+                }
+                let v = Visible { index: bvh.items[e.id as usize], inside: frustum.is_some() && mask == 0 };
+                if item_visit(v) == Visit::Stop {
+                    return;
+                }
+            }
             KIND_ITEM => {
+                if is_seed(seeded, e.id) {
+                    continue;
+                }
                 let b = &bvh.item_boxes[e.id as usize];
                 if let Some(f) = frustum {
                     if mask != 0 && f.classify_masked(b, &mut mask) == Containment::Outside {
@@ -173,6 +220,9 @@ fn run(
             }
             _ => {
                 let n = bvh.nodes[e.id as usize];
+                if n.count == 1 && is_seed(seeded, n.index) {
+                    continue;
+                }
                 let b = n.aabb();
                 if let Some(f) = frustum {
                     if mask != 0 && f.classify_masked(&b, &mut mask) == Containment::Outside {
@@ -219,6 +269,75 @@ fn run(
             }
         }
     }
+}
+
+/// True when item slot `slot` was emitted ahead of the walk (`seeded` sorted).
+#[inline(always)]
+fn is_seed(seeded: &[u32], slot: u32) -> bool {
+    !seeded.is_empty() && seeded.binary_search(&slot).is_ok()
+}
+
+/// The (at most) `k` items in `frustum` whose boxes are nearest `eye`, nearest first, as
+/// (slot, plane mask): best-first over the nodes (a node's box holds its items' boxes, so
+/// none is nearer than its node), classified against the frustum along the same paths, with
+/// the same masks, as the depth-first walk. Ties go to the lower node or slot.
+fn nearest_items(bvh: &Bvh, frustum: Option<&Frustum>, eye: Vec3, k: usize) -> Vec<(u32, PlaneMask)> {
+    use std::cmp::Reverse;
+    use std::collections::BinaryHeap;
+    let mut found = Vec::with_capacity(k);
+    if k == 0 || bvh.nodes.is_empty() {
+        return found;
+    }
+    // (distance bits, kind, id, mask): distances are ≥ 0 (or NaN, last), so their bits order
+    // them as the floats.
+    let mut heap = BinaryHeap::new();
+    let key = |b: &Aabb| {
+        let d = b.distance_squared(eye);
+        if d.is_nan() {
+            u32::MAX
+        } else {
+            d.to_bits()
+        }
+    };
+    heap.push(Reverse((key(&bvh.nodes[0].aabb()), KIND_NODE, 0u32, ALL_PLANES)));
+    while let Some(Reverse((_, kind, id, mut mask))) = heap.pop() {
+        if kind == KIND_ITEM {
+            let b = &bvh.item_boxes[id as usize];
+            if let Some(f) = frustum {
+                if mask != 0 && f.classify_masked(b, &mut mask) == Containment::Outside {
+                    continue;
+                }
+            }
+            found.push((id, mask));
+            if found.len() == k {
+                break;
+            }
+            continue;
+        }
+        let n = bvh.nodes[id as usize];
+        let b = n.aabb();
+        if let Some(f) = frustum {
+            if mask != 0 && f.classify_masked(&b, &mut mask) == Containment::Outside {
+                continue;
+            }
+        }
+        if n.count == 1 {
+            // The leaf box is the item box, tested just now.
+            found.push((n.index, mask));
+            if found.len() == k {
+                break;
+            }
+        } else if n.is_leaf() {
+            for s in n.index..n.index + n.count {
+                heap.push(Reverse((key(&bvh.item_boxes[s as usize]), KIND_ITEM, s, mask)));
+            }
+        } else {
+            for c in [n.index, n.index + 1] {
+                heap.push(Reverse((key(&bvh.nodes[c as usize].aabb()), KIND_NODE, c, mask)));
+            }
+        }
+    }
+    found
 }
 
 /// True when box `a` should be visited before box `b` from `eye`.
@@ -374,7 +493,7 @@ impl Bvh {
         item_visit: impl FnMut(Visible) -> Visit,
     ) {
         let mut cursor = FrontToBackCursor::new(self, frustum, eye);
-        run(self, frustum, eye, &mut cursor.stack, node_visit, item_visit);
+        run(self, frustum, eye, &mut cursor.stack, &[], node_visit, item_visit);
     }
 
     /// Every item (unbounded first, then the tree's) in front-to-back order for `eye`.
@@ -523,5 +642,63 @@ mod tests {
         );
         assert!(got.iter().all(|&i| boxes[i as usize].min.x <= 0.0));
         assert_eq!(got.len(), 220);
+    }
+
+    /// A cursor that puts the k nearest items first emits them first, nearest first (the k
+    /// smallest box distances among the items in the frustum), then the rest: every item
+    /// the plain walk emits, once, with the same `inside` flags; unbounded items still lead.
+    #[test]
+    fn nearest_first_leads_with_the_nearest_and_keeps_the_set() {
+        let mut rng = sightline_scene::rng::Rng::new(5);
+        let mut boxes: Vec<Aabb> = (0..3000)
+            .map(|_| {
+                let p = Vec3::new(rng.range(-60.0, 60.0), rng.range(-5.0, 5.0), rng.range(-60.0, 60.0));
+                Aabb::new(p, p + Vec3::new(rng.range(0.1, 4.0), rng.range(0.1, 4.0), rng.range(0.1, 4.0)))
+            })
+            .collect();
+        boxes[11] = Aabb::new(Vec3::splat(f32::NEG_INFINITY), Vec3::splat(f32::INFINITY));
+        let mut led = 0;
+        for leaf in [1, 4, 8] {
+            let bvh = Bvh::build(&boxes, BvhPreset::Fast, leaf);
+            for c in 0..30 {
+                let eye = Vec3::new(rng.range(-70.0, 70.0), rng.range(-5.0, 10.0), rng.range(-70.0, 70.0));
+                let look = LookAt {
+                    eye,
+                    target: Vec3::new(rng.range(-30.0, 30.0), 0.0, rng.range(-30.0, 30.0)),
+                    up: Vec3::Y,
+                    fovy: Angle::degrees(rng.range(20.0, 100.0)),
+                    near: 0.1,
+                    far: [10.0, 60.0, 400.0][c % 3],
+                };
+                let frustum = Frustum::from_camera(&Camera::perspective(&look, 1.5).unwrap());
+                let f = (c % 4 != 0).then_some(&frustum);
+                let walk = |k: usize| {
+                    let mut cursor = FrontToBackCursor::new(&bvh, f, eye).nearest_first(&bvh, k);
+                    let mut out = Vec::new();
+                    while cursor.next_batch(&bvh, |_| true, 5, &mut out) {}
+                    assert!(cursor.is_done());
+                    out
+                };
+                let plain = walk(0);
+                let k = [1, 7, 32, 5000][c % 4];
+                let seeded = walk(k);
+                let sorted = |v: &[Visible]| {
+                    let mut v: Vec<(u32, bool)> = v.iter().map(|v| (v.index, v.inside)).collect();
+                    v.sort_unstable();
+                    v
+                };
+                assert_eq!(sorted(&seeded), sorted(&plain), "leaf {leaf}, camera {c}, k {k}");
+                // The unbounded item, then the k nearest by box distance.
+                assert_eq!(seeded[0].index, 11);
+                let d = |i: u32| boxes[i as usize].distance_squared(eye);
+                let mut dist: Vec<f32> = plain.iter().filter(|v| v.index != 11).map(|v| d(v.index)).collect();
+                dist.sort_unstable_by(f32::total_cmp);
+                let head: Vec<f32> = seeded[1..].iter().take(k).map(|v| d(v.index)).collect();
+                assert_eq!(head, dist[..head.len()], "leaf {leaf}, camera {c}, k {k}");
+                assert_eq!(head.len(), k.min(dist.len()));
+                led += head.len();
+            }
+        }
+        assert!(led > 1000, "{led} items led");
     }
 }
