@@ -97,20 +97,7 @@ impl TileLevels {
         // longer side: at most 3 × 3 of them.
         let span = (x1 - x0).max(y1 - y0) + 1;
         let level = (31 - span.leading_zeros()).clamp(1, 6) as usize;
-        let behind = |near: f32| {
-            let s = (TILE >> level) as usize;
-            let off = OFFSETS[level - 1];
-            // Half-open ranges: inclusive ones cost a check per step.
-            let (tx0, tx1) = ((x0 >> level) as usize, (x1 >> level) as usize + 1);
-            for y in (y0 >> level) as usize..(y1 >> level) as usize + 1 {
-                for &texel in &self.mips[off + y * s..][tx0..tx1] {
-                    if near <= texel + self.tie_margin {
-                        return false;
-                    }
-                }
-            }
-            true
-        };
+        let behind = |near: f32| self.texels_behind(level, [x0, y0, x1, y1], near);
         let near = min(min(t.z0, z1), z2) - err;
         if near > 0.0 && behind(near) {
             return true;
@@ -126,6 +113,24 @@ impl TileLevels {
         let (sx, sy) = (self.x0 as i32, self.y0 as i32);
         let plane = t.plane_min([x0 as i32 + sx, y0 as i32 + sy, x1 as i32 + sx, y1 as i32 + sy]);
         plane > near && plane > 0.0 && behind(plane)
+    }
+
+    /// True when depth `near` lies behind every texel of level `level` over the tile pixels
+    /// `[x0, y0, x1, y1]` (by more than the tie margin).
+    #[inline(always)]
+    fn texels_behind(&self, level: usize, [x0, y0, x1, y1]: [u32; 4], near: f32) -> bool {
+        let s = (TILE >> level) as usize;
+        let off = OFFSETS[level - 1];
+        // Half-open ranges: inclusive ones cost a check per step.
+        let (tx0, tx1) = ((x0 >> level) as usize, (x1 >> level) as usize + 1);
+        for y in (y0 >> level) as usize..(y1 >> level) as usize + 1 {
+            for &texel in &self.mips[off + y * s..][tx0..tx1] {
+                if near <= texel + self.tie_margin {
+                    return false;
+                }
+            }
+        }
+        true
     }
 
     /// Coarse depth per 8×8 block: true when the triangle's plane over the block's pixel
