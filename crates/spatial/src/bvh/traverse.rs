@@ -187,23 +187,15 @@ fn run(
                     return;
                 }
             }
-            KIND_SEED => {
-                match node_visit(&bvh.item_boxes[e.id as usize]) {
-                    Visit::Stop => return,
-                    Visit::Skip => continue,
-                    Visit::Continue => {}
-                }
-                let v = Visible { index: bvh.items[e.id as usize], inside: frustum.is_some() && mask == 0 };
-                if item_visit(v) == Visit::Stop {
-                    return;
-                }
-            }
-            KIND_ITEM => {
-                if is_seed(seeded, e.id) {
+            KIND_SEED | KIND_ITEM => {
+                // A seed was classified against the frustum when it was found; the walk
+                // passes over it where it meets it as an item.
+                let item = e.kind == KIND_ITEM;
+                if item && is_seed(seeded, e.id) {
                     continue;
                 }
                 let b = &bvh.item_boxes[e.id as usize];
-                if let Some(f) = frustum {
+                if let (true, Some(f)) = (item, frustum) {
                     if mask != 0 && f.classify_masked(b, &mut mask) == Containment::Outside {
                         continue;
                     }
@@ -580,18 +572,23 @@ mod tests {
         assert_eq!(got, brute);
     }
 
+    /// 3,000 random boxes over a 120 × 10 × 120 block, sides 0.1 to 4.
+    fn random_boxes(rng: &mut sightline_scene::rng::Rng) -> Vec<Aabb> {
+        (0..3000)
+            .map(|_| {
+                let p = Vec3::new(rng.range(-60.0, 60.0), rng.range(-5.0, 5.0), rng.range(-60.0, 60.0));
+                Aabb::new(p, p + Vec3::new(rng.range(0.1, 4.0), rng.range(0.1, 4.0), rng.range(0.1, 4.0)))
+            })
+            .collect()
+    }
+
     #[test]
     fn counting_in_the_frustum_equals_listing() {
         // Random boxes (a few NaN, empty or unbounded) under random cameras, leaves of one
         // and of several items: the count is the length of the list, cameras that see all,
         // some or none of the boxes alike.
         let mut rng = sightline_scene::rng::Rng::new(17);
-        let mut boxes: Vec<Aabb> = (0..3000)
-            .map(|_| {
-                let p = Vec3::new(rng.range(-60.0, 60.0), rng.range(-5.0, 5.0), rng.range(-60.0, 60.0));
-                Aabb::new(p, p + Vec3::new(rng.range(0.1, 4.0), rng.range(0.1, 4.0), rng.range(0.1, 4.0)))
-            })
-            .collect();
+        let mut boxes = random_boxes(&mut rng);
         boxes[7] = Aabb::EMPTY;
         boxes[11] = Aabb::new(Vec3::splat(f32::NEG_INFINITY), Vec3::splat(f32::INFINITY));
         for leaf in [1, 4, 8] {
@@ -650,12 +647,7 @@ mod tests {
     #[test]
     fn nearest_first_leads_with_the_nearest_and_keeps_the_set() {
         let mut rng = sightline_scene::rng::Rng::new(5);
-        let mut boxes: Vec<Aabb> = (0..3000)
-            .map(|_| {
-                let p = Vec3::new(rng.range(-60.0, 60.0), rng.range(-5.0, 5.0), rng.range(-60.0, 60.0));
-                Aabb::new(p, p + Vec3::new(rng.range(0.1, 4.0), rng.range(0.1, 4.0), rng.range(0.1, 4.0)))
-            })
-            .collect();
+        let mut boxes = random_boxes(&mut rng);
         boxes[11] = Aabb::new(Vec3::splat(f32::NEG_INFINITY), Vec3::splat(f32::INFINITY));
         let mut led = 0;
         for leaf in [1, 4, 8] {
