@@ -102,17 +102,22 @@ impl FrontToBackCursor {
     /// behind thousands of farther ones in a sibling whose box holds the eye. Drawing the
     /// nearest boxes first gives the depth pyramid its best occluders at once. The walk then
     /// passes over the seeds; every item is still emitted once, and the set is the same.
-    /// Unbounded items still come first. Call before the first batch.
+    /// Unbounded items still come first. Takes effect before the first batch only (later,
+    /// or a second time, it changes nothing).
     pub fn nearest_first(mut self, bvh: &Bvh, k: usize) -> Self {
+        // Only before the walk has left the root (at the stack's bottom), and only once: a
+        // walk under way may have emitted some of the nearest already.
+        let fresh = self.stack.first().is_some_and(|e| e.kind == KIND_NODE && e.id == 0);
+        if !fresh || !self.seeded.is_empty() {
+            return self;
+        }
         let found = nearest_items(bvh, self.frustum.as_ref(), self.eye, k);
         self.seeded = found.iter().map(|s| s.0).collect();
         self.seeded.sort_unstable();
-        // Above the root (the stack's bottom), below the unbounded items; farthest first,
-        // so that the nearest pops first.
-        if !self.stack.is_empty() && self.stack[0].kind == KIND_NODE {
-            let seeds = found.iter().rev().map(|&(id, mask)| Entry { id, mask, kind: KIND_SEED });
-            self.stack.splice(1..1, seeds);
-        }
+        // Above the root, below the unbounded items; farthest first, so that the nearest
+        // pops first.
+        let seeds = found.iter().rev().map(|&(id, mask)| Entry { id, mask, kind: KIND_SEED });
+        self.stack.splice(1..1, seeds);
         self
     }
 
@@ -672,6 +677,16 @@ mod tests {
                     out
                 };
                 let plain = walk(0);
+                // Seeding a walk under way, or twice, changes nothing.
+                let mut late = FrontToBackCursor::new(&bvh, f, eye);
+                let mut out = Vec::new();
+                late.next_batch(&bvh, |_| true, 3, &mut out);
+                late = late.nearest_first(&bvh, 10).nearest_first(&bvh, 10);
+                while late.next_batch(&bvh, |_| true, 5, &mut out) {}
+                assert_eq!(
+                    out.iter().map(|v| v.index).collect::<Vec<_>>(),
+                    plain.iter().map(|v| v.index).collect::<Vec<_>>()
+                );
                 let k = [1, 7, 32, 5000][c % 4];
                 let seeded = walk(k);
                 let sorted = |v: &[Visible]| {
