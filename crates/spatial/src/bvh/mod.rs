@@ -2,8 +2,9 @@
 //! by locally-ordered clustering (module `ploc`), optimized with `obvhs` and re-laid out for
 //! culling, and what is built on it: the BVH
 //! over instances ([`instances`]), over one mesh's triangles ([`triangles`]), triangle
-//! clusters ([`cluster`], [`scene`]), the traversals ([`traverse`]), and the ray caster's
-//! 4-wide two-level BVH ([`wide`]).
+//! clusters ([`cluster`], [`scene`]), the traversals (frustum culling in [`traverse`],
+//! front to back in [`front_to_back`]), and the ray caster's 4-wide two-level BVH
+//! ([`wide`]).
 //!
 //! Construction: D. Meister and J. Bittner, "Parallel Locally-Ordered Clustering for Bounding
 //! Volume Hierarchy Construction" (PLOC, IEEE TVCG 2018), in our own version whose build
@@ -22,6 +23,7 @@
 //! [`Bvh::unbounded`] and reported by every traversal as visible (see the crate docs).
 
 pub mod cluster;
+pub mod front_to_back;
 pub mod instances;
 mod ploc;
 mod refit;

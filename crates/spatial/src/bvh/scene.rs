@@ -18,8 +18,8 @@ use rayon::prelude::*;
 use sightline_scene::{Aabb, Instance, MeshId, Scene};
 
 use super::cluster::MeshClusters;
+use super::front_to_back::FrontToBackCursor;
 use super::instances::{cost_ratio, RefitOutcome};
-use super::traverse::FrontToBackCursor;
 use super::{Bvh, BvhPreset};
 use crate::{CullCounters, CullOptions, FrontToBack, Frustum, FrustumCull, Visible, Visit};
 

@@ -1,0 +1,464 @@
+//! Front-to-back traversal of a BVH with a per-node visibility callback, whole or in
+//! resumable batches.
+//!
+//! At each inner node the child whose box is nearer to the eye (squared distance to the
+//! box, 0 when the eye is inside; ties broken by the distance to the box center) is visited
+//! first, and a leaf's items are visited nearest first. This is the order an occlusion culler
+//! wants (Greene, Kass & Miller 1993): near occluders are drawn before the far nodes are
+//! tested against the depth pyramid. Depth first, it is only roughly front to back (a nearer
+//! child's whole subtree comes before its sibling), so [`FrontToBackCursor::nearest_first`]
+//! can put the k nearest items ahead of it, found best-first with a priority queue (the
+//! k-nearest-neighbor search of Roussopoulos, Kelley & Vincent, SIGMOD 1995, with box
+//! distances). [`FrontToBackCursor`] stops after a batch of items and resumes where it
+//! stopped, so the caller can draw a batch and refresh its pyramid between batches without
+//! fighting the borrow checker over callbacks. Frustum tests on the way are those of
+//! [`super::traverse`] (plane masking).
+
+use glam::Vec3;
+use sightline_scene::Aabb;
+
+use super::Bvh;
+use crate::hint::prefetch;
+use crate::{AabbExt, Containment, Frustum, PlaneMask, Visible, Visit, ALL_PLANES};
+
+const KIND_NODE: u8 = 0;
+const KIND_ITEM: u8 = 1;
+const KIND_UNBOUNDED: u8 = 2;
+/// An item put ahead of the walk, already classified against the frustum (its mask is the
+/// one after that test).
+const KIND_SEED: u8 = 3;
+
+#[derive(Debug, Clone, Copy)]
+struct Entry {
+    id: u32,
+    mask: PlaneMask,
+    kind: u8,
+}
+
+/// A front-to-back traversal that can stop after a batch of visible items and resume.
+///
+/// ```
+/// # use sightline_spatial::*;
+/// # use glam::Vec3;
+/// let boxes: Vec<Aabb> = (0..100)
+///     .map(|i| Aabb::new(Vec3::new(i as f32, 0.0, 0.0), Vec3::new(i as f32 + 0.5, 1.0, 1.0)))
+///     .collect();
+/// let bvh = Bvh::build(&boxes, BvhPreset::Fast, 4);
+/// let mut cursor = FrontToBackCursor::new(&bvh, None, Vec3::new(-10.0, 0.5, 0.5));
+/// let mut batch = Vec::new();
+/// let mut all = Vec::new();
+/// while cursor.next_batch(&bvh, |_node_box| true, 16, &mut batch) {
+///     all.extend(batch.drain(..).map(|v| v.index)); // draw, then refresh the depth pyramid
+/// }
+/// all.extend(batch.drain(..).map(|v| v.index));
+/// assert_eq!(all.len(), 100);
+/// assert_eq!(all[0], 0); // nearest first
+/// ```
+#[derive(Debug, Clone)]
+pub struct FrontToBackCursor {
+    stack: Vec<Entry>,
+    frustum: Option<Frustum>,
+    eye: Vec3,
+    /// The slots of the items put ahead of the walk ([`FrontToBackCursor::nearest_first`]),
+    /// sorted: the walk passes over them.
+    seeded: Vec<u32>,
+}
+
+impl FrontToBackCursor {
+    /// Starts a traversal of `bvh` for `eye`, culling against `frustum` when given.
+    /// Unbounded items come first.
+    pub fn new(bvh: &Bvh, frustum: Option<&Frustum>, eye: Vec3) -> Self {
+        let mut stack = Vec::with_capacity(64);
+        if !bvh.nodes.is_empty() {
+            stack.push(Entry { id: 0, mask: ALL_PLANES, kind: KIND_NODE });
+        }
+        for k in (0..bvh.unbounded.len()).rev() {
+            stack.push(Entry { id: k as u32, mask: ALL_PLANES, kind: KIND_UNBOUNDED });
+        }
+        Self { stack, frustum: frustum.copied(), eye, seeded: Vec::new() }
+    }
+
+    /// Puts the `k` items nearest the eye ahead of the walk, nearest first: the items in the
+    /// frustum whose boxes are nearest (squared distance to the box), found best-first with a
+    /// priority queue over nodes. The depth-first walk only approximates front to back: it
+    /// finishes the nearer child's whole subtree first, so a box beside the eye can wait
+    /// behind thousands of farther ones in a sibling whose box holds the eye. Drawing the
+    /// nearest boxes first gives the depth pyramid its best occluders at once. The walk then
+    /// passes over the seeds; every item is still emitted once, and the set is the same.
+    /// Unbounded items still come first. Takes effect before the first batch only (later,
+    /// or a second time, it changes nothing).
+    pub fn nearest_first(mut self, bvh: &Bvh, k: usize) -> Self {
+        // Only before the walk has left the root (at the stack's bottom), and only once: a
+        // walk under way may have emitted some of the nearest already.
+        let fresh = self.stack.first().is_some_and(|e| e.kind == KIND_NODE && e.id == 0);
+        if !fresh || !self.seeded.is_empty() {
+            return self;
+        }
+        let found = nearest_items(bvh, self.frustum.as_ref(), self.eye, k);
+        self.seeded = found.iter().map(|s| s.0).collect();
+        self.seeded.sort_unstable();
+        // Above the root, below the unbounded items; farthest first, so that the nearest
+        // pops first.
+        let seeds = found.iter().rev().map(|&(id, mask)| Entry { id, mask, kind: KIND_SEED });
+        self.stack.splice(1..1, seeds);
+        self
+    }
+
+    /// True when the traversal has finished.
+    pub fn is_done(&self) -> bool {
+        self.stack.is_empty()
+    }
+
+    /// Continues the traversal: `possibly_visible(box)` is asked for every node and item box
+    /// that passes the frustum (false skips it and its subtree); visible items are appended to
+    /// `out` until it has grown by `max_items`. Returns true when more may remain.
+    pub fn next_batch(
+        &mut self,
+        bvh: &Bvh,
+        mut possibly_visible: impl FnMut(&Aabb) -> bool,
+        max_items: usize,
+        out: &mut Vec<Visible>,
+    ) -> bool {
+        let mut emitted = 0usize;
+        let max = max_items.max(1);
+        run(
+            bvh,
+            self.frustum.as_ref(),
+            self.eye,
+            &mut self.stack,
+            &self.seeded,
+            |b| {
+                if possibly_visible(b) {
+                    Visit::Continue
+                } else {
+                    Visit::Skip
+                }
+            },
+            |v| {
+                out.push(v);
+                emitted += 1;
+                if emitted >= max {
+                    Visit::Stop
+                } else {
+                    Visit::Continue
+                }
+            },
+        );
+        !self.stack.is_empty()
+    }
+}
+
+/// The front-to-back core shared by the callback and cursor forms. Returns when the stack is
+/// empty or a callback said `Stop` (the stack then holds the rest of the traversal).
+fn run(
+    bvh: &Bvh,
+    frustum: Option<&Frustum>,
+    eye: Vec3,
+    stack: &mut Vec<Entry>,
+    seeded: &[u32],
+    mut node_visit: impl FnMut(&Aabb) -> Visit,
+    mut item_visit: impl FnMut(Visible) -> Visit,
+) {
+    let mut order: Vec<(f32, u32)> = Vec::new();
+    while let Some(e) = stack.pop() {
+        let mut mask = e.mask;
+        match e.kind {
+            KIND_UNBOUNDED => {
+                let id = bvh.unbounded[e.id as usize];
+                let b = Aabb::new(Vec3::NAN, Vec3::NAN);
+                match node_visit(&b) {
+                    Visit::Stop => return,
+                    Visit::Skip => continue,
+                    Visit::Continue => {}
+                }
+                if item_visit(Visible { index: id, inside: false }) == Visit::Stop {
+                    return;
+                }
+            }
+            KIND_SEED | KIND_ITEM => {
+                // A seed was classified against the frustum when it was found; the walk
+                // passes over it where it meets it as an item.
+                let item = e.kind == KIND_ITEM;
+                if item && is_seed(seeded, e.id) {
+                    continue;
+                }
+                let b = &bvh.item_boxes[e.id as usize];
+                if let (true, Some(f)) = (item, frustum) {
+                    if mask != 0 && f.classify_masked(b, &mut mask) == Containment::Outside {
+                        continue;
+                    }
+                }
+                match node_visit(b) {
+                    Visit::Stop => return,
+                    Visit::Skip => continue,
+                    Visit::Continue => {}
+                }
+                let v = Visible { index: bvh.items[e.id as usize], inside: frustum.is_some() && mask == 0 };
+                if item_visit(v) == Visit::Stop {
+                    return;
+                }
+            }
+            _ => {
+                let n = bvh.nodes[e.id as usize];
+                if n.count == 1 && is_seed(seeded, n.index) {
+                    continue;
+                }
+                let b = n.aabb();
+                if let Some(f) = frustum {
+                    if mask != 0 && f.classify_masked(&b, &mut mask) == Containment::Outside {
+                        continue;
+                    }
+                }
+                match node_visit(&b) {
+                    Visit::Stop => return,
+                    Visit::Skip => continue,
+                    Visit::Continue => {}
+                }
+                if n.count == 1 {
+                    // The leaf box is the item box: no second test.
+                    let v = Visible { index: bvh.items[n.index as usize], inside: frustum.is_some() && mask == 0 };
+                    if item_visit(v) == Visit::Stop {
+                        return;
+                    }
+                } else if n.is_leaf() {
+                    order.clear();
+                    for s in n.index..n.index + n.count {
+                        let d = bvh.item_boxes[s as usize].distance_squared(eye);
+                        order.push((d, s));
+                    }
+                    // Farthest pushed first so the nearest pops first.
+                    order.sort_unstable_by(|a, b| b.0.total_cmp(&a.0));
+                    stack.extend(order.iter().map(|&(_, s)| Entry { id: s, mask, kind: KIND_ITEM }));
+                } else {
+                    let (a, c) = (n.index, n.index + 1);
+                    let (na, nc) = (&bvh.nodes[a as usize], &bvh.nodes[c as usize]);
+                    // Both children are visited soon (unless culled): start loading what they
+                    // will read, their child pairs or item boxes, while this pair is ordered.
+                    for child in [na, nc] {
+                        let i = child.index as usize;
+                        match child.count {
+                            0 => bvh.nodes.get(i).map(prefetch),
+                            1 => bvh.items.get(i).map(prefetch),
+                            _ => bvh.item_boxes.get(i).map(prefetch),
+                        };
+                    }
+                    let (near, far) = if nearer(&na.aabb(), &nc.aabb(), eye) { (a, c) } else { (c, a) };
+                    stack.push(Entry { id: far, mask, kind: KIND_NODE });
+                    stack.push(Entry { id: near, mask, kind: KIND_NODE });
+                }
+            }
+        }
+    }
+}
+
+/// True when item slot `slot` was emitted ahead of the walk (`seeded` sorted).
+#[inline(always)]
+fn is_seed(seeded: &[u32], slot: u32) -> bool {
+    !seeded.is_empty() && seeded.binary_search(&slot).is_ok()
+}
+
+/// The (at most) `k` items in `frustum` whose boxes are nearest `eye`, nearest first, as
+/// (slot, plane mask): best-first over the nodes (a node's box holds its items' boxes, so
+/// none is nearer than its node), classified against the frustum along the same paths, with
+/// the same masks, as the depth-first walk. Ties go to the lower node or slot.
+fn nearest_items(bvh: &Bvh, frustum: Option<&Frustum>, eye: Vec3, k: usize) -> Vec<(u32, PlaneMask)> {
+    use std::cmp::Reverse;
+    use std::collections::BinaryHeap;
+    let mut found = Vec::with_capacity(k);
+    if k == 0 || bvh.nodes.is_empty() {
+        return found;
+    }
+    // (distance bits, kind, id, mask): distances are ≥ 0 (or NaN, last), so their bits order
+    // them as the floats.
+    let mut heap = BinaryHeap::new();
+    let key = |b: &Aabb| {
+        let d = b.distance_squared(eye);
+        if d.is_nan() {
+            u32::MAX
+        } else {
+            d.to_bits()
+        }
+    };
+    heap.push(Reverse((key(&bvh.nodes[0].aabb()), KIND_NODE, 0u32, ALL_PLANES)));
+    while let Some(Reverse((_, kind, id, mut mask))) = heap.pop() {
+        if kind == KIND_ITEM {
+            let b = &bvh.item_boxes[id as usize];
+            if let Some(f) = frustum {
+                if mask != 0 && f.classify_masked(b, &mut mask) == Containment::Outside {
+                    continue;
+                }
+            }
+            found.push((id, mask));
+            if found.len() == k {
+                break;
+            }
+            continue;
+        }
+        let n = bvh.nodes[id as usize];
+        let b = n.aabb();
+        if let Some(f) = frustum {
+            if mask != 0 && f.classify_masked(&b, &mut mask) == Containment::Outside {
+                continue;
+            }
+        }
+        if n.count == 1 {
+            // The leaf box is the item box, tested just now.
+            found.push((n.index, mask));
+            if found.len() == k {
+                break;
+            }
+        } else if n.is_leaf() {
+            for s in n.index..n.index + n.count {
+                heap.push(Reverse((key(&bvh.item_boxes[s as usize]), KIND_ITEM, s, mask)));
+            }
+        } else {
+            for c in [n.index, n.index + 1] {
+                heap.push(Reverse((key(&bvh.nodes[c as usize].aabb()), KIND_NODE, c, mask)));
+            }
+        }
+    }
+    found
+}
+
+/// True when box `a` should be visited before box `b` from `eye`.
+#[inline]
+fn nearer(a: &Aabb, b: &Aabb, eye: Vec3) -> bool {
+    let (da, db) = (a.distance_squared(eye), b.distance_squared(eye));
+    if da != db {
+        return da < db;
+    }
+    a.center().distance_squared(eye) <= b.center().distance_squared(eye)
+}
+
+impl Bvh {
+    /// Front-to-back traversal for `eye`, culled by `frustum` when given.
+    ///
+    /// `node_visit(box)` is called for every node and item box that passes the frustum, in
+    /// front-to-back order: `Skip` prunes it (e.g. occluded in a depth pyramid), `Stop` ends
+    /// the traversal. `item_visit` receives each surviving item (with its `inside` flag) in
+    /// front-to-back order and may also return `Stop`. Unbounded items come first (their box
+    /// is passed as all-NaN).
+    pub fn traverse_front_to_back(
+        &self,
+        frustum: Option<&Frustum>,
+        eye: Vec3,
+        node_visit: impl FnMut(&Aabb) -> Visit,
+        item_visit: impl FnMut(Visible) -> Visit,
+    ) {
+        let mut cursor = FrontToBackCursor::new(self, frustum, eye);
+        run(self, frustum, eye, &mut cursor.stack, &[], node_visit, item_visit);
+    }
+
+    /// Every item (unbounded first, then the tree's) in front-to-back order for `eye`.
+    pub fn order_front_to_back(&self, eye: Vec3, out: &mut Vec<u32>) {
+        self.traverse_front_to_back(
+            None,
+            eye,
+            |_| Visit::Continue,
+            |v| {
+                out.push(v.index);
+                Visit::Continue
+            },
+        );
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::bvh::traverse::tests::{grid_boxes, random_boxes};
+    use crate::BvhPreset;
+    use sightline_scene::{Angle, Camera, LookAt};
+
+    #[test]
+    fn front_to_back_is_roughly_sorted_and_callbacks_prune() {
+        let boxes = grid_boxes();
+        let bvh = Bvh::build(&boxes, BvhPreset::Fast, 4);
+        let eye = Vec3::new(-40.0, 0.5, -40.0);
+        let mut order = Vec::new();
+        bvh.order_front_to_back(eye, &mut order);
+        assert_eq!(order.len(), boxes.len());
+        let d = |i: u32| boxes[i as usize].distance_squared(eye).sqrt();
+        // The first item is the nearest; the first tenth is nearer than the last tenth.
+        assert_eq!(order[0], 0);
+        let head: f32 = order[..40].iter().map(|&i| d(i)).sum::<f32>() / 40.0;
+        let tail: f32 = order[360..].iter().map(|&i| d(i)).sum::<f32>() / 40.0;
+        assert!(head * 1.5 < tail, "{head} {tail}");
+        // A callback that rejects everything beyond x > 0 never sees items there.
+        let mut got = Vec::new();
+        bvh.traverse_front_to_back(
+            None,
+            eye,
+            |b| if b.min.x > 0.0 { Visit::Skip } else { Visit::Continue },
+            |v| {
+                got.push(v.index);
+                Visit::Continue
+            },
+        );
+        assert!(got.iter().all(|&i| boxes[i as usize].min.x <= 0.0));
+        assert_eq!(got.len(), 220);
+    }
+
+    /// A cursor that puts the k nearest items first emits them first, nearest first (the k
+    /// smallest box distances among the items in the frustum), then the rest: every item
+    /// the plain walk emits, once, with the same `inside` flags; unbounded items still lead.
+    #[test]
+    fn nearest_first_leads_with_the_nearest_and_keeps_the_set() {
+        let mut rng = sightline_scene::rng::Rng::new(5);
+        let mut boxes = random_boxes(&mut rng);
+        boxes[11] = Aabb::new(Vec3::splat(f32::NEG_INFINITY), Vec3::splat(f32::INFINITY));
+        let mut led = 0;
+        for leaf in [1, 4, 8] {
+            let bvh = Bvh::build(&boxes, BvhPreset::Fast, leaf);
+            for c in 0..30 {
+                let eye = Vec3::new(rng.range(-70.0, 70.0), rng.range(-5.0, 10.0), rng.range(-70.0, 70.0));
+                let look = LookAt {
+                    eye,
+                    target: Vec3::new(rng.range(-30.0, 30.0), 0.0, rng.range(-30.0, 30.0)),
+                    up: Vec3::Y,
+                    fovy: Angle::degrees(rng.range(20.0, 100.0)),
+                    near: 0.1,
+                    far: [10.0, 60.0, 400.0][c % 3],
+                };
+                let frustum = Frustum::from_camera(&Camera::perspective(&look, 1.5).unwrap());
+                let f = (c % 4 != 0).then_some(&frustum);
+                let walk = |k: usize| {
+                    let mut cursor = FrontToBackCursor::new(&bvh, f, eye).nearest_first(&bvh, k);
+                    let mut out = Vec::new();
+                    while cursor.next_batch(&bvh, |_| true, 5, &mut out) {}
+                    assert!(cursor.is_done());
+                    out
+                };
+                let plain = walk(0);
+                // Seeding a walk under way, or twice, changes nothing.
+                let mut late = FrontToBackCursor::new(&bvh, f, eye);
+                let mut out = Vec::new();
+                late.next_batch(&bvh, |_| true, 3, &mut out);
+                late = late.nearest_first(&bvh, 10).nearest_first(&bvh, 10);
+                while late.next_batch(&bvh, |_| true, 5, &mut out) {}
+                assert_eq!(
+                    out.iter().map(|v| v.index).collect::<Vec<_>>(),
+                    plain.iter().map(|v| v.index).collect::<Vec<_>>()
+                );
+                let k = [1, 7, 32, 5000][c % 4];
+                let seeded = walk(k);
+                let sorted = |v: &[Visible]| {
+                    let mut v: Vec<(u32, bool)> = v.iter().map(|v| (v.index, v.inside)).collect();
+                    v.sort_unstable();
+                    v
+                };
+                assert_eq!(sorted(&seeded), sorted(&plain), "leaf {leaf}, camera {c}, k {k}");
+                // The unbounded item, then the k nearest by box distance.
+                assert_eq!(seeded[0].index, 11);
+                let d = |i: u32| boxes[i as usize].distance_squared(eye);
+                let mut dist: Vec<f32> = plain.iter().filter(|v| v.index != 11).map(|v| d(v.index)).collect();
+                dist.sort_unstable_by(f32::total_cmp);
+                let head: Vec<f32> = seeded[1..].iter().take(k).map(|v| d(v.index)).collect();
+                assert_eq!(head, dist[..head.len()], "leaf {leaf}, camera {c}, k {k}");
+                assert_eq!(head.len(), k.min(dist.len()));
+                led += head.len();
+            }
+        }
+        assert!(led > 1000, "{led} items led");
+    }
+}
