@@ -6,9 +6,10 @@
 //! the next batch, 0.1–0.5 ms) with a parallel one (drawing it) tens of times per frame, so
 //! the workers fall asleep before every batch: on a 2-core machine a batch that takes
 //! 33 µs back to back took 93 µs after 300 µs of serial work. While the serial step runs,
-//! [`KeepAwake`] gives every other worker a job that spins until the step ends, at most
-//! [`MAX_SPIN`]: the cores are idle then anyway, and they start the batch at once. This is
-//! the "active" wait policy of OpenMP runtimes, limited to the steps that need it.
+//! [`KeepAwake`] gives every other worker a job that spins until the step ends (running any
+//! job the pool has meanwhile), at most [`MAX_SPIN`] without one: the cores are idle then
+//! anyway, and they start the batch at once. This is the "active" wait policy of OpenMP
+//! runtimes, limited to the steps that need it.
 //!
 //! The occluder pass draws every cluster, so its walk does not wait for the pyramid: one
 //! worker finds the next batch while the others draw the current one. [`join_helping`]
@@ -39,24 +40,10 @@ impl KeepAwake {
         for _ in 0..others {
             let d = Arc::clone(&done);
             rayon::spawn(move || {
-                spin_until(&d, MAX_SPIN);
+                help_until(&d, MAX_SPIN);
             });
         }
         Self { done: Some(done) }
-    }
-}
-
-/// Spins until `done` is set (true) or `limit` has passed (false).
-fn spin_until(done: &AtomicBool, limit: Duration) -> bool {
-    let t = Instant::now();
-    loop {
-        if done.load(Ordering::Acquire) {
-            return true;
-        }
-        if t.elapsed() >= limit {
-            return false;
-        }
-        std::hint::spin_loop();
     }
 }
 
@@ -110,21 +97,23 @@ impl Drop for KeepAwake {
 mod tests {
     use super::*;
 
-    /// A spinner lets go when the step ends, and gives up at its limit when it does not;
-    /// a one-thread pool gets none (its only worker is the one doing the step), a
-    /// two-thread pool one, released when the guard drops.
+    /// A spinner lets go when the step ends, and gives up at its limit when it does not
+    /// (at once outside a pool); a one-thread pool gets none (its only worker is the one
+    /// doing the step), a two-thread pool one, released when the guard drops.
     #[test]
     fn spinners_let_go_when_the_step_ends() {
-        let done = Arc::new(AtomicBool::new(false));
-        let d = Arc::clone(&done);
-        let setter = std::thread::spawn(move || {
-            std::thread::sleep(Duration::from_millis(1));
-            d.store(true, Ordering::Release);
+        let two = rayon::ThreadPoolBuilder::new().num_threads(2).build().unwrap();
+        two.install(|| {
+            let done = Arc::new(AtomicBool::new(false));
+            let d = Arc::clone(&done);
+            let setter = std::thread::spawn(move || {
+                std::thread::sleep(Duration::from_millis(1));
+                d.store(true, Ordering::Release);
+            });
+            assert!(help_until(&done, Duration::from_secs(60)));
+            setter.join().unwrap();
+            assert!(!help_until(&AtomicBool::new(false), Duration::from_micros(100)));
         });
-        assert!(spin_until(&done, Duration::from_secs(60)));
-        setter.join().unwrap();
-        assert!(!spin_until(&AtomicBool::new(false), Duration::from_micros(100)));
-
         assert!(!help_until(&AtomicBool::new(false), Duration::from_secs(60)), "outside a pool: no wait");
 
         let one = rayon::ThreadPoolBuilder::new().num_threads(1).build().unwrap();
@@ -140,7 +129,7 @@ mod tests {
     }
 
     /// `join_helping` gives both results whether or not another worker takes `b`, and the
-    /// helper returns once `a` ends, having run `a`'s jobs in the meantime.
+    /// helper runs `a`'s jobs until `a` ends; a helper whose flag another job sets returns.
     #[test]
     fn join_helping_runs_both_and_helps() {
         use rayon::prelude::*;
@@ -155,7 +144,7 @@ mod tests {
             assert_eq!(sum, (0..100_000u64).map(|i| i * i).sum::<u64>());
             assert_eq!(b, 7);
         }
-        // A helper in a two-thread pool: true once the flag is set, false at its limit.
+        // The flag set by a pending job of the pool: the helper runs it, then returns.
         let two = rayon::ThreadPoolBuilder::new().num_threads(2).build().unwrap();
         two.install(|| {
             let done = Arc::new(AtomicBool::new(false));
@@ -165,7 +154,6 @@ mod tests {
                 d.store(true, Ordering::Release);
             });
             assert!(help_until(&done, Duration::from_secs(60)));
-            assert!(!help_until(&AtomicBool::new(false), Duration::from_micros(100)));
         });
     }
 }
