@@ -450,7 +450,7 @@ impl Culler {
             let walk = Walk { first_batch: batching.first, skip: None };
             self.c.hzb_walk(&mut session, &mut f, &frustum, Source::Bvh, walk, batching)?;
         } else {
-            self.c.draw_front_to_back(&mut session, &mut f, &frustum, batching.first, batching)?;
+            self.c.draw_front_to_back(&mut session, &mut f, &frustum, batching)?;
         }
         let Frame { mut cs, fs, .. } = f;
         // The walk's split into culling and drawing is not reported for the pass.

@@ -227,7 +227,7 @@ impl Clusters {
     }
 
     /// The occluder pass's walk when nothing is tested: every cluster in the frustum, front
-    /// to back in batches growing from `first_batch` clusters, with no pyramid tests. No
+    /// to back in batches growing from `batching.first` clusters, with no pyramid tests. No
     /// batch depends on the pyramid here, so the walk is pipelined: the next batch is found
     /// (BVH walk, back-facing clusters dropped) on one worker while the current one is drawn
     /// on the others ([`join_helping`]: the finder then joins the drawing), so that the
@@ -239,7 +239,6 @@ impl Clusters {
         s: &mut Session,
         f: &mut Frame,
         frustum: &Frustum,
-        first_batch: usize,
         batching: Batching,
     ) -> Result<()> {
         let this: &Clusters = self;
@@ -260,7 +259,7 @@ impl Clusters {
             cs.ms_cull = ms_since(t);
             (out, more, cs)
         };
-        let mut batch = first_batch.max(1);
+        let mut batch = batching.first;
         let mut found = Some(find(&mut cursor, batch));
         while let Some((out, more, cs)) = found.take() {
             f.cs.clusters_in_frustum += cs.clusters_in_frustum;
