@@ -303,6 +303,9 @@ unsafe fn raster_tile<D: DepthCodec, const C: bool, K: Kernel>(
         lv.update::<D>(&tile.depth);
         return st;
     }
+    if let Some(out) = pass.target {
+        out.prefetch(tile);
+    }
     // Start from the clear values on a fresh target; otherwise load the tile's pixels
     // (earlier batches may have drawn here).
     match pass.target {
