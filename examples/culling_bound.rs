@@ -22,6 +22,10 @@
 //! drew, and those holding a visible triangle (what perfect culling at cluster granularity
 //! would draw).
 //!
+//! Last, the write-out floor: what writing every pixel's depth and ID (and color) once
+//! costs on this machine, from cache, in whole rows over the pool. Any frame writes at
+//! least that; the oracle's stages beside it show what rasterizing and shading add.
+//!
 //! `--triangles N` builds the city of about N triangles (10^3 to 10^9; default 10^6), as
 //! `city:N` in the CLI. Brute force costs about 1 s per frame at 10^8 and 10 s at 10^9, so
 //! `--no-brute` leaves it out: the visible triangles are then read from the `hzb` frame,
@@ -41,6 +45,7 @@
 use std::collections::HashMap;
 use std::time::Instant;
 
+use rayon::prelude::*;
 use sightline::render::{
     compare_ids, Culler, DrawItem, FrameStats, Framebuffer, Method, RenderOptions, Renderer, World,
 };
@@ -167,7 +172,50 @@ fn run() -> Result<(), Error> {
         stage(|s| s.ms_raster),
         stage(|s| s.ms_shading)
     );
+    let (ids_depth, all) = write_floor(&mut fb, 200);
+    println!(
+        "  write-out floor: depth and IDs {ids_depth:.2} ms, with colors {all:.2} ms (every pixel written once, from cache)"
+    );
     Ok(())
+}
+
+/// What writing a frame out costs at least on this machine: every pixel's depth and ID
+/// (and then its color too) written once into `fb`'s planes, copied from a buffer in cache,
+/// in bands of 64 rows (the tile stage's rows) over the pool, as the renderer's tile stores
+/// and shading pass write them. Medians of `reps` writes, in ms: (depth and IDs, all three).
+/// An oracle frame writes the same bytes and rasterizes and shades besides.
+fn write_floor(fb: &mut Framebuffer, reps: usize) -> (f64, f64) {
+    let w = fb.width() as usize;
+    let band = 64 * w;
+    let src: Vec<u32> = (0..64).collect();
+    let colors: Vec<[u8; 4]> = (0..64u8).map(|k| [k, k, k, 255]).collect();
+    let depths: Vec<f32> = (0..64).map(|k| k as f32 / 64.0).collect();
+    let mut run = |with_color: bool| {
+        let mut times: Vec<f64> = (0..reps)
+            .map(|_| {
+                let t = Instant::now();
+                let planes =
+                    fb.depth.par_chunks_mut(band).zip(fb.ids.par_chunks_mut(band)).zip(fb.color.par_chunks_mut(band));
+                planes.for_each(|((depth, ids), color)| {
+                    for (k, ((d, i), c)) in
+                        depth.chunks_mut(64).zip(ids.chunks_mut(64)).zip(color.chunks_mut(64)).enumerate()
+                    {
+                        let n = d.len();
+                        d.copy_from_slice(&depths[..n]);
+                        i.copy_from_slice(&src[..n]);
+                        if with_color {
+                            c.copy_from_slice(&colors[..n]);
+                        }
+                        std::hint::black_box(k);
+                    }
+                });
+                ms(t)
+            })
+            .collect();
+        times.sort_by(f64::total_cmp);
+        times[times.len() / 2]
+    };
+    (run(false), run(true))
 }
 
 /// The triangles with an ID in `ids`, as draw items (runs of consecutive triangles of one
