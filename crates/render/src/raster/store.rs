@@ -6,6 +6,13 @@
 //! stage that reads every tile buffer back in. Tasks run in parallel over tiles, and each
 //! touches only its own tile's rectangle of the planes, which is what makes sharing the
 //! planes between them sound.
+//!
+//! A tile's rectangle is 64 pieces of 256 bytes, a plane's row apart: too short for the
+//! hardware's stream prefetch, so a store waits for each line in turn, from memory when
+//! other work has evicted the frame. A tile therefore asks for its lines (a prefetch for
+//! writing) before it is drawn, and they have arrived when it is stored. A frame session
+//! stores all its tiles at the end; there the rows are written whole instead, one row of
+//! tiles per task, which the stream prefetch follows ([`Planes::store_row`]).
 
 use std::marker::PhantomData;
 
@@ -69,10 +76,10 @@ impl<'a> Planes<'a> {
     }
 
     /// Asks for the cache lines of `tile`'s rectangle in the depth and ID planes, to be
-    /// written: a tile's rows are 256-byte pieces a plane's row apart, too short for the
-    /// hardware's stream prefetch, so each store would otherwise wait for its lines one by
-    /// one. Asked for before the tile is drawn, they have arrived when it is stored.
+    /// written (see the module docs); a no-op off x86-64.
     pub(crate) fn prefetch(&self, tile: &TileBuf) {
+        #[cfg(not(target_arch = "x86_64"))]
+        let _ = tile;
         #[cfg(target_arch = "x86_64")]
         for r in 0..tile.h as usize {
             use std::arch::x86_64::{_mm_prefetch, _MM_HINT_ET0};
