@@ -9,8 +9,10 @@
 //!
 //! A tile's rectangle is 64 pieces of 256 bytes, a plane's row apart: too short for the
 //! hardware's stream prefetch, so a store waits for each line in turn, from memory when
-//! other work has evicted the frame. A tile therefore asks for its lines (a prefetch for
-//! writing) before it is drawn, and they have arrived when it is stored. A frame session
+//! other work has evicted the frame. A tile therefore asks for its lines before it is
+//! drawn, and they have arrived when it is stored. (The hint says the lines will be
+//! written; the baseline x86-64 build emits a plain `prefetcht0` for it, and an explicit
+//! `prefetchw` measured slightly slower.) A frame session
 //! stores all its tiles at the end; there the rows are written whole instead, one row of
 //! tiles per task, which the stream prefetch follows ([`Planes::store_row`]).
 
