@@ -106,6 +106,17 @@ impl Frustum {
         self.classify_masked(b, &mut mask)
     }
 
+    /// The frustum test of a culling walk: true when `b` lies outside `frustum` (never
+    /// without one, or once `mask` holds no plane left to test), testing only the planes in
+    /// `mask` and clearing those `b` is fully inside of, for its children.
+    #[inline]
+    pub(crate) fn excludes(frustum: Option<&Frustum>, b: &Aabb, mask: &mut PlaneMask) -> bool {
+        match frustum {
+            Some(f) => *mask != 0 && f.classify_masked(b, mask) == Containment::Outside,
+            None => false,
+        }
+    }
+
     /// Classifies a box against the planes in `mask`, clearing the bits of planes the box is
     /// fully inside (so that children of this box may skip them). `Inside` means inside every
     /// plane of the original mask.

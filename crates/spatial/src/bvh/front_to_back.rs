@@ -19,7 +19,7 @@ use sightline_scene::Aabb;
 
 use super::Bvh;
 use crate::hint::prefetch;
-use crate::{AabbExt, Containment, Frustum, PlaneMask, Visible, Visit, ALL_PLANES};
+use crate::{AabbExt, Frustum, PlaneMask, Visible, Visit, ALL_PLANES};
 
 const KIND_NODE: u8 = 0;
 const KIND_ITEM: u8 = 1;
@@ -183,10 +183,8 @@ fn run(
                     continue;
                 }
                 let b = &bvh.item_boxes[e.id as usize];
-                if let (true, Some(f)) = (item, frustum) {
-                    if mask != 0 && f.classify_masked(b, &mut mask) == Containment::Outside {
-                        continue;
-                    }
+                if Frustum::excludes(frustum.filter(|_| item), b, &mut mask) {
+                    continue;
                 }
                 match node_visit(b) {
                     Visit::Stop => return,
@@ -204,10 +202,8 @@ fn run(
                     continue;
                 }
                 let b = n.aabb();
-                if let Some(f) = frustum {
-                    if mask != 0 && f.classify_masked(&b, &mut mask) == Containment::Outside {
-                        continue;
-                    }
+                if Frustum::excludes(frustum, &b, &mut mask) {
+                    continue;
                 }
                 match node_visit(&b) {
                     Visit::Stop => return,
@@ -282,11 +278,8 @@ fn nearest_items(bvh: &Bvh, frustum: Option<&Frustum>, eye: Vec3, k: usize) -> V
     heap.push(Reverse((key(&bvh.nodes[0].aabb()), KIND_NODE, 0u32, ALL_PLANES)));
     while let Some(Reverse((_, kind, id, mut mask))) = heap.pop() {
         if kind == KIND_ITEM {
-            let b = &bvh.item_boxes[id as usize];
-            if let Some(f) = frustum {
-                if mask != 0 && f.classify_masked(b, &mut mask) == Containment::Outside {
-                    continue;
-                }
+            if Frustum::excludes(frustum, &bvh.item_boxes[id as usize], &mut mask) {
+                continue;
             }
             found.push((id, mask));
             if found.len() == k {
@@ -296,10 +289,8 @@ fn nearest_items(bvh: &Bvh, frustum: Option<&Frustum>, eye: Vec3, k: usize) -> V
         }
         let n = bvh.nodes[id as usize];
         let b = n.aabb();
-        if let Some(f) = frustum {
-            if mask != 0 && f.classify_masked(&b, &mut mask) == Containment::Outside {
-                continue;
-            }
+        if Frustum::excludes(frustum, &b, &mut mask) {
+            continue;
         }
         if n.count == 1 {
             // The leaf box is the item box, tested just now.

@@ -9,7 +9,7 @@ use glam::Vec3;
 use sightline_scene::Aabb;
 
 use super::{octant, LooseOctree, NONE, ORDER};
-use crate::{AabbExt, BoxKind, Containment, Frustum, PlaneMask, Visible, ALL_PLANES};
+use crate::{AabbExt, BoxKind, Frustum, PlaneMask, Visible, ALL_PLANES};
 
 /// A pending step of the walk.
 #[derive(Debug, Clone, Copy)]
@@ -73,10 +73,8 @@ impl OctreeCursor {
             match step {
                 Step::Object(o, mut m) => {
                     let b = &octree.objects[o as usize].aabb;
-                    if let Some(f) = &self.frustum {
-                        if m != 0 && f.classify_masked(b, &mut m) == Containment::Outside {
-                            continue;
-                        }
+                    if Frustum::excludes(self.frustum.as_ref(), b, &mut m) {
+                        continue;
                     }
                     if !possibly_visible(b) {
                         continue;
@@ -94,10 +92,8 @@ impl OctreeCursor {
                         continue;
                     }
                     let cube = octree.loose(i);
-                    if let Some(f) = &self.frustum {
-                        if mask != 0 && f.classify_masked(&cube, &mut mask) == Containment::Outside {
-                            continue;
-                        }
+                    if Frustum::excludes(self.frustum.as_ref(), &cube, &mut mask) {
+                        continue;
                     }
                     if !possibly_visible(&cube) {
                         continue;

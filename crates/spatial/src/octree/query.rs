@@ -129,10 +129,8 @@ impl LooseOctree {
                 continue;
             }
             let cube = self.loose(i);
-            if let Some(f) = frustum {
-                if mask != 0 && f.classify_masked(&cube, &mut mask) == Containment::Outside {
-                    continue;
-                }
+            if Frustum::excludes(frustum, &cube, &mut mask) {
+                continue;
             }
             match node_visit(&cube) {
                 Visit::Stop => return,
@@ -171,10 +169,8 @@ impl LooseOctree {
         for &(_, o) in objs.iter() {
             let b = &self.objects[o as usize].aabb;
             let mut m = mask;
-            if let Some(f) = frustum {
-                if m != 0 && f.classify_masked(b, &mut m) == Containment::Outside {
-                    continue;
-                }
+            if Frustum::excludes(frustum, b, &mut m) {
+                continue;
             }
             match node_visit(b) {
                 Visit::Stop => return false,
