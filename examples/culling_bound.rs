@@ -191,29 +191,25 @@ fn write_floor(fb: &mut Framebuffer, reps: usize) -> (f64, f64) {
     let colors: Vec<[u8; 4]> = (0..64u8).map(|k| [k, k, k, 255]).collect();
     let depths: Vec<f32> = (0..64).map(|k| k as f32 / 64.0).collect();
     let mut run = |with_color: bool| {
-        let mut times: Vec<f64> = (0..reps)
-            .map(|_| {
-                let t = Instant::now();
-                let planes =
-                    fb.depth.par_chunks_mut(band).zip(fb.ids.par_chunks_mut(band)).zip(fb.color.par_chunks_mut(band));
-                planes.for_each(|((depth, ids), color)| {
-                    for (k, ((d, i), c)) in
-                        depth.chunks_mut(64).zip(ids.chunks_mut(64)).zip(color.chunks_mut(64)).enumerate()
-                    {
-                        let n = d.len();
-                        d.copy_from_slice(&depths[..n]);
-                        i.copy_from_slice(&src[..n]);
-                        if with_color {
-                            c.copy_from_slice(&colors[..n]);
+        median(
+            (0..reps)
+                .map(|_| {
+                    let t = Instant::now();
+                    let planes = fb.depth.par_chunks_mut(band).zip(fb.ids.par_chunks_mut(band));
+                    planes.zip(fb.color.par_chunks_mut(band)).for_each(|((depth, ids), color)| {
+                        for ((d, i), c) in depth.chunks_mut(64).zip(ids.chunks_mut(64)).zip(color.chunks_mut(64)) {
+                            let n = d.len();
+                            d.copy_from_slice(&depths[..n]);
+                            i.copy_from_slice(&src[..n]);
+                            if with_color {
+                                c.copy_from_slice(&colors[..n]);
+                            }
                         }
-                        std::hint::black_box(k);
-                    }
-                });
-                ms(t)
-            })
-            .collect();
-        times.sort_by(f64::total_cmp);
-        times[times.len() / 2]
+                    });
+                    ms(t)
+                })
+                .collect(),
+        )
     };
     (run(false), run(true))
 }
