@@ -1,17 +1,21 @@
-//! The kernels written per instruction set: the slab test of 16 packet lanes against a
-//! box, and a lane comparison (`le16`), each returning a lane bit mask.
+//! The kernels written per instruction set, each returning a bit mask: the slab test of 16
+//! packet lanes against a box, a lane comparison (`le16`), and the beam test of a node's
+//! four boxes against a packet's four planes (`culls4`).
 //!
 //! Everything else is plain Rust that LLVM vectorizes for whichever target features the
-//! calling function enables; this test is the exception because building a bit mask from
-//! vectorized comparisons is exactly what auto-vectorization does badly (it OR-reduces
-//! shifted bits across the vector instead of one `vcmpps → k-mask` or `movmskps`); these
-//! kernels are the exceptions. The
-//! three versions perform the same IEEE operations in the same order — `(lo − o)·r`, then
-//! `min`/`max` with the semantics of `if a < b { a } else { b }` (which is what `minps` /
-//! `maxps` do with NaNs), then `near ≤ far·(1 + 2⁻²⁰)` as an ordered comparison — so every
-//! instruction set returns the same bits.
+//! calling function enables. These are the exceptions: building a bit mask from vectorized
+//! comparisons is exactly what auto-vectorization does badly (it OR-reduces shifted bits
+//! across the vector instead of one `vcmpps → k-mask` or `movmskps`), and the beam test's
+//! sixteen plane–box pairs fill one AVX-512 register (two AVX2 ones) where the portable
+//! form takes four 4-wide passes (a street view of the city: 8.9 → 8.3 ms a frame).
+//!
+//! Every version performs the same IEEE operations in the same order, without fused
+//! multiply-adds — for the slab test `(lo − o)·r`, then `min`/`max` with the semantics of
+//! `if a < b { a } else { b }` (which is what `minps` / `maxps` do with NaNs), then
+//! `near ≤ far·(1 + 2⁻²⁰)` as an ordered comparison — so every instruction set returns the
+//! same bits.
 
-use super::packet::CHUNK;
+use super::packet::{BeamPlanes, CHUNK};
 use super::{mn, mx};
 
 /// 1 + 2⁻²⁰: above 1 + 2γ₃ (Ize 2013) and the triangle tie window.
@@ -42,6 +46,16 @@ pub(crate) trait Isa: Copy {
     /// # Safety
     /// As for [`Isa::slab16`].
     unsafe fn le16(a: &[f32; CHUNK], b: &[f32; CHUNK]) -> u64;
+
+    /// [`BeamPlanes::culls4`]: bit `k` set when child `k`'s box is outside one of the beam's
+    /// planes, with the same IEEE operations in the same order.
+    ///
+    /// # Safety
+    /// As for [`Isa::slab16`].
+    #[inline(always)]
+    unsafe fn culls4(f: &BeamPlanes, lo: &[[f32; 4]; 3], hi: &[[f32; 4]; 3]) -> u32 {
+        f.culls4(lo, hi)
+    }
 }
 
 /// Scalar code (LLVM may vectorize the arithmetic; the mask is built bit by bit).
@@ -121,6 +135,52 @@ mod x86 {
         unsafe fn le16(a: &[f32; CHUNK], b: &[f32; CHUNK]) -> u64 {
             le_avx2(a, b)
         }
+
+        #[inline(always)]
+        unsafe fn culls4(f: &BeamPlanes, lo: &[[f32; 4]; 3], hi: &[[f32; 4]; 3]) -> u32 {
+            culls_avx2(f, lo, hi)
+        }
+    }
+
+    /// Two planes against the four boxes per 8-lane register: lane `4k + b` is plane
+    /// `2h + k` against box `b` in half `h`.
+    #[target_feature(enable = "avx2")]
+    #[inline]
+    unsafe fn culls_avx2(f: &BeamPlanes, lo: &[[f32; 4]; 3], hi: &[[f32; 4]; 3]) -> u32 {
+        if !f.on {
+            return 0;
+        }
+        let boxes = |v: &[f32; 4]| _mm256_broadcast_ps(&*(v.as_ptr() as *const __m128));
+        let half = _mm256_set1_ps(0.5);
+        let sign = _mm256_set1_ps(-0.0);
+        let abs = |v: __m256| _mm256_andnot_ps(sign, v);
+        let (mul, add) = (|a, b| _mm256_mul_ps(a, b), |a, b| _mm256_add_ps(a, b));
+        let mut c = [_mm256_setzero_ps(); 3];
+        let mut e = [_mm256_setzero_ps(); 3];
+        let mut ca = [_mm256_setzero_ps(); 3];
+        for a in 0..3 {
+            let (l, h) = (boxes(&lo[a]), boxes(&hi[a]));
+            c[a] = mul(_mm256_add_ps(l, h), half);
+            e[a] = mul(_mm256_sub_ps(h, l), half);
+            ca[a] = add(abs(c[a]), e[a]);
+        }
+        let mut m = 0u32;
+        for h in 0..2 {
+            let spread = _mm256_setr_epi32(0, 0, 0, 0, 1, 1, 1, 1);
+            let spread = _mm256_add_epi32(spread, _mm256_set1_epi32(2 * h));
+            let planes =
+                |v: &[f32; 4]| _mm256_permutevar8x32_ps(_mm256_castps128_ps256(_mm_loadu_ps(v.as_ptr())), spread);
+            let n = [planes(&f.n[0]), planes(&f.n[1]), planes(&f.n[2])];
+            let na = [abs(n[0]), abs(n[1]), abs(n[2])];
+            let d = planes(&f.c);
+            let centre = add(add(mul(c[0], n[0]), mul(c[1], n[1])), mul(c[2], n[2]));
+            let reach = add(add(mul(e[0], na[0]), mul(e[1], na[1])), mul(e[2], na[2]));
+            let dist = add(add(centre, reach), d);
+            let mag = add(add(add(mul(ca[0], na[0]), mul(ca[1], na[1])), mul(ca[2], na[2])), abs(d));
+            let out = _mm256_cmp_ps::<_CMP_LT_OQ>(dist, mul(mag, _mm256_set1_ps(-1e-6)));
+            m |= _mm256_movemask_ps(out) as u32;
+        }
+        (m | m >> 4) & 0xF
     }
 
     #[target_feature(enable = "avx2")]
@@ -162,9 +222,52 @@ mod x86 {
         }
 
         #[inline(always)]
+        unsafe fn culls4(f: &BeamPlanes, lo: &[[f32; 4]; 3], hi: &[[f32; 4]; 3]) -> u32 {
+            culls_avx512(f, lo, hi)
+        }
+
+        #[inline(always)]
         unsafe fn le16(a: &[f32; CHUNK], b: &[f32; CHUNK]) -> u64 {
             le_avx512(a, b)
         }
+    }
+
+    /// The four planes against the four boxes in one 16-lane register: lane `4k + b` is
+    /// plane `k` against box `b`.
+    #[allow(clippy::incompatible_msrv)]
+    #[target_feature(enable = "avx512f")]
+    #[inline]
+    unsafe fn culls_avx512(f: &BeamPlanes, lo: &[[f32; 4]; 3], hi: &[[f32; 4]; 3]) -> u32 {
+        if !f.on {
+            return 0;
+        }
+        // Boxes repeated in each 128-bit quarter; planes spread, one per quarter.
+        let boxes = |v: &[f32; 4]| _mm512_broadcast_f32x4(_mm_loadu_ps(v.as_ptr()));
+        let spread = _mm512_set_epi32(3, 3, 3, 3, 2, 2, 2, 2, 1, 1, 1, 1, 0, 0, 0, 0);
+        let planes = |v: &[f32; 4]| _mm512_permutexvar_ps(spread, _mm512_castps128_ps512(_mm_loadu_ps(v.as_ptr())));
+        let half = _mm512_set1_ps(0.5);
+        let mut c = [_mm512_setzero_ps(); 3];
+        let mut e = [_mm512_setzero_ps(); 3];
+        let mut ca = [_mm512_setzero_ps(); 3];
+        let mut n = [_mm512_setzero_ps(); 3];
+        let mut na = [_mm512_setzero_ps(); 3];
+        for a in 0..3 {
+            let (l, h) = (boxes(&lo[a]), boxes(&hi[a]));
+            c[a] = _mm512_mul_ps(_mm512_add_ps(l, h), half);
+            e[a] = _mm512_mul_ps(_mm512_sub_ps(h, l), half);
+            ca[a] = _mm512_add_ps(_mm512_abs_ps(c[a]), e[a]);
+            n[a] = planes(&f.n[a]);
+            na[a] = _mm512_abs_ps(n[a]);
+        }
+        let d = planes(&f.c);
+        let mul = _mm512_mul_ps;
+        let add = _mm512_add_ps;
+        let centre = add(add(mul(c[0], n[0]), mul(c[1], n[1])), mul(c[2], n[2]));
+        let reach = add(add(mul(e[0], na[0]), mul(e[1], na[1])), mul(e[2], na[2]));
+        let dist = add(add(centre, reach), d);
+        let mag = add(add(add(mul(ca[0], na[0]), mul(ca[1], na[1])), mul(ca[2], na[2])), _mm512_abs_ps(d));
+        let m = _mm512_cmp_ps_mask::<_CMP_LT_OQ>(dist, mul(mag, _mm512_set1_ps(-1e-6))) as u32;
+        (m | m >> 4 | m >> 8 | m >> 12) & 0xF
     }
 
     #[allow(clippy::incompatible_msrv)]
@@ -204,6 +307,63 @@ impl Isa for Avx512 {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// Every instruction set's beam test gives the portable bits: boxes inside, outside,
+    /// straddling and on a plane, empty and infinite ones, and culling switched off.
+    #[test]
+    fn beam_tests_agree_across_instruction_sets() {
+        let mut seed = 0x2545_f491_4f6c_dd1du64;
+        let mut next = move || {
+            seed ^= seed << 13;
+            seed ^= seed >> 7;
+            seed ^= seed << 17;
+            (seed >> 40) as f32 / (1u64 << 24) as f32 * 8.0 - 4.0
+        };
+        let special = [0.0f32, -0.0, 1.0, f32::INFINITY, f32::NEG_INFINITY, f32::NAN];
+        let mut culled = 0;
+        for round in 0..4000 {
+            let mut f = BeamPlanes { on: round % 97 != 0, n: [[0.0; 4]; 3], c: [0.0; 4] };
+            for k in 0..4 {
+                for a in 0..3 {
+                    f.n[a][k] = next();
+                }
+                f.c[k] = next();
+            }
+            let (mut lo, mut hi) = ([[0f32; 4]; 3], [[0f32; 4]; 3]);
+            for b in 0..4 {
+                for a in 0..3 {
+                    let (p, q) = (next(), next());
+                    (lo[a][b], hi[a][b]) = (p.min(q), p.max(q));
+                }
+            }
+            if round % 5 == 0 {
+                let b = round / 5 % 4;
+                lo[round % 3][b] = special[round % special.len()];
+                hi[(round + 1) % 3][b] = special[(round / 7) % special.len()];
+            }
+            // A box touching plane 0 exactly: the margin decides.
+            if round % 11 == 0 {
+                f.n = [[1.0, 0.0, 0.0, 0.0], [0.0, 1.0, 0.0, 0.0], [0.0, 0.0, 1.0, 0.0]];
+                f.c[0] = 2.0;
+                (lo[0][1], hi[0][1]) = (-3.0, -2.0);
+            }
+            let want = f.culls4(&lo, &hi);
+            culled += want.count_ones();
+            // SAFETY: the portable kernel needs nothing; the others run only when detected.
+            assert_eq!(unsafe { Portable::culls4(&f, &lo, &hi) }, want);
+            #[cfg(target_arch = "x86_64")]
+            {
+                if std::is_x86_feature_detected!("avx2") {
+                    assert_eq!(unsafe { Avx2::culls4(&f, &lo, &hi) }, want, "round {round}");
+                }
+                if std::is_x86_feature_detected!("avx512f") {
+                    assert_eq!(unsafe { Avx512::culls4(&f, &lo, &hi) }, want, "round {round}");
+                }
+            }
+        }
+        // Both outcomes occur.
+        assert!(culled > 1000 && culled < 15000, "{culled}");
+    }
 
     /// Every instruction set's lane comparison gives the portable bits, on signed zeros,
     /// infinities, NaN and equal values.

@@ -9,7 +9,8 @@
 //! 1. *early hit*: the first active lane is tested against all four boxes at once; an inner
 //!    child it hits is entered with the whole mask (the common case for coherent rays);
 //! 2. *frustum cull*: the other children are tested against the packet's four beam planes,
-//!    again four boxes at once; a box outside one plane is hit by no lane;
+//!    all sixteen plane–box pairs at once (`Isa::culls4`); a box outside one plane is hit
+//!    by no lane;
 //! 3. the rest, and every leaf, get an exact mask: every active lane tested in SIMD.
 //!
 //! Entering a node starts the loads of all its children (their nodes, and through `soon`
@@ -138,7 +139,9 @@ where
                 for k in 0..WIDTH {
                     valid |= ((node.link[k] != EMPTY_LINK) as u32) << k;
                 }
-                let culled = if valid & !early != 0 { fr.culls4(&node.lo, &node.hi) & !early } else { 0 };
+                // SAFETY: `I` is only instantiated for an instruction set the CPU has.
+                let culled =
+                    if valid & !early != 0 { (unsafe { I::culls4(fr, &node.lo, &node.hi) }) & !early } else { 0 };
                 let live = valid & !culled;
                 // Children with lanes, as (key, entry), sorted near to far.
                 let mut ents = [(0f32, (0u32, 0u32, 0u64)); WIDTH];
