@@ -18,10 +18,11 @@
 //!
 //! # Instruction sets
 //!
-//! The tile stage ([`raster_tiles`]) is compiled twice: as plain Rust with the [`Rows`]
-//! kernel, and inside an AVX2 `#[target_feature]` function with the [`Avx2`] kernel, every
-//! function on the way `#[inline(always)]` so that the whole walk gets AVX2 code. The
-//! run-time [`SimdLevel`] picks one per frame; the images are identical.
+//! The tile stage ([`raster_tiles`]) is compiled three times: as plain Rust with the
+//! [`Rows`] kernel, inside an AVX2 `#[target_feature]` function with the [`Avx2`] kernel,
+//! and inside an AVX-512 one with the [`Avx512`] kernel, every function on the way
+//! `#[inline(always)]` so that the whole walk gets the wider code. The run-time
+//! [`SimdLevel`] picks one per frame; the images are identical.
 
 pub(crate) mod kernel;
 pub(crate) mod store;
@@ -37,7 +38,7 @@ use crate::edge::{edges, wide_block, BlockSetup, Edge, FastEdges, Tri};
 use crate::geometry::Chunk;
 use crate::hzb::TileLevels;
 use crate::tiling::{BLOCK, TILE_SHIFT};
-pub(crate) use kernel::{Avx2, Kernel, Rows};
+pub(crate) use kernel::{Avx2, Avx512, Kernel, Rows};
 pub(crate) use store::Planes;
 pub(crate) use tile::TileBuf;
 
@@ -216,6 +217,23 @@ unsafe fn raster_tile_avx2<D: DepthCodec, const C: bool>(
     unsafe { raster_tile::<D, C, Avx2>(tile, lv, index, pass) }
 }
 
+/// The AVX-512 build of the tile function (the walk as AVX2's, the [`Avx512`] kernel).
+///
+/// # Safety
+/// The CPU must have AVX-512 F, BW, DQ and VL and the other features enabled here.
+#[cfg(target_arch = "x86_64")]
+#[allow(clippy::incompatible_msrv)]
+#[target_feature(enable = "avx512f,avx512bw,avx512dq,avx512vl,avx2,fma,bmi1,bmi2,lzcnt,popcnt")]
+unsafe fn raster_tile_avx512<D: DepthCodec, const C: bool>(
+    tile: &mut TileBuf,
+    lv: &mut TileLevels,
+    index: usize,
+    pass: &TilePass,
+) -> TileStats {
+    // SAFETY: the CPU has AVX-512 (this function's contract).
+    unsafe { raster_tile::<D, C, Avx512>(tile, lv, index, pass) }
+}
+
 fn tiles_in<D: DepthCodec>(
     tiles: &mut [TileBuf],
     levels: &mut [TileLevels],
@@ -223,14 +241,18 @@ fn tiles_in<D: DepthCodec>(
     simd: SimdLevel,
 ) -> TileStats {
     let count = pass.counting;
-    let avx2 = simd.resolve() >= SimdLevel::Avx2;
-    // SAFETY (every `unsafe` below): `Rows` needs nothing beyond the baseline, and the AVX2
-    // functions are chosen only when the resolved level says the CPU has AVX2.
-    let f: TileFn = match (avx2, count) {
+    // SAFETY (every `unsafe` below): `Rows` needs nothing beyond the baseline, and the
+    // AVX2 and AVX-512 functions are chosen only when the resolved level says the CPU has
+    // every feature they enable.
+    let f: TileFn = match (simd.resolve(), count) {
         #[cfg(target_arch = "x86_64")]
-        (true, false) => |t, l, i, p| unsafe { raster_tile_avx2::<D, false>(t, l, i, p) },
+        (SimdLevel::Avx512, false) => |t, l, i, p| unsafe { raster_tile_avx512::<D, false>(t, l, i, p) },
         #[cfg(target_arch = "x86_64")]
-        (true, true) => |t, l, i, p| unsafe { raster_tile_avx2::<D, true>(t, l, i, p) },
+        (SimdLevel::Avx512, true) => |t, l, i, p| unsafe { raster_tile_avx512::<D, true>(t, l, i, p) },
+        #[cfg(target_arch = "x86_64")]
+        (SimdLevel::Avx2, false) => |t, l, i, p| unsafe { raster_tile_avx2::<D, false>(t, l, i, p) },
+        #[cfg(target_arch = "x86_64")]
+        (SimdLevel::Avx2, true) => |t, l, i, p| unsafe { raster_tile_avx2::<D, true>(t, l, i, p) },
         (_, false) => |t, l, i, p| unsafe { raster_tile::<D, false, Rows>(t, l, i, p) },
         (_, true) => |t, l, i, p| unsafe { raster_tile::<D, true, Rows>(t, l, i, p) },
     };

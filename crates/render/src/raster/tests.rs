@@ -9,30 +9,31 @@ use crate::hzb::tile::OFFSETS;
 use crate::setup::{setup, Setup, SnappedVertex, Viewport};
 use crate::tiling::TILE;
 
-/// Whether the AVX2 kernel can run here (and `SIGHTLINE_SIMD` allows it).
-fn avx2() -> bool {
-    SimdLevel::Avx2.resolve() >= SimdLevel::Avx2
+/// The best kernel the CPU has (and `SIGHTLINE_SIMD` allows).
+fn best() -> SimdLevel {
+    SimdLevel::Auto.resolve()
 }
 
-/// `raster_tri` with the AVX2 kernel when `avx2`, else the row kernel.
-fn draw_tri<D: DepthCodec, const C: bool>(t: &Tri, tile: &mut TileBuf, lv: &mut TileLevels, avx2: bool) -> TriRaster {
-    // SAFETY: the AVX2 kernel only when `avx2()` said the CPU has it.
+/// `raster_tri` with the kernel of instruction set `simd` (the row kernel below AVX2).
+fn draw_tri<D: DepthCodec, const C: bool>(
+    t: &Tri,
+    tile: &mut TileBuf,
+    lv: &mut TileLevels,
+    simd: SimdLevel,
+) -> TriRaster {
+    // SAFETY: `kernels()` and `best()` give only levels the CPU has.
     unsafe {
-        if avx2 {
-            raster_tri::<D, C, Avx2>(t, tile, lv)
-        } else {
-            raster_tri::<D, C, Rows>(t, tile, lv)
+        match simd {
+            SimdLevel::Avx512 => raster_tri::<D, C, Avx512>(t, tile, lv),
+            SimdLevel::Avx2 => raster_tri::<D, C, Avx2>(t, tile, lv),
+            _ => raster_tri::<D, C, Rows>(t, tile, lv),
         }
     }
 }
 
-/// The kernels to test: rows always, AVX2 when available.
-fn kernels() -> Vec<bool> {
-    if avx2() {
-        vec![false, true]
-    } else {
-        vec![false]
-    }
+/// The kernels to test: rows always, AVX2 and AVX-512 when available.
+fn kernels() -> Vec<SimdLevel> {
+    [SimdLevel::Portable, SimdLevel::Avx2, SimdLevel::Avx512].into_iter().filter(|&l| l <= best()).collect()
 }
 
 fn levels_of(tile: &TileBuf) -> TileLevels {
@@ -49,19 +50,19 @@ fn tri(pts: [(f32, f32); 3], id: u32, vp: &Viewport) -> Option<Tri> {
 
 fn draw(tris: &[Tri], w: u32, h: u32) -> (Vec<u32>, Vec<u32>) {
     let mut result = None;
-    for avx2 in kernels() {
+    for simd in kernels() {
         let mut tile = TileBuf::new(0, 0, w, h);
         let mut lv = levels_of(&tile);
         tile.depth.fill(F32::key(1.0));
         for t in tris {
-            draw_tri::<F32, true>(t, &mut tile, &mut lv, avx2);
+            draw_tri::<F32, true>(t, &mut tile, &mut lv, simd);
         }
         let pick = |v: &Vec<u32>| -> Vec<u32> {
             (0..h).flat_map(|y| (0..w).map(move |x| (y * TILE + x) as usize)).map(|i| v[i]).collect()
         };
         let r = (pick(&tile.ids), pick(&tile.counts));
         if let Some(first) = &result {
-            assert_eq!(first, &r, "the AVX2 kernel draws what the row kernel draws");
+            assert_eq!(first, &r, "the {simd:?} kernel draws what the row kernel draws");
         }
         result = Some(r);
     }
@@ -159,7 +160,7 @@ fn reference<D: DepthCodec>(t: &Tri, tile: &mut TileBuf) -> TriRaster {
 fn block_kernel_equals_per_pixel_reference() {
     let vp = Viewport::new(200, 150, true);
     let mut rng = sightline_scene::rng::Rng::new(21);
-    for (fmt, avx2) in [0u8, 16, 24].into_iter().flat_map(|f| kernels().into_iter().map(move |k| (f, k))) {
+    for (fmt, simd) in [0u8, 16, 24].into_iter().flat_map(|f| kernels().into_iter().map(move |k| (f, k))) {
         let mut a = TileBuf::new(64, 64, 64, 64);
         let mut lv = levels_of(&a);
         a.depth.fill(F32::key(1.0));
@@ -176,9 +177,9 @@ fn block_kernel_equals_per_pixel_reference() {
             });
             let Setup::Ready(t) = setup(v, 1 + rng.below(50), false, &vp) else { continue };
             let (ra, rb) = match fmt {
-                16 => (draw_tri::<Unorm16, true>(&t, &mut a, &mut lv, avx2), reference::<Unorm16>(&t, &mut b)),
-                24 => (draw_tri::<Unorm24, true>(&t, &mut a, &mut lv, avx2), reference::<Unorm24>(&t, &mut b)),
-                _ => (draw_tri::<F32, true>(&t, &mut a, &mut lv, avx2), reference::<F32>(&t, &mut b)),
+                16 => (draw_tri::<Unorm16, true>(&t, &mut a, &mut lv, simd), reference::<Unorm16>(&t, &mut b)),
+                24 => (draw_tri::<Unorm24, true>(&t, &mut a, &mut lv, simd), reference::<Unorm24>(&t, &mut b)),
+                _ => (draw_tri::<F32, true>(&t, &mut a, &mut lv, simd), reference::<F32>(&t, &mut b)),
             };
             assert_eq!((ra.covered, ra.written), (rb.covered, rb.written), "triangle {n} {pts:?}");
         }
@@ -195,7 +196,7 @@ fn block_kernel_equals_per_pixel_reference() {
 #[test]
 fn coarse_blocks_skip_nothing_visible_and_refresh_their_texel() {
     let vp = Viewport::new(64, 64, true);
-    for avx2 in kernels() {
+    for simd in kernels() {
         let mut rng = sightline_scene::rng::Rng::new(9);
         let mut a = TileBuf::new(0, 0, 64, 64);
         a.clear_for_session::<F32>(false);
@@ -215,7 +216,7 @@ fn coarse_blocks_skip_nothing_visible_and_refresh_their_texel() {
             };
             let v = [p(), p(), p()];
             let Setup::Ready(t) = setup(v, 1 + n as u32, false, &vp) else { continue };
-            let (ra, rb) = (draw_tri::<F32, false>(&t, &mut a, &mut lv, avx2), reference::<F32>(&t, &mut b));
+            let (ra, rb) = (draw_tri::<F32, false>(&t, &mut a, &mut lv, simd), reference::<F32>(&t, &mut b));
             assert_eq!(ra.written, rb.written, "triangle {n}");
             skipped += (ra.covered < rb.covered) as u32;
             let mut stale = lv.stale_blocks;
@@ -244,7 +245,7 @@ fn oversized_hand_built_tile_panics() {
     let t = tri([(0.5, 0.5), (199.5, 0.5), (0.5, 199.5)], 1, &vp).unwrap();
     let mut tile = TileBuf::new(0, 0, 200, 200);
     let mut lv = levels_of(&tile);
-    draw_tri::<F32, false>(&t, &mut tile, &mut lv, avx2());
+    draw_tri::<F32, false>(&t, &mut tile, &mut lv, best());
 }
 
 #[test]
@@ -318,7 +319,7 @@ fn covers_exactly_its_pixels(t: &Tri, label: &str) -> usize {
 /// kernel (on GPUs every comparison with NaN fails); its pixels still count as covered.
 #[test]
 fn nan_depth_is_never_written() {
-    fn check<D: DepthCodec>(avx2: bool) {
+    fn check<D: DepthCodec>(simd: SimdLevel) {
         let vp = Viewport::new(64, 64, true);
         let mut t = tri([(1.0, 1.0), (60.0, 3.0), (5.0, 62.0)], 9, &vp).unwrap();
         let mut tile = TileBuf::new(0, 0, 64, 64);
@@ -326,16 +327,16 @@ fn nan_depth_is_never_written() {
         tile.depth.fill(D::key(1.0));
         for (z0, zx) in [(f32::NAN, 0.0), (0.5, f32::NAN), (-f32::NAN, 0.0)] {
             (t.z0, t.zx) = (z0, zx);
-            let r = draw_tri::<D, true>(&t, &mut tile, &mut lv, avx2);
+            let r = draw_tri::<D, true>(&t, &mut tile, &mut lv, simd);
             assert!(r.covered > 1000, "{:?}: the triangle covers its pixels", D::FORMAT);
-            assert_eq!(r.written, 0, "{:?} avx2={avx2}: a NaN depth was written", D::FORMAT);
+            assert_eq!(r.written, 0, "{:?} {simd:?}: a NaN depth was written", D::FORMAT);
         }
         assert!(tile.ids.iter().all(|&i| i == 0));
         assert!(tile.depth[..(TILE * TILE) as usize].iter().all(|&k| k == D::key(1.0)));
     }
-    for avx2 in kernels() {
-        check::<F32>(avx2);
-        check::<Unorm24>(avx2);
-        check::<Unorm16>(avx2);
+    for simd in kernels() {
+        check::<F32>(simd);
+        check::<Unorm24>(simd);
+        check::<Unorm16>(simd);
     }
 }
