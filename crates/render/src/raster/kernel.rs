@@ -292,6 +292,29 @@ fn run_row<D: DepthCodec, const COUNT: bool>(r: &Row, tile: &mut TileBuf, base: 
     row_scalar::<D, COUNT>(r, depth, ids, counts, out);
 }
 
+/// The tile buffer index of block `rect`'s first pixel, for the 8-lane block kernels.
+///
+/// Eight lanes from a row's first pixel overrun the row by at most 7 entries, into the next
+/// row or the padding after the last one ([`PAD`]). Tiles are made only by the renderer, and
+/// the walk clips every block to its tile, so the rows' lanes stay inside the buffers by
+/// construction (checked in debug builds).
+#[cfg(target_arch = "x86_64")]
+#[inline(always)]
+fn block_base<const COUNT: bool>(tile: &TileBuf, [rx0, ry0, _, ry1]: [i32; 4]) -> usize {
+    let (tx, ty) = (tile.x0 as i32, tile.y0 as i32);
+    let base = (((ry0 - ty) as usize) << TILE_SHIFT) + (rx0 - tx) as usize;
+    let end = base + ((ry1 - ry0) as usize) * TILE as usize + PAD;
+    debug_assert!(
+        rx0 >= tx
+            && ry0 >= ty
+            && end <= tile.depth.len()
+            && end <= tile.ids.len()
+            && (!COUNT || end <= tile.counts.len()),
+        "block outside the tile buffers"
+    );
+    base
+}
+
 /// One block of at most 8×8 pixels (`rect`, inclusive, in screen pixels): eight pixels per
 /// row in AVX2 registers, with everything that does not change along a column (edge lane
 /// offsets, the depth plane's x part, the column mask) set up once per block instead of once
@@ -310,20 +333,7 @@ unsafe fn block_avx2<D: DepthCodec, const COUNT: bool>(
     out: &mut TriRaster,
 ) {
     use std::arch::x86_64::*;
-    let (tx, ty) = (tile.x0 as i32, tile.y0 as i32);
-    let mut base = (((ry0 - ty) as usize) << TILE_SHIFT) + (rx0 - tx) as usize;
-    // Eight lanes from a row's first pixel overrun the row by at most 7 entries, into the
-    // next row or the padding after the last one ([`PAD`]). Tiles are made only by the
-    // renderer, and the walk clips every block to its tile, so this holds by construction.
-    let end = base + ((ry1 - ry0) as usize) * TILE as usize + PAD;
-    debug_assert!(
-        rx0 >= tx
-            && ry0 >= ty
-            && end <= tile.depth.len()
-            && end <= tile.ids.len()
-            && (!COUNT || end <= tile.counts.len()),
-        "block outside the tile buffers"
-    );
+    let mut base = block_base::<COUNT>(tile, [rx0, ry0, rx1, ry1]);
     // SAFETY: the caller guarantees AVX2; every load and store covers eight u32 at `base`
     // for rows ry0..=ry1, all inside the buffers (see above); lanes past the block rewrite
     // the values they read (masked by `cols`).
@@ -398,18 +408,7 @@ unsafe fn block_avx512<D: DepthCodec, const COUNT: bool>(
     out: &mut TriRaster,
 ) {
     use std::arch::x86_64::*;
-    let (tx, ty) = (tile.x0 as i32, tile.y0 as i32);
-    let mut base = (((ry0 - ty) as usize) << TILE_SHIFT) + (rx0 - tx) as usize;
-    // As in `block_avx2`: eight lanes from a row's first pixel stay inside the buffers.
-    let end = base + ((ry1 - ry0) as usize) * TILE as usize + PAD;
-    debug_assert!(
-        rx0 >= tx
-            && ry0 >= ty
-            && end <= tile.depth.len()
-            && end <= tile.ids.len()
-            && (!COUNT || end <= tile.counts.len()),
-        "block outside the tile buffers"
-    );
+    let mut base = block_base::<COUNT>(tile, [rx0, ry0, rx1, ry1]);
     // SAFETY: the caller guarantees AVX-512; every load and store covers eight u32 at
     // `base` for rows ry0..=ry1, all inside the buffers (see above); lanes past the block
     // rewrite the values they read (masked by `cols`).
