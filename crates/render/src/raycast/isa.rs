@@ -150,7 +150,10 @@ mod x86 {
         if !f.on {
             return 0;
         }
-        let boxes = |v: &[f32; 4]| _mm256_broadcast_ps(&*(v.as_ptr() as *const __m128));
+        let boxes = |v: &[f32; 4]| {
+            let x = _mm_loadu_ps(v.as_ptr());
+            _mm256_set_m128(x, x)
+        };
         let half = _mm256_set1_ps(0.5);
         let sign = _mm256_set1_ps(-0.0);
         let abs = |v: __m256| _mm256_andnot_ps(sign, v);
