@@ -59,43 +59,32 @@ impl Kernel for Rows {
     }
 }
 
-impl Kernel for Avx2 {
-    #[inline(always)]
-    unsafe fn block<D: DepthCodec, const COUNT: bool>(
-        t: &Tri,
-        tile: &mut TileBuf,
-        rect: [i32; 4],
-        k: &BlockEdges,
-        out: &mut TriRaster,
-    ) {
-        #[cfg(target_arch = "x86_64")]
-        // SAFETY: forwarded from the caller (the CPU has AVX2).
-        unsafe {
-            block_avx2::<D, COUNT>(t, tile, rect, k, out)
+/// `impl Kernel` for an x86-64 block kernel `$block` (the row loops elsewhere).
+macro_rules! x86_kernel {
+    ($kernel:ident, $block:ident) => {
+        impl Kernel for $kernel {
+            #[inline(always)]
+            unsafe fn block<D: DepthCodec, const COUNT: bool>(
+                t: &Tri,
+                tile: &mut TileBuf,
+                rect: [i32; 4],
+                k: &BlockEdges,
+                out: &mut TriRaster,
+            ) {
+                #[cfg(target_arch = "x86_64")]
+                // SAFETY: forwarded from the caller (the CPU has the kernel's instruction set).
+                unsafe {
+                    $block::<D, COUNT>(t, tile, rect, k, out)
+                }
+                #[cfg(not(target_arch = "x86_64"))]
+                block_rows::<D, COUNT>(t, tile, rect, k, out)
+            }
         }
-        #[cfg(not(target_arch = "x86_64"))]
-        block_rows::<D, COUNT>(t, tile, rect, k, out)
-    }
+    };
 }
 
-impl Kernel for Avx512 {
-    #[inline(always)]
-    unsafe fn block<D: DepthCodec, const COUNT: bool>(
-        t: &Tri,
-        tile: &mut TileBuf,
-        rect: [i32; 4],
-        k: &BlockEdges,
-        out: &mut TriRaster,
-    ) {
-        #[cfg(target_arch = "x86_64")]
-        // SAFETY: forwarded from the caller (the CPU has AVX-512).
-        unsafe {
-            block_avx512::<D, COUNT>(t, tile, rect, k, out)
-        }
-        #[cfg(not(target_arch = "x86_64"))]
-        block_rows::<D, COUNT>(t, tile, rect, k, out)
-    }
-}
+x86_kernel!(Avx2, block_avx2);
+x86_kernel!(Avx512, block_avx512);
 
 /// The depth test: a fragment wins when it is nearer (LESS), or exactly as near and of a
 /// smaller triangle ID. Drawing in ID order with a plain LESS test keeps the first (smallest
