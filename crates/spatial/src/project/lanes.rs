@@ -172,12 +172,15 @@ impl Lanes {
 
             // Pixel bounds: the portable path's formulas, lane-wise.
             let (wf, hf) = (self.size[0], self.size[1]);
-            let (half, margin, zero) = (_mm256_set1_ps(0.5), _mm256_set1_ps(PIXEL_MARGIN), _mm256_setzero_ps());
+            let (half, zero) = (_mm256_set1_ps(0.5), _mm256_setzero_ps());
+            let (low, high) = (_mm256_set1_ps(LOW_CENTER), _mm256_set1_ps(HIGH_CENTER));
             let clamp = |v: __m256, hi: __m256| _mm256_cvttps_epi32(_mm256_min_ps(_mm256_max_ps(v, zero), hi));
-            let rx0 = clamp(_mm256_sub_ps(mul(mul(add(x0, one), half), wf), margin), wf);
-            let rx1 = clamp(add(add(mul(mul(add(x1, one), half), wf), margin), one), wf);
-            let ry0 = clamp(_mm256_sub_ps(mul(mul(_mm256_sub_ps(one, y1), half), hf), margin), hf);
-            let ry1 = clamp(add(add(mul(mul(_mm256_sub_ps(one, y0), half), hf), margin), one), hf);
+            let first = |v: __m256| _mm256_ceil_ps(_mm256_sub_ps(v, low));
+            let end = |v: __m256| add(_mm256_floor_ps(add(v, high)), one);
+            let rx0 = clamp(first(mul(mul(add(x0, one), half), wf)), wf);
+            let rx1 = clamp(end(mul(mul(add(x1, one), half), wf)), wf);
+            let ry0 = clamp(first(mul(mul(_mm256_sub_ps(one, y1), half), hf)), hf);
+            let ry1 = clamp(end(mul(mul(_mm256_sub_ps(one, y0), half), hf)), hf);
             let depth = _mm256_min_ps(
                 _mm256_max_ps(_mm256_sub_ps(mul(add(z0, one), half), _mm256_set1_ps(DEPTH_MARGIN)), zero),
                 one,

@@ -38,36 +38,48 @@ fn box_crossing_near_plane_covers_screen_at_depth_zero() {
 }
 
 #[test]
-fn rect_contains_every_projected_corner() {
+fn rect_holds_the_pixel_centers_the_corners_span_and_no_others() {
     let c = cam();
     let m = c.clip_from_world();
     let (w, h) = (96u32, 64u32);
     let mut rng = sightline_scene::rng::Rng::new(5);
-    let mut tested = 0;
-    for _ in 0..500 {
+    let (mut tested, mut between_centers) = (0, 0);
+    for k in 0..2000 {
         let lo = Vec3::new(rng.range(-3.0, 3.0), rng.range(-2.0, 2.0), rng.range(-10.0, 3.0));
-        let b = Aabb::new(lo, lo + Vec3::new(rng.range(0.0, 1.0), rng.range(0.0, 1.0), rng.range(0.0, 1.0)));
+        // Every fourth box tiny: most of those fall between pixel centers.
+        let reach = if k % 4 == 0 { 0.02 } else { 1.0 };
+        let e = Vec3::new(rng.range(0.0, reach), rng.range(0.0, reach), rng.range(0.0, reach));
+        let b = Aabb::new(lo, lo + e);
         let r = project_box(&b, &m, w, h);
         assert!(!r.crosses_near);
-        let mut any_on = false;
+        // The corners' window bounds, in f64.
+        let (mut x0, mut x1, mut y0, mut y1) = (f64::MAX, f64::MIN, f64::MAX, f64::MIN);
         for p in b.corners() {
-            let cl = m * p.extend(1.0);
+            let cl = m.as_dmat4() * p.as_dvec3().extend(1.0);
             let ndc = cl.truncate() / cl.w;
-            let (xw, yw, zw) = ((ndc.x + 1.0) * 0.5 * w as f32, (1.0 - ndc.y) * 0.5 * h as f32, (ndc.z + 1.0) * 0.5);
+            let (xw, yw) = ((ndc.x + 1.0) * 0.5 * w as f64, (1.0 - ndc.y) * 0.5 * h as f64);
+            let zw = ((ndc.z + 1.0) * 0.5) as f32;
             assert!(r.is_empty() || r.depth <= zw, "depth {} > corner {zw}", r.depth);
-            // Corners on screen lie in the rect.
-            if (0.0..w as f32).contains(&xw) && (0.0..h as f32).contains(&yw) {
-                any_on = true;
-                assert!(!r.is_empty());
-                assert!(
-                    r.x0 as f32 <= xw && xw < r.x1 as f32 && r.y0 as f32 <= yw && yw < r.y1 as f32,
-                    "corner ({xw}, {yw}) outside {r:?}"
-                );
-            }
+            (x0, x1, y0, y1) = (x0.min(xw), x1.max(xw), y0.min(yw), y1.max(yw));
         }
-        tested += any_on as u32;
+        // Every pixel whose center the corners span is in the rectangle...
+        let centers = |a: f64, b: f64, n: u32| (0..n).filter(move |&i| (a..=b).contains(&(i as f64 + 0.5)));
+        let any = centers(x0, x1, w).next().is_some() && centers(y0, y1, h).next().is_some();
+        for (i, j) in centers(x0, x1, w).flat_map(|i| centers(y0, y1, h).map(move |j| (i, j))) {
+            assert!(r.x0 <= i && i < r.x1 && r.y0 <= j && j < r.y1, "center of ({i}, {j}) outside {r:?}");
+        }
+        tested += any as u32;
+        // ... and none farther than the margin (and float error) outside them.
+        let slack = 2.0 / 128.0;
+        if !r.is_empty() {
+            let (cx0, cx1) = (r.x0 as f64 + 0.5, r.x1 as f64 - 0.5);
+            let (cy0, cy1) = (r.y0 as f64 + 0.5, r.y1 as f64 - 0.5);
+            assert!(cx0 >= x0 - slack && cx1 <= x1 + slack && cy0 >= y0 - slack && cy1 <= y1 + slack, "{r:?}");
+        } else if x1 > 0.0 && x0 < w as f64 && y1 > 0.0 && y0 < h as f64 {
+            between_centers += 1;
+        }
     }
-    assert!(tested > 100, "{tested}");
+    assert!(tested > 400 && between_centers > 50, "{tested} {between_centers}");
 }
 
 /// A random box: mostly ordinary, sometimes flat, huge, empty, NaN or infinite.
@@ -216,9 +228,12 @@ fn boxes_behind_the_eye_across_near_nan_and_empty() {
             assert_eq!(classify(&p, &Aabb::EMPTY), BoxImage::Outside);
             // Overflowing corners: no rectangle.
             assert_eq!(classify(&p, &Aabb::new(Vec3::splat(-3e38), Vec3::splat(3e38))), BoxImage::CrossesNear);
-            // A point box in view is a rectangle of at least one pixel.
-            let BoxImage::Rect(r) = classify(&p, &Aabb::new(Vec3::ZERO, Vec3::ZERO)) else { panic!() };
-            assert!(r.x1 > r.x0 && r.y1 > r.y0 && r.depth > 0.0 && r.depth < 1.0, "{r:?}");
+            // A point box on a pixel center is a rectangle of that one pixel; one on a pixel
+            // corner (the origin lands on (48, 32)) covers no center.
+            let center = Vec3::new(4.33 / 96.0, -4.33 / 96.0, 0.0) * (30f32.to_radians().tan() / 0.57735);
+            let BoxImage::Rect(r) = classify(&p, &Aabb::new(center, center)) else { panic!() };
+            assert!((r.x0, r.y0, r.x1, r.y1) == (48, 32, 49, 33) && r.depth > 0.0 && r.depth < 1.0, "{r:?}");
+            assert_eq!(classify(&p, &Aabb::new(Vec3::ZERO, Vec3::ZERO)), BoxImage::Outside);
         }
     }
 }
@@ -240,7 +255,8 @@ fn overflowing_projections_cross_near() {
         m(Vec4::X, Vec4::new(0.0, 0.0, 0.0, 3e38), Vec4::new(0.0, 0.0, 0.0, 3e38)),
     ];
     for m in cases {
-        for p in on_every_level(m, 64, 48) {
+        // Odd sizes, so that NDC x = 0 and y = 0 land on pixel centers.
+        for p in on_every_level(m, 63, 47) {
             assert_eq!(p.classify_portable(&unit), BoxImage::CrossesNear, "{:?}: {m:?}", p.simd());
             assert_eq!(p.classify(&unit), BoxImage::CrossesNear, "{:?}: {m:?}", p.simd());
             let ordinary = Aabb::new(Vec3::ZERO, Vec3::new(0.0, 0.2, 0.0));
