@@ -60,7 +60,7 @@ pub use bvh::cluster::{Cluster, MeshClusters, CLUSTER_MAX, CLUSTER_MIN};
 pub use bvh::front_to_back::FrontToBackCursor;
 pub use bvh::instances::{InstanceBvh, RefitOutcome, REBUILD_RATIO};
 pub use bvh::scene::{ClusterItem, ClusteredScene};
-pub use bvh::traverse::CoherencyCache;
+pub use bvh::traverse::{CoherencyCache, FrustumCount};
 pub use bvh::triangles::{TriangleBvh, TriangleHit};
 pub use bvh::{Bvh, BvhNode, BvhPreset};
 pub use frustum::{Containment, Frustum, PlaneMask, ALL_PLANES};

@@ -50,7 +50,7 @@ use std::time::Instant;
 
 use serde::{Deserialize, Serialize};
 use sightline_scene::{Aabb, Camera, Instance, Scene, SceneStamp};
-use sightline_spatial::{BoxProjector, ClusteredScene, Frustum, LooseOctree, Visible};
+use sightline_spatial::{BoxProjector, ClusteredScene, Frustum, FrustumCount, LooseOctree, Visible};
 
 pub use crate::hzb::{DepthPyramid, Level, Rect, TilePyramid};
 pub use meshlets::{Meshlets, SceneMeshlets};
@@ -362,7 +362,8 @@ impl Culler {
         let frustum =
             if method == Method::Frustum { self.c.frustum_cull(camera, &mut cs) } else { Frustum::from_camera(camera) };
         cs.ms_cull = ms_since(t);
-        let mut f = Frame { camera, opts: &opts, cs, fs: FrameStats::default() };
+        let count = (method != Method::Frustum).then(|| FrustumCount::new(self.c.clustered.bvh(), &frustum));
+        let mut f = Frame { camera, opts: &opts, cs, fs: FrameStats::default(), count };
         let batching = self.batching();
         if method == Method::Frustum {
             let t = Instant::now();
@@ -388,7 +389,7 @@ impl Culler {
             f.fs.covered_pixels = session.finish(fb)?;
             r?;
         }
-        let Frame { mut cs, mut fs, .. } = f;
+        let Frame { mut cs, mut fs, count, .. } = f;
         let mut shade = || {
             let t = Instant::now();
             crate::shade_pass(scene, &self.c.instances, camera, fb, &opts.shading, opts.background);
@@ -397,10 +398,22 @@ impl Culler {
         cs.ms_shading = if method == Method::Frustum {
             shade()
         } else {
-            // Counting walks the BVH nodes the frustum's boundary cuts: about 3 ms of cache
-            // misses on one thread in the street view of a 10^9-triangle city. It overlaps
-            // the shading pass, whose bands go to whichever worker is free.
-            rayon::join(|| self.c.count_in_frustum(&frustum, &mut cs), shade).1
+            // Counting walks the BVH nodes the frustum's boundary cuts: 1–3 ms on one thread
+            // in the street view of a 10^9-triangle city. What the walk's serial steps left
+            // of it overlaps the shading pass, whose bands go to whichever worker is free.
+            let bvh = self.c.clustered.bvh();
+            let (n, ms) = rayon::join(
+                || {
+                    count.map(|mut c| {
+                        c.run(bvh, || false);
+                        c.count()
+                    })
+                },
+                shade,
+            );
+            cs.clusters_in_frustum = n.unwrap_or(0);
+            cs.culled_by_frustum = cs.clusters - cs.clusters_in_frustum;
+            ms
         };
         cs.culled_by_occlusion = cs.clusters_in_frustum.saturating_sub(cs.clusters_drawn + cs.culled_by_backface);
         fs.ms_shading = cs.ms_shading;
@@ -445,7 +458,7 @@ impl Culler {
         let mut session = self.renderer.begin(fb, opts);
         // Front to back in growing batches, so that the coarse depth test of the rasterizer
         // rejects whole triangles hidden behind earlier ones.
-        let mut f = Frame { camera, opts, cs, fs: FrameStats::default() };
+        let mut f = Frame { camera, opts, cs, fs: FrameStats::default(), count: None };
         if skip_hidden {
             let walk = Walk { first_batch: batching.first, skip: None };
             self.c.hzb_walk(&mut session, &mut f, &frustum, Source::Bvh, walk, batching)?;

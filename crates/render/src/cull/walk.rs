@@ -3,12 +3,13 @@
 //! occlusion tests against the session's z-pyramid between batches (Greene, Kass & Miller
 //! 1993), and its two-pass form that draws last frame's visible set first.
 
+use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::Instant;
 
 use glam::Affine3A;
 use sightline_scene::Camera;
 use sightline_spatial::{
-    prefetch, BoxProjector, Containment, CullOptions, FrontToBackCursor, Frustum, OctreeCursor, Visible,
+    prefetch, BoxProjector, Containment, CullOptions, FrontToBackCursor, Frustum, FrustumCount, OctreeCursor, Visible,
 };
 
 use super::{ClusterDraw, Clusters, CullStats, OcclusionQueries, PREFETCH_AHEAD};
@@ -22,6 +23,9 @@ pub(super) struct Frame<'a> {
     pub opts: &'a RenderOptions,
     pub cs: CullStats,
     pub fs: FrameStats,
+    /// The count of clusters in the frustum (a statistic), made in pieces by an idle worker
+    /// while the walk's steps run serially, and finished by the frame.
+    pub count: Option<FrustumCount>,
 }
 
 /// Batch sizes of a walk.
@@ -187,15 +191,34 @@ impl Clusters {
         loop {
             let t = Instant::now();
             out.clear();
-            // The walk is serial: the other workers spin through it, ready for the batch.
-            let awake = KeepAwake::start();
             let more = {
                 let q = OcclusionQueries::with_projector(projector, s.pyramid());
                 let cs = &mut f.cs;
-                let visible = |b: &_| q.counted_visible(b, cs);
-                match &mut cursor {
-                    Cursor::Bvh(c) => c.next_batch(self.clustered.bvh(), visible, batch, &mut out),
-                    Cursor::Octree(c) => c.next_batch(&self.octree, visible, batch, &mut out),
+                let (clustered, octree) = (&self.clustered, &self.octree);
+                let mut step = || {
+                    let visible = |b: &_| q.counted_visible(b, cs);
+                    match &mut cursor {
+                        Cursor::Bvh(c) => c.next_batch(clustered.bvh(), visible, batch, &mut out),
+                        Cursor::Octree(c) => c.next_batch(octree, visible, batch, &mut out),
+                    }
+                };
+                match f.count.as_mut().filter(|c| !c.is_done()) {
+                    // The walk is serial: another worker counts meanwhile, until the step ends.
+                    Some(count) => {
+                        let done = AtomicBool::new(false);
+                        let stop = || done.load(Ordering::Acquire);
+                        let more = || {
+                            let more = step();
+                            done.store(true, Ordering::Release);
+                            more
+                        };
+                        rayon::join(more, || count.run(clustered.bvh(), stop)).0
+                    }
+                    // Or the other workers spin through it, ready for the batch.
+                    None => {
+                        let _awake = KeepAwake::start();
+                        step()
+                    }
                 }
             };
             if let Some(frame) = walk.skip {
@@ -205,7 +228,6 @@ impl Clusters {
             if f.opts.backface_culling {
                 self.drop_backfacing(&mut out, eye, &mut f.cs);
             }
-            drop(awake);
             f.cs.ms_cull += ms_since(t);
             if !out.is_empty() {
                 let t = Instant::now();

@@ -23,6 +23,73 @@ impl CoherencyCache {
     }
 }
 
+/// [`Bvh::count_in_frustum`] in steps: a count that stops when asked and goes on where it
+/// stopped, so that a thread with nothing else to do (while another walks a tree serially)
+/// can make it in pieces, and whoever needs the number finishes it.
+#[derive(Debug, Clone)]
+pub struct FrustumCount {
+    frustum: Frustum,
+    stack: Vec<(u32, PlaneMask)>,
+    count: u64,
+}
+
+/// Nodes a [`FrustumCount`] visits between asking whether to stop.
+const COUNT_STEP: u32 = 64;
+
+impl FrustumCount {
+    /// A count of `bvh`'s items in `frustum`, not started.
+    pub fn new(bvh: &Bvh, frustum: &Frustum) -> Self {
+        let stack = if bvh.nodes.is_empty() { Vec::new() } else { vec![(0, ALL_PLANES)] };
+        Self { frustum: *frustum, stack, count: bvh.unbounded.len() as u64 }
+    }
+
+    /// Counts on over `bvh` (the tree the count was made for) until it is done or `stop()`,
+    /// asked first and then every [`COUNT_STEP`] nodes, says to stop. True when done.
+    pub fn run(&mut self, bvh: &Bvh, mut stop: impl FnMut() -> bool) -> bool {
+        let frustum = &self.frustum;
+        let mut tests = 0u32;
+        let mut visited = 0u32;
+        loop {
+            if visited.is_multiple_of(COUNT_STEP) && !self.stack.is_empty() && stop() {
+                return false;
+            }
+            visited = visited.wrapping_add(1);
+            let Some((i, mut mask)) = self.stack.pop() else { return true };
+            let n = &bvh.nodes[i as usize];
+            if mask != 0 && frustum.classify_counted(&n.aabb(), &mut mask, &mut 0, &mut tests) == Containment::Outside {
+                continue;
+            }
+            if mask == 0 {
+                self.count += bvh.subtree_items(i).len() as u64;
+            } else if n.is_leaf() {
+                if n.count == 1 {
+                    self.count += 1;
+                } else {
+                    for s in n.index..n.index + n.count {
+                        let mut m = mask;
+                        let b = &bvh.item_boxes[s as usize];
+                        self.count +=
+                            (frustum.classify_counted(b, &mut m, &mut 0, &mut tests) != Containment::Outside) as u64;
+                    }
+                }
+            } else {
+                self.stack.push((n.index + 1, mask));
+                self.stack.push((n.index, mask));
+            }
+        }
+    }
+
+    /// True when the count is finished.
+    pub fn is_done(&self) -> bool {
+        self.stack.is_empty()
+    }
+
+    /// The items counted so far: all of them once [`FrustumCount::is_done`].
+    pub fn count(&self) -> u64 {
+        self.count
+    }
+}
+
 impl Bvh {
     /// Frustum culling: appends every item whose box may intersect `frustum` to `out`
     /// (unbounded items first, never `inside`). Conservative.
@@ -36,38 +103,9 @@ impl Bvh {
     /// from its leftmost to its rightmost leaf), so the cost grows with the nodes the frustum
     /// boundary cuts, not with the items inside.
     pub fn count_in_frustum(&self, frustum: &Frustum) -> u64 {
-        let mut count = self.unbounded.len() as u64;
-        if self.nodes.is_empty() {
-            return count;
-        }
-        let mut tests = 0u32;
-        let mut stack: Vec<(u32, PlaneMask)> = Vec::with_capacity(64);
-        stack.push((0, ALL_PLANES));
-        while let Some((i, mut mask)) = stack.pop() {
-            let n = &self.nodes[i as usize];
-            if mask != 0 && frustum.classify_counted(&n.aabb(), &mut mask, &mut 0, &mut tests) == Containment::Outside {
-                continue;
-            }
-            if mask == 0 {
-                count += self.subtree_items(i).len() as u64;
-            } else if n.is_leaf() {
-                let r = n.index..n.index + n.count;
-                if n.count == 1 {
-                    count += 1;
-                } else {
-                    for s in r {
-                        let mut m = mask;
-                        let b = &self.item_boxes[s as usize];
-                        count +=
-                            (frustum.classify_counted(b, &mut m, &mut 0, &mut tests) != Containment::Outside) as u64;
-                    }
-                }
-            } else {
-                stack.push((n.index + 1, mask));
-                stack.push((n.index, mask));
-            }
-        }
-        count
+        let mut c = FrustumCount::new(self, frustum);
+        c.run(self, || false);
+        c.count()
     }
 
     /// The slots in `items` of node `i`'s subtree: from its leftmost leaf's first to its
@@ -261,6 +299,18 @@ pub(super) mod tests {
                 let mut out = Vec::new();
                 bvh.cull_with(&f, CullOptions::default(), &mut out);
                 assert_eq!(bvh.count_in_frustum(&f), out.len() as u64, "leaf {leaf}, camera {k}");
+                // In pieces: stopped after every step (or at once, every third step), then
+                // finished; the same count.
+                let mut pieces = FrustumCount::new(&bvh, &f);
+                let mut steps = 0;
+                while !pieces.run(&bvh, || {
+                    steps += 1;
+                    steps % 2 == 0 || steps % 3 == 0
+                }) {
+                    assert!(!pieces.is_done());
+                }
+                assert!(pieces.is_done());
+                assert_eq!(pieces.count(), out.len() as u64, "leaf {leaf}, camera {k}, {steps} steps");
             }
         }
     }
