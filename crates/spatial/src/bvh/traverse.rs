@@ -44,7 +44,7 @@ impl FrustumCount {
     }
 
     /// Counts on over `bvh` (the tree the count was made for) until it is done or `stop()`,
-    /// asked first and then every [`COUNT_STEP`] nodes, says to stop. True when done.
+    /// asked first and then every 64 nodes, says to stop. True when done.
     pub fn run(&mut self, bvh: &Bvh, mut stop: impl FnMut() -> bool) -> bool {
         let frustum = &self.frustum;
         let mut tests = 0u32;
