@@ -59,10 +59,11 @@ pub use query::{BoxVisibility, OcclusionQueries};
 pub use update::SyncOutcome;
 pub use verify::{compare_ids, Mismatch};
 
+use crate::awake::join_helping;
 use crate::pipeline::Target;
 use crate::stats::ms_since;
 use crate::{draw_all, FrameStats, Framebuffer, RenderOptions, Renderer, Result, Session};
-use walk::{Batching, Frame, Source, Walk};
+use walk::{Batching, Frame, Source, TwoPass, Walk};
 
 /// How a frame decides what to draw.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize)]
@@ -183,12 +184,7 @@ struct Clusters {
     moves: Vec<(u32, sightline_scene::NodeId)>,
     changed: Vec<u32>,
     visible: Vec<Visible>,
-    /// Two-pass state: the clusters found visible in the last frame drawn with it.
-    last_visible: Vec<u32>,
-    /// Two-pass state: per cluster, the number of the frame that last drew it.
-    drawn_in: Vec<u32>,
-    /// Two-pass state: frames drawn with it so far (never 0 once started).
-    frame: u32,
+    two_pass: TwoPass,
 }
 
 /// What drawing one cluster takes, in one record per cluster: a batch of clusters then
@@ -358,12 +354,12 @@ impl Culler {
         // every color.
         let t = Instant::now();
         // The occlusion methods' walks test the frustum themselves; the clusters inside it
-        // are counted (for the statistics only) while the frame is shaded, below.
+        // are counted (for the statistics only) beside the walk and the shading, below.
         let frustum =
             if method == Method::Frustum { self.c.frustum_cull(camera, &mut cs) } else { Frustum::from_camera(camera) };
         cs.ms_cull = ms_since(t);
-        let count = (method != Method::Frustum).then(|| FrustumCount::new(self.c.clustered.bvh(), &frustum));
-        let mut f = Frame { camera, opts: &opts, cs, fs: FrameStats::default(), count };
+        let mut count = (method != Method::Frustum).then(|| FrustumCount::new(self.c.clustered.bvh(), &frustum));
+        let mut f = Frame { camera, opts: &opts, cs, fs: FrameStats::default() };
         let batching = self.batching();
         if method == Method::Frustum {
             let t = Instant::now();
@@ -373,23 +369,34 @@ impl Culler {
             f.cs.ms_draw = ms_since(t);
             f.cs.batches = 1;
         } else {
+            if method == Method::OctreeHzb {
+                self.c.settle_octree();
+            }
+            let mut two = std::mem::take(&mut self.c.two_pass);
+            let c = &self.c;
             let mut session = self.renderer.begin(fb, &opts);
-            let r = match method {
-                Method::HzbOnePass => {
-                    let walk = Walk { first_batch: batching.first, skip: None };
-                    self.c.hzb_walk(&mut session, &mut f, &frustum, Source::Bvh, walk, batching)
-                }
-                Method::OctreeHzb => {
-                    self.c.settle_octree();
-                    let walk = Walk { first_batch: batching.first, skip: None };
-                    self.c.hzb_walk(&mut session, &mut f, &frustum, Source::Octree, walk, batching)
-                }
-                _ => self.c.hzb_two_pass(&mut session, &mut f, &frustum, batching),
-            };
+            // The walk's steps are serial: meanwhile the other worker counts the clusters in
+            // the frustum (a statistic), serving the frame's parallel steps as they come.
+            let (r, ()) = join_helping(
+                || match method {
+                    Method::HzbOnePass | Method::OctreeHzb => {
+                        let source = if method == Method::OctreeHzb { Source::Octree } else { Source::Bvh };
+                        let walk = Walk { first_batch: batching.first, skip: None };
+                        c.hzb_walk(&mut session, &mut f, &frustum, source, walk, batching)
+                    }
+                    _ => c.hzb_two_pass(&mut session, &mut f, &frustum, batching, &mut two),
+                },
+                |poll| {
+                    if let Some(count) = &mut count {
+                        count.run(c.clustered.bvh(), poll);
+                    }
+                },
+            );
+            self.c.two_pass = two;
             f.fs.covered_pixels = session.finish(fb)?;
             r?;
         }
-        let Frame { mut cs, mut fs, count, .. } = f;
+        let Frame { mut cs, mut fs, .. } = f;
         let mut shade = || {
             let t = Instant::now();
             crate::shade_pass(scene, &self.c.instances, camera, fb, &opts.shading, opts.background);
@@ -400,7 +407,8 @@ impl Culler {
         } else {
             // Counting walks the BVH nodes the frustum's boundary cuts: 1–3 ms on one thread
             // in the street view of a 10^9-triangle city. What the walk's serial steps left
-            // of it overlaps the shading pass, whose bands go to whichever worker is free.
+            // of it (all of it on one thread) overlaps the shading pass, whose bands go to
+            // whichever worker is free.
             let bvh = self.c.clustered.bvh();
             let (n, ms) = rayon::join(
                 || {
@@ -448,22 +456,32 @@ impl Culler {
         skip_hidden: bool,
     ) -> Result<(CullStats, FrameStats, OccluderPass<'_>)> {
         let t0 = Instant::now();
-        let mut cs = CullStats { clusters: self.c.clustered.item_count() as u64, ..Default::default() };
+        let cs = CullStats { clusters: self.c.clustered.item_count() as u64, ..Default::default() };
         let frustum = Frustum::from_camera(camera);
-        if skip_hidden {
-            // The walk without tests lists (and counts) every cluster in the frustum.
-            self.c.count_in_frustum(&frustum, &mut cs);
-        }
         let batching = self.batching();
+        let c = &self.c;
         let mut session = self.renderer.begin(fb, opts);
         // Front to back in growing batches, so that the coarse depth test of the rasterizer
         // rejects whole triangles hidden behind earlier ones.
-        let mut f = Frame { camera, opts, cs, fs: FrameStats::default(), count: None };
+        let mut f = Frame { camera, opts, cs, fs: FrameStats::default() };
         if skip_hidden {
+            // The tested walk does not list every cluster in the frustum: the other worker
+            // counts them during its serial steps.
+            let mut count = FrustumCount::new(c.clustered.bvh(), &frustum);
             let walk = Walk { first_batch: batching.first, skip: None };
-            self.c.hzb_walk(&mut session, &mut f, &frustum, Source::Bvh, walk, batching)?;
+            let (r, ()) = join_helping(
+                || c.hzb_walk(&mut session, &mut f, &frustum, Source::Bvh, walk, batching),
+                |poll| {
+                    count.run(c.clustered.bvh(), poll);
+                },
+            );
+            r?;
+            count.run(c.clustered.bvh(), || false);
+            f.cs.clusters_in_frustum = count.count();
+            f.cs.culled_by_frustum = f.cs.clusters - f.cs.clusters_in_frustum;
         } else {
-            self.c.draw_front_to_back(&mut session, &mut f, &frustum, batching)?;
+            // The walk without tests lists (and counts) every cluster in the frustum.
+            c.draw_front_to_back(&mut session, &mut f, &frustum, batching)?;
         }
         let Frame { mut cs, fs, .. } = f;
         // The walk's split into culling and drawing is not reported for the pass.

@@ -79,7 +79,7 @@ impl Culler {
         }
         cs.ms_cull = ms_since(t0);
         let t = Instant::now();
-        let mut f = Frame { camera, opts, cs, fs: FrameStats::default(), count: None };
+        let mut f = Frame { camera, opts, cs, fs: FrameStats::default() };
         if coarse {
             let mut session = self.renderer.begin(fb, opts);
             for chunk in items.chunks(batch.max(1)) {

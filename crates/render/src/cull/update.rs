@@ -22,7 +22,7 @@ use sightline_scene::{Aabb, Instance, NodeId, Scene, SceneDelta};
 use sightline_spatial::{ClusteredScene, LooseOctree, RefitOutcome};
 use slotmap::SecondaryMap;
 
-use super::{cone, ClusterDraw, Clusters, SceneMeshlets, OCTREE_DEPTH};
+use super::{cone, ClusterDraw, Clusters, SceneMeshlets, TwoPass, OCTREE_DEPTH};
 
 impl Clusters {
     /// Builds the culling state for `scene.instances()` (world transforms must be up to date),
@@ -103,9 +103,7 @@ impl Clusters {
             moves: Vec::new(),
             changed: Vec::new(),
             visible: Vec::new(),
-            last_visible: Vec::new(),
-            drawn_in: Vec::new(),
-            frame: 0,
+            two_pass: TwoPass::default(),
         }
     }
 }

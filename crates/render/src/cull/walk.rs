@@ -3,17 +3,16 @@
 //! occlusion tests against the session's z-pyramid between batches (Greene, Kass & Miller
 //! 1993), and its two-pass form that draws last frame's visible set first.
 
-use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::Instant;
 
 use glam::Affine3A;
 use sightline_scene::Camera;
 use sightline_spatial::{
-    prefetch, BoxProjector, Containment, CullOptions, FrontToBackCursor, Frustum, FrustumCount, OctreeCursor, Visible,
+    prefetch, BoxProjector, Containment, CullOptions, FrontToBackCursor, Frustum, OctreeCursor, Visible,
 };
 
 use super::{ClusterDraw, Clusters, CullStats, OcclusionQueries, PREFETCH_AHEAD};
-use crate::awake::{join_helping, KeepAwake};
+use crate::awake::join_helping;
 use crate::stats::ms_since;
 use crate::{DrawSource, FrameStats, RenderOptions, Result, Session};
 
@@ -23,9 +22,6 @@ pub(super) struct Frame<'a> {
     pub opts: &'a RenderOptions,
     pub cs: CullStats,
     pub fs: FrameStats,
-    /// The count of clusters in the frustum (a statistic), made in pieces by an idle worker
-    /// while the walk's steps run serially, and finished by the frame.
-    pub count: Option<FrustumCount>,
 }
 
 /// Batch sizes of a walk.
@@ -41,13 +37,24 @@ pub(super) struct Batching {
 }
 
 /// How [`Clusters::hzb_walk`] walks.
-#[derive(Debug, Clone, Copy)]
-pub(super) struct Walk {
+#[derive(Debug)]
+pub(super) struct Walk<'t> {
     /// Clusters in the first draw batch (batches then double up to the batch cap).
     pub first_batch: usize,
-    /// `Some(frame)`: clusters already drawn in that frame (see `drawn_in`) are passed
-    /// over, and the ones drawn get marked and join `last_visible`.
-    pub skip: Option<u32>,
+    /// `Some(state)`: clusters already drawn in the state's frame are passed over, and the
+    /// ones drawn get marked and join its `last_visible`.
+    pub skip: Option<&'t mut TwoPass>,
+}
+
+/// What [`super::Method::Hzb`] keeps from frame to frame.
+#[derive(Debug, Default)]
+pub(super) struct TwoPass {
+    /// The clusters found visible in the last frame drawn with it.
+    last_visible: Vec<u32>,
+    /// Per cluster, the number of the frame that last drew it.
+    drawn_in: Vec<u32>,
+    /// Frames drawn with it so far (never 0 once started).
+    frame: u32,
 }
 
 /// Which structure the front-to-back walk runs over.
@@ -75,15 +82,6 @@ impl Clusters {
         cs.clusters_in_frustum = self.visible.len() as u64;
         cs.culled_by_frustum = cs.clusters - cs.clusters_in_frustum;
         frustum
-    }
-
-    /// Counts the clusters in `frustum` into `cs`, for the occlusion methods, whose walks
-    /// test the frustum themselves: through whole BVH subtrees inside it, not listed (a
-    /// listing costs as much as the clusters in view: 2 × 10^6 and 15 ms in the street view
-    /// of a 10^9-triangle city).
-    pub(super) fn count_in_frustum(&self, frustum: &Frustum, cs: &mut CullStats) {
-        cs.clusters_in_frustum = self.clustered.count_in_frustum(frustum);
-        cs.culled_by_frustum = cs.clusters - cs.clusters_in_frustum;
     }
 
     /// True when cluster `i`'s cone can cull at all (one bit in a small array that stays in
@@ -169,12 +167,12 @@ impl Clusters {
     /// over `source`, testing nodes and clusters against the pyramid as it fills, in batches
     /// growing from `walk.first_batch` clusters; see [`Walk`] for the rest.
     pub(super) fn hzb_walk(
-        &mut self,
+        &self,
         s: &mut Session,
         f: &mut Frame,
         frustum: &Frustum,
         source: Source,
-        walk: Walk,
+        mut walk: Walk,
         batching: Batching,
     ) -> Result<()> {
         let pyramid = s.pyramid();
@@ -192,37 +190,17 @@ impl Clusters {
             let t = Instant::now();
             out.clear();
             let more = {
+                // Serial: the other workers are kept awake by the caller (`join_helping`).
                 let q = OcclusionQueries::with_projector(projector, s.pyramid());
                 let cs = &mut f.cs;
-                let (clustered, octree) = (&self.clustered, &self.octree);
-                let mut step = || {
-                    let visible = |b: &_| q.counted_visible(b, cs);
-                    match &mut cursor {
-                        Cursor::Bvh(c) => c.next_batch(clustered.bvh(), visible, batch, &mut out),
-                        Cursor::Octree(c) => c.next_batch(octree, visible, batch, &mut out),
-                    }
-                };
-                match f.count.as_mut().filter(|c| !c.is_done()) {
-                    // The walk is serial: another worker counts meanwhile, until the step ends.
-                    Some(count) => {
-                        let done = AtomicBool::new(false);
-                        let stop = || done.load(Ordering::Acquire);
-                        let more = || {
-                            let more = step();
-                            done.store(true, Ordering::Release);
-                            more
-                        };
-                        rayon::join(more, || count.run(clustered.bvh(), stop)).0
-                    }
-                    // Or the other workers spin through it, ready for the batch.
-                    None => {
-                        let _awake = KeepAwake::start();
-                        step()
-                    }
+                let visible = |b: &_| q.counted_visible(b, cs);
+                match &mut cursor {
+                    Cursor::Bvh(c) => c.next_batch(self.clustered.bvh(), visible, batch, &mut out),
+                    Cursor::Octree(c) => c.next_batch(&self.octree, visible, batch, &mut out),
                 }
             };
-            if let Some(frame) = walk.skip {
-                out.retain(|v| self.drawn_in[v.index as usize] != frame);
+            if let Some(two) = &walk.skip {
+                out.retain(|v| two.drawn_in[v.index as usize] != two.frame);
             }
             // Clusters facing away would only be dropped triangle by triangle.
             if f.opts.backface_culling {
@@ -232,11 +210,11 @@ impl Clusters {
             if !out.is_empty() {
                 let t = Instant::now();
                 self.draw(s, &out, |v| v.index, f)?;
-                if let Some(frame) = walk.skip {
+                if let Some(two) = &mut walk.skip {
                     for v in &out {
-                        self.drawn_in[v.index as usize] = frame;
+                        two.drawn_in[v.index as usize] = two.frame;
                     }
-                    self.last_visible.extend(out.iter().map(|v| v.index));
+                    two.last_visible.extend(out.iter().map(|v| v.index));
                 }
                 f.cs.ms_draw += ms_since(t);
                 f.cs.batches += 1;
@@ -257,13 +235,13 @@ impl Clusters {
     /// the same. The walk lists every cluster in the frustum, so it counts them too
     /// (`clusters_in_frustum`, the number [`Clusters::count_in_frustum`] gives).
     pub(super) fn draw_front_to_back(
-        &mut self,
+        &self,
         s: &mut Session,
         f: &mut Frame,
         frustum: &Frustum,
         batching: Batching,
     ) -> Result<()> {
-        let this: &Clusters = self;
+        let this = self;
         let eye = f.camera.view.eye;
         let backface = f.opts.backface_culling;
         let mut cursor =
@@ -300,7 +278,7 @@ impl Clusters {
             };
             if more {
                 // The worker that finds the next batch then helps draw this one.
-                let (drawn, next) = join_helping(|| draw(s, f), || find(&mut cursor, batch));
+                let (drawn, next) = join_helping(|| draw(s, f), |_| find(&mut cursor, batch));
                 drawn?;
                 found = Some(next);
             } else {
@@ -317,27 +295,28 @@ impl Clusters {
     /// are tested against the finished pyramid, and the ones not occluded join this frame's
     /// newly drawn ones as the next frame's set.
     pub(super) fn hzb_two_pass(
-        &mut self,
+        &self,
         s: &mut Session,
         f: &mut Frame,
         frustum: &Frustum,
         batching: Batching,
+        two: &mut TwoPass,
     ) -> Result<()> {
         let n = self.clustered.item_count();
-        self.frame = self.frame.wrapping_add(1);
-        if self.frame == 0 || self.drawn_in.len() != n {
-            self.drawn_in.clear();
-            self.drawn_in.resize(n, 0);
-            self.frame = 1;
+        two.frame = two.frame.wrapping_add(1);
+        if two.frame == 0 || two.drawn_in.len() != n {
+            two.drawn_in.clear();
+            two.drawn_in.resize(n, 0);
+            two.frame = 1;
         }
-        let frame = self.frame;
+        let frame = two.frame;
         let t = Instant::now();
         // Last frame's set, kept where still in the frustum and facing us. Each cluster's box
         // is tested as the frustum walk would test it (a box inside a node inside the frustum
         // is itself inside), so the set is the one the walk would find, at a cost that grows
         // with last frame's visible clusters, not with those in view.
         let eye = f.camera.view.eye;
-        let mut first: Vec<u32> = std::mem::take(&mut self.last_visible);
+        let mut first: Vec<u32> = std::mem::take(&mut two.last_visible);
         let boxes = &self.item_boxes;
         first.retain(|&i| boxes.get(i as usize).is_some_and(|b| frustum.classify(b) != Containment::Outside));
         if f.opts.backface_culling {
@@ -345,7 +324,7 @@ impl Clusters {
             first.retain(|&i| !self.faces_away(i, eye));
         }
         for &i in &first {
-            self.drawn_in[i as usize] = frame;
+            two.drawn_in[i as usize] = frame;
         }
         f.cs.ms_cull += ms_since(t);
         let mut result = Ok(());
@@ -358,7 +337,7 @@ impl Clusters {
         if result.is_ok() {
             // With last frame's occluders in place the pyramid is mostly complete: big batches.
             let first_batch = if first.is_empty() { batching.first } else { (batching.cap / 4).max(batching.first) };
-            let walk = Walk { first_batch, skip: Some(frame) };
+            let walk = Walk { first_batch, skip: Some(&mut *two) };
             result = self.hzb_walk(s, f, frustum, Source::Bvh, walk, batching);
         }
         // Re-test last frame's clusters against the finished pyramid: the occluded ones leave
@@ -368,10 +347,10 @@ impl Clusters {
         let boxes = &self.item_boxes;
         let still: Vec<u32> =
             first.iter().copied().filter(|&i| q.counted_visible(&boxes[i as usize], &mut f.cs)).collect();
-        self.last_visible.extend(still);
+        two.last_visible.extend(still);
         f.cs.ms_cull += ms_since(t);
         if result.is_err() {
-            self.last_visible.clear();
+            two.last_visible.clear();
         }
         result
     }
