@@ -29,6 +29,7 @@ use sightline_scene::{Camera, Instance, Scene};
 use sightline_spatial::SimdLevel;
 
 use crate::bin::bin_chunk;
+use crate::claim::for_each_claimed;
 use crate::clip_matrix::clip_from_local;
 use crate::depth::{with_codec, DepthCodec, DepthFormat};
 use crate::geometry::{split, Chunk, Item, Source};
@@ -452,17 +453,22 @@ impl Renderer {
         }
         let chunks = &mut self.chunks[..n];
         let levels = &self.levels[..];
-        chunks.par_iter_mut().zip(self.work.par_iter()).for_each(|(c, w)| {
-            let t = Instant::now();
-            c.process(items, w, vp, cull);
-            let geometry = ms_since(t);
-            c.ms = (geometry, 0.0);
-            if let Some(b) = &bin {
+        // Claimed chunk by chunk: the chunks' costs differ with the memory they read.
+        for_each_claimed(
+            chunks.iter_mut().zip(&self.work),
+            || (),
+            |_, (c, w)| {
                 let t = Instant::now();
-                bin_chunk(c, b.grid, b.session.then_some(levels));
-                c.ms.1 = ms_since(t);
-            }
-        });
+                c.process(items, w, vp, cull);
+                let geometry = ms_since(t);
+                c.ms = (geometry, 0.0);
+                if let Some(b) = &bin {
+                    let t = Instant::now();
+                    bin_chunk(c, b.grid, b.session.then_some(levels));
+                    c.ms.1 = ms_since(t);
+                }
+            },
+        );
         n
     }
 
