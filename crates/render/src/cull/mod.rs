@@ -132,6 +132,14 @@ pub struct CullStats {
     pub ms_total: f64,
 }
 
+impl CullStats {
+    /// Sets the clusters in the frustum, and so the ones it culled.
+    fn set_in_frustum(&mut self, n: u64) {
+        self.clusters_in_frustum = n;
+        self.culled_by_frustum = self.clusters - n;
+    }
+}
+
 /// Per-scene culling state: clusters, their BVH and octree, meshlets, the z-pyramid and a
 /// renderer, all reused frame after frame.
 #[derive(Debug)]
@@ -423,17 +431,8 @@ impl Culler {
             // of it (all of it on one thread) overlaps the shading pass, whose bands go to
             // whichever worker is free.
             let bvh = self.c.clustered.bvh();
-            let (n, ms) = rayon::join(
-                || {
-                    count.map(|mut c| {
-                        c.run(bvh, || false);
-                        c.count()
-                    })
-                },
-                shade,
-            );
-            cs.clusters_in_frustum = n.unwrap_or(0);
-            cs.culled_by_frustum = cs.clusters - cs.clusters_in_frustum;
+            let (n, ms) = rayon::join(|| count.map(|c| c.finish(bvh)), shade);
+            cs.set_in_frustum(n.unwrap_or(0));
             ms
         };
         cs.culled_by_occlusion = cs.clusters_in_frustum.saturating_sub(cs.clusters_drawn + cs.culled_by_backface);
@@ -489,9 +488,7 @@ impl Culler {
                 },
             );
             r?;
-            count.run(c.clustered.bvh(), || false);
-            f.cs.clusters_in_frustum = count.count();
-            f.cs.culled_by_frustum = f.cs.clusters - f.cs.clusters_in_frustum;
+            f.cs.set_in_frustum(count.finish(c.clustered.bvh()));
         } else {
             // The walk without tests lists (and counts) every cluster in the frustum.
             c.draw_front_to_back(&mut session, &mut f, &frustum, batching)?;

@@ -79,8 +79,7 @@ impl Clusters {
         let frustum = Frustum::from_camera(camera);
         self.visible.clear();
         self.clustered.cull_with(&frustum, CullOptions::default(), &mut self.visible);
-        cs.clusters_in_frustum = self.visible.len() as u64;
-        cs.culled_by_frustum = cs.clusters - cs.clusters_in_frustum;
+        cs.set_in_frustum(self.visible.len() as u64);
         frustum
     }
 
@@ -233,7 +232,7 @@ impl Clusters {
     /// on the others ([`join_helping`]: the finder then joins the drawing), so that the
     /// serial traversal and the parallel drawing overlap. The batches, and so the frame, are
     /// the same. The walk lists every cluster in the frustum, so it counts them too
-    /// (`clusters_in_frustum`, the number [`Clusters::count_in_frustum`] gives).
+    /// (`clusters_in_frustum`, the number a [`sightline_spatial::FrustumCount`] gives).
     pub(super) fn draw_front_to_back(
         &self,
         s: &mut Session,
@@ -241,20 +240,19 @@ impl Clusters {
         frustum: &Frustum,
         batching: Batching,
     ) -> Result<()> {
-        let this = self;
         let eye = f.camera.view.eye;
         let backface = f.opts.backface_culling;
         let mut cursor =
-            this.clustered.cursor(Some(frustum), eye).nearest_first(this.clustered.bvh(), batching.nearest_first);
+            self.clustered.cursor(Some(frustum), eye).nearest_first(self.clustered.bvh(), batching.nearest_first);
         // One batch: the clusters, whether more may follow, and what dropping back faces counted.
         let find = |cursor: &mut FrontToBackCursor, batch: usize| {
             let t = Instant::now();
             let mut out = Vec::new();
             let mut cs = CullStats::default();
-            let more = cursor.next_batch(this.clustered.bvh(), |_| true, batch, &mut out);
+            let more = cursor.next_batch(self.clustered.bvh(), |_| true, batch, &mut out);
             cs.clusters_in_frustum = out.len() as u64;
             if backface {
-                this.drop_backfacing(&mut out, eye, &mut cs);
+                self.drop_backfacing(&mut out, eye, &mut cs);
             }
             cs.ms_cull = ms_since(t);
             (out, more, cs)
@@ -271,7 +269,7 @@ impl Clusters {
                     return Ok(());
                 }
                 let t = Instant::now();
-                this.draw(s, &out, |v| v.index, f)?;
+                self.draw(s, &out, |v| v.index, f)?;
                 f.cs.ms_draw += ms_since(t);
                 f.cs.batches += 1;
                 Ok(())
@@ -285,7 +283,7 @@ impl Clusters {
                 draw(s, f)?;
             }
         }
-        f.cs.culled_by_frustum = f.cs.clusters - f.cs.clusters_in_frustum;
+        f.cs.set_in_frustum(f.cs.clusters_in_frustum);
         Ok(())
     }
 

@@ -88,6 +88,12 @@ impl FrustumCount {
     pub fn count(&self) -> u64 {
         self.count
     }
+
+    /// Counts what is left over `bvh` without stopping; the whole count.
+    pub fn finish(mut self, bvh: &Bvh) -> u64 {
+        self.run(bvh, || false);
+        self.count
+    }
 }
 
 impl Bvh {
@@ -103,9 +109,7 @@ impl Bvh {
     /// from its leftmost to its rightmost leaf), so the cost grows with the nodes the frustum
     /// boundary cuts, not with the items inside.
     pub fn count_in_frustum(&self, frustum: &Frustum) -> u64 {
-        let mut c = FrustumCount::new(self, frustum);
-        c.run(self, || false);
-        c.count()
+        FrustumCount::new(self, frustum).finish(self)
     }
 
     /// The slots in `items` of node `i`'s subtree: from its leftmost leaf's first to its
