@@ -290,19 +290,27 @@ fn visible_items(ids: &[u32], instances: &[Instance]) -> (Vec<DrawItem>, usize) 
     let mut seen: Vec<u32> = ids.iter().copied().filter(|&i| i != 0).collect();
     seen.sort_unstable();
     seen.dedup();
-    let mut items: Vec<DrawItem> = Vec::new();
-    for &id in &seen {
+    let tris = seen.iter().map(|&id| {
         // IDs are 1 + the instance's first triangle + the triangle within its mesh: the owner
         // is the first instance ending after triangle g (empty instances end where they begin).
         let g = id - 1;
         let k = instances.partition_point(|i| i.first_triangle + i.triangle_count <= g);
-        let local = g - instances[k].first_triangle;
+        (k as u32, g - instances[k].first_triangle)
+    });
+    (runs(tris), seen.len())
+}
+
+/// Sorted (instance, triangle) pairs as draw items: runs of consecutive triangles of one
+/// instance merged.
+fn runs(tris: impl IntoIterator<Item = (u32, u32)>) -> Vec<DrawItem> {
+    let mut items: Vec<DrawItem> = Vec::new();
+    for (instance, t) in tris {
         match items.last_mut() {
-            Some(it) if it.instance == k as u32 && it.first + it.count == local => it.count += 1,
-            _ => items.push(DrawItem { instance: k as u32, first: local, count: 1 }),
+            Some(it) if it.instance == instance && it.first + it.count == t => it.count += 1,
+            _ => items.push(DrawItem { instance, first: t, count: 1 }),
         }
     }
-    (items, seen.len())
+    items
 }
 
 /// The clusters that face the eye by their normal cones and whose box passes the exact box
@@ -380,14 +388,7 @@ fn cluster_items(set: &[u32], clustered: &ClusteredScene) -> Vec<DrawItem> {
         })
         .collect();
     tris.sort_unstable();
-    let mut items: Vec<DrawItem> = Vec::new();
-    for (instance, t) in tris {
-        match items.last_mut() {
-            Some(it) if it.instance == instance && it.first + it.count == t => it.count += 1,
-            _ => items.push(DrawItem { instance, first: t, count: 1 }),
-        }
-    }
-    items
+    runs(tris)
 }
 
 fn ms(t: Instant) -> f64 {
