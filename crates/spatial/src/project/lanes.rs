@@ -12,6 +12,11 @@ pub(super) struct Lanes {
     m: [std::arch::x86_64::__m256; 16],
     /// Viewport width and height as floats.
     size: [std::arch::x86_64::__m256; 2],
+    /// The projector's origin, x, y, z.
+    origin: [std::arch::x86_64::__m256; 3],
+    /// The rounding bound's coefficients (pixel x, pixel y, depth).
+    err_a: [std::arch::x86_64::__m256; 3],
+    err_b: [std::arch::x86_64::__m256; 3],
 }
 
 // The eight-box path reads each box as floats: min at 0..3, max at 3..6.
@@ -30,10 +35,14 @@ impl Lanes {
     #[inline]
     pub(super) fn new(p: &BoxProjector) -> Lanes {
         use std::arch::x86_64::*;
-        let cols = p.clip_from_world.to_cols_array();
+        let cols = p.clip.to_cols_array();
+        let splat = |v: [f32; 3]| v.map(|x| _mm256_set1_ps(x));
         Lanes {
             m: std::array::from_fn(|i| _mm256_set1_ps(cols[i])),
             size: [_mm256_set1_ps(p.width as f32), _mm256_set1_ps(p.height as f32)],
+            origin: splat(p.origin.to_array()),
+            err_a: splat(p.err_a),
+            err_b: splat(p.err_b),
         }
     }
 
@@ -91,10 +100,15 @@ impl Lanes {
 
             let m = &self.m;
             let (add, mul) = (|a, b| _mm256_add_ps(a, b), |a, b| _mm256_mul_ps(a, b));
-            // Component r of base = ((x_axis·min.x + y_axis·min.y) + z_axis·min.z) + w_axis.
-            let base =
-                |r: usize| add(add(add(mul(m[r], min_x), mul(m[4 + r], min_y)), mul(m[8 + r], min_z)), m[12 + r]);
+            // Component r of base = ((x_axis·q.x + y_axis·q.y) + z_axis·q.z) + w_axis, q = min − origin.
+            let o = &self.origin;
+            let (qx, qy, qz) = (_mm256_sub_ps(min_x, o[0]), _mm256_sub_ps(min_y, o[1]), _mm256_sub_ps(min_z, o[2]));
+            let base = |r: usize| add(add(add(mul(m[r], qx), mul(m[4 + r], qy)), mul(m[8 + r], qz)), m[12 + r]);
             let (ex, ey, ez) = (_mm256_sub_ps(max_x, min_x), _mm256_sub_ps(max_y, min_y), _mm256_sub_ps(max_z, min_z));
+            // The reach: max over the axes of |q| + extent.
+            let sign = _mm256_set1_ps(-0.0);
+            let reach = |q: __m256, e: __m256| add(_mm256_andnot_ps(sign, q), e);
+            let reach = _mm256_max_ps(_mm256_max_ps(reach(qx, ex), reach(qy, ey)), reach(qz, ez));
             let b = [base(0), base(1), base(2), base(3)];
             let dx = [mul(m[0], ex), mul(m[1], ex), mul(m[2], ex), mul(m[3], ex)];
             let dy = [mul(m[4], ey), mul(m[5], ey), mul(m[6], ey), mul(m[7], ey)];
@@ -111,7 +125,6 @@ impl Lanes {
 
             let v4 =
                 |a: [__m256; 4], d: [__m256; 4]| [add(a[0], d[0]), add(a[1], d[1]), add(a[2], d[2]), add(a[3], d[3])];
-            let sign = _mm256_set1_ps(-0.0);
             let eps = _mm256_set1_ps(W_EPS);
             let one = _mm256_set1_ps(1.0);
             // Corner 0 starts every accumulator.
@@ -125,7 +138,7 @@ impl Lanes {
                 _mm256_cmp_ps::<_CMP_LT_OQ>(b[2], nw),
             ];
             let mut front = and(_mm256_cmp_ps::<_CMP_GT_OQ>(b[3], eps), _mm256_cmp_ps::<_CMP_GE_OQ>(b[2], nw));
-            let mut max_w = b[3];
+            let (mut max_w, mut min_w) = (b[3], b[3]);
             let inv = _mm256_div_ps(one, b[3]);
             let (px, py, pz) = (mul(b[0], inv), mul(b[1], inv), mul(b[2], inv));
             let (mut x0, mut x1, mut y0, mut y1, mut z0, mut z1) = (px, px, py, py, pz, pz);
@@ -139,6 +152,7 @@ impl Lanes {
                 beyond[5] = and(beyond[5], _mm256_cmp_ps::<_CMP_LT_OQ>(c[2], nw));
                 front = and(front, and(_mm256_cmp_ps::<_CMP_GT_OQ>(c[3], eps), _mm256_cmp_ps::<_CMP_GE_OQ>(c[2], nw)));
                 max_w = _mm256_max_ps(max_w, c[3]);
+                min_w = _mm256_min_ps(min_w, c[3]);
                 let inv = _mm256_div_ps(one, c[3]);
                 let (px, py, pz) = (mul(c[0], inv), mul(c[1], inv), mul(c[2], inv));
                 x0 = _mm256_min_ps(x0, px);
@@ -162,9 +176,17 @@ impl Lanes {
 
             let or = |a: __m256, b: __m256| _mm256_or_ps(a, b);
             let outside_planes = or(or(beyond[0], beyond[1]), or(or(beyond[2], beyond[3]), or(beyond[4], beyond[5])));
-            // A non-finite min or max (no NaN can be among them here), or w = +∞.
+            // The margins (`BoxProjector::margins`): pixels in x and y, window depth.
+            let g = _mm256_div_ps(one, min_w);
+            let margin = |k: usize| mul(add(mul(self.err_a[k], reach), self.err_b[k]), g);
+            let pixel = _mm256_set1_ps(PIXEL_MARGIN);
+            let (mx, my) = (add(margin(0), pixel), add(margin(1), pixel));
+            let mz = add(margin(2), _mm256_set1_ps(DEPTH_FLOOR));
+            // A non-finite min or max (no NaN can be among them here), w = +∞, or a margin
+            // that is not finite (`margins` tests their sum).
             let fz = |v: __m256| _mm256_sub_ps(v, v);
             let f = add(add(add(fz(x0), fz(x1)), add(fz(y0), fz(y1))), add(add(fz(z0), fz(z1)), fz(max_w)));
+            let f = add(f, fz(add(add(mx, my), mz)));
             let crosses = or(
                 _mm256_xor_ps(front, _mm256_castsi256_ps(_mm256_set1_epi32(-1))),
                 _mm256_cmp_ps::<_CMP_UNORD_Q>(f, f),
@@ -173,18 +195,14 @@ impl Lanes {
             // Pixel bounds: the portable path's formulas, lane-wise.
             let (wf, hf) = (self.size[0], self.size[1]);
             let (half, zero) = (_mm256_set1_ps(0.5), _mm256_setzero_ps());
-            let (low, high) = (_mm256_set1_ps(LOW_CENTER), _mm256_set1_ps(HIGH_CENTER));
             let clamp = |v: __m256, hi: __m256| _mm256_cvttps_epi32(_mm256_min_ps(_mm256_max_ps(v, zero), hi));
-            let first = |v: __m256| _mm256_ceil_ps(_mm256_sub_ps(v, low));
-            let end = |v: __m256| add(_mm256_floor_ps(add(v, high)), one);
-            let rx0 = clamp(first(mul(mul(add(x0, one), half), wf)), wf);
-            let rx1 = clamp(end(mul(mul(add(x1, one), half), wf)), wf);
-            let ry0 = clamp(first(mul(mul(_mm256_sub_ps(one, y1), half), hf)), hf);
-            let ry1 = clamp(end(mul(mul(_mm256_sub_ps(one, y0), half), hf)), hf);
-            let depth = _mm256_min_ps(
-                _mm256_max_ps(_mm256_sub_ps(mul(add(z0, one), half), _mm256_set1_ps(DEPTH_MARGIN)), zero),
-                one,
-            );
+            let first = |v: __m256, m: __m256| _mm256_ceil_ps(_mm256_sub_ps(v, add(m, half)));
+            let end = |v: __m256, m: __m256| add(_mm256_floor_ps(add(v, _mm256_sub_ps(m, half))), one);
+            let rx0 = clamp(first(mul(mul(add(x0, one), half), wf), mx), wf);
+            let rx1 = clamp(end(mul(mul(add(x1, one), half), wf), mx), wf);
+            let ry0 = clamp(first(mul(mul(_mm256_sub_ps(one, y1), half), hf), my), hf);
+            let ry1 = clamp(end(mul(mul(_mm256_sub_ps(one, y0), half), hf), my), hf);
+            let depth = _mm256_min_ps(_mm256_max_ps(_mm256_sub_ps(mul(add(z0, one), half), mz), zero), one);
             // x0 ≥ x1 or y0 ≥ y1 (values in 0 ..= 2^24, so signed compares do).
             let empty = _mm256_castsi256_ps(_mm256_xor_si256(
                 _mm256_and_si256(_mm256_cmpgt_epi32(rx1, rx0), _mm256_cmpgt_epi32(ry1, ry0)),

@@ -7,10 +7,16 @@
 //! corners are projected; when any corner has `w ≤ ε` or lies in front of the near plane
 //! (`z < −w`), the box crosses the near plane (or the eye plane) and the answer is "covers the
 //! whole screen, nearest depth 0". Otherwise the rectangle holds the pixels whose centers
-//! lie within the pixel-space bounds of the corners grown by a small margin (vertex snapping
-//! to 1/256 pixel and float error), clamped to the viewport, and the depth is the smallest
-//! corner window z minus a small margin. Since the view depth is linear over a box and
-//! window z is monotonic in it, the box's nearest point is one of its corners.
+//! lie within the pixel-space bounds of the corners grown by a margin, clamped to the
+//! viewport, and the depth is the smallest corner window z less a margin; the margins bound
+//! the f32 rounding of this projection and of the rasterizer's (see [`BoxProjector`]'s
+//! "Rounding"). Since the view depth is linear over a box and window z is monotonic in it,
+//! the box's nearest point is one of its corners.
+//!
+//! Boxes are projected relative to an origin, the eye for [`BoxProjector::for_camera`]:
+//! `clip_from_world · translate(eye)` is formed in f64 and rounded once, and each box is
+//! moved by `−eye` before the product, so that the terms summed are as large as the box's
+//! distance, not as the world's coordinates (the camera-relative rendering of large worlds).
 //!
 //! Pixel centers, not pixel areas: the rasterizer samples each pixel at its center, so a
 //! triangle inside the box can write only the pixels whose centers its snapped vertices'
@@ -20,10 +26,11 @@
 //!
 //! ## One computation, three implementations
 //!
-//! The corners are formed in clip space from four terms: `base = M·(min, 1)` and the matrix
-//! columns scaled by the box extent, `dx`, `dy`, `dz`; corner `i` adds `dx`, `dy`, `dz` to
-//! `base` (in that order) for the bits of `i` that are set. Each corner's x, y and z are
-//! multiplied by `1/w`, and the rectangle comes from the min and max over the corners.
+//! The corners are formed in clip space from four terms: `base = M·(min − origin, 1)` and the
+//! matrix columns scaled by the box extent, `dx`, `dy`, `dz`; corner `i` adds `dx`, `dy`,
+//! `dz` to `base` (in that order) for the bits of `i` that are set. Each corner's x, y and z
+//! are multiplied by `1/w`, and the rectangle comes from the min and max over the corners,
+//! widened by the margins of the box's reach and smallest `w`.
 //! [`BoxProjector::classify_portable`] does this in scalar code. With AVX2, chosen when the
 //! program runs ([`SimdLevel`]: the level is resolved once, when the projector is made, and
 //! each call branches on it to `#[target_feature]` functions, so that a build without
@@ -42,8 +49,8 @@
 //! so their order does not matter), so they agree bit for bit on every input; the tests check
 //! it on random cameras, matrices and boxes.
 
-use glam::{Mat4, Vec3A, Vec4};
-use sightline_scene::Aabb;
+use glam::{DMat4, Mat4, Vec3, Vec3A, Vec4};
+use sightline_scene::{Aabb, Camera};
 
 use crate::simd::SimdLevel;
 use crate::{AabbExt, BoxKind};
@@ -55,16 +62,20 @@ use lanes::{chunk_avx2, Lanes};
 
 /// Smallest clip `w` accepted as "in front of the eye".
 const W_EPS: f32 = 1e-6;
-/// Margin in pixels added around the projected corners (1/256-pixel snapping plus float error).
+/// Part of the margin in pixels added around the projected corners that does not depend on
+/// the scene's scale: the rasterizer's 1/256-pixel snapping, with room to spare. A pixel
+/// bound `a` with margin `m` starts at the first pixel center at or above `a − m`:
+/// `ceil(a − (m + 1/2))`; a high bound `b` ends at the last at or below `b + m`:
+/// `floor(b + (m − 1/2))`.
 const PIXEL_MARGIN: f32 = 1.0 / 128.0;
-/// Subtracted from a low bound in pixels to give the first pixel center at or above it, less
-/// the margin, after rounding up: `PIXEL_MARGIN + 1/2` (exact in f32).
-const LOW_CENTER: f32 = PIXEL_MARGIN + 0.5;
-/// Added to a high bound in pixels to give the last pixel center at or below it, plus the
-/// margin, after rounding down: `PIXEL_MARGIN − 1/2` (exact in f32).
-const HIGH_CENTER: f32 = PIXEL_MARGIN - 0.5;
-/// Margin subtracted from the nearest window depth.
-const DEPTH_MARGIN: f32 = 1e-6;
+/// Unit roundoff of f32: every rounding of a result `x` moves it by at most `U·|x|`.
+const U: f32 = f32::EPSILON / 2.0;
+/// Part of the depth margin independent of the scene's scale: the roundings of the divide
+/// and the viewport transform, here and for the rasterizer's vertices.
+const DEPTH_FLOOR: f32 = 8.0 * U;
+/// Bound on the relative rounding of a clip coordinate, per unit of the magnitudes summed
+/// into it (see [`BoxProjector`]'s "Rounding" section), halved for window coordinates.
+const CLIP_ROUNDING: f32 = 8.0 * U;
 
 /// A pixel rectangle `[x0, x1) × [y0, y1)` (row 0 at the top): the pixels whose centers the
 /// box that made it may cover, with its nearest window depth.
@@ -122,9 +133,38 @@ pub enum BoxImage {
 }
 
 /// Projects boxes with one `clip_from_world` onto a `width × height` viewport.
+///
+/// ## Rounding
+///
+/// A box's corners and the rasterizer's vertices are projected in f32 by different
+/// operations, so the box's nearest depth and pixel bounds are widened by a bound on both
+/// roundings, per box. A clip coordinate summed from terms whose magnitudes add up to `S` is
+/// off by at most a few `u·S` (`u = 2^−24`, Higham, *Accuracy and Stability of Numerical
+/// Algorithms*, §3.1), and its NDC value `c/w` by about that over `w`. For a box the terms
+/// are the matrix rows times the corners' coordinates, so `S ≤ n·R + t` with `n` a row's
+/// absolute sum, `t` its translation and `R` the box's reach: its largest coordinate
+/// magnitude plus extent, measured from the projector's origin. For a vertex drawn by
+/// `clip_from_local`, `S` is at most `n·(R + L) + t` when the vertex lies at most `L` from
+/// its instance's origin (the `reach` of [`BoxProjector::for_camera`]). Each box's depth is
+/// lowered by `8u·((n_z + n_w)·(R + L) + t_z + t_w) / w_min` (`w_min` its smallest corner `w`)
+/// plus a fixed `8u`, and its pixel bounds grown by the same form in x and y scaled to
+/// pixels, plus 1/128 px for the rasterizer's 1/256-pixel snapping. Projecting from the eye
+/// ([`BoxProjector::for_camera`]) keeps `R` the distance to the box rather than the world's
+/// size: a box 9 m from the eye in a city 700 m across is then measured to 10^−6 of the
+/// depth range, not 10^−5.
+///
+/// The rasterizer does its part: a triangle's depth plane, evaluated far from its vertices,
+/// is clamped to the vertices' depth range, so no pixel of a triangle is nearer than its
+/// nearest vertex.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct BoxProjector {
-    clip_from_world: Mat4,
+    /// `clip_from_world · translate(origin)`: boxes are projected relative to `origin`.
+    clip: Mat4,
+    origin: Vec3,
+    /// The rounding bound of each box (see "Rounding"): the margin of pixel x, pixel y and
+    /// depth is `(err_a[k]·R + err_b[k]) / w_min` plus a fixed part.
+    err_a: [f32; 3],
+    err_b: [f32; 3],
     width: u32,
     height: u32,
     /// The instruction set the calls run on: resolved (never `Auto`), and `Portable` for
@@ -135,16 +175,53 @@ pub struct BoxProjector {
 impl BoxProjector {
     /// A projector for `clip_from_world` and a `width × height` viewport, on the best
     /// instruction set available ([`SimdLevel::best`]).
+    ///
+    /// The boxes are projected from the world's origin, so the margins (see "Rounding")
+    /// grow with the world coordinates' magnitude; [`BoxProjector::for_camera`] measures them
+    /// from the eye.
     pub fn new(clip_from_world: Mat4, width: u32, height: u32) -> BoxProjector {
         BoxProjector::with_simd(clip_from_world, width, height, SimdLevel::Auto)
+    }
+
+    /// A projector for `camera` that projects boxes relative to the eye, so that its
+    /// rounding margins follow the boxes' distance rather than the world's size.
+    /// `reach` bounds how far (in world units, per axis) the vertices drawn lie from their
+    /// instance's origin: the rasterizer's own rounding grows with it (0 for boxes that are
+    /// not drawn through instances; the world's size for meshes in world coordinates).
+    pub fn for_camera(camera: &Camera, width: u32, height: u32, reach: f32) -> BoxProjector {
+        BoxProjector::for_camera_with_simd(camera, width, height, reach, SimdLevel::Auto)
+    }
+
+    /// [`BoxProjector::for_camera`] on the instruction set `simd` (see
+    /// [`BoxProjector::with_simd`]).
+    pub fn for_camera_with_simd(camera: &Camera, width: u32, height: u32, reach: f32, simd: SimdLevel) -> BoxProjector {
+        let eye = camera.view.eye;
+        let clip = (camera.clip_from_world_f64() * DMat4::from_translation(eye.as_dvec3())).as_mat4();
+        BoxProjector::make(clip, eye, reach, width, height, simd)
     }
 
     /// [`BoxProjector::new`] on the instruction set `simd` (resolved: a level the CPU lacks
     /// falls back to the best it has). Every level gives the same answers bit for bit; this
     /// is for parity tests and measurements.
     pub fn with_simd(clip_from_world: Mat4, width: u32, height: u32, simd: SimdLevel) -> BoxProjector {
+        BoxProjector::make(clip_from_world, Vec3::ZERO, 0.0, width, height, simd)
+    }
+
+    /// The projector of `clip` (clip from coordinates relative to `origin`), with the
+    /// rounding bounds of its rows (see "Rounding").
+    fn make(clip: Mat4, origin: Vec3, reach: f32, width: u32, height: u32, simd: SimdLevel) -> BoxProjector {
         let simd = if width <= SIMD_MAX_SIZE && height <= SIMD_MAX_SIZE { simd.resolve() } else { SimdLevel::Portable };
-        BoxProjector { clip_from_world, width, height, simd }
+        let row = |r: usize| {
+            let n = clip.x_axis[r].abs() + clip.y_axis[r].abs() + clip.z_axis[r].abs();
+            (n, clip.w_axis[r].abs())
+        };
+        let (nw, tw) = row(3);
+        let reach = if reach.is_nan() { f32::INFINITY } else { reach.abs() };
+        // x and y in pixels (half the viewport per NDC unit), z in window depth (half).
+        let scale = [width as f32, height as f32, 1.0].map(|s| s * CLIP_ROUNDING);
+        let err_a = std::array::from_fn(|k| scale[k] * (row(k).0 + nw));
+        let err_b = std::array::from_fn(|k| scale[k] * ((row(k).0 + nw) * reach + row(k).1 + tw));
+        BoxProjector { clip, origin, err_a, err_b, width, height, simd }
     }
 
     /// The instruction set the calls run on (never [`SimdLevel::Auto`]).
@@ -247,7 +324,7 @@ impl BoxProjector {
     /// `b.min`) plus, in this order, the scaled matrix columns `dx` (if bit 0 of `i` is set),
     /// `dy` (bit 1) and `dz` (bit 2).
     pub fn classify_portable(&self, b: &Aabb) -> BoxImage {
-        let Some((base, dx, dy, dz)) = self.corner_terms(b) else {
+        let Some((base, dx, dy, dz, reach)) = self.corner_terms(b) else {
             return self.unbounded_or_empty(b);
         };
         let mut c = [Vec4::ZERO; 8];
@@ -279,6 +356,7 @@ impl BoxProjector {
             return BoxImage::CrossesNear;
         }
         let (mut x0, mut x1, mut y0, mut y1, mut z0) = (f32::MAX, f32::MIN, f32::MAX, f32::MIN, f32::MAX);
+        let mut w_min = f32::MAX;
         for c in &c {
             let inv = 1.0 / c.w;
             let (x, y, z) = (c.x * inv, c.y * inv, c.z * inv);
@@ -291,7 +369,11 @@ impl BoxProjector {
             y0 = y0.min(y);
             y1 = y1.max(y);
             z0 = z0.min(z);
+            w_min = w_min.min(c.w);
         }
+        let Some([mx, my, mz]) = self.margins(reach, w_min) else {
+            return BoxImage::CrossesNear;
+        };
         let (w, h) = (self.width, self.height);
         let (wf, hf) = (w as f32, h as f32);
         // Pixel space, y down; pixel i has its center at i + 1/2. The columns whose centers
@@ -306,28 +388,44 @@ impl BoxProjector {
                 v as u32
             }
         };
-        let rx0 = clamp(((x0 + 1.0) * 0.5 * wf - LOW_CENTER).ceil(), w);
-        let rx1 = clamp(((x1 + 1.0) * 0.5 * wf + HIGH_CENTER).floor() + 1.0, w);
-        let ry0 = clamp(((1.0 - y1) * 0.5 * hf - LOW_CENTER).ceil(), h);
-        let ry1 = clamp(((1.0 - y0) * 0.5 * hf + HIGH_CENTER).floor() + 1.0, h);
-        self.rect(rx0, ry0, rx1, ry1, z0)
+        let rx0 = clamp(((x0 + 1.0) * 0.5 * wf - (mx + 0.5)).ceil(), w);
+        let rx1 = clamp(((x1 + 1.0) * 0.5 * wf + (mx - 0.5)).floor() + 1.0, w);
+        let ry0 = clamp(((1.0 - y1) * 0.5 * hf - (my + 0.5)).ceil(), h);
+        let ry1 = clamp(((1.0 - y0) * 0.5 * hf + (my - 0.5)).floor() + 1.0, h);
+        self.rect(rx0, ry0, rx1, ry1, z0, mz)
     }
 
-    /// `base` (clip position of `b.min`) and the matrix columns scaled by the box extent, for
-    /// a finite box; `None` for empty and unbounded boxes.
+    /// The margins of a box of reach `reach` whose nearest corner `w` is `w_min` (see
+    /// "Rounding"): pixels in x and y, window depth. `None` when one is not finite (a box
+    /// too large for its rounding to be bounded: it may cover anything).
     #[inline(always)]
-    fn corner_terms(&self, b: &Aabb) -> Option<(Vec4, Vec4, Vec4, Vec4)> {
+    fn margins(&self, reach: f32, w_min: f32) -> Option<[f32; 3]> {
+        let g = 1.0 / w_min;
+        let m = |k: usize| (self.err_a[k] * reach + self.err_b[k]) * g;
+        let (mx, my, mz) = (m(0) + PIXEL_MARGIN, m(1) + PIXEL_MARGIN, m(2) + DEPTH_FLOOR);
+        // Finite exactly when their sum is (all are ≥ 0 or NaN).
+        (mx + my + mz).is_finite().then_some([mx, my, mz])
+    }
+
+    /// `base` (clip position of `b.min`, relative to the origin), the matrix columns scaled
+    /// by the box extent and the box's reach (see "Rounding"), for a finite box; `None` for
+    /// empty and unbounded boxes.
+    #[inline(always)]
+    fn corner_terms(&self, b: &Aabb) -> Option<(Vec4, Vec4, Vec4, Vec4, f32)> {
         // `b.kind() == BoxKind::Finite` as three lane-wise compares: min ≤ max, min > −∞ and
         // max < +∞ on every axis (any NaN fails the first).
         let (lo, hi) = (Vec3A::from(b.min), Vec3A::from(b.max));
         if !(lo.cmple(hi) & lo.cmpgt(Vec3A::NEG_INFINITY) & hi.cmplt(Vec3A::INFINITY)).all() {
             return None;
         }
-        let m = &self.clip_from_world;
-        // m · (min, 1), spelled out in the order of the eight-box path.
-        let base = ((m.x_axis * b.min.x + m.y_axis * b.min.y) + m.z_axis * b.min.z) + m.w_axis;
+        let m = &self.clip;
+        // m · (min − origin, 1), spelled out in the order of the eight-box path.
+        let q = b.min - self.origin;
+        let base = ((m.x_axis * q.x + m.y_axis * q.y) + m.z_axis * q.z) + m.w_axis;
         let e = b.max - b.min;
-        Some((base, m.x_axis * e.x, m.y_axis * e.y, m.z_axis * e.z))
+        let r = q.abs() + e;
+        let reach = r.x.max(r.y).max(r.z);
+        Some((base, m.x_axis * e.x, m.y_axis * e.y, m.z_axis * e.z, reach))
     }
 
     /// The answer for a box that is not finite.
@@ -339,13 +437,14 @@ impl BoxProjector {
         }
     }
 
-    /// The rectangle of pixel bounds and nearest NDC z (shared tail of both paths).
+    /// The rectangle of pixel bounds and nearest NDC z, less the depth margin `mz` (shared
+    /// tail of both paths).
     #[inline(always)]
-    fn rect(&self, x0: u32, y0: u32, x1: u32, y1: u32, z0: f32) -> BoxImage {
+    fn rect(&self, x0: u32, y0: u32, x1: u32, y1: u32, z0: f32, mz: f32) -> BoxImage {
         if x0 >= x1 || y0 >= y1 {
             return BoxImage::Outside;
         }
-        let depth = ((z0 + 1.0) * 0.5 - DEPTH_MARGIN).clamp(0.0, 1.0);
+        let depth = ((z0 + 1.0) * 0.5 - mz).clamp(0.0, 1.0);
         BoxImage::Rect(ScreenRect { x0, y0, x1, y1, depth, crosses_near: false })
     }
 
@@ -375,11 +474,11 @@ impl BoxProjector {
     #[inline]
     fn classify_avx2(&self, b: &Aabb) -> BoxImage {
         use std::arch::x86_64::*;
-        let Some((base, dx, dy, dz)) = self.corner_terms(b) else {
+        let Some((base, dx, dy, dz, reach)) = self.corner_terms(b) else {
             return self.unbounded_or_empty(b);
         };
         // The intrinsics work on values only (no memory is accessed through pointers).
-        let (x0, y0, x1, y1, z0) = {
+        let (x0, y0, x1, y1, z0, mz) = {
             let (base, dx, dy, dz) = (__m128::from(base), __m128::from(dx), __m128::from(dy), __m128::from(dz));
             // Corners (0, 1), (2, 3), (4, 5), (6, 7): the additions of the portable path, in its
             // order (base + dx, then + dy, then + dz).
@@ -421,6 +520,12 @@ impl BoxProjector {
             if _mm256_movemask_ps(_mm256_cmp_ps::<_CMP_UNORD_Q>(nan, nan)) != 0 {
                 return BoxImage::CrossesNear;
             }
+            let w_min = _mm256_min_ps(w, _mm256_permute2f128_ps::<1>(w, w));
+            let w_min = _mm256_min_ps(w_min, _mm256_permute_ps::<0b01_00_11_10>(w_min));
+            let w_min = _mm256_min_ps(w_min, _mm256_permute_ps::<0b10_11_00_01>(w_min));
+            let Some([mx, my, mz]) = self.margins(reach, _mm256_cvtss_f32(w_min)) else {
+                return BoxImage::CrossesNear;
+            };
             // No NaN is left, so min and max are the portable path's whatever the order.
             let lo = _mm256_min_ps(_mm256_min_ps(p01, p23), _mm256_min_ps(p45, p67));
             let hi = _mm256_max_ps(_mm256_max_ps(p01, p23), _mm256_max_ps(p45, p67));
@@ -432,9 +537,9 @@ impl BoxProjector {
             let (wf, hf) = (self.width as f32, self.height as f32);
             let size = _mm_set_ps(hf, hf, wf, wf);
             let v = _mm_mul_ps(_mm_mul_ps(_mm_add_ps(v, _mm_set1_ps(1.0)), _mm_set1_ps(0.5)), size);
-            // Low bounds (lanes 0, 2) − LOW_CENTER rounded up, high bounds + HIGH_CENTER
+            // Low bounds (lanes 0, 2) − (margin + 1/2) rounded up, high bounds + (margin − 1/2)
             // rounded down, plus one.
-            let v = _mm_add_ps(v, _mm_set_ps(HIGH_CENTER, -LOW_CENTER, HIGH_CENTER, -LOW_CENTER));
+            let v = _mm_add_ps(v, _mm_set_ps(my - 0.5, -(my + 0.5), mx - 0.5, -(mx + 0.5)));
             let v = _mm_blend_ps::<0b1010>(_mm_ceil_ps(v), _mm_floor_ps(v));
             let v = _mm_add_ps(v, _mm_set_ps(1.0, 0.0, 1.0, 0.0));
             // The portable clamp: ≤ 0 → 0, ≥ size → size, else truncation (exact: the values
@@ -443,9 +548,9 @@ impl BoxProjector {
             let (x0, x1) = (_mm_cvtsi128_si32(r) as u32, _mm_extract_epi32::<1>(r) as u32);
             let (y0, y1) = (_mm_extract_epi32::<2>(r) as u32, _mm_extract_epi32::<3>(r) as u32);
             let z0 = f32::from_bits(_mm_extract_ps::<2>(lo) as u32);
-            (x0, y0, x1, y1, z0)
+            (x0, y0, x1, y1, z0, mz)
         };
-        self.rect(x0, y0, x1, y1, z0)
+        self.rect(x0, y0, x1, y1, z0, mz)
     }
 }
 

@@ -280,3 +280,130 @@ fn offscreen_box_is_empty() {
     let b = Aabb::new(Vec3::new(30.0, -0.5, -1.0), Vec3::new(31.0, 0.5, 0.0));
     assert!(project_box(&b, &m, 96, 64).is_empty());
 }
+
+/// A perspective camera `distance` from the world's origin, looking in a random direction
+/// (`None` when the random choice is invalid).
+fn far_camera(rng: &mut sightline_scene::rng::Rng, distance: f32) -> Option<Camera> {
+    let dir = |rng: &mut sightline_scene::rng::Rng| {
+        Vec3::new(rng.range(-1.0, 1.0), rng.range(-1.0, 1.0), rng.range(-1.0, 1.0)).normalize_or(Vec3::X)
+    };
+    let eye = dir(rng) * distance;
+    let target = eye + dir(rng);
+    let near = [0.05, 0.5][rng.below(2) as usize];
+    let fovy = Angle::degrees(rng.range(20.0, 100.0));
+    Camera::perspective(&LookAt { eye, target, up: Vec3::Y, fovy, near, far: 5000.0 }, 16.0 / 9.0).ok()
+}
+
+/// A box in front of `cam` at 0.3 to 2000 units, sometimes flat (a facade seen head on or
+/// edge on).
+fn box_in_view(rng: &mut sightline_scene::rng::Rng, cam: &Camera) -> Aabb {
+    let v = &cam.view;
+    let ahead = -v.w * rng.range(0.3, 1.0) + v.u * rng.range(-0.8, 0.8) + v.v * rng.range(-0.5, 0.5);
+    let center = v.eye + ahead.normalize() * rng.range(0.3f32, 2000.0).powf(rng.range(0.5, 1.0));
+    let mut half = Vec3::new(rng.range(0.0, 3.0), rng.range(0.0, 3.0), rng.range(0.0, 3.0));
+    if rng.below(3) == 0 {
+        half[rng.below(3) as usize] = 0.0;
+    }
+    Aabb::new(center - half, center + half)
+}
+
+/// Far from the world's origin f32 coordinates are coarse: at 3·10^4 units one step is
+/// 0.002. The depth and rectangle of a box must still bound the exact (f64) projection of
+/// its corners with the camera's own f64 matrix, whether it is projected from the world's
+/// origin ([`BoxProjector::new`]) or from the eye ([`BoxProjector::for_camera`]); from the
+/// eye the margin stays small.
+#[test]
+fn margins_cover_the_rounding_far_from_the_origin() {
+    let (w, h) = (1280u32, 720u32);
+    let mut rng = sightline_scene::rng::Rng::new(91);
+    let (mut rects, mut loosest) = (0, 0f64);
+    for cam_i in 0..120 {
+        let Some(cam) = far_camera(&mut rng, [0.0, 1e3, 3e4][cam_i % 3]) else { continue };
+        let exact = cam.clip_from_world_f64();
+        let projectors = [BoxProjector::new(cam.clip_from_world(), w, h), BoxProjector::for_camera(&cam, w, h, 0.0)];
+        for _ in 0..200 {
+            let b = box_in_view(&mut rng, &cam);
+            let corners: Vec<_> = b.corners().iter().map(|p| exact * p.as_dvec3().extend(1.0)).collect();
+            // Only boxes clearly in front of the near plane: at it the answer may go either way.
+            if corners.iter().any(|c| c.w <= 0.0 || c.z < -c.w * 0.999) {
+                continue;
+            }
+            let ndc: Vec<_> = corners.iter().map(|c| c.truncate() / c.w).collect();
+            let z = ndc.iter().map(|n| (n.z + 1.0) * 0.5).fold(f64::MAX, f64::min);
+            let xs = ndc.iter().map(|n| (n.x + 1.0) * 0.5 * w as f64);
+            let ys = ndc.iter().map(|n| (1.0 - n.y) * 0.5 * h as f64);
+            let (x0, x1) = (xs.clone().fold(f64::MAX, f64::min), xs.fold(f64::MIN, f64::max));
+            let (y0, y1) = (ys.clone().fold(f64::MAX, f64::min), ys.fold(f64::MIN, f64::max));
+            // The pixels whose centers the exact corners span, within the viewport.
+            let first = |a: f64, n: u32| (a - 0.5).ceil().clamp(0.0, n as f64) as u32;
+            let end = |b: f64, n: u32| ((b - 0.5).floor() + 1.0).clamp(0.0, n as f64) as u32;
+            let (px0, px1, py0, py1) = (first(x0, w), end(x1, w), first(y0, h), end(y1, h));
+            let covers_some = px0 < px1 && py0 < py1;
+            for (k, p) in projectors.iter().enumerate() {
+                match p.classify(&b) {
+                    BoxImage::Rect(r) => {
+                        assert!(
+                            r.depth as f64 <= z,
+                            "projector {k}: depth {} > exact {z} for {b:?}, eye {}",
+                            r.depth,
+                            cam.view.eye
+                        );
+                        if covers_some {
+                            assert!(
+                                r.x0 <= px0 && px1 <= r.x1 && r.y0 <= py0 && py1 <= r.y1,
+                                "projector {k}: {r:?} misses pixels {px0}..{px1} × {py0}..{py1} of {b:?}"
+                            );
+                        }
+                        if k == 1 {
+                            rects += 1;
+                            // The margin against what moving the box 10^-3 of its distance
+                            // nearer changes its depth by (window z = f/(f − n)·(1 − n/d),
+                            // so about n/d·10^-3), plus a few times the fixed 10^-6 the
+                            // margin replaced.
+                            let w_min = corners.iter().map(|c| c.w).fold(f64::MAX, f64::min);
+                            let p = cam.projection.clip_from_view_f64();
+                            let near = p.w_axis.z / (p.z_axis.z - 1.0);
+                            loosest = loosest.max((z - r.depth as f64) / (4e-6 + 1e-3 * near / w_min));
+                        }
+                    }
+                    BoxImage::Outside => assert!(!covers_some, "projector {k}: {b:?} called outside"),
+                    BoxImage::CrossesNear => {}
+                }
+            }
+        }
+    }
+    assert!(rects > 5000, "{rects} rectangles");
+    assert!(loosest < 1.0, "a margin reached {loosest} of its allowance");
+}
+
+/// [`BoxProjector::for_camera`] answers every box alike at every SIMD level, one box at a
+/// time and eight at a time, for cameras far from the origin and any reach.
+#[test]
+fn camera_relative_projectors_agree_on_every_level() {
+    let mut rng = sightline_scene::rng::Rng::new(92);
+    let mut kinds = [0usize; 3];
+    for cam_i in 0..120 {
+        let Some(cam) = far_camera(&mut rng, [0.0, 1e3, 3e4][cam_i % 3]) else { continue };
+        let reach = [0.0, 10.0, 1e4, f32::INFINITY][rng.below(4) as usize];
+        let (w, h) = [(1280, 720), (97, 33), (1, 1)][rng.below(3) as usize];
+        let boxes: Vec<Aabb> = (0..rng.below(200) as usize)
+            .map(|_| match rng.below(4) {
+                0 => random_box(&mut rng, 50.0),
+                _ => box_in_view(&mut rng, &cam),
+            })
+            .collect();
+        let levels: Vec<_> = SimdLevel::all_available()
+            .into_iter()
+            .map(|l| BoxProjector::for_camera_with_simd(&cam, w, h, reach, l))
+            .collect();
+        for p in &levels {
+            p.classify_many(&boxes, |i, image| {
+                let portable = levels[0].classify_portable(&boxes[i]);
+                assert_eq!(bits(&image), bits(&portable), "{:?}: box {i} {:?}", p.simd(), boxes[i]);
+                assert_eq!(bits(&p.classify(&boxes[i])), bits(&portable), "{:?}: {:?}", p.simd(), boxes[i]);
+                kinds[bits(&image).0 as usize] += 1;
+            });
+        }
+    }
+    assert!(kinds.iter().all(|&k| k > 200), "{kinds:?}");
+}
