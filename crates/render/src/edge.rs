@@ -42,6 +42,9 @@ pub(crate) struct Tri {
     pub zx: f32,
     /// Depth change per fixed-point unit of y.
     pub zy: f32,
+    /// Depth of the nearest vertex: no pixel's depth is taken nearer (see
+    /// [`Tri::depth_at`]).
+    pub zmin: f32,
     /// The ID written.
     pub id: u32,
     /// Pixel-center bounding box, inclusive, clamped to the screen: x0, y0, x1, y1.
@@ -58,10 +61,16 @@ impl Tri {
     }
 
     /// Window depth at the center of pixel column `px` of a row whose [`Tri::depth_row`] is
-    /// `zrow`.
+    /// `zrow`, no nearer than the nearest vertex.
+    ///
+    /// Exactly evaluated, the plane at a pixel center inside the triangle lies between its
+    /// vertices' depths. In f32, a plane evaluated far from its vertices (a sliver seen edge
+    /// on, a vertex far off screen) can come out below the nearest one by more than box
+    /// tests allow for; clamping keeps every depth the rasterizer writes at or behind the
+    /// triangle's nearest vertex, which the box tests of culling rely on.
     #[inline(always)]
     pub(crate) fn depth_at(&self, zrow: f32, px: i32) -> f32 {
-        zrow + self.zx * (((px << SUBPIXEL_BITS) + ONE / 2 - self.x[0]) as f32)
+        no_nearer(self.zmin, zrow + self.zx * (((px << SUBPIXEL_BITS) + ONE / 2 - self.x[0]) as f32))
     }
 
     /// A lower bound of the depth plane over the pixel centers of the screen rectangle
@@ -82,7 +91,21 @@ impl Tri {
         let cy = |py: i32| self.zy * ((py << SUBPIXEL_BITS) + ONE / 2 - self.y[0]) as f32;
         let (a0, a1, b0, b1) = (cx(x0), cx(x1), cy(y0), cy(y1));
         let err = 8.0 * f32::EPSILON * (self.z0.abs() + max(a0.abs(), a1.abs()) + max(b0.abs(), b1.abs())) + 1e-7;
-        (self.z0 + min(a0, a1) + min(b0, b1) - err, self.z0 + max(a0, a1) + max(b0, b1) + err)
+        let (lo, hi) = (self.z0 + min(a0, a1) + min(b0, b1) - err, self.z0 + max(a0, a1) + max(b0, b1) + err);
+        // The clamp of `depth_at` raises depths to `zmin`.
+        (max(lo, self.zmin), max(hi, self.zmin))
+    }
+}
+
+/// `z`, or `zmin` when that is larger: the rasterizer's clamp of a depth to a triangle's
+/// nearest vertex. A NaN `z` stays NaN (it then fails every depth test), exactly as
+/// `maxps(zmin, z)` does, which the vector kernels use.
+#[inline(always)]
+pub(crate) fn no_nearer(zmin: f32, z: f32) -> f32 {
+    if zmin > z {
+        zmin
+    } else {
+        z
     }
 }
 

@@ -193,6 +193,7 @@ pub fn setup_into(v: [SnappedVertex; 3], id: u32, cull: bool, vp: &Viewport, out
         z0: a.z,
         zx: 0.0,
         zy: 0.0,
+        zmin: a.z.min(b.z).min(c.z),
         id,
         bbox: [px0 as u16, py0 as u16, px1 as u16, py1 as u16],
         multi: u32::MAX,

@@ -13,7 +13,7 @@
 
 use super::{reduce_2x2, Rect};
 use crate::depth::DepthCodec;
-use crate::edge::{min, Tri};
+use crate::edge::Tri;
 use crate::tiling::{BLOCK, TILE, TILE_SHIFT};
 
 /// Offsets of levels 1..=6 in [`TileLevels::mips`] (index = level − 1), and the total length.
@@ -77,14 +77,8 @@ impl TileLevels {
     /// into in this session.
     #[inline]
     pub(crate) fn occludes(&self, t: &Tri) -> bool {
-        // The triangle's nearest depth: its plane at the three vertices, minus the rounding
-        // that evaluating the plane at a pixel center may add.
-        let d = |k: usize| ((t.x[k] - t.x[0]) as f32, (t.y[k] - t.y[0]) as f32);
-        let ((x1, y1), (x2, y2)) = (d(1), d(2));
-        let (a1, b1, a2, b2) = (t.zx * x1, t.zy * y1, t.zx * x2, t.zy * y2);
-        let z1 = t.z0 + a1 + b1;
-        let z2 = t.z0 + a2 + b2;
-        let err = 8.0 * f32::EPSILON * (t.z0.abs() + a1.abs() + b1.abs() + a2.abs() + b2.abs()) + 1e-7;
+        // The triangle's nearest depth: its nearest vertex's, to which the rasterizer clamps
+        // every pixel's depth (`Tri::depth_at`).
         // The triangle's pixels in this tile, in tile coordinates.
         let x0 = (t.bbox[0] as u32).max(self.x0) - self.x0;
         let y0 = (t.bbox[1] as u32).max(self.y0) - self.y0;
@@ -98,7 +92,7 @@ impl TileLevels {
         let span = (x1 - x0).max(y1 - y0) + 1;
         let level = (31 - span.leading_zeros()).clamp(1, 6) as usize;
         let behind = |near: f32| self.texels_behind(level, [x0, y0, x1, y1], near);
-        let near = min(min(t.z0, z1), z2) - err;
+        let near = t.zmin;
         if near > 0.0 && behind(near) {
             return true;
         }

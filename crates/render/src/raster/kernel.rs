@@ -126,6 +126,8 @@ pub(super) struct Row {
     pub(super) n: i32,
     pub(super) zrow: f32,
     pub(super) zx: f32,
+    /// The triangle's nearest vertex depth ([`Tri::depth_at`]'s clamp).
+    pub(super) zmin: f32,
     pub(super) dx0: i32,
     pub(super) id: u32,
 }
@@ -146,7 +148,7 @@ pub(super) fn row_scalar<D: DepthCodec, const COUNT: bool>(
         e0 = e0.wrapping_add(r.a[0]);
         e1 = e1.wrapping_add(r.a[1]);
         e2 = e2.wrapping_add(r.a[2]);
-        let z = r.zrow + r.zx * (r.dx0 + (k << SUBPIXEL_BITS)) as f32;
+        let z = crate::edge::no_nearer(r.zmin, r.zrow + r.zx * (r.dx0 + (k << SUBPIXEL_BITS)) as f32);
         let key = D::key(z);
         let i = k as usize;
         let pass = inside & wins(key, r.id, depth[i], ids[i]);
@@ -218,14 +220,15 @@ pub(super) fn row_sse2<D: DepthCodec, const COUNT: bool>(
         let n = _mm_set1_epi32(r.n);
         let minus1 = _mm_set1_epi32(-1);
         let dx0 = _mm_set1_epi32(r.dx0);
-        let (zrow, zx) = (_mm_set1_ps(r.zrow), _mm_set1_ps(r.zx));
+        let (zrow, zx, zmin) = (_mm_set1_ps(r.zrow), _mm_set1_ps(r.zx), _mm_set1_ps(r.zmin));
         let id = _mm_set1_epi32(r.id as i32);
         let (mut cov, mut wr) = (_mm_setzero_si128(), _mm_setzero_si128());
         for ((dq, iq), cq) in depth.chunks_exact_mut(4).zip(ids.chunks_exact_mut(4)).zip(counts.chunks_exact_mut(4)) {
             let inside =
                 _mm_and_si128(_mm_cmpgt_epi32(_mm_or_si128(_mm_or_si128(e0, e1), e2), minus1), _mm_cmplt_epi32(k, n));
             let dx = _mm_add_epi32(dx0, _mm_slli_epi32(k, SUBPIXEL_BITS as i32));
-            let z = _mm_add_ps(zrow, _mm_mul_ps(zx, _mm_cvtepi32_ps(dx)));
+            // maxps(zmin, z) is `no_nearer`: z when either is NaN.
+            let z = _mm_max_ps(zmin, _mm_add_ps(zrow, _mm_mul_ps(zx, _mm_cvtepi32_ps(dx))));
             let key = D::key4(z);
             let dp = dq.as_mut_ptr() as *mut __m128i;
             let ip = iq.as_mut_ptr() as *mut __m128i;
@@ -338,6 +341,7 @@ unsafe fn block_avx2<D: DepthCodec, const COUNT: bool>(
         let dx = _mm256_add_epi32(_mm256_set1_epi32(dx0), _mm256_slli_epi32(lanes, SUBPIXEL_BITS as i32));
         // The x part of the depth plane, as the row loops compute it (multiply, then add).
         let zx = _mm256_mul_ps(_mm256_set1_ps(t.zx), _mm256_cvtepi32_ps(dx));
+        let zmin = _mm256_set1_ps(t.zmin);
         let minus1 = _mm256_set1_epi32(-1);
         let id = _mm256_set1_epi32(t.id as i32);
         let (mut cov, mut wr) = (_mm256_setzero_si256(), _mm256_setzero_si256());
@@ -345,7 +349,7 @@ unsafe fn block_avx2<D: DepthCodec, const COUNT: bool>(
         let ip = tile.ids.as_mut_ptr();
         let cp = tile.counts.as_mut_ptr();
         for py in ry0..=ry1 {
-            let z = _mm256_add_ps(_mm256_set1_ps(t.depth_row(py)), zx);
+            let z = _mm256_max_ps(zmin, _mm256_add_ps(_mm256_set1_ps(t.depth_row(py)), zx));
             let inside =
                 _mm256_and_si256(_mm256_cmpgt_epi32(_mm256_or_si256(_mm256_or_si256(e0, e1), e2), minus1), cols);
             let key = D::key8(z);
@@ -412,6 +416,7 @@ unsafe fn block_avx512<D: DepthCodec, const COUNT: bool>(
         let dx0 = (rx0 << SUBPIXEL_BITS) + ONE / 2 - t.x[0];
         let dx = _mm256_add_epi32(_mm256_set1_epi32(dx0), _mm256_slli_epi32(lanes, SUBPIXEL_BITS as i32));
         let zx = _mm256_mul_ps(_mm256_set1_ps(t.zx), _mm256_cvtepi32_ps(dx));
+        let zmin = _mm256_set1_ps(t.zmin);
         let zero = _mm256_setzero_si256();
         let id = _mm256_set1_epi32(t.id as i32);
         let (mut cov, mut wr) = (0u32, 0u32);
@@ -419,7 +424,7 @@ unsafe fn block_avx512<D: DepthCodec, const COUNT: bool>(
         let ip = tile.ids.as_mut_ptr();
         let cp = tile.counts.as_mut_ptr();
         for py in ry0..=ry1 {
-            let z = _mm256_add_ps(_mm256_set1_ps(t.depth_row(py)), zx);
+            let z = _mm256_max_ps(zmin, _mm256_add_ps(_mm256_set1_ps(t.depth_row(py)), zx));
             let inside = _mm256_mask_cmpge_epi32_mask(cols, _mm256_or_si256(_mm256_or_si256(e0, e1), e2), zero);
             let key = D::key8(z);
             let (d_at, i_at) = (dp.add(base) as *mut __m256i, ip.add(base) as *mut __m256i);
@@ -462,6 +467,7 @@ fn block_rows<D: DepthCodec, const COUNT: bool>(
         n: rx1 - rx0 + 1,
         zrow: 0.0,
         zx: t.zx,
+        zmin: t.zmin,
         dx0: (rx0 << SUBPIXEL_BITS) + ONE / 2 - t.x[0],
         id: t.id,
     };

@@ -105,6 +105,7 @@ fn sse2_rows_equal_scalar_rows() {
             n,
             zrow: rng.range(-0.1, 1.1),
             zx: rng.range(-1e-3, 1e-3),
+            zmin: rng.range(-0.2, 0.8),
             dx0: rng.below(512) as i32 - 256,
             id: 1 + rng.below(100),
         };
@@ -339,4 +340,68 @@ fn nan_depth_is_never_written() {
         check::<Unorm24>(simd);
         check::<Unorm16>(simd);
     }
+}
+
+/// No pixel is written nearer than the triangle's nearest vertex, with every kernel: the
+/// depth plane of a sliver reaching thousands of pixels off screen, evaluated in f32 far from
+/// its vertices, comes out below them by more than the box tests of culling allow for, and
+/// the rasterizer clamps it (`Tri::depth_at`).
+#[test]
+fn no_pixel_is_nearer_than_the_nearest_vertex() {
+    let vp = Viewport::new(64, 64, true);
+    let mut rng = sightline_scene::rng::Rng::new(23);
+    let (mut drawn, mut plane_below, mut far_below) = (0, 0, 0);
+    while drawn < 400 {
+        // Two vertices far off on either side of the tile, the third a few pixels off the
+        // line between them: a sliver across the tile, its depth changing fast across it
+        // and not along it (the long edge at one depth, so that pixels along it are,
+        // exactly, at that depth). Half of the long edges run diagonally through pixel
+        // centers, which then lie exactly on them.
+        let p = (rng.below(64) as f32 + 0.5, rng.below(64) as f32 + 0.5);
+        let angle = match rng.below(4) {
+            0 => std::f32::consts::FRAC_PI_4,
+            1 => -std::f32::consts::FRAC_PI_4,
+            _ => rng.range(-3.1, 3.1),
+        };
+        let (dx, dy) =
+            if angle.abs() == std::f32::consts::FRAC_PI_4 { (1.0, angle.signum()) } else { (angle.cos(), angle.sin()) };
+        let (la, lb) = (rng.below(14000) as f32 + 2000.0, rng.below(14000) as f32 + 2000.0);
+        let a = (p.0 - la * dx, p.1 - la * dy);
+        let b = (p.0 + lb * dx, p.1 + lb * dy);
+        let off = rng.range(1.0, 4.0) * if rng.below(2) == 0 { 1.0 } else { -1.0 };
+        let mid = (p.0 - off * dy, p.1 + off * dx);
+        let near = rng.range(0.98, 0.99);
+        let far_z = near + [1e-2, 1e-4, 1e-6][rng.below(3) as usize];
+        let z = [near, near, far_z];
+        let v = [a, b, mid].map(|(x, y)| (crate::setup::snap(x), crate::setup::snap(y)));
+        let verts = std::array::from_fn(|k| SnappedVertex { x: v[k].0, y: v[k].1, z: z[k] });
+        let Setup::Ready(t) = setup(verts, 5, false, &vp) else { continue };
+        drawn += 1;
+        let zmin = z[0].min(z[1]).min(z[2]);
+        for simd in kernels() {
+            let mut tile = TileBuf::new(0, 0, 64, 64);
+            let mut lv = levels_of(&tile);
+            tile.depth.fill(F32::key(1.0));
+            draw_tri::<F32, false>(&t, &mut tile, &mut lv, simd);
+            for py in 0..64u32 {
+                for px in 0..64u32 {
+                    let i = ((py << TILE_SHIFT) + px) as usize;
+                    if tile.ids[i] == 5 {
+                        assert!(tile.depth[i] >= F32::key(zmin), "{simd:?}: pixel ({px}, {py}) of {t:?}");
+                        // The plane itself, unclamped, as the kernels evaluate it.
+                        let x = ((px as i32) << crate::edge::SUBPIXEL_BITS) + crate::edge::ONE / 2 - t.x[0];
+                        let plane = t.depth_row(py as i32) + t.zx * (x as f32);
+                        plane_below += (plane < zmin) as u32;
+                        far_below += (plane < zmin - 8.0 * f32::EPSILON) as u32;
+                    }
+                }
+            }
+        }
+    }
+    // The test meets the case it is about, also by more than 8ε (twice the box
+    // projector's fixed depth margin, 8u = 4ε).
+    assert!(
+        plane_below > 500 && far_below > 50,
+        "the plane fell below the nearest vertex at {plane_below} pixels, by more than 8ε at {far_below}"
+    );
 }
