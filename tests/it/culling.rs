@@ -62,12 +62,7 @@ fn culled_city_equals_brute_force_on_street_and_aerial_cameras() {
 #[test]
 fn culled_city_from_one_obj_mesh_equals_brute_force() {
     let c = small_city();
-    let dir = std::env::temp_dir().join(format!("sightline-culling-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
-    let obj = dir.join("city.obj");
-    sightline::scene::export::export_obj(&c.scene, &obj).unwrap();
-    let flat = sightline::scene::load(&obj).unwrap();
-    assert_eq!(flat.stats().instances, 1);
+    let flat = as_one_mesh(&c.scene, "near");
     let street = c.layout.street_path(12, 5);
     let drawn = check(&flat, &street, "obj street");
     // Clusters carry the culling when there is no instance structure.
@@ -76,7 +71,19 @@ fn culled_city_from_one_obj_mesh_equals_brute_force() {
     let mut u16_opts = RenderOptions::ids_only();
     u16_opts.depth_format = sightline::render::DepthFormat::Unorm16;
     check_with(&flat, &street[..6], "obj street, 16-bit depth", &u16_opts);
+}
+
+/// `scene` exported to one OBJ mesh in world coordinates and loaded back (through a
+/// temporary folder named with `tag`).
+fn as_one_mesh(scene: &Scene, tag: &str) -> Scene {
+    let dir = std::env::temp_dir().join(format!("sightline-culling-{tag}-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let obj = dir.join("city.obj");
+    sightline::scene::export::export_obj(scene, &obj).unwrap();
+    let flat = sightline::scene::load(&obj).unwrap();
     std::fs::remove_dir_all(&dir).ok();
+    assert_eq!(flat.stats().instances, 1);
+    flat
 }
 
 #[test]
@@ -97,6 +104,36 @@ fn culled_gltf_scene_equals_brute_force() {
     for depth_format in [sightline::render::DepthFormat::Unorm16, sightline::render::DepthFormat::Unorm24] {
         check_with(&scene, &keys, &format!("gltf, {depth_format:?}"), &RenderOptions { depth_format, ..opts });
     }
+}
+
+/// The city moved 30 km from the world's origin, where f32 world coordinates keep only
+/// about 2 mm: box tests must allow for the rounding of projecting such coordinates (boxes
+/// are projected from the eye, and their margins follow the distances involved), both for
+/// the instanced city and for the same city as one mesh in world coordinates, whose
+/// vertices round as coarsely as the boxes would. (These cameras did not catch the fixed
+/// 10^-6 margin this replaced; the projector's own tests do.)
+#[test]
+fn culled_city_far_from_the_origin_equals_brute_force() {
+    use sightline::scene::{Keep, NodeDesc, Transform};
+    let mut c = small_city();
+    let offset = glam::Vec3::new(30_000.0, 0.0, -30_000.0);
+    let roots: Vec<_> = c.scene.roots().collect();
+    let far = c.scene.add_node(None, NodeDesc::new("far").transform(Transform::from_translation(offset))).unwrap();
+    for r in roots {
+        c.scene.set_parent(r, Some(far), Keep::Local).unwrap();
+    }
+    c.scene.update_transforms();
+    let moved = |keys: Vec<CameraKey>| -> Vec<CameraKey> {
+        let shift = |p: [f32; 3]| (glam::Vec3::from(p) + offset).into();
+        keys.into_iter().map(|k| CameraKey { eye: shift(k.eye), target: shift(k.target), ..k }).collect()
+    };
+    let street = moved(c.layout.street_path(12, 7));
+    let drawn = check(&c.scene, &street, "far street");
+    assert!(drawn[2] * 4 < drawn[1], "hzb drew {} triangles, frustum {}", drawn[2], drawn[1]);
+    check(&c.scene, &moved(c.layout.aerial_path(4)), "far aerial");
+    let flat = as_one_mesh(&c.scene, "far");
+    let drawn = check(&flat, &street, "far obj street");
+    assert!(drawn[2] * 4 < drawn[1], "hzb drew {} triangles, frustum {}", drawn[2], drawn[1]);
 }
 
 /// Frames overwrite every plane, so nothing of the previous contents of the target (here

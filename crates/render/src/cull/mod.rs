@@ -189,6 +189,10 @@ struct Clusters {
     /// array that stays in cache, so that clusters whose cone never culls (closed meshes
     /// such as boxes) cost no load of their cone.
     cone_can_cull: Vec<u64>,
+    /// How far any instance's vertices lie from its origin (world units, per axis): the
+    /// box projector's margins for the rasterizer's rounding grow with it
+    /// ([`BoxProjector::for_camera`]). Only grows as instances move.
+    reach: f32,
     octree: LooseOctree,
     /// Clusters that moved since the octree was last brought up to date.
     octree_pending: Vec<u32>,
@@ -314,6 +318,12 @@ impl Culler {
     /// The instances the culler was built for.
     pub fn instances(&self) -> &[Instance] {
         &self.c.instances
+    }
+
+    /// How far the instances' vertices lie from their origins, per axis, in world units:
+    /// the `reach` its box tests project with ([`BoxProjector::for_camera`]).
+    pub fn reach(&self) -> f32 {
+        self.c.reach
     }
 
     /// The clusters and their BVH.
@@ -499,7 +509,7 @@ impl Culler {
         cs.ms_draw = ms_since(t0);
         cs.ms_total = cs.ms_draw;
         cs.culled_by_occlusion = cs.clusters_in_frustum.saturating_sub(cs.clusters_drawn + cs.culled_by_backface);
-        let projector = BoxProjector::new(camera.clip_from_world(), fb.width(), fb.height());
+        let projector = BoxProjector::for_camera(camera, fb.width(), fb.height(), self.c.reach);
         Ok((cs, fs, OccluderPass { session, projector }))
     }
 }

@@ -40,6 +40,8 @@ struct Moved {
     changed: Vec<u32>,
     /// Items whose cone can no longer cull.
     uncull: Vec<u32>,
+    /// The largest reach of a moved instance ([`super::update::instance_reach`]).
+    reach: f32,
 }
 
 /// What a range reads.
@@ -65,6 +67,7 @@ impl Range<'_> {
             inst.world_from_local = node.world_matrix();
             inst.world_aabb = node.world_aabb();
             out.any = true;
+            out.reach = out.reach.max(super::update::instance_reach(inst));
             let cols = inst.world_from_local.to_cols_array();
             for item in sh.clustered.instance_items(i) {
                 out.changed.push(item);
@@ -124,6 +127,7 @@ impl Clusters {
         changed.clear();
         for p in &parts {
             any |= p.any;
+            self.reach = self.reach.max(p.reach);
             changed.extend(&p.changed);
             for &k in &p.uncull {
                 self.cone_can_cull[k as usize / 64] &= !(1u64 << (k % 64));

@@ -84,6 +84,7 @@ impl Clusters {
             })
             .collect();
         let node_instance = instances.iter().enumerate().map(|(i, inst)| (inst.node, i as u32)).collect();
+        let reach = instances.par_iter().map(instance_reach).reduce(|| 0.0, f32::max);
         Clusters {
             stamp: scene.stamp(),
             instances,
@@ -95,6 +96,7 @@ impl Clusters {
             local_cones,
             cones,
             cone_can_cull,
+            reach,
             // Built when the octree walk first runs (`settle_octree`): the other methods
             // never read it, and over 10^7 clusters it takes seconds.
             octree: LooseOctree::new(&Aabb::EMPTY, 0),
@@ -226,6 +228,17 @@ impl Clusters {
         self.stamp = scene.stamp();
         outcome
     }
+}
+
+/// How far the instance's vertices lie from its origin, per axis (its world box measured
+/// from its translation; 0 for an empty box, and NaN boxes are passed over by `f32::max`).
+pub(super) fn instance_reach(inst: &Instance) -> f32 {
+    let b = &inst.world_aabb;
+    if b.is_empty() {
+        return 0.0;
+    }
+    let t = glam::Vec3::from(inst.world_from_local.translation);
+    (b.min - t).abs().max((b.max - t).abs()).max_element()
 }
 
 #[cfg(test)]

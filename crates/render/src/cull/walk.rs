@@ -175,7 +175,7 @@ impl Clusters {
         batching: Batching,
     ) -> Result<()> {
         let pyramid = s.pyramid();
-        let projector = BoxProjector::new(f.camera.clip_from_world(), pyramid.width(), pyramid.height());
+        let projector = BoxProjector::for_camera(f.camera, pyramid.width(), pyramid.height(), self.reach);
         let eye = f.camera.view.eye;
         let mut cursor = match source {
             Source::Bvh => Cursor::Bvh(
