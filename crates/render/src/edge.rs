@@ -73,16 +73,17 @@ impl Tri {
         no_nearer(self.zmin, zrow + self.zx * (((px << SUBPIXEL_BITS) + ONE / 2 - self.x[0]) as f32))
     }
 
-    /// A lower bound of the depth plane over the pixel centers of the screen rectangle
-    /// `[x0, y0, x1, y1]` (inclusive): the plane is affine, so its minimum is at a corner;
-    /// the rounding that evaluating it at a pixel may add is subtracted.
+    /// A lower bound of the depths the rasterizer computes over the pixel centers of the
+    /// screen rectangle `[x0, y0, x1, y1]` (inclusive): the plane is affine, so its minimum
+    /// is at a corner; the rounding that evaluating it at a pixel may add is subtracted, and
+    /// the result raised to `zmin` like every pixel's depth ([`Tri::depth_at`]).
     #[inline]
     pub(crate) fn plane_min(&self, rect: [i32; 4]) -> f32 {
         self.plane_bounds(rect).0
     }
 
-    /// Lower and upper bounds of the depth plane over the pixel centers of the screen
-    /// rectangle `[x0, y0, x1, y1]` (inclusive), each widened by the rounding that
+    /// Lower and upper bounds of the depths computed over the pixel centers of the screen
+    /// rectangle `[x0, y0, x1, y1]` (inclusive): the plane's, each widened by the rounding that
     /// evaluating the plane at a pixel ([`Tri::depth_row`], [`Tri::depth_at`]) may add: every
     /// depth the rasterizer computes for a pixel of the rectangle lies between them.
     #[inline]

@@ -6,7 +6,7 @@
 //! extent sums the per-axis min/max of the matrix column products, which is exact for the
 //! transformed corners and costs a fraction of transforming all eight.
 
-use glam::{Affine3A, Vec3, Vec3A};
+use glam::{Affine3A, Vec3};
 
 /// An axis-aligned box `[min, max]`; empty when any `min > max`.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -111,21 +111,41 @@ impl Aabb {
     }
 
     /// The box of this box transformed by `m` (Arvo's method); empty stays empty.
+    ///
+    /// Summed in f64 and rounded outward to f32, so that the box holds every transformed
+    /// point exactly: far from the origin an f32 sum rounded to nearest can land a
+    /// millimetre inside (at 3·10^4 units), which box tests of culling cannot allow.
     pub fn transformed(&self, m: &Affine3A) -> Aabb {
         if self.is_empty() {
             return Aabb::EMPTY;
         }
-        let t = m.translation;
+        let t = Vec3::from(m.translation).as_dvec3();
         let (mut lo, mut hi) = (t, t);
         let cols = [m.matrix3.x_axis, m.matrix3.y_axis, m.matrix3.z_axis];
-        let (mn, mx) = (Vec3A::from(self.min), Vec3A::from(self.max));
         for (i, c) in cols.iter().enumerate() {
-            let a = *c * mn[i];
-            let b = *c * mx[i];
+            let c = Vec3::from(*c).as_dvec3();
+            // Products of two f32 are exact in f64; the four-term sums round at 2^-53.
+            let (a, b) = (c * self.min[i] as f64, c * self.max[i] as f64);
             lo += a.min(b);
             hi += a.max(b);
         }
-        Aabb { min: lo.into(), max: hi.into() }
+        let down = |v: f64| {
+            let f = v as f32;
+            if f as f64 > v {
+                f.next_down()
+            } else {
+                f
+            }
+        };
+        let up = |v: f64| {
+            let f = v as f32;
+            if (f as f64) < v {
+                f.next_up()
+            } else {
+                f
+            }
+        };
+        Aabb { min: Vec3::new(down(lo.x), down(lo.y), down(lo.z)), max: Vec3::new(up(hi.x), up(hi.y), up(hi.z)) }
     }
 }
 
@@ -133,6 +153,36 @@ impl Aabb {
 mod tests {
     use super::*;
     use glam::Quat;
+
+    /// Far from the origin the transformed box still holds every transformed corner, as
+    /// computed in f64 (rounded to nearest in f32 it missed them by up to a millimetre).
+    #[test]
+    fn transformed_box_holds_its_corners_far_from_the_origin() {
+        let mut rng = crate::rng::Rng::new(4);
+        for _ in 0..2000 {
+            let far = Vec3::new(rng.range(-3e4, 3e4), rng.range(-50.0, 50.0), rng.range(-3e4, 3e4));
+            let axis =
+                Vec3::new(rng.range(-1.0, 1.0), rng.range(-1.0, 1.0), rng.range(-1.0, 1.0)).normalize_or(Vec3::Y);
+            let m = Affine3A::from_scale_rotation_translation(
+                Vec3::splat(rng.range(0.5, 2.0)),
+                Quat::from_axis_angle(axis, rng.range(0.0, 6.3)),
+                far,
+            );
+            let lo = Vec3::new(rng.range(-20.0, 20.0), rng.range(-20.0, 20.0), rng.range(-20.0, 20.0));
+            let b = Aabb::new(lo, lo + Vec3::new(rng.range(0.0, 9.0), rng.range(0.0, 9.0), rng.range(0.0, 9.0)));
+            let t = b.transformed(&m);
+            let m64 = glam::DAffine3::from_mat3_translation(
+                glam::Mat3::from(m.matrix3).as_dmat3(),
+                Vec3::from(m.translation).as_dvec3(),
+            );
+            for c in b.corners() {
+                let p = m64.transform_point3(c.as_dvec3());
+                for k in 0..3 {
+                    assert!(t.min[k] as f64 <= p[k] && p[k] <= t.max[k] as f64, "{p} outside {t:?}");
+                }
+            }
+        }
+    }
 
     #[test]
     fn empty_box_is_union_identity() {

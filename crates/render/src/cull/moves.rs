@@ -67,7 +67,7 @@ impl Range<'_> {
             inst.world_from_local = node.world_matrix();
             inst.world_aabb = node.world_aabb();
             out.any = true;
-            out.reach = out.reach.max(super::update::instance_reach(inst));
+            out.reach = out.reach.max(super::update::instance_reach(sh.scene, inst));
             let cols = inst.world_from_local.to_cols_array();
             for item in sh.clustered.instance_items(i) {
                 out.changed.push(item);

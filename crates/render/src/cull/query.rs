@@ -43,9 +43,12 @@ pub struct OcclusionQueries<'a> {
 }
 
 impl<'a> OcclusionQueries<'a> {
-    /// Queries for `camera` against `pyramid`.
-    pub fn new(camera: &Camera, pyramid: TilePyramid<'a>) -> Self {
-        Self::with_projector(BoxProjector::new(camera.clip_from_world(), pyramid.width(), pyramid.height()), pyramid)
+    /// Queries for `camera` against `pyramid`, for boxes drawn by instances whose vertex
+    /// transforms reach at most `reach` world units per axis from their origins
+    /// ([`BoxProjector::for_camera`]; a culler's own is [`Culler::reach`](super::Culler::reach)).
+    pub fn new(camera: &Camera, pyramid: TilePyramid<'a>, reach: f32) -> Self {
+        let projector = BoxProjector::for_camera(camera, pyramid.width(), pyramid.height(), reach);
+        Self::with_projector(projector, pyramid)
     }
 
     /// Queries with a projector made once for many pyramids (one per draw batch).

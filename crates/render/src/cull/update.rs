@@ -84,7 +84,7 @@ impl Clusters {
             })
             .collect();
         let node_instance = instances.iter().enumerate().map(|(i, inst)| (inst.node, i as u32)).collect();
-        let reach = instances.par_iter().map(instance_reach).reduce(|| 0.0, f32::max);
+        let reach = instances.par_iter().map(|i| instance_reach(scene, i)).reduce(|| 0.0, f32::max);
         Clusters {
             stamp: scene.stamp(),
             instances,
@@ -230,15 +230,27 @@ impl Clusters {
     }
 }
 
-/// How far the instance's vertices lie from its origin, per axis (its world box measured
-/// from its translation; 0 for an empty box, and NaN boxes are passed over by `f32::max`).
-pub(super) fn instance_reach(inst: &Instance) -> f32 {
-    let b = &inst.world_aabb;
+/// How far the terms of the instance's vertex transform reach, per world axis: the largest
+/// `Σ_j |B_kj|·|v_j|` over its mesh's local box (`B` the linear part of `world_from_local`),
+/// which bounds both how far its vertices lie from its origin and the magnitudes the
+/// rasterizer's `clip_from_local` product sums (with shear too). 0 for a mesh without
+/// triangles, and for a transform or mesh that is not finite (those items are never culled
+/// by their boxes, and must not switch every other box's test off).
+pub(super) fn instance_reach(scene: &Scene, inst: &Instance) -> f32 {
+    let Some(mesh) = scene.mesh(inst.mesh) else { return 0.0 };
+    let b = mesh.aabb();
     if b.is_empty() {
         return 0.0;
     }
-    let t = glam::Vec3::from(inst.world_from_local.translation);
-    (b.min - t).abs().max((b.max - t).abs()).max_element()
+    let v = b.min.abs().max(b.max.abs());
+    let m = &inst.world_from_local.matrix3;
+    let row = |k: usize| m.x_axis[k].abs() * v.x + m.y_axis[k].abs() * v.y + m.z_axis[k].abs() * v.z;
+    let reach = row(0).max(row(1)).max(row(2));
+    if reach.is_finite() {
+        reach
+    } else {
+        0.0
+    }
 }
 
 #[cfg(test)]

@@ -341,7 +341,9 @@ impl Clusters {
         // Re-test last frame's clusters against the finished pyramid: the occluded ones leave
         // the set (their pixels went to nearer clusters).
         let t = Instant::now();
-        let q = OcclusionQueries::new(f.camera, s.pyramid());
+        let pyramid = s.pyramid();
+        let projector = BoxProjector::for_camera(f.camera, pyramid.width(), pyramid.height(), self.reach);
+        let q = OcclusionQueries::with_projector(projector, pyramid);
         let boxes = &self.item_boxes;
         let still: Vec<u32> =
             first.iter().copied().filter(|&i| q.counted_visible(&boxes[i as usize], &mut f.cs)).collect();

@@ -77,8 +77,6 @@ impl TileLevels {
     /// into in this session.
     #[inline]
     pub(crate) fn occludes(&self, t: &Tri) -> bool {
-        // The triangle's nearest depth: its nearest vertex's, to which the rasterizer clamps
-        // every pixel's depth (`Tri::depth_at`).
         // The triangle's pixels in this tile, in tile coordinates.
         let x0 = (t.bbox[0] as u32).max(self.x0) - self.x0;
         let y0 = (t.bbox[1] as u32).max(self.y0) - self.y0;
@@ -92,6 +90,8 @@ impl TileLevels {
         let span = (x1 - x0).max(y1 - y0) + 1;
         let level = (31 - span.leading_zeros()).clamp(1, 6) as usize;
         let behind = |near: f32| self.texels_behind(level, [x0, y0, x1, y1], near);
+        // The triangle's nearest depth: its nearest vertex's, to which the rasterizer clamps
+        // every pixel's depth (`Tri::depth_at`).
         let near = t.zmin;
         if near > 0.0 && behind(near) {
             return true;

@@ -53,7 +53,8 @@ impl Lanes {
     /// has bit k set for such a lane k. For the others no corner coordinate is NaN (sums of
     /// finite terms are finite or ±∞ of one sign), so the comparisons, and the min/max over
     /// the corners, are those of the portable path; a non-finite projection shows up in the
-    /// min or max over the corners (or, for w = +∞, in the max of w).
+    /// min or max over the corners (or, for w = +∞, in the max of w); a lane whose margins
+    /// are not finite answers "crosses", as the portable path does.
     #[target_feature(enable = "avx2,fma,bmi1,bmi2,lzcnt,popcnt")]
     #[inline]
     fn classify8(&self, boxes: &[Aabb; 8], out: &mut Batch, at: usize) -> u32 {

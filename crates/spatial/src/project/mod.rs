@@ -125,7 +125,8 @@ impl ScreenRect {
 pub enum BoxImage {
     /// Outside the view frustum (or covering no pixel center): nothing of it can be drawn.
     Outside,
-    /// At or behind the near plane (or unbounded): it may cover any pixel at any depth.
+    /// At or behind the near plane (or unbounded, or too large for its rounding to be
+    /// bounded): it may cover any pixel at any depth.
     CrossesNear,
     /// In front of the near plane: a conservative rectangle (never empty: a box covering no
     /// pixel center is [`BoxImage::Outside`]) and its nearest depth.
@@ -144,18 +145,27 @@ pub enum BoxImage {
 /// are the matrix rows times the corners' coordinates, so `S ≤ n·R + t` with `n` a row's
 /// absolute sum, `t` its translation and `R` the box's reach: its largest coordinate
 /// magnitude plus extent, measured from the projector's origin. For a vertex drawn by
-/// `clip_from_local`, `S` is at most `n·(R + L) + t` when the vertex lies at most `L` from
-/// its instance's origin (the `reach` of [`BoxProjector::for_camera`]). Each box's depth is
-/// lowered by `8u·((n_z + n_w)·(R + L) + t_z + t_w) / w_min` (`w_min` its smallest corner `w`)
-/// plus a fixed `8u`, and its pixel bounds grown by the same form in x and y scaled to
-/// pixels, plus 1/128 px for the rasterizer's 1/256-pixel snapping. Projecting from the eye
+/// `clip_from_local`, `S` is at most `n·(R + 2L) + t` when the terms of its instance's
+/// transform, `Σ_j |B_kj|·|v_j|` on each axis `k`, stay below `L` (the `reach` of
+/// [`BoxProjector::for_camera`]): the instance's origin lies within `R + L` of the eye and
+/// the local product adds up to `L`. Each box's depth is lowered by
+/// `8u·((n_z + n_w)·(R + 2L) + t_z + t_w) / w_min` (`w_min` its smallest corner `w`) plus a
+/// fixed `8u`, and its pixel bounds grown by the same form in x and y scaled to pixels, plus
+/// 1/128 px for the rasterizer's 1/256-pixel snapping. A box whose margins are not finite
+/// (an infinite reach, a corner `w` next to zero with a huge box) may cover anything: it is
+/// [`BoxImage::CrossesNear`]. Vertices the rasterizer makes by clipping at the guard band
+/// add a few more roundings of the same terms, left to the factor 8's slack. Projecting from the eye
 /// ([`BoxProjector::for_camera`]) keeps `R` the distance to the box rather than the world's
 /// size: a box 9 m from the eye in a city 700 m across is then measured to 10^−6 of the
 /// depth range, not 10^−5.
 ///
 /// The rasterizer does its part: a triangle's depth plane, evaluated far from its vertices,
-/// is clamped to the vertices' depth range, so no pixel of a triangle is nearer than its
-/// nearest vertex.
+/// is clamped from below to its nearest vertex's depth, so no pixel of a triangle is nearer
+/// than that vertex. World boxes made by transforming local boxes are rounded outward
+/// (`Aabb::transformed`).
+///
+/// The bound is first-order and assumes transforms without extreme shear; the tests check
+/// it against f64 projections far from the origin.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct BoxProjector {
     /// `clip_from_world · translate(origin)`: boxes are projected relative to `origin`.
@@ -220,7 +230,7 @@ impl BoxProjector {
         // x and y in pixels (half the viewport per NDC unit), z in window depth (half).
         let scale = [width as f32, height as f32, 1.0].map(|s| s * CLIP_ROUNDING);
         let err_a = std::array::from_fn(|k| scale[k] * (row(k).0 + nw));
-        let err_b = std::array::from_fn(|k| scale[k] * ((row(k).0 + nw) * reach + row(k).1 + tw));
+        let err_b = std::array::from_fn(|k| scale[k] * ((row(k).0 + nw) * (2.0 * reach) + row(k).1 + tw));
         BoxProjector { clip, origin, err_a, err_b, width, height, simd }
     }
 
@@ -403,7 +413,8 @@ impl BoxProjector {
         let g = 1.0 / w_min;
         let m = |k: usize| (self.err_a[k] * reach + self.err_b[k]) * g;
         let (mx, my, mz) = (m(0) + PIXEL_MARGIN, m(1) + PIXEL_MARGIN, m(2) + DEPTH_FLOOR);
-        // Finite exactly when their sum is (all are ≥ 0 or NaN).
+        // All three are ≥ 0 or NaN, so a finite sum means all are finite; a sum that
+        // overflows with finite parts also answers "crosses" (conservative, in every path).
         (mx + my + mz).is_finite().then_some([mx, my, mz])
     }
 
