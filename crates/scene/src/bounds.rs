@@ -129,23 +129,10 @@ impl Aabb {
             lo += a.min(b);
             hi += a.max(b);
         }
-        let down = |v: f64| {
-            let f = v as f32;
-            if f as f64 > v {
-                f.next_down()
-            } else {
-                f
-            }
-        };
-        let up = |v: f64| {
-            let f = v as f32;
-            if (f as f64) < v {
-                f.next_up()
-            } else {
-                f
-            }
-        };
-        Aabb { min: Vec3::new(down(lo.x), down(lo.y), down(lo.z)), max: Vec3::new(up(hi.x), up(hi.y), up(hi.z)) }
+        // The nearest f32, stepped one place outward when rounding went inward.
+        let down = |v: f64| if (v as f32) as f64 > v { (v as f32).next_down() } else { v as f32 };
+        let up = |v: f64| if ((v as f32) as f64) < v { (v as f32).next_up() } else { v as f32 };
+        Aabb { min: lo.to_array().map(down).into(), max: hi.to_array().map(up).into() }
     }
 }
 

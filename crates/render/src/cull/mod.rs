@@ -189,9 +189,9 @@ struct Clusters {
     /// array that stays in cache, so that clusters whose cone never culls (closed meshes
     /// such as boxes) cost no load of their cone.
     cone_can_cull: Vec<u64>,
-    /// How far any instance's vertices lie from its origin (world units, per axis): the
-    /// box projector's margins for the rasterizer's rounding grow with it
-    /// ([`BoxProjector::for_camera`]). Only grows as instances move.
+    /// The largest reach of an instance's vertex transform (world units, per axis; see
+    /// `update::instance_reach`): the box projector's margins for the rasterizer's rounding
+    /// grow with it ([`BoxProjector::for_camera`]). Only grows as instances move.
     reach: f32,
     octree: LooseOctree,
     /// Clusters that moved since the octree was last brought up to date.
@@ -320,8 +320,9 @@ impl Culler {
         &self.c.instances
     }
 
-    /// How far the instances' vertices lie from their origins, per axis, in world units:
-    /// the `reach` its box tests project with ([`BoxProjector::for_camera`]).
+    /// The largest `Σ_j |B_kj|·|v_j|` over the instances (`B` an instance's linear part, `v`
+    /// its mesh's local box corners), per world axis: the `reach` its box tests project with
+    /// ([`BoxProjector::for_camera`]).
     pub fn reach(&self) -> f32 {
         self.c.reach
     }
@@ -509,7 +510,7 @@ impl Culler {
         cs.ms_draw = ms_since(t0);
         cs.ms_total = cs.ms_draw;
         cs.culled_by_occlusion = cs.clusters_in_frustum.saturating_sub(cs.clusters_drawn + cs.culled_by_backface);
-        let projector = BoxProjector::for_camera(camera, fb.width(), fb.height(), self.c.reach);
+        let projector = self.c.projector(camera, fb.width(), fb.height());
         Ok((cs, fs, OccluderPass { session, projector }))
     }
 }

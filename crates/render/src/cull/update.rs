@@ -19,7 +19,7 @@
 
 use rayon::prelude::*;
 use sightline_scene::{Aabb, Instance, NodeId, Scene, SceneDelta};
-use sightline_spatial::{ClusteredScene, LooseOctree, RefitOutcome};
+use sightline_spatial::{BoxProjector, ClusteredScene, LooseOctree, RefitOutcome};
 use slotmap::SecondaryMap;
 
 use super::{cone, ClusterDraw, Clusters, SceneMeshlets, TwoPass, OCTREE_DEPTH};
@@ -227,6 +227,14 @@ impl Clusters {
         };
         self.stamp = scene.stamp();
         outcome
+    }
+}
+
+impl Clusters {
+    /// The box projector of this state's box tests: from `camera`'s eye, with the
+    /// instances' reach.
+    pub(super) fn projector(&self, camera: &sightline_scene::Camera, width: u32, height: u32) -> BoxProjector {
+        BoxProjector::for_camera(camera, width, height, self.reach)
     }
 }
 

@@ -7,9 +7,7 @@ use std::time::Instant;
 
 use glam::Affine3A;
 use sightline_scene::Camera;
-use sightline_spatial::{
-    prefetch, BoxProjector, Containment, CullOptions, FrontToBackCursor, Frustum, OctreeCursor, Visible,
-};
+use sightline_spatial::{prefetch, Containment, CullOptions, FrontToBackCursor, Frustum, OctreeCursor, Visible};
 
 use super::{ClusterDraw, Clusters, CullStats, OcclusionQueries, PREFETCH_AHEAD};
 use crate::awake::join_helping;
@@ -175,7 +173,7 @@ impl Clusters {
         batching: Batching,
     ) -> Result<()> {
         let pyramid = s.pyramid();
-        let projector = BoxProjector::for_camera(f.camera, pyramid.width(), pyramid.height(), self.reach);
+        let projector = self.projector(f.camera, pyramid.width(), pyramid.height());
         let eye = f.camera.view.eye;
         let mut cursor = match source {
             Source::Bvh => Cursor::Bvh(
@@ -342,7 +340,7 @@ impl Clusters {
         // the set (their pixels went to nearer clusters).
         let t = Instant::now();
         let pyramid = s.pyramid();
-        let projector = BoxProjector::for_camera(f.camera, pyramid.width(), pyramid.height(), self.reach);
+        let projector = self.projector(f.camera, pyramid.width(), pyramid.height());
         let q = OcclusionQueries::with_projector(projector, pyramid);
         let boxes = &self.item_boxes;
         let still: Vec<u32> =

@@ -358,13 +358,14 @@ fn no_pixel_is_nearer_than_the_nearest_vertex() {
         // exactly, at that depth). Half of the long edges run diagonally through pixel
         // centers, which then lie exactly on them.
         let p = (rng.below(64) as f32 + 0.5, rng.below(64) as f32 + 0.5);
-        let angle = match rng.below(4) {
-            0 => std::f32::consts::FRAC_PI_4,
-            1 => -std::f32::consts::FRAC_PI_4,
-            _ => rng.range(-3.1, 3.1),
+        let (dx, dy) = match rng.below(4) {
+            0 => (1.0, 1.0),
+            1 => (1.0, -1.0),
+            _ => {
+                let angle = rng.range(-3.1f32, 3.1);
+                (angle.cos(), angle.sin())
+            }
         };
-        let (dx, dy) =
-            if angle.abs() == std::f32::consts::FRAC_PI_4 { (1.0, angle.signum()) } else { (angle.cos(), angle.sin()) };
         let (la, lb) = (rng.below(14000) as f32 + 2000.0, rng.below(14000) as f32 + 2000.0);
         let a = (p.0 - la * dx, p.1 - la * dy);
         let b = (p.0 + lb * dx, p.1 + lb * dy);

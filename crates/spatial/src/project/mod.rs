@@ -154,10 +154,10 @@ pub enum BoxImage {
 /// 1/128 px for the rasterizer's 1/256-pixel snapping. A box whose margins are not finite
 /// (an infinite reach, a corner `w` next to zero with a huge box) may cover anything: it is
 /// [`BoxImage::CrossesNear`]. Vertices the rasterizer makes by clipping at the guard band
-/// add a few more roundings of the same terms, left to the factor 8's slack. Projecting from the eye
-/// ([`BoxProjector::for_camera`]) keeps `R` the distance to the box rather than the world's
-/// size: a box 9 m from the eye in a city 700 m across is then measured to 10^−6 of the
-/// depth range, not 10^−5.
+/// add a few more roundings of the same terms, left to the factor 8's slack. Projecting from
+/// the eye ([`BoxProjector::for_camera`]) keeps `R` the distance to the box rather than the
+/// world's size (from the origin, the f32 projection itself of a box 9 m from the eye in a
+/// city 700 m across was off by 1.1·10^−6 in depth).
 ///
 /// The rasterizer does its part: a triangle's depth plane, evaluated far from its vertices,
 /// is clamped from below to its nearest vertex's depth, so no pixel of a triangle is nearer
@@ -195,9 +195,10 @@ impl BoxProjector {
 
     /// A projector for `camera` that projects boxes relative to the eye, so that its
     /// rounding margins follow the boxes' distance rather than the world's size.
-    /// `reach` bounds how far (in world units, per axis) the vertices drawn lie from their
-    /// instance's origin: the rasterizer's own rounding grows with it (0 for boxes that are
-    /// not drawn through instances; the world's size for meshes in world coordinates).
+    /// `reach` bounds the terms of the drawn instances' vertex transforms, `Σ_j |B_kj|·|v_j|`
+    /// per world axis (`B` the linear part, `v` local positions; see "Rounding"): the
+    /// rasterizer's own rounding grows with it (0 for boxes not drawn through instances, the
+    /// world's size for meshes in world coordinates).
     pub fn for_camera(camera: &Camera, width: u32, height: u32, reach: f32) -> BoxProjector {
         BoxProjector::for_camera_with_simd(camera, width, height, reach, SimdLevel::Auto)
     }
