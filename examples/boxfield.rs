@@ -39,30 +39,30 @@ fn main() {
         let mut stats = None;
         for _ in 0..15 {
             let t = Instant::now();
-            let (cs, fs, q) = culler.occluder_pass(&bf.camera, &fb, &opts).expect("occluders");
+            let (cs, fs, q) = culler.occluder_pass(&bf.camera, &mut fb, &opts).expect("occluders");
             stats = Some((cs, fs));
             raster.push(t.elapsed().as_secs_f64() * 1e3);
             let t = Instant::now();
             q.test_many(&bf.queries, &mut answers);
             query.push(t.elapsed().as_secs_f64() * 1e3);
-            q.finish(&mut fb).expect("same framebuffer");
+            q.finish();
         }
         if std::env::var("QUERY_PROFILE").is_ok() {
             // Profiling aid: the queries alone, many times.
-            let (_, _, q) = culler.occluder_pass(&bf.camera, &fb, &opts).expect("occluders");
+            let (_, _, q) = culler.occluder_pass(&bf.camera, &mut fb, &opts).expect("occluders");
             for _ in 0..200 {
                 q.test_many(&bf.queries, &mut answers);
             }
-            q.finish(&mut fb).expect("same framebuffer");
+            q.finish();
         }
         // (a) with hidden occluders skipped: the buffers must be the instanced pass's own.
         let every = (fb.depth.clone(), fb.ids.clone());
         let mut skipped = Vec::new();
         for _ in 0..15 {
             let t = Instant::now();
-            let (_, _, pass) = culler.occluder_pass_with(&bf.camera, &fb, &opts, true).expect("occluders");
+            let (_, _, pass) = culler.occluder_pass_with(&bf.camera, &mut fb, &opts, true).expect("occluders");
             skipped.push(t.elapsed().as_secs_f64() * 1e3);
-            pass.finish(&mut fb).expect("same framebuffer");
+            pass.finish();
         }
         let same = fb.depth == every.0 && fb.ids == every.1;
         println!(
@@ -82,10 +82,10 @@ fn main() {
             let mut drawn = 0;
             for _ in 0..15 {
                 let t = Instant::now();
-                let (cs, _, pass) = flat.occluder_pass_with(&bf.camera, &other, &opts, skip_hidden).expect("occluders");
+                let (cs, _, pass) = flat.occluder_pass_with(&bf.camera, &mut other, &opts, skip_hidden).expect("occluders");
                 times.push(t.elapsed().as_secs_f64() * 1e3);
                 drawn = cs.triangles_drawn;
-                pass.finish(&mut other).expect("same framebuffer");
+                pass.finish();
             }
             let label = if skip_hidden { "hidden occluders skipped" } else { "every occluder" };
             println!("(a) one mesh, {label}: median {:.2} ms (1 thread), {drawn} triangles sent", median(times));

@@ -27,9 +27,10 @@
 //! projecting boxes and vertices (see `BoxProjector`).
 //!
 //! Culling methods draw their batches into a frame session, which keeps every tile's
-//! buffers between batches (for the z-pyramid) and writes the frame out at the end, where a
-//! plain frame draws each tile in one scratch buffer per worker and stores it at once. The
-//! oracle's triangles drawn once more in a one-batch session show what that costs by itself.
+//! z-pyramid levels up to date between batches (and bins and rasterizes against them),
+//! where a plain frame only draws; both draw each tile in a scratch buffer per worker and
+//! store it to the framebuffer at once. The oracle's triangles drawn once more in a
+//! one-batch session show what the session costs by itself.
 //!
 //! Last, the write-out floor: what writing every pixel's depth and ID (and color) once
 //! costs on this machine, from cache, in whole rows over the pool. Any frame writes at
@@ -147,9 +148,9 @@ fn run() -> Result<(), Error> {
             // The same triangles drawn in a frame session, as the culling methods draw.
             let sources = draw_sources(world.scene(), &instances, &items.0);
             let t = Instant::now();
-            let mut session = renderer.begin(&fb, &opts);
+            let mut session = renderer.begin(&mut fb, &opts);
             session.draw_sources(&sources, cam)?;
-            session.finish(&mut fb)?;
+            session.finish();
             shade_pass(world.scene(), &instances, cam, &mut fb, &opts.shading, opts.background);
             let in_session = ms(t);
             if let Some(m) = compare_ids(&reference.ids, &fb.ids, fb.width()) {
@@ -220,7 +221,7 @@ fn run() -> Result<(), Error> {
         println!("  clusters {what:<24} {:>8.0} ({:.0} triangles)", count(k, false), count(k, true));
     }
     println!(
-        "  oracle drawn in a frame session (as culling draws: tiles kept, written out at the end) {in_session:.2} ms ({:.2}× oracle)",
+        "  oracle drawn in a frame session (as culling draws: pyramid kept, tiles written through) {in_session:.2} ms ({:.2}× oracle)",
         in_session / oracle
     );
     let [holding, passing] = cluster_runs.map(median);

@@ -67,7 +67,7 @@ pub fn run_queries(culler: &mut Culler, bf: &Boxfield, fb: &mut Framebuffer) -> 
     let (_, _, q) = culler.occluder_pass(&bf.camera, fb, &opts).expect("drawing the occluders");
     let mut answers = Vec::new();
     q.test_many(&bf.queries, &mut answers);
-    q.finish(fb).expect("the framebuffer the occluders were drawn for");
+    q.finish();
     answers
 }
 

@@ -441,10 +441,10 @@ impl Engine {
             Some((r, b)) if r == revision => b,
             _ => culler.clustered().item_boxes(culler.instances()),
         };
-        let probe = Framebuffer::new(width, height)?;
+        let mut probe = Framebuffer::new(width, height)?;
         let mut classes = Vec::new();
         {
-            let (_, _, pass) = culler.occluder_pass_with(camera, &probe, &self.opts, true)?;
+            let (_, _, pass) = culler.occluder_pass_with(camera, &mut probe, &self.opts, true)?;
             pass.test_batch(&boxes, &mut classes);
         }
         self.cluster_boxes = Some((revision, boxes.clone()));

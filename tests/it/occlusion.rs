@@ -31,7 +31,7 @@ fn boxes_behind_beside_and_across_the_near_plane() {
     let mut fb = Framebuffer::new(320, 180).unwrap();
     let opts = RenderOptions::ids_only();
     {
-        let (_, _, q) = culler.occluder_pass(&cam, &fb, &opts).unwrap();
+        let (_, _, q) = culler.occluder_pass(&cam, &mut fb, &opts).unwrap();
         assert_eq!(q.test(&cube_at(Vec3::new(0.0, 0.0, -12.0), 0.5)), BoxVisibility::Occluded, "right behind the wall");
         assert_eq!(q.test(&cube_at(Vec3::new(0.0, 0.0, -30.0), 2.0)), BoxVisibility::Occluded, "far behind the wall");
         // Beside the wall: x beyond its edge at x = 10, still in view at z = −12.
@@ -42,7 +42,7 @@ fn boxes_behind_beside_and_across_the_near_plane() {
         assert_eq!(q.test(&cube_at(Vec3::new(0.0, 0.0, 0.0), 0.5)), BoxVisibility::Visible, "crossing the near plane");
         assert_eq!(q.test(&cube_at(Vec3::new(0.0, 0.0, 5.0), 0.5)), BoxVisibility::OutsideView, "behind the eye");
         assert_eq!(q.test(&Aabb::new(Vec3::NAN, Vec3::NAN)), BoxVisibility::Visible, "NaN box");
-        q.finish(&mut fb).unwrap();
+        q.finish();
     }
     // The occluders were really drawn: the wall covers the middle of the image.
     assert_ne!(fb.ids[(90 * 320 + 160) as usize], 0);
@@ -52,10 +52,10 @@ fn boxes_behind_beside_and_across_the_near_plane() {
 fn a_depth_cleared_buffer_occludes_nothing() {
     let (scene, cam) = wall();
     let mut culler = Culler::new(&scene);
-    let fb = Framebuffer::new(160, 90).unwrap();
+    let mut fb = Framebuffer::new(160, 90).unwrap();
     // Looking away from the wall: nothing is drawn.
     let away = camera_key([0.0; 3], [0.0, 0.0, 1.0], 60.0, 0.1, 100.0).camera(16.0 / 9.0).unwrap();
-    let (_, _, q) = culler.occluder_pass(&away, &fb, &RenderOptions::ids_only()).unwrap();
+    let (_, _, q) = culler.occluder_pass(&away, &mut fb, &RenderOptions::ids_only()).unwrap();
     let mut rng = Rng::new(4);
     let boxes: Vec<Aabb> = (0..2000)
         .map(|_| {
@@ -84,10 +84,10 @@ fn session_pyramid_is_conservative_against_the_depth_buffer() {
     for key in c.layout.street_path(4, 2) {
         let cam = key.camera(w as f32 / h as f32).unwrap();
         // Draw once to get the finished depth buffer, then again to read its pyramid.
-        let (_, _, pass) = culler.occluder_pass(&cam, &fb, &RenderOptions::ids_only()).unwrap();
-        pass.finish(&mut fb).unwrap();
+        let (_, _, pass) = culler.occluder_pass(&cam, &mut fb, &RenderOptions::ids_only()).unwrap();
+        pass.finish();
         let depth = fb.depth.clone();
-        let (_, _, pass) = culler.occluder_pass(&cam, &fb, &RenderOptions::ids_only()).unwrap();
+        let (_, _, pass) = culler.occluder_pass(&cam, &mut fb, &RenderOptions::ids_only()).unwrap();
         let pyramid = pass.pyramid();
         let mut occluded = 0;
         for _ in 0..3000 {
@@ -105,7 +105,7 @@ fn session_pyramid_is_conservative_against_the_depth_buffer() {
             }
         }
         assert!(occluded > 0, "street views must occlude something");
-        pass.finish(&mut fb).unwrap();
+        pass.finish();
     }
 }
 
@@ -136,7 +136,7 @@ fn many_and_batch_answer_like_test() {
     let (scene, cam) = wall();
     let mut culler = Culler::new(&scene);
     let mut fb = Framebuffer::new(320, 180).unwrap();
-    let (_, _, q) = culler.occluder_pass(&cam, &fb, &RenderOptions::ids_only()).unwrap();
+    let (_, _, q) = culler.occluder_pass(&cam, &mut fb, &RenderOptions::ids_only()).unwrap();
     let mut rng = Rng::new(21);
     let boxes: Vec<Aabb> = (0..5000)
         .map(|_| {
@@ -169,7 +169,7 @@ fn many_and_batch_answer_like_test() {
         }
     }
     assert!(counts.iter().all(|&c| c > 300), "visible / occluded / outside: {counts:?}");
-    q.finish(&mut fb).unwrap();
+    q.finish();
 }
 
 /// Skipping occluders hidden by the pyramid as it fills leaves the z-buffer, the IDs and the
@@ -186,9 +186,9 @@ fn skipping_hidden_occluders_changes_nothing() {
         let mut results = Vec::new();
         for skip_hidden in [false, true] {
             let mut fb = Framebuffer::new(320, 180).unwrap();
-            let (cs, _, q) = culler.occluder_pass_with(&camera, &fb, &opts, skip_hidden).unwrap();
+            let (cs, _, q) = culler.occluder_pass_with(&camera, &mut fb, &opts, skip_hidden).unwrap();
             let answers: Vec<_> = queries.iter().map(|b| q.test(b)).collect();
-            q.finish(&mut fb).unwrap();
+            q.finish();
             results.push((fb.depth, fb.ids, answers, cs.triangles_drawn, (cs.clusters_in_frustum, cs.clusters)));
         }
         let (all, skipped) = (&results[0], &results[1]);
@@ -221,9 +221,9 @@ fn the_pipelined_occluder_pass_is_the_same_on_any_thread_count() {
         let mut culler = Culler::new(&scene);
         let mut fb = Framebuffer::new(320, 180).unwrap();
         pool.install(|| {
-            let (cs, _, pass) = culler.occluder_pass(&camera, &fb, &opts).unwrap();
+            let (cs, _, pass) = culler.occluder_pass(&camera, &mut fb, &opts).unwrap();
             assert!(cs.batches > 3, "{threads} threads: {} batches", cs.batches);
-            pass.finish(&mut fb).unwrap();
+            pass.finish();
         });
         frames.push((fb.depth, fb.ids));
     }

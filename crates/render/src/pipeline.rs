@@ -6,16 +6,17 @@
 //! final visible pixel of each position is shaded, from its triangle ID), resolves
 //! supersampling and draws the wireframe; it writes every plane, so the target needs no
 //! clear. An occlusion culler draws batch after batch inside a frame [`Session`]
-//! ([`Renderer::begin`]): the tiles then hold the frame and keep their part of the
-//! z-pyramid up to date, and the frame is written out once at the end
-//! ([`Session::finish`]).
+//! ([`Renderer::begin`]): the tiles then keep their part of the z-pyramid up to date,
+//! each batch writes the tiles it drew through to the framebuffer, and
+//! [`Session::finish`] writes the tiles no batch touched as cleared.
 //!
 //! Stages and their parallelism (rayon; the image is bit-identical for any thread count):
 //! 1. geometry over chunks of the draw list (contiguous, so submission order is kept);
 //! 2. binning of each chunk's triangles to 64×64 tiles (in a session, a triangle behind a
 //!    tile's pyramid is not sent to it), by the same task right after the chunk's setup;
-//! 3. rasterization over tiles, each tile walking the chunks' lists in order, into a
-//!    tile-local buffer copied to the framebuffer afterwards (tiles own their pixels).
+//! 3. rasterization over tiles, each tile walking the chunks' lists in order, in a
+//!    per-worker scratch buffer loaded from the framebuffer (or cleared) before and stored
+//!    back right after (tiles own their pixels).
 //!
 //! All big buffers live in the `Renderer` and are reused from frame to frame.
 
@@ -75,8 +76,9 @@ pub(crate) enum Target<'a> {
     /// Straight into a framebuffer: tiles load its pixels (or, when `fresh`, start from the
     /// clear values because every pixel will be written) and store them back.
     Frame { fb: &'a mut Framebuffer, fresh: bool },
-    /// Into the tiles of an open [`Session`] of this size, depth format and counting mode.
-    Session { width: u32, height: u32, counting: bool, format: DepthFormat },
+    /// Into the tiles of an open [`Session`] on `fb`, in depth format `format`: the tiles
+    /// keep the frame between passes and write what each pass drew through to `fb`.
+    Session { fb: &'a mut Framebuffer, format: DepthFormat },
 }
 
 impl Renderer {
@@ -326,26 +328,22 @@ impl Renderer {
         self.upper.clear(grid.tiles_x, grid.tiles_y);
     }
 
-    /// Writes a session's frame to `fb` (depth, IDs and, when counting, depth tests; tiles
-    /// never drawn into as cleared). Returns the pixels covered (ID ≠ 0).
-    pub(crate) fn store_session(&mut self, fb: &mut Framebuffer, format: DepthFormat) -> u64 {
+    /// Ends a session on `fb`: the tiles drawn into were written through as drawn, the
+    /// others are written as cleared (depth 1, ID 0, no depth tests). Returns the pixels
+    /// covered (ID ≠ 0).
+    pub(crate) fn finish_session(&mut self, fb: &mut Framebuffer, format: DepthFormat) -> u64 {
         let Some(grid) = self.grid else { return 0 };
         for (t, lv) in self.tiles.iter_mut().zip(&self.levels) {
             t.dirty = lv.touched;
         }
-        with_codec!(format, store_all::<_>(&self.tiles, grid.tiles_x as usize, fb))
+        with_codec!(format, clear_untouched::<_>(&self.tiles, grid.tiles_x as usize, fb))
     }
 
-    /// The z-pyramid of a session's frame drawn so far.
-    pub(crate) fn session_pyramid(&self, format: DepthFormat) -> Option<TilePyramid<'_>> {
+    /// The z-pyramid of a session's frame drawn so far, with level 0 from `depth`, the
+    /// session's framebuffer's depth plane.
+    pub(crate) fn session_pyramid<'a>(&'a self, depth: &'a [f32], format: DepthFormat) -> Option<TilePyramid<'a>> {
         let grid = self.grid?;
-        Some(TilePyramid::new(
-            (&self.levels, &self.tiles),
-            grid.tiles_x,
-            (grid.width, grid.height),
-            &self.upper,
-            format,
-        ))
+        Some(TilePyramid::new((&self.levels, depth), grid.tiles_x, (grid.width, grid.height), &self.upper, format))
     }
 
     /// Draws raw clip-space triangles (no scene), triangle `k` with ID `first_id + k`: the
@@ -382,7 +380,7 @@ impl Renderer {
         let mut st = FrameStats::default();
         let (width, height, session) = match &target {
             Target::Frame { fb, .. } => (fb.width(), fb.height(), None),
-            Target::Session { width, height, format, .. } => (*width, *height, Some(*format)),
+            Target::Session { fb, format } => (fb.width(), fb.height(), Some(*format)),
         };
         let vp = Viewport::new(width, height, opts.guard_band);
         let grid = Grid::new(width, height);
@@ -404,16 +402,15 @@ impl Renderer {
         let t = Instant::now();
         let chunks = &self.chunks[..n];
         let fmt = session.unwrap_or(opts.depth_format);
-        let (planes, counting, fresh) = match &mut target {
-            Target::Frame { fb, fresh } => {
-                let counting = fb.depth_tests.is_some();
-                (Some(Planes::new(fb)), counting, *fresh)
-            }
-            Target::Session { counting, .. } => (None, *counting, false),
+        let (fb, fresh) = match &mut target {
+            Target::Frame { fb, fresh } => (&mut **fb, *fresh),
+            Target::Session { fb, .. } => (&mut **fb, false),
         };
-        let pass = TilePass { chunks, target: planes.as_ref(), fresh, counting, session: session.is_some() };
+        let counting = fb.depth_tests.is_some();
+        let planes = Planes::new(fb);
+        let pass = TilePass { chunks, target: &planes, fresh, counting, session: session.is_some() };
         let ts = raster_tiles(&mut self.tiles, &mut self.levels, &pass, fmt, SimdLevel::Auto);
-        if planes.is_none() {
+        if session.is_some() {
             self.upper.update(&self.levels);
         } else if fresh {
             // Only a fresh draw wrote every pixel; after a plain batch the count would include
@@ -498,41 +495,34 @@ impl Renderer {
         self.levels.clear();
         for k in 0..grid.len() {
             let (x0, y0, w, h) = grid.tile_rect(k);
-            self.tiles.push(TileBuf::new(x0, y0, w, h));
+            self.tiles.push(TileBuf::rect(x0, y0, w, h));
             self.levels.push(TileLevels::new(x0, y0, w, h));
         }
         self.grid = Some(grid);
     }
 }
 
-/// Writes every tile to `fb`: the dirty ones from their buffers, the others as cleared
-/// (depth 1, ID 0, no depth tests), so that `fb` needs no clear first. Returns the covered
-/// pixels (ID ≠ 0). `tiles` is the grid's, row by row, `tiles_x` to a row.
-///
-/// One task per row of tiles, writing it pixel row by pixel row across all its tiles: each
-/// plane is then written front to back in whole rows, which the hardware's stream
-/// prefetch follows. Tile by tile, a tile's rows were 256-byte pieces a plane's row apart,
-/// each store waiting for its lines (the default city's street frames: 0.46 → 0.39 ms on
-/// two threads).
-fn store_all<D: DepthCodec>(tiles: &[TileBuf], tiles_x: usize, fb: &mut Framebuffer) -> u64 {
+/// Writes the tiles that are not dirty to `fb` as cleared (depth 1, ID 0, no depth tests),
+/// one task per row of tiles, pixel row by pixel row (each plane written front to back in
+/// runs the hardware's stream prefetch follows); returns the covered pixels of the dirty
+/// ones, counted when they were last written through.
+fn clear_untouched<D: DepthCodec>(tiles: &[TileBuf], tiles_x: usize, fb: &mut Framebuffer) -> u64 {
     let far = D::decode(D::FORMAT.key(1.0));
     let planes = Planes::new(fb);
     tiles
         .par_chunks(tiles_x.max(1))
         .map(|band| {
-            let mut covered = 0;
+            if band.iter().all(|t| t.dirty) {
+                return band.iter().map(|t| t.covered).sum::<u64>();
+            }
             for r in 0..band.first().map_or(0, |t| t.h as usize) {
-                for t in band {
-                    // SAFETY (both): this task is the only one on this row of tiles, whose
+                for t in band.iter().filter(|t| !t.dirty) {
+                    // SAFETY: this task is the only one on this row of tiles, whose
                     // rectangles no other task's tiles share.
-                    if t.dirty {
-                        covered += unsafe { planes.store_row::<D>(t, r) };
-                    } else {
-                        unsafe { planes.clear_row(t, r, far) };
-                    }
+                    unsafe { planes.clear_row(t, r, far) };
                 }
             }
-            covered
+            band.iter().filter(|t| t.dirty).map(|t| t.covered).sum()
         })
         .sum()
 }
@@ -550,6 +540,50 @@ mod tests {
     use super::*;
     use sightline_scene::rng::Rng;
 
+    /// Random clip-space triangles over part of a 200 × 150 screen (tiles cut by its edges,
+    /// tiles no batch draws into).
+    fn batch_of_triangles(rng: &mut Rng) -> Vec<[Vec4; 3]> {
+        (0..40)
+            .map(|_| {
+                let (cx, cy, s) = (rng.range(-1.0, 0.2), rng.range(-1.0, 1.0), rng.range(0.01, 0.4));
+                let z = rng.range(-0.9, 0.9);
+                let mut p = || Vec4::new(cx + rng.range(-s, s), cy + rng.range(-s, s), z + rng.range(-0.1, 0.1), 1.0);
+                [p(), p(), p()]
+            })
+            .collect()
+    }
+
+    /// A session writes its tiles through as it draws and the untouched ones as cleared at
+    /// the end: over a framebuffer full of stale values, the frame equals plain draws of the
+    /// same batches into a cleared one, in every depth format.
+    #[test]
+    fn a_session_over_a_stale_framebuffer_equals_plain_draws() {
+        for format in [DepthFormat::F32, DepthFormat::Unorm24, DepthFormat::Unorm16] {
+            let opts = RenderOptions { backface_culling: false, depth_format: format, ..RenderOptions::ids_only() };
+            let mut rng = Rng::new(11);
+            let batches: Vec<_> = (0..5).map(|_| batch_of_triangles(&mut rng)).collect();
+            // Cleared as the renderer clears: the depth of the far plane's key.
+            let mut plain = Framebuffer::new(200, 150).unwrap();
+            plain.depth.fill(format.depth(format.key(1.0)));
+            let mut r = Renderer::new();
+            for (k, b) in batches.iter().enumerate() {
+                r.draw_clip_triangles(b, 1 + 100 * k as u32, &mut plain, &opts);
+            }
+            let mut fb = Framebuffer::new(200, 150).unwrap();
+            fb.depth.fill(0.25);
+            fb.ids.fill(7);
+            let mut session = r.begin(&mut fb, &opts);
+            for (k, b) in batches.iter().enumerate() {
+                session.draw_clip_triangles(b, 1 + 100 * k as u32);
+            }
+            let covered = session.finish();
+            assert!(fb.ids == plain.ids, "{format:?}: IDs differ");
+            assert!(fb.depth == plain.depth, "{format:?}: depths differ");
+            assert_eq!(covered, fb.ids.iter().filter(|&&i| i != 0).count() as u64, "{format:?}");
+            assert!(fb.ids.contains(&0) && covered > 0, "{format:?}: some tiles drawn, some not");
+        }
+    }
+
     /// The pyramid levels kept up to date block by block during a session equal levels
     /// computed from scratch, on tiles cut by the screen edge too.
     #[test]
@@ -558,26 +592,24 @@ mod tests {
         let mut fb = Framebuffer::new(w, h).unwrap();
         let opts = RenderOptions::ids_only();
         let mut r = Renderer::new();
-        let mut session = r.begin(&fb, &opts);
+        let mut session = r.begin(&mut fb, &opts);
         let mut rng = Rng::new(3);
         for batch in 0..6 {
-            let tris: Vec<[Vec4; 3]> = (0..40)
-                .map(|_| {
-                    let (cx, cy, s) = (rng.range(-1.0, 1.0), rng.range(-1.0, 1.0), rng.range(0.01, 0.4));
-                    let z = rng.range(-0.9, 0.9);
-                    let mut p =
-                        || Vec4::new(cx + rng.range(-s, s), cy + rng.range(-s, s), z + rng.range(-0.1, 0.1), 1.0);
-                    [p(), p(), p()]
-                })
-                .collect();
+            let tris = batch_of_triangles(&mut rng);
             session.draw_clip_triangles(&tris, 1 + batch * 100);
-            let r = session.renderer();
+            let (r, fb) = (session.renderer(), session.framebuffer());
             for (t, lv) in r.tiles.iter().zip(&r.levels).filter(|(_, lv)| lv.touched) {
+                // The tile's keys from the framebuffer it wrote through to, 0 off the screen.
+                let mut keys = vec![0; (crate::tiling::TILE * crate::tiling::TILE) as usize];
+                for (y, x) in (0..t.h).flat_map(|y| (0..t.w).map(move |x| (y, x))) {
+                    let d = fb.depth[fb.index(t.x0 + x, t.y0 + y)];
+                    keys[(y * crate::tiling::TILE + x) as usize] = DepthFormat::F32.key(d);
+                }
                 let mut full = lv.clone();
-                full.compute::<crate::depth::F32>(&t.depth);
+                full.compute::<crate::depth::F32>(&keys);
                 assert_eq!(lv.mips, full.mips, "tile at {},{} after batch {batch}", t.x0, t.y0);
             }
         }
-        session.finish(&mut fb).unwrap();
+        session.finish();
     }
 }

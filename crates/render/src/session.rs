@@ -1,14 +1,20 @@
-//! A frame session: many draw batches into one frame held in the renderer's tiles, with
-//! the z-pyramid of what is drawn so far available between batches — what an occlusion
-//! culler needs (draw the nearest occluders, test the next boxes against their pyramid,
-//! draw what survives, repeat).
+//! A frame session: many draw batches into one frame, with the z-pyramid of what is drawn
+//! so far available between batches — what an occlusion culler needs (draw the nearest
+//! occluders, test the next boxes against their pyramid, draw what survives, repeat).
 //!
-//! The session is a guard: [`Renderer::begin`] returns it, it draws
-//! ([`Session::draw_sources`], [`Session::draw_clip_triangles`]), answers
-//! [`Session::pyramid`], and [`Session::finish`] writes the frame into a framebuffer. While
-//! it lives the renderer can do nothing else; dropped without `finish`, the frame is
-//! abandoned unwritten. The depth format and every other option come from the options
-//! given to `begin`, for every batch.
+//! The session is a guard: [`Renderer::begin`] returns it, borrowing the framebuffer it
+//! draws into; it draws ([`Session::draw_sources`], [`Session::draw_clip_triangles`]),
+//! answers [`Session::pyramid`], and [`Session::finish`] completes the frame. The
+//! renderer's tiles keep the frame's depth and IDs between batches (and the pyramid's
+//! levels over them), and each batch writes the tiles it drew into through to the
+//! framebuffer right after drawing them, while they are in the core's cache; `finish`
+//! writes only the tiles no batch touched, as cleared. (Writing every tile out at the end
+//! instead read the frame's 7.5 MB of tile buffers back from the shared cache: 0.37 ms of
+//! the 1.9 ms the street path's oracle frame took in a session on two threads.) While the
+//! session lives the renderer and the framebuffer can do nothing else; dropped without
+//! `finish`, the framebuffer holds the tiles drawn so far and its other pixels as they
+//! were. The depth format and every other option come from the options given to `begin`,
+//! for every batch.
 
 use glam::Vec4;
 use sightline_scene::Camera;
@@ -16,26 +22,24 @@ use sightline_scene::Camera;
 use crate::hzb::TilePyramid;
 use crate::options::{DrawSource, RenderOptions};
 use crate::pipeline::{Renderer, Target};
-use crate::{Error, FrameStats, Framebuffer, Result};
+use crate::{FrameStats, Framebuffer, Result};
 
-/// An open frame session of a [`Renderer`]; see the module doc.
+/// An open frame session of a [`Renderer`] on a [`Framebuffer`]; see the module doc.
 #[derive(Debug)]
 pub struct Session<'r> {
     renderer: &'r mut Renderer,
+    fb: &'r mut Framebuffer,
     opts: RenderOptions,
-    width: u32,
-    height: u32,
-    counting: bool,
 }
 
 impl Renderer {
-    /// Begins a frame session for a framebuffer like `fb` (its size, and whether it counts
-    /// depth tests), drawing with `opts`. `fb` needs no clear: [`Session::finish`] writes
-    /// every pixel.
-    pub fn begin(&mut self, fb: &Framebuffer, opts: &RenderOptions) -> Session<'_> {
-        let (width, height) = (fb.width(), fb.height());
-        self.start_session(width, height);
-        Session { renderer: self, opts: *opts, width, height, counting: fb.depth_tests.is_some() }
+    /// Begins a frame session drawing into `fb` (its size, and whether it counts depth
+    /// tests) with `opts`. `fb` needs no clear: by [`Session::finish`] every pixel's depth
+    /// and ID (and depth-test count when counting) is written; its colors are left as they
+    /// were.
+    pub fn begin<'r>(&'r mut self, fb: &'r mut Framebuffer, opts: &RenderOptions) -> Session<'r> {
+        self.start_session(fb.width(), fb.height());
+        Session { renderer: self, fb, opts: *opts }
     }
 }
 
@@ -45,13 +49,9 @@ impl<'r> Session<'r> {
         &self.opts
     }
 
-    fn target(&self) -> Target<'static> {
-        Target::Session {
-            width: self.width,
-            height: self.height,
-            counting: self.counting,
-            format: self.opts.depth_format,
-        }
+    /// The session's framebuffer size: (width, height).
+    pub fn size(&self) -> (u32, u32) {
+        (self.fb.width(), self.fb.height())
     }
 
     /// Draws triangle ranges of indexed geometry into the session's frame, in order, like
@@ -68,44 +68,41 @@ impl<'r> Session<'r> {
         camera: &Camera,
         check_indices: bool,
     ) -> Result<FrameStats> {
-        let target = self.target();
-        self.renderer.draw_sources_to(sources, camera, target, &self.opts, check_indices)
+        let opts = self.opts;
+        let target = Target::Session { fb: &mut *self.fb, format: opts.depth_format };
+        self.renderer.draw_sources_to(sources, camera, target, &opts, check_indices)
     }
 
     /// Draws raw clip-space triangles into the session's frame, triangle `k` with ID
     /// `first_id + k`, like [`Renderer::draw_clip_triangles`].
     pub fn draw_clip_triangles(&mut self, triangles: &[[Vec4; 3]], first_id: u32) -> FrameStats {
-        let target = self.target();
-        self.renderer.draw_clip_to(triangles, first_id, target, &self.opts)
+        let opts = self.opts;
+        let target = Target::Session { fb: &mut *self.fb, format: opts.depth_format };
+        self.renderer.draw_clip_to(triangles, first_id, target, &opts)
     }
 
     /// The z-pyramid of the frame drawn so far.
     pub fn pyramid(&self) -> TilePyramid<'_> {
-        self.renderer.session_pyramid(self.opts.depth_format).expect("a session has its tile grid from `begin`")
+        let depth = &self.fb.depth;
+        self.renderer.session_pyramid(depth, self.opts.depth_format).expect("a session has its tile grid from `begin`")
     }
 
-    /// Ends the session: the frame's depth, IDs (and depth-test counts when counting) go to
-    /// `fb`, every pixel of it; its colors are left as they were. Returns the pixels covered
-    /// (ID ≠ 0). `fb` must have the size the session began with.
-    pub fn finish(self, fb: &mut Framebuffer) -> Result<u64> {
-        if (fb.width(), fb.height()) != (self.width, self.height) {
-            return Err(Error::InvalidDraw(format!(
-                "a session begun for {}x{} cannot finish into a {}x{} framebuffer",
-                self.width,
-                self.height,
-                fb.width(),
-                fb.height()
-            )));
-        }
-        if fb.depth_tests.is_some() != self.counting {
-            fb.count_depth_tests(self.counting);
-        }
-        Ok(self.renderer.store_session(fb, self.opts.depth_format))
+    /// Ends the session: the framebuffer's pixels no batch drew into are written as
+    /// cleared (depth 1, ID 0, no depth tests), the others hold what the batches drew.
+    /// Returns the pixels covered (ID ≠ 0).
+    pub fn finish(self) -> u64 {
+        self.renderer.finish_session(self.fb, self.opts.depth_format)
     }
 
     /// The renderer, for tests that look at its tiles.
     #[cfg(test)]
     pub(crate) fn renderer(&self) -> &Renderer {
         self.renderer
+    }
+
+    /// The framebuffer, for tests that look at what the tiles wrote through.
+    #[cfg(test)]
+    pub(crate) fn framebuffer(&self) -> &Framebuffer {
+        self.fb
     }
 }

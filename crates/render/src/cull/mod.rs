@@ -425,7 +425,7 @@ impl Culler {
                 },
             );
             self.c.two_pass = two;
-            f.fs.covered_pixels = session.finish(fb)?;
+            f.fs.covered_pixels = session.finish();
             r?;
         }
         let Frame { mut cs, mut fs, .. } = f;
@@ -456,14 +456,14 @@ impl Culler {
 
     /// Draws every cluster in the view frustum as occluders (depth and IDs; back faces as
     /// `opts` says) into a frame session, and returns it as an [`OccluderPass`] that
-    /// answers box queries against the resulting pyramid; [`OccluderPass::finish`] writes
-    /// the frame to a framebuffer.
-    pub fn occluder_pass(
-        &mut self,
+    /// answers box queries against the resulting pyramid; the pass draws into `fb`, and
+    /// [`OccluderPass::finish`] completes its depth and IDs.
+    pub fn occluder_pass<'c>(
+        &'c mut self,
         camera: &Camera,
-        fb: &Framebuffer,
+        fb: &'c mut Framebuffer,
         opts: &RenderOptions,
-    ) -> Result<(CullStats, FrameStats, OccluderPass<'_>)> {
+    ) -> Result<(CullStats, FrameStats, OccluderPass<'c>)> {
         self.occluder_pass_with(camera, fb, opts, false)
     }
 
@@ -471,17 +471,18 @@ impl Culler {
     /// the pyramid as it fills (BVH nodes and clusters, as in [`Method::HzbOnePass`]) and the
     /// hidden ones skipped. Hidden occluders cannot change a depth, so the z-buffer, IDs and
     /// pyramid are the same bit for bit, for far less work in deep scenes.
-    pub fn occluder_pass_with(
-        &mut self,
+    pub fn occluder_pass_with<'c>(
+        &'c mut self,
         camera: &Camera,
-        fb: &Framebuffer,
+        fb: &'c mut Framebuffer,
         opts: &RenderOptions,
         skip_hidden: bool,
-    ) -> Result<(CullStats, FrameStats, OccluderPass<'_>)> {
+    ) -> Result<(CullStats, FrameStats, OccluderPass<'c>)> {
         let t0 = Instant::now();
         let cs = CullStats { clusters: self.c.clustered.item_count() as u64, ..Default::default() };
         let frustum = Frustum::from_camera(camera);
         let batching = self.batching(skip_hidden);
+        let projector = self.c.projector(camera, fb.width(), fb.height());
         let c = &self.c;
         let mut session = self.renderer.begin(fb, opts);
         // Front to back in growing batches, so that the coarse depth test of the rasterizer
@@ -510,7 +511,6 @@ impl Culler {
         cs.ms_draw = ms_since(t0);
         cs.ms_total = cs.ms_draw;
         cs.culled_by_occlusion = cs.clusters_in_frustum.saturating_sub(cs.clusters_drawn + cs.culled_by_backface);
-        let projector = self.c.projector(camera, fb.width(), fb.height());
         Ok((cs, fs, OccluderPass { session, projector }))
     }
 }
@@ -549,9 +549,9 @@ impl OccluderPass<'_> {
         self.queries().test_batch(boxes, out)
     }
 
-    /// Ends the pass: the occluders' depth and IDs go to `fb` (its colors are left as they
-    /// were). Returns the pixels covered.
-    pub fn finish(self, fb: &mut Framebuffer) -> Result<u64> {
-        self.session.finish(fb)
+    /// Ends the pass: the framebuffer holds the occluders' depth and IDs (its colors are
+    /// left as they were). Returns the pixels covered.
+    pub fn finish(self) -> u64 {
+        self.session.finish()
     }
 }

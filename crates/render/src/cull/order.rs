@@ -87,7 +87,7 @@ impl Culler {
                 f.fs.add(&session.draw_sources_checked(&sources, camera, false)?);
                 f.cs.batches += 1;
             }
-            f.fs.covered_pixels = session.finish(fb)?;
+            f.fs.covered_pixels = session.finish();
         } else {
             let sources = self.c.sources(&items, |x| x.1, &mut f.cs);
             let target = Target::Frame { fb: &mut *fb, fresh: false };

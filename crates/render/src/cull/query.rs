@@ -7,7 +7,7 @@
 //! an [`OccluderPass`](super::OccluderPass); [`OcclusionQueries::test`],
 //! [`OcclusionQueries::test_many`] (one thread) or [`OcclusionQueries::test_batch`] (all
 //! threads) answer box queries; then
-//! [`OccluderPass::finish`](super::OccluderPass::finish) writes the frame out.
+//! [`OccluderPass::finish`](super::OccluderPass::finish) completes the frame.
 //!
 //! A query is two steps: [`BoxProjector`] turns the box into a conservative pixel rectangle
 //! and nearest depth (or "outside", or "crosses the near plane": visible), then

@@ -16,20 +16,20 @@
 
 use super::tile::{CLEARED, OFFSETS};
 use super::{Level, Rect, TileLevels, UpperLevels};
-use crate::raster::TileBuf;
-use crate::tiling::{TILE, TILE_SHIFT};
+use crate::tiling::TILE_SHIFT;
 
-/// The z-pyramid of a frame session, read straight from the renderer's tiles: level 0 is the
-/// tiles' depth keys, levels 1..=6 live in each 64 × 64 tile (computed in the tile's own
+/// The z-pyramid of a frame session, read straight from the renderer's tiles and the
+/// session's framebuffer: level 0 is the framebuffer's depth plane (tiles write through to
+/// it as they are drawn), levels 1..=6 live in each 64 × 64 tile (computed in the tile's own
 /// raster task, right after it drew), levels 6 and up over the tile grid. A query starts
 /// where [`DepthPyramid`](super::DepthPyramid) would (but never below level 1) and refines
 /// the texels that do not occlude, so it calls occluded everything that one does, and more.
 #[derive(Debug, Clone, Copy)]
 pub struct TilePyramid<'a> {
     tiles: &'a [TileLevels],
-    /// The tiles' depth keys (level 0), read where a level-1 texel cannot decide.
-    pixels: &'a [TileBuf],
-    format: crate::DepthFormat,
+    /// The framebuffer's depth plane (level 0, row-major, `width` to a row), read where a
+    /// level-1 texel cannot decide.
+    pixels: &'a [f32],
     tiles_x: u32,
     width: u32,
     height: u32,
@@ -41,13 +41,13 @@ pub struct TilePyramid<'a> {
 
 impl<'a> TilePyramid<'a> {
     pub(crate) fn new(
-        (tiles, pixels): (&'a [TileLevels], &'a [TileBuf]),
+        (tiles, pixels): (&'a [TileLevels], &'a [f32]),
         tiles_x: u32,
         (width, height): (u32, u32),
         upper: &'a UpperLevels,
         format: crate::DepthFormat,
     ) -> Self {
-        Self { tiles, pixels, format, tiles_x, width, height, upper: &upper.levels, margin: format.tie_margin() }
+        Self { tiles, pixels, tiles_x, width, height, upper: &upper.levels, margin: format.tie_margin() }
     }
 
     /// Screen width.
@@ -79,16 +79,15 @@ impl<'a> TilePyramid<'a> {
         }
     }
 
-    /// The depth of pixel (x, y): its key in its tile, decoded (1.0 in a tile not drawn into
-    /// this session, whose keys are stale).
+    /// The depth of pixel (x, y) (1.0 in a tile not drawn into this session, whose pixels
+    /// in the framebuffer are stale).
     #[inline(always)]
     fn pixel(&self, x: u32, y: u32) -> f32 {
         let t = ((y >> TILE_SHIFT) * self.tiles_x + (x >> TILE_SHIFT)) as usize;
         if !self.tiles[t].touched {
             return 1.0;
         }
-        let low = TILE - 1;
-        self.format.depth(self.pixels[t].depth[(((y & low) << TILE_SHIFT) | (x & low)) as usize])
+        self.pixels[(y * self.width + x) as usize]
     }
 
     /// [`TilePyramid::texel`] for a level below 6. Branch-free: the texel of an untouched
@@ -230,10 +229,10 @@ mod tests {
         let mut fb = Framebuffer::new(W, H).unwrap();
         let mut renderer = Renderer::new();
         let opts = RenderOptions { backface_culling: false, depth_format: fmt, ..RenderOptions::ids_only() };
-        let mut session = renderer.begin(&fb, &opts);
+        let mut session = renderer.begin(&mut fb, &opts);
         session.draw_clip_triangles(&random_triangles(rng), 1);
         let answers = ask(&session.pyramid(), rng);
-        session.finish(&mut fb).unwrap();
+        session.finish();
         (answers, fb)
     }
 

@@ -37,7 +37,7 @@ use crate::depth::{with_codec, DepthCodec, DepthFormat};
 use crate::edge::{edges, wide_block, BlockSetup, Edge, FastEdges, Tri};
 use crate::geometry::Chunk;
 use crate::hzb::TileLevels;
-use crate::tiling::{BLOCK, TILE_SHIFT};
+use crate::tiling::{BLOCK, TILE, TILE_SHIFT};
 pub(crate) use kernel::{Avx2, Avx512, Kernel, Rows};
 pub(crate) use store::Planes;
 pub(crate) use tile::TileBuf;
@@ -175,9 +175,10 @@ impl TileStats {
 pub(crate) struct TilePass<'a> {
     /// The binned chunks, in submission order.
     pub chunks: &'a [Chunk],
-    /// Outside sessions: the target each tile loads its pixels from before drawing (unless
-    /// `fresh`) and stores them to right after.
-    pub target: Option<&'a Planes<'a>>,
+    /// The target: outside sessions each tile loads its pixels from it before drawing
+    /// (unless `fresh`) and stores them to it right after; in a session each tile drawn
+    /// into is stored to it right after drawing (written through).
+    pub target: &'a Planes<'a>,
     /// The target is overwritten whole: tiles start from the clear values, and tiles with
     /// nothing to draw are stored as cleared.
     pub fresh: bool,
@@ -260,7 +261,7 @@ fn tiles_in<D: DepthCodec>(
     // [`crate::claim`]. A tile with nothing binned needs work only when a fresh target is
     // cleared through it; otherwise it is settled here, so that the many small batches of
     // an occlusion pass hand out only the few tiles they touch.
-    let clears = pass.fresh && pass.target.is_some();
+    let clears = pass.fresh;
     let mut order: Vec<(usize, usize, (&mut TileBuf, &mut TileLevels))> = Vec::with_capacity(tiles.len());
     for (i, (tile, lv)) in tiles.iter_mut().zip(levels.iter_mut()).enumerate() {
         let cost = pass.chunks.iter().map(|c| c.bins[i].len()).sum::<usize>();
@@ -271,29 +272,28 @@ fn tiles_in<D: DepthCodec>(
         }
     }
     order.sort_unstable_by_key(|&(c, i, _)| (std::cmp::Reverse(c), i));
-    // Outside sessions a tile's pixels live in the target between passes, so the tile is
-    // drawn in one scratch buffer per worker: it stays in the core's cache, where the 240
-    // tile buffers of a frame would be cleared and read back from the shared cache.
-    let scratch = !pass.session && pass.target.is_some();
+    // A tile's pixels live in the target between passes (in a session too: tiles write
+    // through), so every tile is drawn in one scratch buffer per worker: it stays in the
+    // core's cache, where the 240 tile buffers of a frame would be cleared and read back
+    // from the shared cache.
     let workers = for_each_claimed(
         order,
-        || (TileStats::default(), scratch.then(|| TileBuf::new(0, 0, 0, 0))),
-        |(sum, buf), (_, i, (tile, lv))| {
-            let st = match buf {
-                Some(s) => {
-                    (s.x0, s.y0, s.w, s.h, s.dirty) = (tile.x0, tile.y0, tile.w, tile.h, tile.dirty);
-                    f(s, lv, i, pass)
-                }
-                None => f(tile, lv, i, pass),
-            };
+        || (TileStats::default(), TileBuf::new(0, 0, 0, 0)),
+        |(sum, s), (_, i, (tile, lv))| {
+            (s.x0, s.y0, s.w, s.h, s.dirty) = (tile.x0, tile.y0, tile.w, tile.h, tile.dirty);
+            let st = f(s, lv, i, pass);
+            if pass.session && tile.dirty {
+                tile.covered = st.covered;
+            }
             *sum = TileStats::sum(*sum, st);
         },
     );
     workers.into_iter().fold(TileStats::default(), |a, (b, _)| TileStats::sum(a, b))
 }
 
-/// One tile of the tile stage: in a session, clear on first use and keep the pyramid
-/// levels; otherwise start from the clear values (fresh) or load the target's pixels.
+/// One tile of the tile stage, drawn in the scratch buffer `tile`: start from the clear
+/// values (a fresh target, or a session's first use of the tile) or load the target's
+/// pixels, draw, store back. In a session the tile also keeps its pyramid levels.
 /// `tile.dirty` says whether anything is binned to it ([`tiles_in`] sets it).
 ///
 /// # Safety
@@ -306,47 +306,49 @@ unsafe fn raster_tile<D: DepthCodec, const C: bool, K: Kernel>(
     pass: &TilePass,
 ) -> TileStats {
     let mut st = TileStats::default();
+    let out = pass.target;
     if !tile.dirty {
-        if let (Some(out), true) = (pass.target, pass.fresh) {
+        if pass.fresh {
             // SAFETY: this task is the only one on tile `index`, whose rectangle no other
             // tile shares.
             unsafe { out.clear(tile, D::decode(D::FORMAT.key(1.0))) };
         }
         return st;
     }
+    out.prefetch(tile);
     if pass.session {
-        // The tile holds the frame: clear it on first use, never load or store here.
-        if !lv.touched {
+        // The pyramid's max reads the whole 64 × 64 buffer: pixels off the screen hold 0.
+        let partial = tile.w < TILE || tile.h < TILE;
+        if !lv.touched || partial {
             tile.clear_for_session::<D>(C);
+        }
+        if !lv.touched {
             lv.clear::<D>();
+        } else {
+            // SAFETY: as above, the tile's rectangle is this task's alone.
+            unsafe { out.load::<D>(tile, C) };
         }
         // SAFETY: forwarded from the caller.
         unsafe { raster_bins::<D, C, true, K>(tile, lv, index, pass.chunks, &mut st) };
         lv.update::<D>(&tile.depth);
-        return st;
-    }
-    if let Some(out) = pass.target {
-        out.prefetch(tile);
-    }
-    // Start from the clear values on a fresh target; otherwise load the tile's pixels
-    // (earlier batches may have drawn here).
-    match pass.target {
-        // SAFETY: as above, the tile's rectangle is this task's alone.
-        Some(out) if !pass.fresh => unsafe { out.load::<D>(tile, C) },
-        _ => {
+    } else {
+        // Start from the clear values on a fresh target; otherwise load the tile's pixels
+        // (earlier batches may have drawn here).
+        if pass.fresh {
             tile.depth.fill(D::FORMAT.key(1.0));
             tile.ids.fill(0);
             if C {
                 tile.counts.fill(0); // only read and written when counting
             }
+        } else {
+            // SAFETY: as above.
+            unsafe { out.load::<D>(tile, C) };
         }
+        // SAFETY: forwarded from the caller.
+        unsafe { raster_bins::<D, C, false, K>(tile, lv, index, pass.chunks, &mut st) };
     }
-    // SAFETY: forwarded from the caller.
-    unsafe { raster_bins::<D, C, false, K>(tile, lv, index, pass.chunks, &mut st) };
-    if let Some(out) = pass.target {
-        // SAFETY: as above.
-        st.covered = unsafe { out.store::<D>(tile) };
-    }
+    // SAFETY: as above.
+    st.covered = unsafe { out.store::<D>(tile) };
     st
 }
 

@@ -8,7 +8,9 @@ use crate::tiling::TILE;
 /// may read and rewrite (unchanged) entries past a row's end.
 pub(crate) const PAD: usize = 8;
 
-/// One tile's depth keys, IDs and depth-test counts (row stride [`TILE`]).
+/// One tile's depth keys, IDs and depth-test counts (row stride [`TILE`]): the scratch
+/// buffer a worker draws tiles in, or (without pixel buffers) the record of one tile of
+/// the screen.
 #[derive(Debug, Clone)]
 pub(crate) struct TileBuf {
     /// Left pixel column.
@@ -27,13 +29,20 @@ pub(crate) struct TileBuf {
     pub counts: Vec<u32>,
     /// Whether the tile received triangles in the current pass.
     pub dirty: bool,
+    /// In a frame session: the covered pixels (ID ≠ 0) when the tile was last stored.
+    pub covered: u64,
 }
 
 impl TileBuf {
-    /// An empty tile at pixel (x0, y0) of size w × h.
+    /// The record of the tile at pixel (x0, y0) of size w × h: no pixel buffers.
+    pub(crate) fn rect(x0: u32, y0: u32, w: u32, h: u32) -> Self {
+        Self { x0, y0, w, h, depth: Vec::new(), ids: Vec::new(), counts: Vec::new(), dirty: false, covered: 0 }
+    }
+
+    /// A scratch tile at pixel (x0, y0) of size w × h, with pixel buffers.
     pub(crate) fn new(x0: u32, y0: u32, w: u32, h: u32) -> Self {
         let n = (TILE * TILE) as usize + PAD;
-        Self { x0, y0, w, h, depth: vec![0; n], ids: vec![0; n], counts: vec![0; n], dirty: false }
+        Self { x0, y0, w, h, depth: vec![0; n], ids: vec![0; n], counts: vec![0; n], dirty: false, covered: 0 }
     }
 
     /// Clears the tile for a frame session in depth format `D`: the far plane's key inside
