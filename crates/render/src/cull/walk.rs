@@ -7,7 +7,9 @@ use std::time::Instant;
 
 use glam::Affine3A;
 use sightline_scene::Camera;
-use sightline_spatial::{prefetch, Containment, CullOptions, FrontToBackCursor, Frustum, OctreeCursor, Visible};
+use sightline_spatial::{
+    prefetch, AabbExt, Containment, CullOptions, FrontToBackCursor, Frustum, OctreeCursor, Visible,
+};
 
 use super::{ClusterDraw, Clusters, CullStats, OcclusionQueries, PREFETCH_AHEAD};
 use crate::awake::join_helping;
@@ -319,6 +321,14 @@ impl Clusters {
             // Not counted here: the walk meets them again and counts them once.
             first.retain(|&i| !self.faces_away(i, eye));
         }
+        // Front to back (by the distance from the eye to each box): the rasterizer's coarse
+        // depth then skips the blocks and the binning the triangles that nearer clusters of
+        // the same batch already hide. The set keeps the order it was found in otherwise,
+        // which goes stale as the camera moves.
+        let mut keyed: Vec<(f32, u32)> = first.iter().map(|&i| (boxes[i as usize].distance_squared(eye), i)).collect();
+        keyed.sort_unstable_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
+        first.clear();
+        first.extend(keyed.iter().map(|k| k.1));
         for &i in &first {
             two.drawn_in[i as usize] = frame;
         }
