@@ -59,8 +59,8 @@ fn boxfield_1thread(c: &mut Criterion) {
     let opts = RenderOptions::ids_only();
     let mut g = c.benchmark_group("boxfield_1thread");
     g.sample_size(20).measurement_time(Duration::from_secs(4)).warm_up_time(Duration::from_secs(1));
-    // Times the occluder pass of `culler` alone (finishing it, which writes the frame out,
-    // is not part of it).
+    // Times the occluder pass of `culler` alone (finishing it, which writes the tiles no
+    // batch drew into as cleared, is not part of it).
     let mut time_pass = |name: &str, culler: &mut Culler, skip_hidden: bool| {
         g.bench_function(name, |b| {
             b.iter_custom(|n| {

@@ -76,8 +76,8 @@ pub(crate) enum Target<'a> {
     /// Straight into a framebuffer: tiles load its pixels (or, when `fresh`, start from the
     /// clear values because every pixel will be written) and store them back.
     Frame { fb: &'a mut Framebuffer, fresh: bool },
-    /// Into the tiles of an open [`Session`] on `fb`, in depth format `format`: the tiles
-    /// keep the frame between passes and write what each pass drew through to `fb`.
+    /// Into an open [`Session`] on `fb`, in depth format `format`: tiles load from and store
+    /// to `fb` as in a plain frame (cleared on first use), and keep their pyramid levels.
     Session { fb: &'a mut Framebuffer, format: DepthFormat },
 }
 
@@ -333,10 +333,7 @@ impl Renderer {
     /// covered (ID ≠ 0).
     pub(crate) fn finish_session(&mut self, fb: &mut Framebuffer, format: DepthFormat) -> u64 {
         let Some(grid) = self.grid else { return 0 };
-        for (t, lv) in self.tiles.iter_mut().zip(&self.levels) {
-            t.dirty = lv.touched;
-        }
-        with_codec!(format, clear_untouched::<_>(&self.tiles, grid.tiles_x as usize, fb))
+        with_codec!(format, clear_untouched::<_>((&self.tiles, &self.levels), grid.tiles_x as usize, fb))
     }
 
     /// The z-pyramid of a session's frame drawn so far, with level 0 from `depth`, the
@@ -502,27 +499,36 @@ impl Renderer {
     }
 }
 
-/// Writes the tiles that are not dirty to `fb` as cleared (depth 1, ID 0, no depth tests),
-/// one task per row of tiles, pixel row by pixel row (each plane written front to back in
-/// runs the hardware's stream prefetch follows); returns the covered pixels of the dirty
-/// ones, counted when they were last written through.
-fn clear_untouched<D: DepthCodec>(tiles: &[TileBuf], tiles_x: usize, fb: &mut Framebuffer) -> u64 {
+/// Writes the tiles no batch of the session touched to `fb` as cleared (depth 1, ID 0, no
+/// depth tests), one task per row of tiles, pixel row by pixel row (each plane written front
+/// to back in runs the hardware's stream prefetch follows); returns the covered pixels of
+/// the touched ones, counted when they were last written through.
+fn clear_untouched<D: DepthCodec>(
+    (tiles, levels): (&[TileBuf], &[TileLevels]),
+    tiles_x: usize,
+    fb: &mut Framebuffer,
+) -> u64 {
     let far = D::decode(D::FORMAT.key(1.0));
     let planes = Planes::new(fb);
+    let n = tiles_x.max(1);
     tiles
-        .par_chunks(tiles_x.max(1))
-        .map(|band| {
-            if band.iter().all(|t| t.dirty) {
-                return band.iter().map(|t| t.covered).sum::<u64>();
+        .par_chunks(n)
+        .zip(levels.par_chunks(n))
+        .map(|(band, lv)| {
+            let mut covered = 0;
+            for (t, _) in band.iter().zip(lv).filter(|(_, l)| l.touched) {
+                covered += t.covered;
             }
-            for r in 0..band.first().map_or(0, |t| t.h as usize) {
-                for t in band.iter().filter(|t| !t.dirty) {
-                    // SAFETY: this task is the only one on this row of tiles, whose
-                    // rectangles no other task's tiles share.
-                    unsafe { planes.clear_row(t, r, far) };
+            if lv.iter().any(|l| !l.touched) {
+                for r in 0..band.first().map_or(0, |t| t.h as usize) {
+                    for (t, _) in band.iter().zip(lv).filter(|(_, l)| !l.touched) {
+                        // SAFETY: this task is the only one on this row of tiles, whose
+                        // rectangles no other task's tiles share.
+                        unsafe { planes.clear_row(t, r, far) };
+                    }
                 }
             }
-            band.iter().filter(|t| t.dirty).map(|t| t.covered).sum()
+            covered
         })
         .sum()
 }
@@ -540,12 +546,12 @@ mod tests {
     use super::*;
     use sightline_scene::rng::Rng;
 
-    /// Random clip-space triangles over part of a 200 × 150 screen (tiles cut by its edges,
-    /// tiles no batch draws into).
-    fn batch_of_triangles(rng: &mut Rng) -> Vec<[Vec4; 3]> {
+    /// Random clip-space triangles centered at NDC x in `[-1, x1]` on a 200 × 150 screen
+    /// (tiles cut by its edges; with `x1` well below 1, tiles no batch draws into).
+    fn batch_of_triangles(rng: &mut Rng, x1: f32) -> Vec<[Vec4; 3]> {
         (0..40)
             .map(|_| {
-                let (cx, cy, s) = (rng.range(-1.0, 0.2), rng.range(-1.0, 1.0), rng.range(0.01, 0.4));
+                let (cx, cy, s) = (rng.range(-1.0, x1), rng.range(-1.0, 1.0), rng.range(0.01, 0.4));
                 let z = rng.range(-0.9, 0.9);
                 let mut p = || Vec4::new(cx + rng.range(-s, s), cy + rng.range(-s, s), z + rng.range(-0.1, 0.1), 1.0);
                 [p(), p(), p()]
@@ -561,7 +567,7 @@ mod tests {
         for format in [DepthFormat::F32, DepthFormat::Unorm24, DepthFormat::Unorm16] {
             let opts = RenderOptions { backface_culling: false, depth_format: format, ..RenderOptions::ids_only() };
             let mut rng = Rng::new(11);
-            let batches: Vec<_> = (0..5).map(|_| batch_of_triangles(&mut rng)).collect();
+            let batches: Vec<_> = (0..5).map(|_| batch_of_triangles(&mut rng, 0.2)).collect();
             // Cleared as the renderer clears: the depth of the far plane's key.
             let mut plain = Framebuffer::new(200, 150).unwrap();
             plain.depth.fill(format.depth(format.key(1.0)));
@@ -595,7 +601,7 @@ mod tests {
         let mut session = r.begin(&mut fb, &opts);
         let mut rng = Rng::new(3);
         for batch in 0..6 {
-            let tris = batch_of_triangles(&mut rng);
+            let tris = batch_of_triangles(&mut rng, 1.0);
             session.draw_clip_triangles(&tris, 1 + batch * 100);
             let (r, fb) = (session.renderer(), session.framebuffer());
             for (t, lv) in r.tiles.iter().zip(&r.levels).filter(|(_, lv)| lv.touched) {

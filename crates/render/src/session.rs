@@ -5,10 +5,11 @@
 //! The session is a guard: [`Renderer::begin`] returns it, borrowing the framebuffer it
 //! draws into; it draws ([`Session::draw_sources`], [`Session::draw_clip_triangles`]),
 //! answers [`Session::pyramid`], and [`Session::finish`] completes the frame. The
-//! renderer's tiles keep the frame's depth and IDs between batches (and the pyramid's
-//! levels over them), and each batch writes the tiles it drew into through to the
-//! framebuffer right after drawing them, while they are in the core's cache; `finish`
-//! writes only the tiles no batch touched, as cleared. (Writing every tile out at the end
+//! framebuffer holds the frame's depth and IDs between batches and the renderer's tiles
+//! the pyramid's levels over them: each batch draws a tile in a worker's scratch buffer
+//! (cleared on the tile's first use, else loaded from the framebuffer) and writes it back
+//! right after, while it is in the core's cache; `finish` writes only the tiles no batch
+//! touched, as cleared. (Writing every tile out at the end
 //! instead read the frame's 7.5 MB of tile buffers back from the shared cache: 0.37 ms of
 //! the 1.9 ms the street path's oracle frame took in a session on two threads.) While the
 //! session lives the renderer and the framebuffer can do nothing else; dropped without

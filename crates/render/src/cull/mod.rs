@@ -15,7 +15,7 @@
 //!   in first) and double.
 //! * [`Method::Hzb`]: the same walk in the two-pass form GPU engines use to exploit
 //!   temporal coherence: last frame's visible clusters (still in the frustum) are drawn
-//!   first, in one batch, as occluders; the walk then tests everything else against that
+//!   first, in one batch, front to back, as occluders; the walk then tests everything else against that
 //!   pyramid, in big batches; at the end last frame's clusters are tested again, and those
 //!   still visible join this frame's newly drawn ones as the next frame's set. Without a
 //!   last frame (or after a cut) it is the one-pass walk. On the street path it needs two
@@ -456,8 +456,10 @@ impl Culler {
 
     /// Draws every cluster in the view frustum as occluders (depth and IDs; back faces as
     /// `opts` says) into a frame session, and returns it as an [`OccluderPass`] that
-    /// answers box queries against the resulting pyramid; the pass draws into `fb`, and
-    /// [`OccluderPass::finish`] completes its depth and IDs.
+    /// answers box queries against the resulting pyramid. The pass draws into `fb` (its
+    /// depth and IDs, and depth-test counts when `fb` counts them), which stays borrowed
+    /// while the pass lives; [`OccluderPass::finish`] writes the pixels no occluder reached
+    /// as cleared. Dropped without `finish`, those pixels keep what `fb` held before.
     pub fn occluder_pass<'c>(
         &'c mut self,
         camera: &Camera,
@@ -549,8 +551,9 @@ impl OccluderPass<'_> {
         self.queries().test_batch(boxes, out)
     }
 
-    /// Ends the pass: the framebuffer holds the occluders' depth and IDs (its colors are
-    /// left as they were). Returns the pixels covered.
+    /// Ends the pass: the framebuffer holds the occluders' depth and IDs (and depth-test
+    /// counts when it counts them; its colors are left as they were). Returns the pixels
+    /// covered.
     pub fn finish(self) -> u64 {
         self.session.finish()
     }

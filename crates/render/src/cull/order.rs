@@ -42,7 +42,8 @@ impl Culler {
     /// batches of `batch` clusters inside a frame session, so the rasterizer's coarse depth
     /// test (tile pyramid refreshed after each batch) can reject hidden triangles and blocks;
     /// without, it draws everything in one plain z-buffer pass. The image is the same either
-    /// way (the depth test's tie rule makes it independent of order).
+    /// way (the depth test's tie rule makes it independent of order). After an error `fb`
+    /// may hold part of the frame.
     #[allow(clippy::too_many_arguments)] // an experiment's knobs
     pub fn render_ordered(
         &mut self,

@@ -322,8 +322,7 @@ impl Clusters {
             first.retain(|&i| !self.faces_away(i, eye));
         }
         // Front to back (by the distance from the eye to each box): the rasterizer's coarse
-        // depth then skips the blocks and the binning the triangles that nearer clusters of
-        // the same batch already hide. The set keeps the order it was found in otherwise,
+        // depth then skips the 8×8 blocks that nearer clusters of the same batch already hide. The set keeps the order it was found in otherwise,
         // which goes stale as the camera moves.
         let mut keyed: Vec<(f32, u32)> = first.iter().map(|&i| (boxes[i as usize].distance_squared(eye), i)).collect();
         keyed.sort_unstable_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));

@@ -1,6 +1,6 @@
 //! [`TilePyramid`]: box queries against a frame session's z-pyramid, read straight from
-//! the rasterizer's tiles ([`TileLevels`], and their depth keys as level 0) and the levels
-//! above them ([`UpperLevels`]).
+//! the rasterizer's tiles ([`TileLevels`]), the levels above them ([`UpperLevels`]) and, as
+//! level 0, the session's framebuffer depth (its tiles write through as they draw).
 //!
 //! A query first makes Greene's 2 × 2 test on the small grid of levels ≥ 6 over the tiles: a
 //! coarser texel is the max of the finer ones below it, so when that test says occluded the

@@ -184,7 +184,8 @@ pub(crate) struct TilePass<'a> {
     pub fresh: bool,
     /// Depth tests are counted per pixel.
     pub counting: bool,
-    /// Inside a frame session: tiles hold the frame and keep their pyramid levels.
+    /// Inside a frame session: tiles start cleared on their first use in the session and
+    /// keep their pyramid levels.
     pub session: bool,
 }
 
