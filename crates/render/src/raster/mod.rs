@@ -39,7 +39,7 @@ use crate::geometry::Chunk;
 use crate::hzb::TileLevels;
 use crate::tiling::{BLOCK, TILE, TILE_SHIFT};
 pub(crate) use kernel::{Avx2, Avx512, Kernel, Rows};
-pub(crate) use store::Planes;
+pub(crate) use store::{Planes, Span};
 pub(crate) use tile::TileBuf;
 
 /// Per-triangle result of rasterizing into one tile.
@@ -281,10 +281,10 @@ fn tiles_in<D: DepthCodec>(
         order,
         || (TileStats::default(), TileBuf::new(0, 0, 0, 0)),
         |(sum, s), (_, i, (tile, lv))| {
-            (s.x0, s.y0, s.w, s.h, s.dirty) = (tile.x0, tile.y0, tile.w, tile.h, tile.dirty);
+            (s.x0, s.y0, s.w, s.h, s.dirty, s.covered) = (tile.x0, tile.y0, tile.w, tile.h, tile.dirty, tile.covered);
             let st = f(s, lv, i, pass);
-            if pass.session && tile.dirty {
-                tile.covered = st.covered;
+            if pass.session {
+                tile.covered = s.covered;
             }
             *sum = TileStats::sum(*sum, st);
         },
@@ -316,41 +316,85 @@ unsafe fn raster_tile<D: DepthCodec, const C: bool, K: Kernel>(
         }
         return st;
     }
-    out.prefetch(tile);
     if pass.session {
-        // The pyramid's max reads the whole 64 × 64 buffer: pixels off the screen hold 0.
+        // A tile drawn into before in this session is loaded and stored only under the 8×8
+        // blocks its binned triangles reach: the later batches of an occlusion walk touch a
+        // few blocks of many tiles. Its first use clears and stores it whole.
+        let span = if lv.touched { binned_span(tile, index, pass.chunks) } else { Span::whole(tile) };
+        out.prefetch(tile, span);
+        // The pyramid's max reads whole 8×8 blocks: pixels off the screen hold 0.
         let partial = tile.w < TILE || tile.h < TILE;
         if !lv.touched || partial {
             tile.clear_for_session::<D>(C);
         }
         if !lv.touched {
             lv.clear::<D>();
+            tile.covered = 0;
         } else {
             // SAFETY: as above, the tile's rectangle is this task's alone.
-            unsafe { out.load::<D>(tile, C) };
+            unsafe { out.load::<D>(tile, C, span) };
         }
+        let covered_before = if lv.touched { covered_in(tile, span) } else { 0 };
         // SAFETY: forwarded from the caller.
         unsafe { raster_bins::<D, C, true, K>(tile, lv, index, pass.chunks, &mut st) };
         lv.update::<D>(&tile.depth);
-    } else {
-        // Start from the clear values on a fresh target; otherwise load the tile's pixels
-        // (earlier batches may have drawn here).
-        if pass.fresh {
-            tile.depth.fill(D::FORMAT.key(1.0));
-            tile.ids.fill(0);
-            if C {
-                tile.counts.fill(0); // only read and written when counting
-            }
-        } else {
-            // SAFETY: as above.
-            unsafe { out.load::<D>(tile, C) };
-        }
-        // SAFETY: forwarded from the caller.
-        unsafe { raster_bins::<D, C, false, K>(tile, lv, index, pass.chunks, &mut st) };
+        // SAFETY: as above.
+        let covered_after = unsafe { out.store::<D>(tile, span) };
+        // The tile's covered pixels: those outside the span are unchanged.
+        tile.covered = tile.covered + covered_after - covered_before;
+        return st;
     }
+    let span = Span::whole(tile);
+    out.prefetch(tile, span);
+    // Start from the clear values on a fresh target; otherwise load the tile's pixels
+    // (earlier batches may have drawn here).
+    if pass.fresh {
+        tile.depth.fill(D::FORMAT.key(1.0));
+        tile.ids.fill(0);
+        if C {
+            tile.counts.fill(0); // only read and written when counting
+        }
+    } else {
+        // SAFETY: as above.
+        unsafe { out.load::<D>(tile, C, span) };
+    }
+    // SAFETY: forwarded from the caller.
+    unsafe { raster_bins::<D, C, false, K>(tile, lv, index, pass.chunks, &mut st) };
     // SAFETY: as above.
-    st.covered = unsafe { out.store::<D>(tile) };
+    st.covered = unsafe { out.store::<D>(tile, span) };
     st
+}
+
+/// The 8×8 blocks of `tile` (tile `index`) that the triangles binned to it reach, as a
+/// span: the union of their bounding boxes, widened to whole blocks and cut to the tile.
+fn binned_span(tile: &TileBuf, index: usize, chunks: &[Chunk]) -> Span {
+    let (tx, ty) = (tile.x0 as i32, tile.y0 as i32);
+    let mut b = [i32::MAX, i32::MAX, i32::MIN, i32::MIN];
+    for c in chunks {
+        for &i in &c.bins[index] {
+            let t = &c.tris[i as usize].bbox;
+            b = [b[0].min(t[0] as i32), b[1].min(t[1] as i32), b[2].max(t[2] as i32), b[3].max(t[3] as i32)];
+        }
+    }
+    let (w, h) = (tile.w as i32, tile.h as i32);
+    let lo = |v: i32, o: i32| ((v - o).max(0) & !(BLOCK - 1)) as usize;
+    let hi = |v: i32, o: i32, n: i32| (((v - o + BLOCK) & !(BLOCK - 1)).clamp(0, n)) as usize;
+    let (x0, y0) = (lo(b[0], tx), lo(b[1], ty));
+    let (x1, y1) = (hi(b[2], tx, w), hi(b[3], ty, h));
+    if b[0] > b[2] || x0 >= x1 || y0 >= y1 {
+        return Span { x0: 0, x1: 0, y0: 0, y1: 0 };
+    }
+    Span { x0, x1, y0, y1 }
+}
+
+/// Covered pixels (ID ≠ 0) of `span` of `tile`.
+fn covered_in(tile: &TileBuf, span: Span) -> u64 {
+    (span.y0..span.y1)
+        .map(|r| {
+            let at = r << TILE_SHIFT;
+            tile.ids[at + span.x0..at + span.x1].iter().filter(|&&i| i != 0).count() as u64
+        })
+        .sum()
 }
 
 /// Rasterizes the tile's binned triangles, chunk after chunk, in submission order.

@@ -29,7 +29,8 @@ pub(crate) struct TileBuf {
     pub counts: Vec<u32>,
     /// Whether the tile received triangles in the current pass.
     pub dirty: bool,
-    /// In a frame session: the covered pixels (ID ≠ 0) when the tile was last stored.
+    /// In a frame session: the tile's covered pixels (ID ≠ 0) in the framebuffer, kept up
+    /// to date as passes store into it.
     pub covered: u64,
 }
 
