@@ -64,6 +64,8 @@ pub struct Renderer {
     tiles: Vec<TileBuf>,
     /// Each tile's z-pyramid levels (parallel to `tiles`).
     levels: Vec<TileLevels>,
+    /// The tile stage's scratch tiles, one per worker, kept between passes.
+    scratch: Vec<TileBuf>,
     grid: Option<Grid>,
     ranges: Vec<(u32, u32, u32)>,
     supersampled: Option<Framebuffer>,
@@ -406,7 +408,7 @@ impl Renderer {
         let counting = fb.depth_tests.is_some();
         let planes = Planes::new(fb);
         let pass = TilePass { chunks, target: &planes, fresh, counting, session: session.is_some() };
-        let ts = raster_tiles(&mut self.tiles, &mut self.levels, &pass, fmt, SimdLevel::Auto);
+        let ts = raster_tiles((&mut self.tiles, &mut self.levels), &mut self.scratch, &pass, fmt, SimdLevel::Auto);
         if session.is_some() {
             self.upper.update(&self.levels);
         } else if fresh {

@@ -50,9 +50,9 @@ impl<'r> Session<'r> {
         &self.opts
     }
 
-    /// The session's framebuffer size: (width, height).
-    pub fn size(&self) -> (u32, u32) {
-        (self.fb.width(), self.fb.height())
+    /// The renderer, the session's draw target and the options, for one batch.
+    fn batch(&mut self) -> (&mut Renderer, Target<'_>, RenderOptions) {
+        (&mut *self.renderer, Target::Session { fb: &mut *self.fb, format: self.opts.depth_format }, self.opts)
     }
 
     /// Draws triangle ranges of indexed geometry into the session's frame, in order, like
@@ -69,17 +69,15 @@ impl<'r> Session<'r> {
         camera: &Camera,
         check_indices: bool,
     ) -> Result<FrameStats> {
-        let opts = self.opts;
-        let target = Target::Session { fb: &mut *self.fb, format: opts.depth_format };
-        self.renderer.draw_sources_to(sources, camera, target, &opts, check_indices)
+        let (renderer, target, opts) = self.batch();
+        renderer.draw_sources_to(sources, camera, target, &opts, check_indices)
     }
 
     /// Draws raw clip-space triangles into the session's frame, triangle `k` with ID
     /// `first_id + k`, like [`Renderer::draw_clip_triangles`].
     pub fn draw_clip_triangles(&mut self, triangles: &[[Vec4; 3]], first_id: u32) -> FrameStats {
-        let opts = self.opts;
-        let target = Target::Session { fb: &mut *self.fb, format: opts.depth_format };
-        self.renderer.draw_clip_to(triangles, first_id, target, &opts)
+        let (renderer, target, opts) = self.batch();
+        renderer.draw_clip_to(triangles, first_id, target, &opts)
     }
 
     /// The z-pyramid of the frame drawn so far.

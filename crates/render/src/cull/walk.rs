@@ -324,10 +324,8 @@ impl Clusters {
         // Front to back (by the distance from the eye to each box): the rasterizer's coarse
         // depth then skips the 8×8 blocks that nearer clusters of the same batch already hide. The set keeps the order it was found in otherwise,
         // which goes stale as the camera moves.
-        let mut keyed: Vec<(f32, u32)> = first.iter().map(|&i| (boxes[i as usize].distance_squared(eye), i)).collect();
-        keyed.sort_unstable_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
-        first.clear();
-        first.extend(keyed.iter().map(|k| k.1));
+        // (A distance is ≥ 0, so its bits order like it; NaN sorts last.)
+        first.sort_by_cached_key(|&i| (boxes[i as usize].distance_squared(eye).to_bits(), i));
         for &i in &first {
             two.drawn_in[i as usize] = frame;
         }

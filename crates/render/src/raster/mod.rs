@@ -29,6 +29,7 @@ pub(crate) mod store;
 pub(crate) mod tile;
 
 use std::sync::atomic::Ordering;
+use std::sync::Mutex;
 
 use sightline_spatial::SimdLevel;
 
@@ -190,15 +191,17 @@ pub(crate) struct TilePass<'a> {
 }
 
 /// The tile stage: every tile rasterizes its binned triangles, in parallel over tiles, on
-/// the instruction set `simd` resolves to.
+/// the instruction set `simd` resolves to. Each worker draws in a scratch tile taken from
+/// `scratch` (made when there is none) and given back after the pass, so that the many
+/// passes of a frame session allocate none.
 pub(crate) fn raster_tiles(
-    tiles: &mut [TileBuf],
-    levels: &mut [TileLevels],
+    (tiles, levels): (&mut [TileBuf], &mut [TileLevels]),
+    scratch: &mut Vec<TileBuf>,
     pass: &TilePass,
     fmt: DepthFormat,
     simd: SimdLevel,
 ) -> TileStats {
-    with_codec!(fmt, tiles_in::<_>(tiles, levels, pass, simd))
+    with_codec!(fmt, tiles_in::<_>(tiles, levels, scratch, pass, simd))
 }
 
 type TileFn = fn(&mut TileBuf, &mut TileLevels, usize, &TilePass) -> TileStats;
@@ -239,6 +242,7 @@ unsafe fn raster_tile_avx512<D: DepthCodec, const C: bool>(
 fn tiles_in<D: DepthCodec>(
     tiles: &mut [TileBuf],
     levels: &mut [TileLevels],
+    scratch: &mut Vec<TileBuf>,
     pass: &TilePass,
     simd: SimdLevel,
 ) -> TileStats {
@@ -262,13 +266,12 @@ fn tiles_in<D: DepthCodec>(
     // [`crate::claim`]. A tile with nothing binned needs work only when a fresh target is
     // cleared through it; otherwise it is settled here, so that the many small batches of
     // an occlusion pass hand out only the few tiles they touch.
-    let clears = pass.fresh;
     let mut order: Vec<(usize, usize, (&mut TileBuf, &mut TileLevels))> = Vec::with_capacity(tiles.len());
     for (i, (tile, lv)) in tiles.iter_mut().zip(levels.iter_mut()).enumerate() {
         let cost = pass.chunks.iter().map(|c| c.bins[i].len()).sum::<usize>();
         // Whether the tile draws in this pass, decided here once for `raster_tile`.
         tile.dirty = cost > 0;
-        if tile.dirty || clears {
+        if tile.dirty || pass.fresh {
             order.push((cost, i, (tile, lv)));
         }
     }
@@ -277,9 +280,11 @@ fn tiles_in<D: DepthCodec>(
     // through), so every tile is drawn in one scratch buffer per worker: it stays in the
     // core's cache, where the 240 tile buffers of a frame would be cleared and read back
     // from the shared cache.
+    let pool = Mutex::new(std::mem::take(scratch));
+    let take = || pool.lock().ok().and_then(|mut p| p.pop()).unwrap_or_else(|| TileBuf::new(0, 0, 0, 0));
     let workers = for_each_claimed(
         order,
-        || (TileStats::default(), TileBuf::new(0, 0, 0, 0)),
+        || (TileStats::default(), take()),
         |(sum, s), (_, i, (tile, lv))| {
             (s.x0, s.y0, s.w, s.h, s.dirty, s.covered) = (tile.x0, tile.y0, tile.w, tile.h, tile.dirty, tile.covered);
             let st = f(s, lv, i, pass);
@@ -289,7 +294,11 @@ fn tiles_in<D: DepthCodec>(
             *sum = TileStats::sum(*sum, st);
         },
     );
-    workers.into_iter().fold(TileStats::default(), |a, (b, _)| TileStats::sum(a, b))
+    *scratch = pool.into_inner().unwrap_or_default();
+    workers.into_iter().fold(TileStats::default(), |a, (b, buf)| {
+        scratch.push(buf);
+        TileStats::sum(a, b)
+    })
 }
 
 /// One tile of the tile stage, drawn in the scratch buffer `tile`: start from the clear
@@ -320,21 +329,22 @@ unsafe fn raster_tile<D: DepthCodec, const C: bool, K: Kernel>(
         // A tile drawn into before in this session is loaded and stored only under the 8×8
         // blocks its binned triangles reach: the later batches of an occlusion walk touch a
         // few blocks of many tiles. Its first use clears and stores it whole.
-        let span = if lv.touched { binned_span(tile, index, pass.chunks) } else { Span::whole(tile) };
+        let first = !lv.touched;
+        let span = if first { Span::whole(tile) } else { binned_span(tile, index, pass.chunks) };
         out.prefetch(tile, span);
         // The pyramid's max reads whole 8×8 blocks: pixels off the screen hold 0.
         let partial = tile.w < TILE || tile.h < TILE;
-        if !lv.touched || partial {
+        if first || partial {
             tile.clear_for_session::<D>(C);
         }
-        if !lv.touched {
+        let covered_before = if first {
             lv.clear::<D>();
             tile.covered = 0;
+            0
         } else {
             // SAFETY: as above, the tile's rectangle is this task's alone.
-            unsafe { out.load::<D>(tile, C, span) };
-        }
-        let covered_before = if lv.touched { covered_in(tile, span) } else { 0 };
+            unsafe { out.load::<D>(tile, C, span) }
+        };
         // SAFETY: forwarded from the caller.
         unsafe { raster_bins::<D, C, true, K>(tile, lv, index, pass.chunks, &mut st) };
         lv.update::<D>(&tile.depth);
@@ -356,7 +366,7 @@ unsafe fn raster_tile<D: DepthCodec, const C: bool, K: Kernel>(
         }
     } else {
         // SAFETY: as above.
-        unsafe { out.load::<D>(tile, C, span) };
+        let _ = unsafe { out.load::<D>(tile, C, span) };
     }
     // SAFETY: forwarded from the caller.
     unsafe { raster_bins::<D, C, false, K>(tile, lv, index, pass.chunks, &mut st) };
@@ -385,16 +395,6 @@ fn binned_span(tile: &TileBuf, index: usize, chunks: &[Chunk]) -> Span {
         return Span { x0: 0, x1: 0, y0: 0, y1: 0 };
     }
     Span { x0, x1, y0, y1 }
-}
-
-/// Covered pixels (ID ≠ 0) of `span` of `tile`.
-fn covered_in(tile: &TileBuf, span: Span) -> u64 {
-    (span.y0..span.y1)
-        .map(|r| {
-            let at = r << TILE_SHIFT;
-            tile.ids[at + span.x0..at + span.x1].iter().filter(|&&i| i != 0).count() as u64
-        })
-        .sum()
 }
 
 /// Rasterizes the tile's binned triangles, chunk after chunk, in submission order.

@@ -127,12 +127,14 @@ impl<'a> Planes<'a> {
         }
     }
 
-    /// Loads `span` of `tile` from the planes (depth-test counts too when `counting`).
+    /// Loads `span` of `tile` from the planes (depth-test counts too when `counting`);
+    /// returns the covered pixels (ID ≠ 0) of the span.
     ///
     /// # Safety
     /// No other task may access this tile's rectangle at the same time.
-    pub(crate) unsafe fn load<D: DepthCodec>(&self, tile: &mut TileBuf, counting: bool, span: Span) {
+    pub(crate) unsafe fn load<D: DepthCodec>(&self, tile: &mut TileBuf, counting: bool, span: Span) -> u64 {
         let (x0, x1) = (span.x0, span.x1);
+        let mut covered = 0;
         for r in span.y0..span.y1 {
             // SAFETY: forwarded from the caller.
             let (depth, ids, counts) = unsafe { self.row(tile, r) };
@@ -144,7 +146,9 @@ impl<'a> Planes<'a> {
             if let (true, Some(c)) = (counting, counts) {
                 tile.counts[at + x0..at + x1].copy_from_slice(&c[x0..x1]);
             }
+            covered += count_covered(&ids[x0..x1]);
         }
+        covered
     }
 
     /// Stores `span` of `tile` into the planes (depth-test counts too when present);
@@ -165,7 +169,7 @@ impl<'a> Planes<'a> {
             if let Some(c) = counts {
                 c[x0..x1].copy_from_slice(&tile.counts[at + x0..at + x1]);
             }
-            covered += src.iter().map(|&i| (i != 0) as u32).sum::<u32>() as u64;
+            covered += count_covered(src);
         }
         covered
     }
@@ -194,4 +198,9 @@ impl<'a> Planes<'a> {
             c.fill(0);
         }
     }
+}
+
+/// The covered pixels (ID ≠ 0) of a row of IDs.
+fn count_covered(ids: &[u32]) -> u64 {
+    ids.iter().map(|&i| (i != 0) as u32).sum::<u32>() as u64
 }
