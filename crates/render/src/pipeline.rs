@@ -61,8 +61,7 @@ struct Binning<'a> {
 pub struct Renderer {
     chunks: Vec<Chunk>,
     work: Vec<Vec<crate::geometry::Piece>>,
-    tiles: Vec<TileBuf>,
-    /// Each tile's z-pyramid levels (parallel to `tiles`).
+    /// Each tile's record: its rectangle, z-pyramid levels and session state.
     levels: Vec<TileLevels>,
     /// The tile stage's scratch tiles, one per worker, kept between passes.
     scratch: Vec<TileBuf>,
@@ -323,9 +322,8 @@ impl Renderer {
     pub(crate) fn start_session(&mut self, width: u32, height: u32) {
         let grid = Grid::new(width, height);
         self.prepare_tiles(grid);
-        for (t, lv) in self.tiles.iter_mut().zip(&mut self.levels) {
+        for lv in &mut self.levels {
             lv.touched = false;
-            t.dirty = false;
         }
         self.upper.clear(grid.tiles_x, grid.tiles_y);
     }
@@ -335,7 +333,7 @@ impl Renderer {
     /// covered (ID ≠ 0).
     pub(crate) fn finish_session(&mut self, fb: &mut Framebuffer, format: DepthFormat) -> u64 {
         let Some(grid) = self.grid else { return 0 };
-        with_codec!(format, clear_untouched::<_>((&self.tiles, &self.levels), grid.tiles_x as usize, fb))
+        with_codec!(format, clear_untouched::<_>(&self.levels, grid.tiles_x as usize, fb))
     }
 
     /// The z-pyramid of a session's frame drawn so far, with level 0 from `depth`, the
@@ -408,7 +406,7 @@ impl Renderer {
         let counting = fb.depth_tests.is_some();
         let planes = Planes::new(fb);
         let pass = TilePass { chunks, target: &planes, fresh, counting, session: session.is_some() };
-        let ts = raster_tiles((&mut self.tiles, &mut self.levels), &mut self.scratch, &pass, fmt, SimdLevel::Auto);
+        let ts = raster_tiles(&mut self.levels, &mut self.scratch, &pass, fmt, SimdLevel::Auto);
         if session.is_some() {
             self.upper.update(&self.levels);
         } else if fresh {
@@ -490,11 +488,9 @@ impl Renderer {
         if self.grid == Some(grid) {
             return;
         }
-        self.tiles.clear();
         self.levels.clear();
         for k in 0..grid.len() {
             let (x0, y0, w, h) = grid.tile_rect(k);
-            self.tiles.push(TileBuf::rect(x0, y0, w, h));
             self.levels.push(TileLevels::new(x0, y0, w, h));
         }
         self.grid = Some(grid);
@@ -505,28 +501,19 @@ impl Renderer {
 /// depth tests), one task per row of tiles, pixel row by pixel row (each plane written front
 /// to back in runs the hardware's stream prefetch follows); returns the covered pixels of
 /// the touched ones, counted when they were last written through.
-fn clear_untouched<D: DepthCodec>(
-    (tiles, levels): (&[TileBuf], &[TileLevels]),
-    tiles_x: usize,
-    fb: &mut Framebuffer,
-) -> u64 {
+fn clear_untouched<D: DepthCodec>(levels: &[TileLevels], tiles_x: usize, fb: &mut Framebuffer) -> u64 {
     let far = D::decode(D::FORMAT.key(1.0));
     let planes = Planes::new(fb);
-    let n = tiles_x.max(1);
-    tiles
-        .par_chunks(n)
-        .zip(levels.par_chunks(n))
-        .map(|(band, lv)| {
-            let mut covered = 0;
-            for (t, _) in band.iter().zip(lv).filter(|(_, l)| l.touched) {
-                covered += t.covered;
-            }
-            if lv.iter().any(|l| !l.touched) {
-                for r in 0..band.first().map_or(0, |t| t.h as usize) {
-                    for (t, _) in band.iter().zip(lv).filter(|(_, l)| !l.touched) {
+    levels
+        .par_chunks(tiles_x.max(1))
+        .map(|band| {
+            let covered: u64 = band.iter().filter(|l| l.touched).map(|l| l.covered).sum();
+            if band.iter().any(|l| !l.touched) {
+                for r in 0..band.first().map_or(0, |l| l.h as usize) {
+                    for l in band.iter().filter(|l| !l.touched) {
                         // SAFETY: this task is the only one on this row of tiles, whose
                         // rectangles no other task's tiles share.
-                        unsafe { planes.clear_row(t, r, far) };
+                        unsafe { planes.clear_row(l.rect(), r, far) };
                     }
                 }
             }
@@ -606,7 +593,8 @@ mod tests {
             let tris = batch_of_triangles(&mut rng, 1.0);
             session.draw_clip_triangles(&tris, 1 + batch * 100);
             let (r, fb) = (session.renderer(), session.framebuffer());
-            for (t, lv) in r.tiles.iter().zip(&r.levels).filter(|(_, lv)| lv.touched) {
+            for lv in r.levels.iter().filter(|lv| lv.touched) {
+                let t = lv.rect();
                 // The tile's keys from the framebuffer it wrote through to, 0 off the screen.
                 let mut keys = vec![0; (crate::tiling::TILE * crate::tiling::TILE) as usize];
                 for (y, x) in (0..t.h).flat_map(|y| (0..t.w).map(move |x| (y, x))) {

@@ -9,6 +9,16 @@ pub(crate) const TILE_SHIFT: u32 = 6;
 /// Block side in pixels.
 pub(crate) const BLOCK: i32 = 8;
 
+/// A tile's pixel rectangle on the target: left column, top row, width and height (≤
+/// [`TILE`] at the right and bottom borders).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(crate) struct TileRect {
+    pub x0: u32,
+    pub y0: u32,
+    pub w: u32,
+    pub h: u32,
+}
+
 /// The tile grid of a framebuffer.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub(crate) struct Grid {

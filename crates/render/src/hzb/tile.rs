@@ -14,7 +14,7 @@
 use super::{reduce_2x2, Rect};
 use crate::depth::DepthCodec;
 use crate::edge::Tri;
-use crate::tiling::{BLOCK, TILE, TILE_SHIFT};
+use crate::tiling::{TileRect, BLOCK, TILE, TILE_SHIFT};
 
 /// Offsets of levels 1..=6 in [`TileLevels::mips`] (index = level − 1), and the total length.
 pub(crate) const OFFSETS: [usize; 7] = [0, 1024, 1280, 1344, 1360, 1364, 1365];
@@ -42,6 +42,9 @@ pub(crate) struct TileLevels {
     pub stale_blocks: u64,
     /// The depth format's tie margin, added to texels before a test says "hidden".
     pub tie_margin: f32,
+    /// In a frame session: the tile's covered pixels (ID ≠ 0) in the framebuffer, kept up
+    /// to date as passes store into it.
+    pub covered: u64,
 }
 
 impl TileLevels {
@@ -57,7 +60,14 @@ impl TileLevels {
             mips: vec![1.0; OFFSETS[6]],
             stale_blocks: 0,
             tie_margin: 0.0,
+            covered: 0,
         }
+    }
+
+    /// The tile's rectangle on the screen.
+    #[inline]
+    pub(crate) fn rect(&self) -> TileRect {
+        TileRect { x0: self.x0, y0: self.y0, w: self.w, h: self.h }
     }
 
     /// Clears the levels when the tile is first drawn into in a session of format `D`.

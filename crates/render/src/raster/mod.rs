@@ -195,13 +195,13 @@ pub(crate) struct TilePass<'a> {
 /// `scratch` (made when there is none) and given back after the pass, so that the many
 /// passes of a frame session allocate none.
 pub(crate) fn raster_tiles(
-    (tiles, levels): (&mut [TileBuf], &mut [TileLevels]),
+    levels: &mut [TileLevels],
     scratch: &mut Vec<TileBuf>,
     pass: &TilePass,
     fmt: DepthFormat,
     simd: SimdLevel,
 ) -> TileStats {
-    with_codec!(fmt, tiles_in::<_>(tiles, levels, scratch, pass, simd))
+    with_codec!(fmt, tiles_in::<_>(levels, scratch, pass, simd))
 }
 
 type TileFn = fn(&mut TileBuf, &mut TileLevels, usize, &TilePass) -> TileStats;
@@ -240,7 +240,6 @@ unsafe fn raster_tile_avx512<D: DepthCodec, const C: bool>(
 }
 
 fn tiles_in<D: DepthCodec>(
-    tiles: &mut [TileBuf],
     levels: &mut [TileLevels],
     scratch: &mut Vec<TileBuf>,
     pass: &TilePass,
@@ -266,13 +265,11 @@ fn tiles_in<D: DepthCodec>(
     // [`crate::claim`]. A tile with nothing binned needs work only when a fresh target is
     // cleared through it; otherwise it is settled here, so that the many small batches of
     // an occlusion pass hand out only the few tiles they touch.
-    let mut order: Vec<(usize, usize, (&mut TileBuf, &mut TileLevels))> = Vec::with_capacity(tiles.len());
-    for (i, (tile, lv)) in tiles.iter_mut().zip(levels.iter_mut()).enumerate() {
+    let mut order: Vec<(usize, usize, &mut TileLevels)> = Vec::with_capacity(levels.len());
+    for (i, lv) in levels.iter_mut().enumerate() {
         let cost = pass.chunks.iter().map(|c| c.bins[i].len()).sum::<usize>();
-        // Whether the tile draws in this pass, decided here once for `raster_tile`.
-        tile.dirty = cost > 0;
-        if tile.dirty || pass.fresh {
-            order.push((cost, i, (tile, lv)));
+        if cost > 0 || pass.fresh {
+            order.push((cost, i, lv));
         }
     }
     order.sort_unstable_by_key(|&(c, i, _)| (std::cmp::Reverse(c), i));
@@ -285,13 +282,11 @@ fn tiles_in<D: DepthCodec>(
     let workers = for_each_claimed(
         order,
         || (TileStats::default(), take()),
-        |(sum, s), (_, i, (tile, lv))| {
-            (s.x0, s.y0, s.w, s.h, s.dirty, s.covered) = (tile.x0, tile.y0, tile.w, tile.h, tile.dirty, tile.covered);
-            let st = f(s, lv, i, pass);
-            if pass.session {
-                tile.covered = s.covered;
-            }
-            *sum = TileStats::sum(*sum, st);
+        |(sum, s), (cost, i, lv)| {
+            s.set_rect(lv.rect());
+            // Whether the tile draws in this pass, decided here once for `raster_tile`.
+            s.dirty = cost > 0;
+            *sum = TileStats::sum(*sum, f(s, lv, i, pass));
         },
     );
     *scratch = pool.into_inner().unwrap_or_default();
@@ -321,7 +316,7 @@ unsafe fn raster_tile<D: DepthCodec, const C: bool, K: Kernel>(
         if pass.fresh {
             // SAFETY: this task is the only one on tile `index`, whose rectangle no other
             // tile shares.
-            unsafe { out.clear(tile, D::decode(D::FORMAT.key(1.0))) };
+            unsafe { out.clear(tile.rect(), D::decode(D::FORMAT.key(1.0))) };
         }
         return st;
     }
@@ -339,7 +334,7 @@ unsafe fn raster_tile<D: DepthCodec, const C: bool, K: Kernel>(
         }
         let covered_before = if first {
             lv.clear::<D>();
-            tile.covered = 0;
+            lv.covered = 0;
             0
         } else {
             // SAFETY: as above, the tile's rectangle is this task's alone.
@@ -351,7 +346,7 @@ unsafe fn raster_tile<D: DepthCodec, const C: bool, K: Kernel>(
         // SAFETY: as above.
         let covered_after = unsafe { out.store::<D>(tile, span) };
         // The tile's covered pixels: those outside the span are unchanged.
-        tile.covered = tile.covered + covered_after - covered_before;
+        lv.covered = lv.covered + covered_after - covered_before;
         return st;
     }
     let span = Span::whole(tile);

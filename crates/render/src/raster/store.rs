@@ -29,6 +29,7 @@ use std::marker::PhantomData;
 
 use super::tile::TileBuf;
 use crate::depth::{decode_row, DepthCodec};
+use crate::tiling::TileRect;
 use crate::tiling::TILE_SHIFT;
 use crate::Framebuffer;
 
@@ -76,21 +77,21 @@ impl<'a> Planes<'a> {
         Self { depth: fb.depth.as_mut_ptr(), ids: fb.ids.as_mut_ptr(), counts, width, height, _fb: PhantomData }
     }
 
-    /// Index of the first pixel of row `r` of `tile`'s rectangle in the planes.
-    fn row_start(&self, tile: &TileBuf, r: usize) -> usize {
+    /// Index of the first pixel of row `r` of `tile` in the planes.
+    fn row_start(&self, tile: TileRect, r: usize) -> usize {
         let (x0, y0, w, h) = (tile.x0 as usize, tile.y0 as usize, tile.w as usize, tile.h as usize);
         // A real check (not debug only): it is what keeps the raw accesses inside the planes.
         assert!(x0 + w <= self.width && y0 + h <= self.height && r < h, "tile outside the framebuffer");
         (y0 + r) * self.width + x0
     }
 
-    /// Row `r` of `tile`'s rectangle in the planes: (depth, IDs, counts when present).
+    /// Row `r` of `tile` in the planes: (depth, IDs, counts when present).
     ///
     /// # Safety
     /// No other task may access this tile's rectangle at the same time.
     #[allow(clippy::type_complexity)] // three parallel row slices
     #[allow(clippy::mut_from_ref)] // the shared planes' rows: the caller owns the tile's rectangle
-    unsafe fn row(&self, tile: &TileBuf, r: usize) -> (&mut [f32], &mut [u32], Option<&mut [u32]>) {
+    unsafe fn row(&self, tile: TileRect, r: usize) -> (&mut [f32], &mut [u32], Option<&mut [u32]>) {
         let (at, w) = (self.row_start(tile, r), tile.w as usize);
         // SAFETY: `at..at + w` lies inside each plane (checked above; every plane holds
         // width × height entries), and the caller guarantees no other access to it.
@@ -111,7 +112,7 @@ impl<'a> Planes<'a> {
         #[cfg(target_arch = "x86_64")]
         for r in span.y0..span.y1 {
             use std::arch::x86_64::{_mm_prefetch, _MM_HINT_ET0};
-            let (at, bytes) = (self.row_start(tile, r) + span.x0, 4 * (span.x1 - span.x0));
+            let (at, bytes) = (self.row_start(tile.rect(), r) + span.x0, 4 * (span.x1 - span.x0));
             for plane in [self.depth as *const i8, self.ids as *const i8] {
                 // SAFETY: prefetching never faults, and the addresses lie inside the planes
                 // (`row_start` checks the rectangle).
@@ -137,7 +138,7 @@ impl<'a> Planes<'a> {
         let mut covered = 0;
         for r in span.y0..span.y1 {
             // SAFETY: forwarded from the caller.
-            let (depth, ids, counts) = unsafe { self.row(tile, r) };
+            let (depth, ids, counts) = unsafe { self.row(tile.rect(), r) };
             let at = r << TILE_SHIFT;
             for (k, d) in tile.depth[at + x0..at + x1].iter_mut().zip(&depth[x0..x1]) {
                 *k = D::FORMAT.key_of_stored(*d);
@@ -161,7 +162,7 @@ impl<'a> Planes<'a> {
         let mut covered = 0;
         for r in span.y0..span.y1 {
             // SAFETY: forwarded from the caller.
-            let (depth, ids, counts) = unsafe { self.row(tile, r) };
+            let (depth, ids, counts) = unsafe { self.row(tile.rect(), r) };
             let at = r << TILE_SHIFT;
             decode_row::<D>(&mut depth[x0..x1], &tile.depth[at + x0..at + x1]);
             let src = &tile.ids[at + x0..at + x1];
@@ -174,11 +175,11 @@ impl<'a> Planes<'a> {
         covered
     }
 
-    /// Writes `tile`'s rectangle as cleared: depth `far`, ID 0, no depth tests.
+    /// Writes `tile` as cleared: depth `far`, ID 0, no depth tests.
     ///
     /// # Safety
     /// No other task may access this tile's rectangle at the same time.
-    pub(crate) unsafe fn clear(&self, tile: &TileBuf, far: f32) {
+    pub(crate) unsafe fn clear(&self, tile: TileRect, far: f32) {
         for r in 0..tile.h as usize {
             // SAFETY: forwarded from the caller.
             unsafe { self.clear_row(tile, r, far) };
@@ -189,7 +190,7 @@ impl<'a> Planes<'a> {
     ///
     /// # Safety
     /// No other task may access this row of the tile's rectangle at the same time.
-    pub(crate) unsafe fn clear_row(&self, tile: &TileBuf, r: usize, far: f32) {
+    pub(crate) unsafe fn clear_row(&self, tile: TileRect, r: usize, far: f32) {
         // SAFETY: forwarded from the caller.
         let (depth, ids, counts) = unsafe { self.row(tile, r) };
         depth.fill(far);

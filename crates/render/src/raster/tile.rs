@@ -2,15 +2,14 @@
 //! [`TILE`], with padding after the last row for the eight-lane kernels.
 
 use crate::depth::DepthCodec;
-use crate::tiling::TILE;
+use crate::tiling::{TileRect, TILE};
 
 /// Padding after a tile's last row: the kernels work in groups of four or eight pixels and
 /// may read and rewrite (unchanged) entries past a row's end.
 pub(crate) const PAD: usize = 8;
 
 /// One tile's depth keys, IDs and depth-test counts (row stride [`TILE`]): the scratch
-/// buffer a worker draws tiles in, or (without pixel buffers) the record of one tile of
-/// the screen.
+/// buffer a worker draws tiles in, set to the rectangle of the tile it draws.
 #[derive(Debug, Clone)]
 pub(crate) struct TileBuf {
     /// Left pixel column.
@@ -29,21 +28,25 @@ pub(crate) struct TileBuf {
     pub counts: Vec<u32>,
     /// Whether the tile received triangles in the current pass.
     pub dirty: bool,
-    /// In a frame session: the tile's covered pixels (ID ≠ 0) in the framebuffer, kept up
-    /// to date as passes store into it.
-    pub covered: u64,
 }
 
 impl TileBuf {
-    /// The record of the tile at pixel (x0, y0) of size w × h: no pixel buffers.
-    pub(crate) fn rect(x0: u32, y0: u32, w: u32, h: u32) -> Self {
-        Self { x0, y0, w, h, depth: Vec::new(), ids: Vec::new(), counts: Vec::new(), dirty: false, covered: 0 }
-    }
-
-    /// A scratch tile at pixel (x0, y0) of size w × h, with pixel buffers.
+    /// A scratch tile at pixel (x0, y0) of size w × h.
     pub(crate) fn new(x0: u32, y0: u32, w: u32, h: u32) -> Self {
         let n = (TILE * TILE) as usize + PAD;
-        Self { x0, y0, w, h, depth: vec![0; n], ids: vec![0; n], counts: vec![0; n], dirty: false, covered: 0 }
+        Self { x0, y0, w, h, depth: vec![0; n], ids: vec![0; n], counts: vec![0; n], dirty: false }
+    }
+
+    /// The rectangle the buffer is drawing.
+    #[inline]
+    pub(crate) fn rect(&self) -> TileRect {
+        TileRect { x0: self.x0, y0: self.y0, w: self.w, h: self.h }
+    }
+
+    /// Sets the rectangle to draw next.
+    #[inline]
+    pub(crate) fn set_rect(&mut self, r: TileRect) {
+        (self.x0, self.y0, self.w, self.h) = (r.x0, r.y0, r.w, r.h);
     }
 
     /// Clears the tile for a frame session in depth format `D`: the far plane's key inside
