@@ -10,7 +10,8 @@
 //! identical; the instanced layout rounds vertices differently (`P·V·M` applied to the unit
 //! cube instead of `P·V` to world positions), so its depths differ in the last bits.
 //!
-//! `cargo run --release --example boxfield`
+//! `cargo run --release --example boxfield [-- --threads N]` (default one thread, the
+//! benchmark as stated; `--threads 2` shows how the passes scale).
 
 #![forbid(unsafe_code)]
 
@@ -25,10 +26,31 @@ fn median(mut v: Vec<f64>) -> f64 {
     v[v.len() / 2]
 }
 
+/// The worker count of `--threads N` (1 without it).
+fn threads() -> Result<usize, String> {
+    let args: Vec<String> = std::env::args().skip(1).collect();
+    match args.as_slice() {
+        [] => Ok(1),
+        [flag, n] if flag == "--threads" || flag == "-j" => match n.parse::<usize>() {
+            Ok(n) if (1..=256).contains(&n) => Ok(n),
+            _ => Err(format!("--threads: '{n}' is not a thread count from 1 to 256")),
+        },
+        _ => Err(format!("unexpected arguments {args:?}; usage: boxfield [--threads N]")),
+    }
+}
+
 fn main() {
+    let threads = match threads() {
+        Ok(n) => n,
+        Err(e) => {
+            eprintln!("error: {e}");
+            std::process::exit(2);
+        }
+    };
+    let th = if threads == 1 { "1 thread".to_string() } else { format!("{threads} threads") };
     let bf = Boxfield::new(QUERIES);
     println!("boxfield: {} triangles, {} queries, {}x{}", bf.scene.stats().triangles, bf.queries.len(), SIZE.0, SIZE.1);
-    let pool = rayon::ThreadPoolBuilder::new().num_threads(1).build().expect("thread pool");
+    let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().expect("thread pool");
     pool.install(|| {
         let mut culler = Culler::new(&bf.scene);
         culler.first_batch = std::env::var("FIRST_BATCH").ok().and_then(|v| v.parse().ok()).unwrap_or(culler.first_batch);
@@ -43,7 +65,12 @@ fn main() {
             stats = Some((cs, fs));
             raster.push(t.elapsed().as_secs_f64() * 1e3);
             let t = Instant::now();
-            q.test_many(&bf.queries, &mut answers);
+            // One thread: the serial form (the benchmark as stated); more: the parallel one.
+            if threads == 1 {
+                q.test_many(&bf.queries, &mut answers);
+            } else {
+                q.test_batch(&bf.queries, &mut answers);
+            }
             query.push(t.elapsed().as_secs_f64() * 1e3);
             q.finish();
         }
@@ -66,7 +93,7 @@ fn main() {
         }
         let same = fb.depth == every.0 && fb.ids == every.1;
         println!(
-            "(a) instanced, hidden occluders skipped: median {:.2} ms (1 thread); z-buffer and IDs {} to every occluder's",
+            "(a) instanced, hidden occluders skipped: median {:.2} ms ({th}); z-buffer and IDs {} to every occluder's",
             median(skipped),
             if same { "identical" } else { "DIFFERENT" }
         );
@@ -88,7 +115,7 @@ fn main() {
                 pass.finish();
             }
             let label = if skip_hidden { "hidden occluders skipped" } else { "every occluder" };
-            println!("(a) one mesh, {label}: median {:.2} ms (1 thread), {drawn} triangles sent", median(times));
+            println!("(a) one mesh, {label}: median {:.2} ms ({th}), {drawn} triangles sent", median(times));
             match &strict {
                 None => {
                     // Vertices transformed in another order round differently, so depths (and
@@ -112,8 +139,8 @@ fn main() {
                 cs.clusters_in_frustum, cs.culled_by_backface, cs.triangles_drawn, fs.backface_culled, fs.rasterized, fs.coarse_rejected, fs.fragments_tested, cs.batches
             );
         }
-        println!("(a) occluders into z-buffer + pyramid: median {:.2} ms (1 thread, instanced boxes)", median(raster));
-        println!("(b) {} box queries:                  median {:.2} ms (1 thread)", bf.queries.len(), median(query));
+        println!("(a) occluders into z-buffer + pyramid: median {:.2} ms ({th}, instanced boxes)", median(raster));
+        println!("(b) {} box queries:                  median {:.2} ms ({th})", bf.queries.len(), median(query));
         println!("visible {}, occluded {}, outside the view {}", c.visible, c.occluded, c.outside);
         let bad = check_occluded(&bf, &answers, &fb);
         println!("brute-force check: {bad} pixels won by boxes reported occluded (must be 0)");
