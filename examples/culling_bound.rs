@@ -57,11 +57,10 @@ use std::time::Instant;
 
 use rayon::prelude::*;
 use sightline::render::{
-    compare_ids, shade_pass, Culler, DrawItem, DrawSource, FrameStats, Framebuffer, Method, RenderOptions, Renderer,
-    World,
+    compare_ids, shade_pass, Culler, DrawItem, FrameStats, Framebuffer, Method, RenderOptions, Renderer, World,
 };
 use sightline::scene::builders::{city, CityParams};
-use sightline::scene::{Aabb, Camera, Instance, Scene};
+use sightline::scene::{Aabb, Camera, Instance};
 use sightline::spatial::{BoxImage, BoxProjector, ClusteredScene};
 
 type Error = Box<dyn std::error::Error + Send + Sync>;
@@ -146,10 +145,9 @@ fn run() -> Result<(), Error> {
                 return Err(format!("frame {k}: the oracle frame differs from {of}: {m:?}").into());
             }
             // The same triangles drawn in a frame session, as the culling methods draw.
-            let sources = draw_sources(world.scene(), &instances, &items.0);
             let t = Instant::now();
             let mut session = renderer.begin(&mut fb, &opts);
-            session.draw_sources(&sources, cam)?;
+            session.draw(world.scene(), &instances, &items.0, cam)?;
             session.finish();
             shade_pass(world.scene(), &instances, cam, &mut fb, &opts.shading, opts.background);
             let in_session = ms(t);
@@ -350,26 +348,6 @@ fn holding_visible(items: &[DrawItem], clustered: &ClusteredScene) -> Vec<u32> {
         }
     }
     out
-}
-
-/// The draw items as draw sources (each instance's mesh, its transform and first ID).
-fn draw_sources<'a>(scene: &'a Scene, instances: &[Instance], items: &[DrawItem]) -> Vec<DrawSource<'a>> {
-    items
-        .iter()
-        .filter_map(|it| {
-            let inst = &instances[it.instance as usize];
-            let mesh = scene.mesh(inst.mesh)?;
-            Some(DrawSource {
-                positions: mesh.positions(),
-                indices: mesh.indices(),
-                triangle_ids: None,
-                world_from_local: inst.world_from_local,
-                first_triangle: inst.first_triangle,
-                first: it.first,
-                count: it.count,
-            })
-        })
-        .collect()
 }
 
 /// Every triangle of the clusters `set`, as draw items (runs of consecutive triangles of

@@ -579,6 +579,44 @@ mod tests {
         }
     }
 
+    /// Items drawn in a session, batch after batch, give the frame one plain draw of them
+    /// all gives.
+    #[test]
+    fn session_draws_of_scene_items_equal_a_plain_frame() {
+        use glam::Vec3;
+        use sightline_scene::{shapes, Angle, LookAt, NodeDesc, Transform};
+        let mut scene = Scene::new();
+        let cube = scene.add_mesh(shapes::cube("cube").unwrap());
+        for k in 0..12 {
+            let at = Vec3::new((k % 4) as f32 * 1.5 - 2.0, (k / 4) as f32 * 1.2 - 1.0, -(k as f32) * 0.7);
+            scene.add_node(None, NodeDesc::new("box").mesh(cube).transform(Transform::from_translation(at))).unwrap();
+        }
+        scene.update_transforms();
+        let instances = scene.instances();
+        let items = crate::options::draw_all(&instances);
+        let look =
+            LookAt { eye: Vec3::new(0.5, 0.8, 6.0), fovy: Angle::degrees(60.0), far: 100.0, ..LookAt::default() };
+        let camera = Camera::perspective(&look, 200.0 / 150.0).unwrap();
+        let opts = RenderOptions::ids_only();
+        let mut r = Renderer::new();
+        let mut plain = Framebuffer::new(200, 150).unwrap();
+        r.render(&scene, &instances, &items, &camera, &mut plain, &opts).unwrap();
+        let mut fb = Framebuffer::new(200, 150).unwrap();
+        fb.depth.fill(0.25);
+        fb.ids.fill(7);
+        let mut session = r.begin(&mut fb, &opts);
+        for batch in items.chunks(5) {
+            session.draw(&scene, &instances, batch, &camera).unwrap();
+        }
+        let covered = session.finish();
+        assert!(covered > 1000, "the boxes are in view");
+        assert!(fb.ids == plain.ids && fb.depth == plain.depth, "a session of batches differs from one draw");
+        // Bad items are refused, as by a plain draw.
+        let mut session = r.begin(&mut fb, &opts);
+        let bad = [DrawItem { instance: 99, first: 0, count: 1 }];
+        assert!(session.draw(&scene, &instances, &bad, &camera).is_err());
+    }
+
     /// The pyramid levels kept up to date block by block during a session equal levels
     /// computed from scratch, on tiles cut by the screen edge too.
     #[test]

@@ -3,7 +3,8 @@
 //! occluders, test the next boxes against their pyramid, draw what survives, repeat).
 //!
 //! The session is a guard: [`Renderer::begin`] returns it, borrowing the framebuffer it
-//! draws into; it draws ([`Session::draw_sources`], [`Session::draw_clip_triangles`]),
+//! draws into; it draws ([`Session::draw`], [`Session::draw_sources`],
+//! [`Session::draw_clip_triangles`]),
 //! answers [`Session::pyramid`], and [`Session::finish`] completes the frame. The
 //! framebuffer holds the frame's depth and IDs between batches and the renderer's tiles
 //! the pyramid's levels over them: each batch draws a tile in a worker's scratch buffer
@@ -18,10 +19,10 @@
 //! for every batch.
 
 use glam::Vec4;
-use sightline_scene::Camera;
+use sightline_scene::{Camera, Instance, Scene};
 
 use crate::hzb::TilePyramid;
-use crate::options::{DrawSource, RenderOptions};
+use crate::options::{DrawItem, DrawSource, RenderOptions};
 use crate::pipeline::{Renderer, Target};
 use crate::{FrameStats, Framebuffer, Result};
 
@@ -53,6 +54,20 @@ impl<'r> Session<'r> {
     /// The renderer, the session's draw target and the options, for one batch.
     fn batch(&mut self) -> (&mut Renderer, Target<'_>, RenderOptions) {
         (&mut *self.renderer, Target::Session { fb: &mut *self.fb, format: self.opts.depth_format }, self.opts)
+    }
+
+    /// Draws triangle ranges of the scene's instances into the session's frame, in order,
+    /// like [`Renderer::draw`].
+    pub fn draw(
+        &mut self,
+        scene: &Scene,
+        instances: &[Instance],
+        items: &[DrawItem],
+        camera: &Camera,
+    ) -> Result<FrameStats> {
+        self.opts.depth_format.check_resolves(&camera.projection)?;
+        let (renderer, target, opts) = self.batch();
+        renderer.draw_items(scene, instances, items, camera, target, &opts)
     }
 
     /// Draws triangle ranges of indexed geometry into the session's frame, in order, like
