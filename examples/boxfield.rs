@@ -1,4 +1,5 @@
-//! The occlusion benchmark of record on one thread: depth-only rasterization of the boxfield's
+//! The occlusion benchmark of record (on one thread unless `--threads N` says otherwise):
+//! depth-only rasterization of the boxfield's
 //! occluders into the z-buffer and pyramid, then 100,000 box queries; prints medians, the
 //! visible / occluded counts, and checks that no box reported occluded has a visible pixel.
 //!
@@ -10,16 +11,18 @@
 //! identical; the instanced layout rounds vertices differently (`P·V·M` applied to the unit
 //! cube instead of `P·V` to world positions), so its depths differ in the last bits.
 //!
-//! `cargo run --release --example boxfield [-- --threads N]` (default one thread, the
-//! benchmark as stated; `--threads 2` shows how the passes scale).
+//! `cargo run --release --example boxfield [-- --threads N]` (`-j N` alike; default one
+//! thread, the benchmark as stated; `--threads 2` shows how the passes scale, and the
+//! queries then run in parallel, `test_batch`).
 
 #![forbid(unsafe_code)]
 
 use std::time::Instant;
 
 use sightline::boxfield::{check_occluded, count, Boxfield, QUERIES, SIZE};
-use sightline::render::{Culler, Framebuffer, RenderOptions};
+use sightline::render::{BoxVisibility, Culler, Framebuffer, OccluderPass, RenderOptions};
 use sightline::scene::builders::{boxfield, BoxfieldLayout, BoxfieldParams};
+use sightline::scene::Aabb;
 
 fn median(mut v: Vec<f64>) -> f64 {
     v.sort_by(f64::total_cmp);
@@ -35,7 +38,18 @@ fn threads() -> Result<usize, String> {
             Ok(n) if (1..=256).contains(&n) => Ok(n),
             _ => Err(format!("--threads: '{n}' is not a thread count from 1 to 256")),
         },
-        _ => Err(format!("unexpected arguments {args:?}; usage: boxfield [--threads N]")),
+        [flag] if flag == "--threads" || flag == "-j" => Err(format!("{flag} needs a thread count (1 to 256)")),
+        _ => Err(format!("unexpected arguments {args:?}; usage: boxfield [--threads N | -j N]")),
+    }
+}
+
+/// The box queries: on one thread the serial form (the benchmark as stated), on more the
+/// parallel one.
+fn test(q: &OccluderPass, boxes: &[Aabb], out: &mut Vec<BoxVisibility>, threads: usize) {
+    if threads == 1 {
+        q.test_many(boxes, out)
+    } else {
+        q.test_batch(boxes, out)
     }
 }
 
@@ -65,12 +79,7 @@ fn main() {
             stats = Some((cs, fs));
             raster.push(t.elapsed().as_secs_f64() * 1e3);
             let t = Instant::now();
-            // One thread: the serial form (the benchmark as stated); more: the parallel one.
-            if threads == 1 {
-                q.test_many(&bf.queries, &mut answers);
-            } else {
-                q.test_batch(&bf.queries, &mut answers);
-            }
+            test(&q, &bf.queries, &mut answers, threads);
             query.push(t.elapsed().as_secs_f64() * 1e3);
             q.finish();
         }
@@ -78,7 +87,7 @@ fn main() {
             // Profiling aid: the queries alone, many times.
             let (_, _, q) = culler.occluder_pass(&bf.camera, &mut fb, &opts).expect("occluders");
             for _ in 0..200 {
-                q.test_many(&bf.queries, &mut answers);
+                test(&q, &bf.queries, &mut answers, threads);
             }
             q.finish();
         }

@@ -609,12 +609,20 @@ mod tests {
             session.draw(&scene, &instances, batch, &camera).unwrap();
         }
         let covered = session.finish();
-        assert!(covered > 1000, "the boxes are in view");
         assert!(fb.ids == plain.ids && fb.depth == plain.depth, "a session of batches differs from one draw");
-        // Bad items are refused, as by a plain draw.
+        assert_eq!(covered, fb.ids.iter().filter(|&&i| i != 0).count() as u64);
+        assert!(covered > 1000, "the boxes are in view");
+        // Bad items and depth formats that cannot resolve the camera are refused, as by a
+        // plain draw.
         let mut session = r.begin(&mut fb, &opts);
         let bad = [DrawItem { instance: 99, first: 0, count: 1 }];
-        assert!(session.draw(&scene, &instances, &bad, &camera).is_err());
+        assert!(matches!(session.draw(&scene, &instances, &bad, &camera), Err(Error::InvalidDraw(_))));
+        session.finish();
+        let near = LookAt { near: 1e-6, far: 1e6, ..look };
+        let close = Camera::perspective(&near, 200.0 / 150.0).unwrap();
+        let coarse = RenderOptions { depth_format: DepthFormat::Unorm16, ..opts };
+        let mut session = r.begin(&mut fb, &coarse);
+        assert!(matches!(session.draw(&scene, &instances, &items, &close), Err(Error::DepthRange { .. })));
     }
 
     /// The pyramid levels kept up to date block by block during a session equal levels

@@ -22,7 +22,8 @@ pub(crate) const OFFSETS: [usize; 7] = [0, 1024, 1280, 1344, 1360, 1364, 1365];
 /// The pyramid levels of a tile not drawn into in this session: cleared.
 pub(crate) static CLEARED: [f32; OFFSETS[6]] = [1.0; OFFSETS[6]];
 
-/// One tile's z-pyramid levels 1..=6 and the state of their incremental update.
+/// One screen tile's record: its rectangle, its z-pyramid levels 1..=6 and the state of
+/// their incremental update, and its state in a frame session.
 #[derive(Debug, Clone)]
 pub(crate) struct TileLevels {
     /// The tile's left pixel column, top row, width and height (≤ [`TILE`]).
@@ -43,7 +44,8 @@ pub(crate) struct TileLevels {
     /// The depth format's tie margin, added to texels before a test says "hidden".
     pub tie_margin: f32,
     /// In a frame session: the tile's covered pixels (ID ≠ 0) in the framebuffer, kept up
-    /// to date as passes store into it.
+    /// to date as passes store into it; reset on the tile's first use in a session and
+    /// meaningful only while `touched`.
     pub covered: u64,
 }
 

@@ -29,8 +29,7 @@ use std::marker::PhantomData;
 
 use super::tile::TileBuf;
 use crate::depth::{decode_row, DepthCodec};
-use crate::tiling::TileRect;
-use crate::tiling::TILE_SHIFT;
+use crate::tiling::{TileRect, TILE_SHIFT};
 use crate::Framebuffer;
 
 /// A rectangle of a tile's pixels, in tile coordinates, half-open: columns `x0..x1`, rows
