@@ -120,3 +120,6 @@ impl<'r> Session<'r> {
         self.fb
     }
 }
+
+#[cfg(test)]
+mod tests;
