@@ -77,9 +77,10 @@ pub(crate) enum Target<'a> {
     /// Straight into a framebuffer: tiles load its pixels (or, when `fresh`, start from the
     /// clear values because every pixel will be written) and store them back.
     Frame { fb: &'a mut Framebuffer, fresh: bool },
-    /// Into an open [`Session`] on `fb`, in depth format `format`: tiles load from and store
-    /// to `fb` as in a plain frame (cleared on first use), and keep their pyramid levels.
-    Session { fb: &'a mut Framebuffer, format: DepthFormat },
+    /// Into an open [`Session`] on `fb` (its options give the depth format): tiles load from
+    /// and store to `fb` as in a plain frame (cleared on first use), and keep their pyramid
+    /// levels.
+    Session { fb: &'a mut Framebuffer },
 }
 
 impl Renderer {
@@ -165,7 +166,8 @@ impl Renderer {
     }
 
     /// Draws `items` into the depth and ID planes of `target`, not shaded (a fresh frame
-    /// target needs no clear first: every pixel is written).
+    /// target needs no clear first: every pixel is written); refused when the depth format
+    /// cannot resolve the camera's depth range.
     pub(crate) fn draw_items(
         &mut self,
         scene: &Scene,
@@ -175,6 +177,7 @@ impl Renderer {
         target: Target,
         opts: &RenderOptions,
     ) -> Result<FrameStats> {
+        opts.depth_format.check_resolves(&camera.projection)?;
         let t0 = Instant::now();
         let resolved = self.resolve_items(scene, instances, items, camera)?;
         let mut stats = self.run(&resolved, target, opts);
@@ -194,7 +197,6 @@ impl Renderer {
         fb: &mut Framebuffer,
         opts: &RenderOptions,
     ) -> Result<FrameStats> {
-        opts.depth_format.check_resolves(&camera.projection)?;
         self.draw_items(scene, instances, items, camera, Target::Frame { fb, fresh: false }, opts)
     }
 
@@ -382,8 +384,8 @@ impl Renderer {
     fn run(&mut self, items: &[Item], mut target: Target, opts: &RenderOptions) -> FrameStats {
         let mut st = FrameStats::default();
         let (width, height, session) = match &target {
-            Target::Frame { fb, .. } => (fb.width(), fb.height(), None),
-            Target::Session { fb, format } => (fb.width(), fb.height(), Some(*format)),
+            Target::Frame { fb, .. } => (fb.width(), fb.height(), false),
+            Target::Session { fb } => (fb.width(), fb.height(), true),
         };
         let vp = Viewport::new(width, height, opts.guard_band);
         let grid = Grid::new(width, height);
@@ -394,8 +396,7 @@ impl Renderer {
         // still in cache. Its time is split between the two stages in proportion to the
         // time the chunks spent in each.
         let t = Instant::now();
-        let n =
-            self.geometry(items, &vp, opts.backface_culling, Some(Binning { grid: &grid, session: session.is_some() }));
+        let n = self.geometry(items, &vp, opts.backface_culling, Some(Binning { grid: &grid, session }));
         let step = ms_since(t);
         let (geometry, binning) = self.chunks[..n].iter().fold((0.0, 0.0), |(g, b), c| (g + c.ms.0, b + c.ms.1));
         st.ms_binning = if binning > 0.0 { step * binning / (geometry + binning) } else { 0.0 };
@@ -404,16 +405,15 @@ impl Renderer {
         // 3. Rasterization.
         let t = Instant::now();
         let chunks = &self.chunks[..n];
-        let fmt = session.unwrap_or(opts.depth_format);
         let (fb, fresh) = match &mut target {
             Target::Frame { fb, fresh } => (&mut **fb, *fresh),
-            Target::Session { fb, .. } => (&mut **fb, false),
+            Target::Session { fb } => (&mut **fb, false),
         };
         let counting = fb.depth_tests.is_some();
         let planes = Planes::new(fb);
-        let pass = TilePass { chunks, target: &planes, fresh, counting, session: session.is_some() };
-        let ts = raster_tiles(&mut self.levels, &mut self.scratch, &pass, fmt, SimdLevel::Auto);
-        if session.is_some() {
+        let pass = TilePass { chunks, target: &planes, fresh, counting, session };
+        let ts = raster_tiles(&mut self.levels, &mut self.scratch, &pass, opts.depth_format, SimdLevel::Auto);
+        if session {
             self.upper.update(&self.levels);
         } else if fresh {
             // Only a fresh draw wrote every pixel; after a plain batch the count would include

@@ -325,7 +325,7 @@ impl Clusters {
         // depth then skips the 8×8 blocks that nearer clusters of the same batch already hide. The set keeps the order it was found in otherwise,
         // which goes stale as the camera moves.
         // (A distance is ≥ 0, so its bits order like it; NaN sorts last.)
-        first.sort_by_cached_key(|&i| (boxes[i as usize].distance_squared(eye).to_bits(), i));
+        first.sort_unstable_by_key(|&i| (boxes[i as usize].distance_squared(eye).to_bits(), i));
         for &i in &first {
             two.drawn_in[i as usize] = frame;
         }

@@ -226,14 +226,42 @@ mod tests {
         rng: &mut Rng,
         ask: impl FnOnce(&TilePyramid, &mut Rng) -> T,
     ) -> (T, Framebuffer) {
+        // A stale framebuffer (every depth nearest): the pyramid reads its own tiles only.
         let mut fb = Framebuffer::new(W, H).unwrap();
+        fb.depth.fill(0.0);
         let mut renderer = Renderer::new();
         let opts = RenderOptions { backface_culling: false, depth_format: fmt, ..RenderOptions::ids_only() };
         let mut session = renderer.begin(&mut fb, &opts);
-        session.draw_clip_triangles(&random_triangles(rng), 1);
+        // Two batches: the second re-draws tiles, loading and storing parts of them.
+        let tris = random_triangles(rng);
+        let (a, b) = tris.split_at(tris.len() / 2);
+        session.draw_clip_triangles(a, 1);
+        session.draw_clip_triangles(b, 1 + a.len() as u32);
         let answers = ask(&session.pyramid(), rng);
         session.finish();
         (answers, fb)
+    }
+
+    /// A tile no batch drew into occludes nothing, whatever the framebuffer held there
+    /// before the session: small queries, refined down to the pixels, read it as cleared.
+    #[test]
+    fn untouched_tiles_of_a_stale_framebuffer_occlude_nothing() {
+        let mut fb = Framebuffer::new(W, H).unwrap();
+        fb.depth.fill(0.0);
+        let mut renderer = Renderer::new();
+        let opts = RenderOptions::ids_only();
+        let mut session = renderer.begin(&mut fb, &opts);
+        // One small triangle in the top-left tile only.
+        let tri = [Vec4::new(-0.95, 0.95, 0.5, 1.0), Vec4::new(-0.9, 0.95, 0.5, 1.0), Vec4::new(-0.95, 0.9, 0.5, 1.0)];
+        session.draw_clip_triangles(&[tri], 1);
+        let pyramid = session.pyramid();
+        for (x, y) in [(200, 100), (299, 169), (70, 5), (130, 140)] {
+            for side in [0, 1, 3, 7] {
+                let r = Rect { x0: x - side.min(x), y0: y - side.min(y), x1: x, y1: y };
+                assert!(!pyramid.is_occluded(r, 0.5), "{r:?} in a tile no batch drew into");
+            }
+        }
+        session.finish();
     }
 
     /// The session pyramid's two-step test gives exactly the answers of its finer level alone

@@ -38,7 +38,7 @@ use crate::depth::{with_codec, DepthCodec, DepthFormat};
 use crate::edge::{edges, wide_block, BlockSetup, Edge, FastEdges, Tri};
 use crate::geometry::Chunk;
 use crate::hzb::TileLevels;
-use crate::tiling::{BLOCK, TILE, TILE_SHIFT};
+use crate::tiling::{BLOCK, TILE_SHIFT};
 pub(crate) use kernel::{Avx2, Avx512, Kernel, Rows};
 pub(crate) use store::{Planes, Span};
 pub(crate) use tile::TileBuf;
@@ -327,10 +327,12 @@ unsafe fn raster_tile<D: DepthCodec, const C: bool, K: Kernel>(
         let first = !lv.touched;
         let span = if first { Span::whole(tile) } else { binned_span(tile, index, pass.chunks) };
         out.prefetch(tile, span);
-        // The pyramid's max reads whole 8×8 blocks: pixels off the screen hold 0.
-        let partial = tile.w < TILE || tile.h < TILE;
-        if first || partial {
+        // The pyramid's max reads whole 8×8 blocks: pixels off the screen hold 0 (the
+        // scratch buffer last held another tile).
+        if first {
             tile.clear_for_session::<D>(C);
+        } else {
+            tile.zero_outside();
         }
         let covered_before = if first {
             lv.clear::<D>();
@@ -338,7 +340,7 @@ unsafe fn raster_tile<D: DepthCodec, const C: bool, K: Kernel>(
             0
         } else {
             // SAFETY: as above, the tile's rectangle is this task's alone.
-            unsafe { out.load::<D>(tile, C, span) }
+            unsafe { out.load::<D, true>(tile, C, span) }
         };
         // SAFETY: forwarded from the caller.
         unsafe { raster_bins::<D, C, true, K>(tile, lv, index, pass.chunks, &mut st) };
@@ -361,7 +363,7 @@ unsafe fn raster_tile<D: DepthCodec, const C: bool, K: Kernel>(
         }
     } else {
         // SAFETY: as above.
-        let _ = unsafe { out.load::<D>(tile, C, span) };
+        unsafe { out.load::<D, false>(tile, C, span) };
     }
     // SAFETY: forwarded from the caller.
     unsafe { raster_bins::<D, C, false, K>(tile, lv, index, pass.chunks, &mut st) };

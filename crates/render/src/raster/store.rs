@@ -127,12 +127,17 @@ impl<'a> Planes<'a> {
         }
     }
 
-    /// Loads `span` of `tile` from the planes (depth-test counts too when `counting`);
-    /// returns the covered pixels (ID ≠ 0) of the span.
+    /// Loads `span` of `tile` from the planes (depth-test counts too when `counting`); with
+    /// `COVERED`, returns the covered pixels (ID ≠ 0) of the span (else 0).
     ///
     /// # Safety
     /// No other task may access this tile's rectangle at the same time.
-    pub(crate) unsafe fn load<D: DepthCodec>(&self, tile: &mut TileBuf, counting: bool, span: Span) -> u64 {
+    pub(crate) unsafe fn load<D: DepthCodec, const COVERED: bool>(
+        &self,
+        tile: &mut TileBuf,
+        counting: bool,
+        span: Span,
+    ) -> u64 {
         let (x0, x1) = (span.x0, span.x1);
         let mut covered = 0;
         for r in span.y0..span.y1 {
@@ -146,7 +151,9 @@ impl<'a> Planes<'a> {
             if let (true, Some(c)) = (counting, counts) {
                 tile.counts[at + x0..at + x1].copy_from_slice(&c[x0..x1]);
             }
-            covered += count_covered(&ids[x0..x1]);
+            if COVERED {
+                covered += count_covered(&ids[x0..x1]);
+            }
         }
         covered
     }

@@ -56,21 +56,27 @@ impl TileBuf {
         let clear = D::FORMAT.key(1.0);
         let (w, h) = (self.w as usize, self.h as usize);
         let t = TILE as usize;
-        if w == t && h == t {
-            self.depth[..t * t].fill(clear);
-        } else {
-            for (r, row) in self.depth[..t * t].chunks_exact_mut(t).enumerate() {
-                if r < h {
-                    row[..w].fill(clear);
-                    row[w..].fill(0);
-                } else {
-                    row.fill(0);
-                }
-            }
+        for row in self.depth[..h * t].chunks_exact_mut(t) {
+            row[..w].fill(clear);
         }
+        self.zero_outside();
         self.ids.fill(0);
         if counting {
             self.counts.fill(0);
+        }
+    }
+
+    /// Sets the depth keys of the buffer's pixels off the screen (right of `w`, below `h`)
+    /// to 0, so that the pyramid's max ignores them: a tile cut by the screen edge drawn
+    /// again in a session, whose pixels on the screen are loaded.
+    pub(crate) fn zero_outside(&mut self) {
+        let (w, h) = (self.w as usize, self.h as usize);
+        let t = TILE as usize;
+        if w == t && h == t {
+            return;
+        }
+        for (r, row) in self.depth[..t * t].chunks_exact_mut(t).enumerate() {
+            row[if r < h { w } else { 0 }..].fill(0);
         }
     }
 }

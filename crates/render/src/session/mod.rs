@@ -53,7 +53,7 @@ impl<'r> Session<'r> {
 
     /// The renderer, the session's draw target and the options, for one batch.
     fn batch(&mut self) -> (&mut Renderer, Target<'_>, RenderOptions) {
-        (&mut *self.renderer, Target::Session { fb: &mut *self.fb, format: self.opts.depth_format }, self.opts)
+        (&mut *self.renderer, Target::Session { fb: &mut *self.fb }, self.opts)
     }
 
     /// Draws triangle ranges of the scene's instances into the session's frame, in order,
@@ -65,7 +65,6 @@ impl<'r> Session<'r> {
         items: &[DrawItem],
         camera: &Camera,
     ) -> Result<FrameStats> {
-        self.opts.depth_format.check_resolves(&camera.projection)?;
         let (renderer, target, opts) = self.batch();
         renderer.draw_items(scene, instances, items, camera, target, &opts)
     }

@@ -48,6 +48,25 @@ fn a_session_over_a_stale_framebuffer_equals_plain_draws() {
         assert!(fb.depth == plain.depth, "{format:?}: depths differ");
         assert_eq!(covered, fb.ids.iter().filter(|&&i| i != 0).count() as u64, "{format:?}");
         assert!(fb.ids.contains(&0) && covered > 0, "{format:?}: some tiles drawn, some not");
+        // Counting depth tests over stale counts: the same frame, and the counts left in
+        // the framebuffer are every test the batches made (a re-drawn tile loads and stores
+        // its counts under its span), none on pixels no triangle reached.
+        let mut counted = Framebuffer::new(200, 150).unwrap();
+        counted.count_depth_tests(true);
+        counted.depth.fill(0.25);
+        if let Some(c) = &mut counted.depth_tests {
+            c.fill(9);
+        }
+        let mut session = r.begin(&mut counted, &opts);
+        let mut tests = 0;
+        for (k, b) in batches.iter().enumerate() {
+            tests += session.draw_clip_triangles(b, 1 + 100 * k as u32).fragments_tested;
+        }
+        session.finish();
+        assert!(counted.ids == plain.ids && counted.depth == plain.depth, "{format:?}: counting changed the frame");
+        let c = counted.depth_tests.as_ref().unwrap();
+        assert_eq!(c.iter().map(|&n| n as u64).sum::<u64>(), tests, "{format:?}: depth tests lost or stale");
+        assert!(c.iter().zip(&counted.ids).all(|(&n, &id)| id != 0 || n == 0), "{format:?}: stale counts");
     }
 }
 
