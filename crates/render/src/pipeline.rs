@@ -496,8 +496,7 @@ impl Renderer {
         }
         self.levels.clear();
         for k in 0..grid.len() {
-            let (x0, y0, w, h) = grid.tile_rect(k);
-            self.levels.push(TileLevels::new(x0, y0, w, h));
+            self.levels.push(TileLevels::new(grid.tile_rect(k)));
         }
         self.grid = Some(grid);
     }

@@ -37,10 +37,10 @@ impl Grid {
         (self.tiles_x * self.tiles_y) as usize
     }
 
-    /// Tile `k`'s pixel rectangle: left column, top row, width, height.
-    pub fn tile_rect(&self, k: usize) -> (u32, u32, u32, u32) {
+    /// Tile `k`'s pixel rectangle.
+    pub fn tile_rect(&self, k: usize) -> TileRect {
         let (tx, ty) = (k as u32 % self.tiles_x, k as u32 / self.tiles_x);
         let (x0, y0) = (tx * TILE, ty * TILE);
-        (x0, y0, TILE.min(self.width - x0), TILE.min(self.height - y0))
+        TileRect { x0, y0, w: TILE.min(self.width - x0), h: TILE.min(self.height - y0) }
     }
 }

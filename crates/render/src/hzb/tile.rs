@@ -50,8 +50,9 @@ pub(crate) struct TileLevels {
 }
 
 impl TileLevels {
-    /// Cleared levels for the tile at pixel (x0, y0) of size w × h.
-    pub(crate) fn new(x0: u32, y0: u32, w: u32, h: u32) -> Self {
+    /// Cleared levels for the tile `rect`.
+    pub(crate) fn new(rect: TileRect) -> Self {
+        let TileRect { x0, y0, w, h } = rect;
         Self {
             x0,
             y0,

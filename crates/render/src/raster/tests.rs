@@ -37,7 +37,7 @@ fn kernels() -> Vec<SimdLevel> {
 }
 
 fn levels_of(tile: &TileBuf) -> TileLevels {
-    TileLevels::new(tile.x0, tile.y0, tile.w, tile.h)
+    TileLevels::new(tile.rect())
 }
 
 fn tri(pts: [(f32, f32); 3], id: u32, vp: &Viewport) -> Option<Tri> {
