@@ -60,8 +60,8 @@ use sightline::render::{
     compare_ids, shade_pass, Culler, DrawItem, FrameStats, Framebuffer, Method, RenderOptions, Renderer, World,
 };
 use sightline::scene::builders::{city, CityParams};
-use sightline::scene::{Aabb, Camera, Instance};
-use sightline::spatial::{BoxImage, BoxProjector, ClusteredScene};
+use sightline::scene::{Aabb, Camera, Instance, Scene};
+use sightline::spatial::{AabbExt, BoxImage, BoxProjector, ClusteredScene};
 
 type Error = Box<dyn std::error::Error + Send + Sync>;
 
@@ -117,8 +117,9 @@ fn run() -> Result<(), Error> {
     let (mut reference, mut fb) = (Framebuffer::new(1280, 720)?, Framebuffer::new(1280, 720)?);
     let opts = RenderOptions::default();
     let mut runs: [Vec<f64>; 4] = Default::default();
-    // Frames of whole clusters: [holding a visible triangle, no box or cone test skips].
-    let mut cluster_runs: [Vec<f64>; 2] = Default::default();
+    // Frames of whole clusters: [holding a visible triangle, no box or cone test skips,
+    // holding a visible triangle drawn front to back in a session].
+    let mut cluster_runs: [Vec<f64>; 3] = Default::default();
     let (mut visible, mut stages) = (Vec::new(), Vec::new());
     // Per frame: [hzb drew, box test passes, holding a visible triangle], as (clusters, triangles).
     let mut clusters: Vec<[(u64, u64); 3]> = Vec::new();
@@ -146,17 +147,14 @@ fn run() -> Result<(), Error> {
             }
             // The same triangles drawn in a frame session, as the culling methods draw.
             let t = Instant::now();
-            let mut session = renderer.begin(&mut fb, &opts);
-            session.draw(world.scene(), &instances, &items.0, cam)?;
-            session.finish();
-            shade_pass(world.scene(), &instances, cam, &mut fb, &opts.shading, opts.background);
+            session_frame(&mut renderer, world.scene(), &instances, &items.0, cam, &mut fb, &opts)?;
             let in_session = ms(t);
             if let Some(m) = compare_ids(&reference.ids, &fb.ids, fb.width()) {
                 return Err(format!("frame {k}: the oracle drawn in a session differs: {m:?}").into());
             }
             // The two cluster bounds, drawn as plain frames like the oracle; `reference`
             // holds the final depth (a pixel's triangle gives it the same depth in any frame).
-            let (draws, tallies) = {
+            let (draws, ordered, tallies) = {
                 let culler = world.culler()?;
                 let holding = holding_visible(&items.0, culler.clustered());
                 let passing = box_test_bound(&boxes, culler, cam, &reference);
@@ -172,9 +170,10 @@ fn run() -> Result<(), Error> {
                         format!("frame {k}: cluster {i} holds a visible triangle and fails the box test").into()
                     );
                 }
-                ([draw(&holding), draw(&passing)], [tally(&passing), tally(&holding)])
+                let ordered = front_to_back(&holding, culler.clustered(), &boxes, cam);
+                ([draw(&holding), draw(&passing)], ordered, [tally(&passing), tally(&holding)])
             };
-            let mut cluster_ms = [0.0; 2];
+            let mut cluster_ms = [0.0; 3];
             for (ms_k, draw) in cluster_ms.iter_mut().zip(&draws) {
                 let t = Instant::now();
                 renderer.render(world.scene(), &instances, draw, cam, &mut fb, &opts)?;
@@ -184,6 +183,14 @@ fn run() -> Result<(), Error> {
                         format!("frame {k}: a frame of whole clusters differs from the reference: {m:?}").into()
                     );
                 }
+            }
+            // The least any culler of whole clusters drawing into a session costs: the
+            // clusters it must draw, in one batch, nearest first (as `hzb` draws its first).
+            let t = Instant::now();
+            session_frame(&mut renderer, world.scene(), &instances, &ordered, cam, &mut fb, &opts)?;
+            cluster_ms[2] = ms(t);
+            if let Some(m) = compare_ids(&reference.ids, &fb.ids, fb.width()) {
+                return Err(format!("frame {k}: the clusters drawn in a session differ: {m:?}").into());
             }
             if round == 1 {
                 for (run, v) in runs.iter_mut().zip([brute, hzb, oracle, in_session]) {
@@ -222,11 +229,15 @@ fn run() -> Result<(), Error> {
         "  oracle drawn in a frame session (as culling draws: pyramid kept, tiles written through) {in_session:.2} ms ({:.2}× oracle)",
         in_session / oracle
     );
-    let [holding, passing] = cluster_runs.map(median);
+    let [holding, passing, holding_session] = cluster_runs.map(median);
     println!(
         "  frames of whole clusters: those holding a visible triangle {holding:.2} ms ({:.2}× oracle), those no box or cone test skips {passing:.2} ms ({:.2}× oracle)",
         holding / oracle,
         passing / oracle
+    );
+    println!(
+        "  the clusters holding a visible triangle in one session batch, nearest first (the least a culler of whole clusters draws into a session) {holding_session:.2} ms ({:.2}× oracle)",
+        holding_session / oracle
     );
     println!(
         "  oracle stages: geometry {:.2}, binning {:.2}, raster and write-out {:.2}, shading {:.2} ms",
@@ -348,6 +359,36 @@ fn holding_visible(items: &[DrawItem], clustered: &ClusteredScene) -> Vec<u32> {
         }
     }
     out
+}
+
+/// One frame of `items` drawn into a frame session in one batch, then shaded: what the
+/// culling methods' frames cost besides culling and their later batches.
+fn session_frame(
+    renderer: &mut Renderer,
+    scene: &Scene,
+    instances: &[Instance],
+    items: &[DrawItem],
+    camera: &Camera,
+    fb: &mut Framebuffer,
+    opts: &RenderOptions,
+) -> Result<(), Error> {
+    let mut session = renderer.begin(fb, opts);
+    session.draw(scene, instances, items, camera)?;
+    session.finish();
+    shade_pass(scene, instances, camera, fb, &opts.shading, opts.background);
+    Ok(())
+}
+
+/// Every triangle of the clusters `set`, cluster by cluster, nearest box first (by the
+/// distance from the eye, as `hzb` orders its first batch).
+fn front_to_back(set: &[u32], clustered: &ClusteredScene, boxes: &[Aabb], camera: &Camera) -> Vec<DrawItem> {
+    let eye = camera.view.eye;
+    let mut order = set.to_vec();
+    order.sort_by(|&a, &b| boxes[a as usize].distance_squared(eye).total_cmp(&boxes[b as usize].distance_squared(eye)));
+    runs(order.iter().flat_map(|&i| {
+        let instance = clustered.item(i).instance;
+        clustered.triangles(i).iter().map(move |&t| (instance, t))
+    }))
 }
 
 /// Every triangle of the clusters `set`, as draw items (runs of consecutive triangles of
