@@ -152,6 +152,8 @@ impl Renderer {
             target.clear(opts.background);
             return Ok(FrameStats::default());
         }
+        // Checked here for the transparency path, which does not go through `draw_items`
+        // (that checks again for its own callers: a few float comparisons).
         opts.depth_format.check_resolves(&camera.projection)?;
         // Masked or blended materials: the transparency module's frame driver.
         if let Some(stats) = self.draw_with_transparency(scene, instances, items, camera, target, opts)? {
@@ -514,11 +516,11 @@ fn clear_untouched<D: DepthCodec>(levels: &[TileLevels], tiles_x: usize, fb: &mu
         .map(|band| {
             let covered: u64 = band.iter().filter(|l| l.touched).map(|l| l.covered).sum();
             if band.iter().any(|l| !l.touched) {
-                for r in 0..band.first().map_or(0, |l| l.h as usize) {
+                for r in 0..band.first().map_or(0, |l| l.rect.h as usize) {
                     for l in band.iter().filter(|l| !l.touched) {
                         // SAFETY: this task is the only one on this row of tiles, whose
                         // rectangles no other task's tiles share.
-                        unsafe { planes.clear_row(l.rect(), r, far) };
+                        unsafe { planes.clear_row(l.rect, r, far) };
                     }
                 }
             }

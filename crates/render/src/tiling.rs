@@ -11,7 +11,7 @@ pub(crate) const BLOCK: i32 = 8;
 
 /// A tile's pixel rectangle on the target: left column, top row, width and height (≤
 /// [`TILE`] at the right and bottom borders).
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
 pub(crate) struct TileRect {
     pub x0: u32,
     pub y0: u32,

@@ -26,11 +26,8 @@ pub(crate) static CLEARED: [f32; OFFSETS[6]] = [1.0; OFFSETS[6]];
 /// their incremental update, and its state in a frame session.
 #[derive(Debug, Clone)]
 pub(crate) struct TileLevels {
-    /// The tile's left pixel column, top row, width and height (≤ [`TILE`]).
-    pub x0: u32,
-    pub y0: u32,
-    pub w: u32,
-    pub h: u32,
+    /// The tile on the screen.
+    pub rect: TileRect,
     /// In a frame session: whether the tile has been drawn into (else it is still clear and
     /// the levels are stale).
     pub touched: bool,
@@ -52,12 +49,8 @@ pub(crate) struct TileLevels {
 impl TileLevels {
     /// Cleared levels for the tile `rect`.
     pub(crate) fn new(rect: TileRect) -> Self {
-        let TileRect { x0, y0, w, h } = rect;
         Self {
-            x0,
-            y0,
-            w,
-            h,
+            rect,
             touched: false,
             coarse: false,
             mips: vec![1.0; OFFSETS[6]],
@@ -67,12 +60,6 @@ impl TileLevels {
         }
     }
 
-    /// The tile's rectangle on the screen.
-    #[inline]
-    pub(crate) fn rect(&self) -> TileRect {
-        TileRect { x0: self.x0, y0: self.y0, w: self.w, h: self.h }
-    }
-
     /// Clears the levels when the tile is first drawn into in a session of format `D`.
     pub(crate) fn clear<D: DepthCodec>(&mut self) {
         self.tie_margin = D::tie_margin();
@@ -80,7 +67,7 @@ impl TileLevels {
         // A tile cut by the screen edge: its first update computes every level, so that
         // texels over pixels that do not exist take their depth 0 (no pixel written there
         // would ever mark them).
-        self.stale_blocks = if self.w < TILE || self.h < TILE { !0 } else { 0 };
+        self.stale_blocks = if self.rect.w < TILE || self.rect.h < TILE { !0 } else { 0 };
         self.touched = true;
     }
 
@@ -91,10 +78,10 @@ impl TileLevels {
     #[inline]
     pub(crate) fn occludes(&self, t: &Tri) -> bool {
         // The triangle's pixels in this tile, in tile coordinates.
-        let x0 = (t.bbox[0] as u32).max(self.x0) - self.x0;
-        let y0 = (t.bbox[1] as u32).max(self.y0) - self.y0;
-        let x1 = (t.bbox[2] as u32).min(self.x0 + self.w - 1).saturating_sub(self.x0);
-        let y1 = (t.bbox[3] as u32).min(self.y0 + self.h - 1).saturating_sub(self.y0);
+        let x0 = (t.bbox[0] as u32).max(self.rect.x0) - self.rect.x0;
+        let y0 = (t.bbox[1] as u32).max(self.rect.y0) - self.rect.y0;
+        let x1 = (t.bbox[2] as u32).min(self.rect.x0 + self.rect.w - 1).saturating_sub(self.rect.x0);
+        let y1 = (t.bbox[3] as u32).min(self.rect.y0 + self.rect.h - 1).saturating_sub(self.rect.y0);
         if x0 > x1 || y0 > y1 {
             return false;
         }
@@ -117,7 +104,7 @@ impl TileLevels {
         if t.bbox[2] - t.bbox[0] < 8 && t.bbox[3] - t.bbox[1] < 8 {
             return false;
         }
-        let (sx, sy) = (self.x0 as i32, self.y0 as i32);
+        let (sx, sy) = (self.rect.x0 as i32, self.rect.y0 as i32);
         let plane = t.plane_min([x0 as i32 + sx, y0 as i32 + sy, x1 as i32 + sx, y1 as i32 + sy]);
         plane > near && plane > 0.0 && behind(plane)
     }

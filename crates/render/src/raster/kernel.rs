@@ -293,7 +293,7 @@ fn run_row<D: DepthCodec, const COUNT: bool>(r: &Row, tile: &mut TileBuf, base: 
 #[cfg(target_arch = "x86_64")]
 #[inline(always)]
 fn block_base<const COUNT: bool>(tile: &TileBuf, [rx0, ry0, _, ry1]: [i32; 4]) -> usize {
-    let (tx, ty) = (tile.x0 as i32, tile.y0 as i32);
+    let (tx, ty) = (tile.rect.x0 as i32, tile.rect.y0 as i32);
     let base = (((ry0 - ty) as usize) << TILE_SHIFT) + (rx0 - tx) as usize;
     let end = base + ((ry1 - ry0) as usize) * TILE as usize + PAD;
     debug_assert!(
@@ -460,7 +460,7 @@ fn block_rows<D: DepthCodec, const COUNT: bool>(
     k: &BlockEdges,
     out: &mut TriRaster,
 ) {
-    let (tx, ty) = (tile.x0 as i32, tile.y0 as i32);
+    let (tx, ty) = (tile.rect.x0 as i32, tile.rect.y0 as i32);
     let mut r = Row {
         e: k.e,
         a: k.a,

@@ -38,7 +38,7 @@ use crate::depth::{with_codec, DepthCodec, DepthFormat};
 use crate::edge::{edges, wide_block, BlockSetup, Edge, FastEdges, Tri};
 use crate::geometry::Chunk;
 use crate::hzb::TileLevels;
-use crate::tiling::{BLOCK, TILE_SHIFT};
+use crate::tiling::{TileRect, BLOCK, TILE_SHIFT};
 pub(crate) use kernel::{Avx2, Avx512, Kernel, Rows};
 pub(crate) use store::{Planes, Span};
 pub(crate) use tile::TileBuf;
@@ -64,10 +64,10 @@ pub(crate) unsafe fn raster_tri<D: DepthCodec, const COUNT: bool, K: Kernel>(
     tile: &mut TileBuf,
     lv: &mut TileLevels,
 ) -> TriRaster {
-    let x0 = (t.bbox[0] as i32).max(tile.x0 as i32);
-    let y0 = (t.bbox[1] as i32).max(tile.y0 as i32);
-    let x1 = (t.bbox[2] as i32).min((tile.x0 + tile.w) as i32 - 1);
-    let y1 = (t.bbox[3] as i32).min((tile.y0 + tile.h) as i32 - 1);
+    let x0 = (t.bbox[0] as i32).max(tile.rect.x0 as i32);
+    let y0 = (t.bbox[1] as i32).max(tile.rect.y0 as i32);
+    let x1 = (t.bbox[2] as i32).min((tile.rect.x0 + tile.rect.w) as i32 - 1);
+    let y1 = (t.bbox[3] as i32).min((tile.rect.y0 + tile.rect.h) as i32 - 1);
     if x0 > x1 || y0 > y1 {
         return TriRaster::default();
     }
@@ -100,7 +100,7 @@ unsafe fn walk_blocks<D: DepthCodec, const COUNT: bool, K: Kernel>(
     mut setup: impl FnMut([i32; 4], [i32; 2]) -> BlockSetup,
 ) -> TriRaster {
     let mut out = TriRaster::default();
-    let (tx, ty) = (tile.x0 as i32, tile.y0 as i32);
+    let (tx, ty) = (tile.rect.x0 as i32, tile.rect.y0 as i32);
     // Block corners are aligned to the tile (whose corner is a multiple of 8).
     let mut by = y0 & !(BLOCK - 1);
     while by <= y1 {
@@ -204,7 +204,7 @@ pub(crate) fn raster_tiles(
     with_codec!(fmt, tiles_in::<_>(levels, scratch, pass, simd))
 }
 
-type TileFn = fn(&mut TileBuf, &mut TileLevels, usize, &TilePass) -> TileStats;
+type TileFn = fn(&mut TileBuf, &mut TileLevels, usize, bool, &TilePass) -> TileStats;
 
 /// The AVX2 build of the tile function.
 ///
@@ -216,10 +216,11 @@ unsafe fn raster_tile_avx2<D: DepthCodec, const C: bool>(
     tile: &mut TileBuf,
     lv: &mut TileLevels,
     index: usize,
+    binned: bool,
     pass: &TilePass,
 ) -> TileStats {
     // SAFETY: the CPU has AVX2 (this function's contract).
-    unsafe { raster_tile::<D, C, Avx2>(tile, lv, index, pass) }
+    unsafe { raster_tile::<D, C, Avx2>(tile, lv, index, binned, pass) }
 }
 
 /// The AVX-512 build of the tile function (the walk as AVX2's, the [`Avx512`] kernel).
@@ -233,10 +234,11 @@ unsafe fn raster_tile_avx512<D: DepthCodec, const C: bool>(
     tile: &mut TileBuf,
     lv: &mut TileLevels,
     index: usize,
+    binned: bool,
     pass: &TilePass,
 ) -> TileStats {
     // SAFETY: the CPU has AVX-512 (this function's contract).
-    unsafe { raster_tile::<D, C, Avx512>(tile, lv, index, pass) }
+    unsafe { raster_tile::<D, C, Avx512>(tile, lv, index, binned, pass) }
 }
 
 fn tiles_in<D: DepthCodec>(
@@ -251,15 +253,15 @@ fn tiles_in<D: DepthCodec>(
     // every feature they enable.
     let f: TileFn = match (simd.resolve(), count) {
         #[cfg(target_arch = "x86_64")]
-        (SimdLevel::Avx512, false) => |t, l, i, p| unsafe { raster_tile_avx512::<D, false>(t, l, i, p) },
+        (SimdLevel::Avx512, false) => |t, l, i, b, p| unsafe { raster_tile_avx512::<D, false>(t, l, i, b, p) },
         #[cfg(target_arch = "x86_64")]
-        (SimdLevel::Avx512, true) => |t, l, i, p| unsafe { raster_tile_avx512::<D, true>(t, l, i, p) },
+        (SimdLevel::Avx512, true) => |t, l, i, b, p| unsafe { raster_tile_avx512::<D, true>(t, l, i, b, p) },
         #[cfg(target_arch = "x86_64")]
-        (SimdLevel::Avx2, false) => |t, l, i, p| unsafe { raster_tile_avx2::<D, false>(t, l, i, p) },
+        (SimdLevel::Avx2, false) => |t, l, i, b, p| unsafe { raster_tile_avx2::<D, false>(t, l, i, b, p) },
         #[cfg(target_arch = "x86_64")]
-        (SimdLevel::Avx2, true) => |t, l, i, p| unsafe { raster_tile_avx2::<D, true>(t, l, i, p) },
-        (_, false) => |t, l, i, p| unsafe { raster_tile::<D, false, Rows>(t, l, i, p) },
-        (_, true) => |t, l, i, p| unsafe { raster_tile::<D, true, Rows>(t, l, i, p) },
+        (SimdLevel::Avx2, true) => |t, l, i, b, p| unsafe { raster_tile_avx2::<D, true>(t, l, i, b, p) },
+        (_, false) => |t, l, i, b, p| unsafe { raster_tile::<D, false, Rows>(t, l, i, b, p) },
+        (_, true) => |t, l, i, b, p| unsafe { raster_tile::<D, true, Rows>(t, l, i, b, p) },
     };
     // Tiles are claimed one at a time, costliest (most binned triangles) first; see
     // [`crate::claim`]. A tile with nothing binned needs work only when a fresh target is
@@ -278,15 +280,13 @@ fn tiles_in<D: DepthCodec>(
     // core's cache, where the 240 tile buffers of a frame would be cleared and read back
     // from the shared cache.
     let pool = Mutex::new(std::mem::take(scratch));
-    let take = || pool.lock().ok().and_then(|mut p| p.pop()).unwrap_or_else(|| TileBuf::new(0, 0, 0, 0));
+    let take = || pool.lock().ok().and_then(|mut p| p.pop()).unwrap_or_else(|| TileBuf::new(TileRect::default()));
     let workers = for_each_claimed(
         order,
         || (TileStats::default(), take()),
         |(sum, s), (cost, i, lv)| {
-            s.set_rect(lv.rect());
-            // Whether the tile draws in this pass, decided here once for `raster_tile`.
-            s.dirty = cost > 0;
-            *sum = TileStats::sum(*sum, f(s, lv, i, pass));
+            s.rect = lv.rect;
+            *sum = TileStats::sum(*sum, f(s, lv, i, cost > 0, pass));
         },
     );
     *scratch = pool.into_inner().unwrap_or_default();
@@ -299,7 +299,7 @@ fn tiles_in<D: DepthCodec>(
 /// One tile of the tile stage, drawn in the scratch buffer `tile`: start from the clear
 /// values (a fresh target, or a session's first use of the tile) or load the target's
 /// pixels, draw, store back. In a session the tile also keeps its pyramid levels.
-/// `tile.dirty` says whether anything is binned to it ([`tiles_in`] sets it).
+/// `binned` says whether any triangle is binned to it.
 ///
 /// # Safety
 /// The CPU must support `K`'s instruction set.
@@ -308,15 +308,16 @@ unsafe fn raster_tile<D: DepthCodec, const C: bool, K: Kernel>(
     tile: &mut TileBuf,
     lv: &mut TileLevels,
     index: usize,
+    binned: bool,
     pass: &TilePass,
 ) -> TileStats {
     let mut st = TileStats::default();
     let out = pass.target;
-    if !tile.dirty {
+    if !binned {
         if pass.fresh {
             // SAFETY: this task is the only one on tile `index`, whose rectangle no other
             // tile shares.
-            unsafe { out.clear(tile.rect(), D::decode(D::FORMAT.key(1.0))) };
+            unsafe { out.clear(tile.rect, D::decode(D::FORMAT.key(1.0))) };
         }
         return st;
     }
@@ -375,7 +376,7 @@ unsafe fn raster_tile<D: DepthCodec, const C: bool, K: Kernel>(
 /// The 8×8 blocks of `tile` (tile `index`) that the triangles binned to it reach, as a
 /// span: the union of their bounding boxes, widened to whole blocks and cut to the tile.
 fn binned_span(tile: &TileBuf, index: usize, chunks: &[Chunk]) -> Span {
-    let (tx, ty) = (tile.x0 as i32, tile.y0 as i32);
+    let (tx, ty) = (tile.rect.x0 as i32, tile.rect.y0 as i32);
     let mut b = [i32::MAX, i32::MAX, i32::MIN, i32::MIN];
     for c in chunks {
         for &i in &c.bins[index] {
@@ -383,7 +384,7 @@ fn binned_span(tile: &TileBuf, index: usize, chunks: &[Chunk]) -> Span {
             b = [b[0].min(t[0] as i32), b[1].min(t[1] as i32), b[2].max(t[2] as i32), b[3].max(t[3] as i32)];
         }
     }
-    let (w, h) = (tile.w as i32, tile.h as i32);
+    let (w, h) = (tile.rect.w as i32, tile.rect.h as i32);
     let lo = |v: i32, o: i32| ((v - o).max(0) & !(BLOCK - 1)) as usize;
     let hi = |v: i32, o: i32, n: i32| (((v - o + BLOCK) & !(BLOCK - 1)).clamp(0, n)) as usize;
     let (x0, y0) = (lo(b[0], tx), lo(b[1], ty));

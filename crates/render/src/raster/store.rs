@@ -45,7 +45,7 @@ pub(crate) struct Span {
 impl Span {
     /// All of `tile`'s pixels.
     pub(crate) fn whole(tile: &TileBuf) -> Self {
-        Self { x0: 0, x1: tile.w as usize, y0: 0, y1: tile.h as usize }
+        Self { x0: 0, x1: tile.rect.w as usize, y0: 0, y1: tile.rect.h as usize }
     }
 }
 
@@ -111,7 +111,7 @@ impl<'a> Planes<'a> {
         #[cfg(target_arch = "x86_64")]
         for r in span.y0..span.y1 {
             use std::arch::x86_64::{_mm_prefetch, _MM_HINT_ET0};
-            let (at, bytes) = (self.row_start(tile.rect(), r) + span.x0, 4 * (span.x1 - span.x0));
+            let (at, bytes) = (self.row_start(tile.rect, r) + span.x0, 4 * (span.x1 - span.x0));
             for plane in [self.depth as *const i8, self.ids as *const i8] {
                 // SAFETY: prefetching never faults, and the addresses lie inside the planes
                 // (`row_start` checks the rectangle).
@@ -142,7 +142,7 @@ impl<'a> Planes<'a> {
         let mut covered = 0;
         for r in span.y0..span.y1 {
             // SAFETY: forwarded from the caller.
-            let (depth, ids, counts) = unsafe { self.row(tile.rect(), r) };
+            let (depth, ids, counts) = unsafe { self.row(tile.rect, r) };
             let at = r << TILE_SHIFT;
             for (k, d) in tile.depth[at + x0..at + x1].iter_mut().zip(&depth[x0..x1]) {
                 *k = D::FORMAT.key_of_stored(*d);
@@ -168,7 +168,7 @@ impl<'a> Planes<'a> {
         let mut covered = 0;
         for r in span.y0..span.y1 {
             // SAFETY: forwarded from the caller.
-            let (depth, ids, counts) = unsafe { self.row(tile.rect(), r) };
+            let (depth, ids, counts) = unsafe { self.row(tile.rect, r) };
             let at = r << TILE_SHIFT;
             decode_row::<D>(&mut depth[x0..x1], &tile.depth[at + x0..at + x1]);
             let src = &tile.ids[at + x0..at + x1];

@@ -7,7 +7,7 @@ use super::*;
 use crate::depth::{Unorm16, Unorm24, F32};
 use crate::hzb::tile::OFFSETS;
 use crate::setup::{setup, Setup, SnappedVertex, Viewport};
-use crate::tiling::TILE;
+use crate::tiling::{TileRect, TILE};
 
 /// The best kernel the CPU has (and `SIGHTLINE_SIMD` allows).
 fn best() -> SimdLevel {
@@ -37,7 +37,7 @@ fn kernels() -> Vec<SimdLevel> {
 }
 
 fn levels_of(tile: &TileBuf) -> TileLevels {
-    TileLevels::new(tile.rect())
+    TileLevels::new(tile.rect)
 }
 
 fn tri(pts: [(f32, f32); 3], id: u32, vp: &Viewport) -> Option<Tri> {
@@ -51,7 +51,7 @@ fn tri(pts: [(f32, f32); 3], id: u32, vp: &Viewport) -> Option<Tri> {
 fn draw(tris: &[Tri], w: u32, h: u32) -> (Vec<u32>, Vec<u32>) {
     let mut result = None;
     for simd in kernels() {
-        let mut tile = TileBuf::new(0, 0, w, h);
+        let mut tile = TileBuf::new(TileRect { x0: 0, y0: 0, w, h });
         let mut lv = levels_of(&tile);
         tile.depth.fill(F32::key(1.0));
         for t in tris {
@@ -140,14 +140,14 @@ fn sse2_rows_equal_scalar_rows() {
 fn reference<D: DepthCodec>(t: &Tri, tile: &mut TileBuf) -> TriRaster {
     let e = edges(t);
     let mut out = TriRaster::default();
-    let x1 = (t.bbox[2] as u32).min(tile.x0 + tile.w - 1);
-    let y1 = (t.bbox[3] as u32).min(tile.y0 + tile.h - 1);
-    for py in (t.bbox[1] as u32).max(tile.y0)..=y1 {
-        for px in (t.bbox[0] as u32).max(tile.x0)..=x1 {
+    let x1 = (t.bbox[2] as u32).min(tile.rect.x0 + tile.rect.w - 1);
+    let y1 = (t.bbox[3] as u32).min(tile.rect.y0 + tile.rect.h - 1);
+    for py in (t.bbox[1] as u32).max(tile.rect.y0)..=y1 {
+        for px in (t.bbox[0] as u32).max(tile.rect.x0)..=x1 {
             let (x, y) = (px as i64, py as i64);
             if e.iter().all(|e| e.a * x + e.b * y + e.c >= 0) {
                 let z = t.depth_at(t.depth_row(py as i32), px as i32);
-                let idx = (((py - tile.y0) << TILE_SHIFT) + px - tile.x0) as usize;
+                let idx = (((py - tile.rect.y0) << TILE_SHIFT) + px - tile.rect.x0) as usize;
                 fragment::<D, true>(tile, idx, z, t.id, &mut out);
             }
         }
@@ -162,7 +162,7 @@ fn block_kernel_equals_per_pixel_reference() {
     let vp = Viewport::new(200, 150, true);
     let mut rng = sightline_scene::rng::Rng::new(21);
     for (fmt, simd) in [0u8, 16, 24].into_iter().flat_map(|f| kernels().into_iter().map(move |k| (f, k))) {
-        let mut a = TileBuf::new(64, 64, 64, 64);
+        let mut a = TileBuf::new(TileRect { x0: 64, y0: 64, w: 64, h: 64 });
         let mut lv = levels_of(&a);
         a.depth.fill(F32::key(1.0));
         let mut b = a.clone();
@@ -199,7 +199,7 @@ fn coarse_blocks_skip_nothing_visible_and_refresh_their_texel() {
     let vp = Viewport::new(64, 64, true);
     for simd in kernels() {
         let mut rng = sightline_scene::rng::Rng::new(9);
-        let mut a = TileBuf::new(0, 0, 64, 64);
+        let mut a = TileBuf::new(TileRect { x0: 0, y0: 0, w: 64, h: 64 });
         a.clear_for_session::<F32>(false);
         let mut lv = levels_of(&a);
         lv.clear::<F32>();
@@ -244,7 +244,7 @@ fn coarse_blocks_skip_nothing_visible_and_refresh_their_texel() {
 fn oversized_hand_built_tile_panics() {
     let vp = Viewport::new(200, 200, true);
     let t = tri([(0.5, 0.5), (199.5, 0.5), (0.5, 199.5)], 1, &vp).unwrap();
-    let mut tile = TileBuf::new(0, 0, 200, 200);
+    let mut tile = TileBuf::new(TileRect { x0: 0, y0: 0, w: 200, h: 200 });
     let mut lv = levels_of(&tile);
     draw_tri::<F32, false>(&t, &mut tile, &mut lv, best());
 }
@@ -323,7 +323,7 @@ fn nan_depth_is_never_written() {
     fn check<D: DepthCodec>(simd: SimdLevel) {
         let vp = Viewport::new(64, 64, true);
         let mut t = tri([(1.0, 1.0), (60.0, 3.0), (5.0, 62.0)], 9, &vp).unwrap();
-        let mut tile = TileBuf::new(0, 0, 64, 64);
+        let mut tile = TileBuf::new(TileRect { x0: 0, y0: 0, w: 64, h: 64 });
         let mut lv = levels_of(&tile);
         tile.depth.fill(D::key(1.0));
         for (z0, zx) in [(f32::NAN, 0.0), (0.5, f32::NAN), (-f32::NAN, 0.0)] {
@@ -380,7 +380,7 @@ fn no_pixel_is_nearer_than_the_nearest_vertex() {
         drawn += 1;
         let zmin = z[0].min(z[1]).min(z[2]);
         for simd in kernels() {
-            let mut tile = TileBuf::new(0, 0, 64, 64);
+            let mut tile = TileBuf::new(TileRect { x0: 0, y0: 0, w: 64, h: 64 });
             let mut lv = levels_of(&tile);
             tile.depth.fill(F32::key(1.0));
             draw_tri::<F32, false>(&t, &mut tile, &mut lv, simd);

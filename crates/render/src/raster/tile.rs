@@ -12,41 +12,21 @@ pub(crate) const PAD: usize = 8;
 /// buffer a worker draws tiles in, set to the rectangle of the tile it draws.
 #[derive(Debug, Clone)]
 pub(crate) struct TileBuf {
-    /// Left pixel column.
-    pub x0: u32,
-    /// Top pixel row.
-    pub y0: u32,
-    /// Width (≤ TILE at the right border).
-    pub w: u32,
-    /// Height.
-    pub h: u32,
+    /// The tile being drawn.
+    pub rect: TileRect,
     /// Depth keys ([`DepthCodec::key`]).
     pub depth: Vec<u32>,
     /// Triangle IDs.
     pub ids: Vec<u32>,
     /// Depth tests per pixel (only used when counting).
     pub counts: Vec<u32>,
-    /// Whether the tile received triangles in the current pass.
-    pub dirty: bool,
 }
 
 impl TileBuf {
-    /// A scratch tile at pixel (x0, y0) of size w × h.
-    pub(crate) fn new(x0: u32, y0: u32, w: u32, h: u32) -> Self {
+    /// A scratch buffer drawing the tile `rect`.
+    pub(crate) fn new(rect: TileRect) -> Self {
         let n = (TILE * TILE) as usize + PAD;
-        Self { x0, y0, w, h, depth: vec![0; n], ids: vec![0; n], counts: vec![0; n], dirty: false }
-    }
-
-    /// The rectangle the buffer is drawing.
-    #[inline]
-    pub(crate) fn rect(&self) -> TileRect {
-        TileRect { x0: self.x0, y0: self.y0, w: self.w, h: self.h }
-    }
-
-    /// Sets the rectangle to draw next.
-    #[inline]
-    pub(crate) fn set_rect(&mut self, r: TileRect) {
-        (self.x0, self.y0, self.w, self.h) = (r.x0, r.y0, r.w, r.h);
+        Self { rect, depth: vec![0; n], ids: vec![0; n], counts: vec![0; n] }
     }
 
     /// Clears the tile for a frame session in depth format `D`: the far plane's key inside
@@ -54,7 +34,7 @@ impl TileBuf {
     /// do not exist; IDs to 0, depth-test counts too when `counting`.
     pub(crate) fn clear_for_session<D: DepthCodec>(&mut self, counting: bool) {
         let clear = D::FORMAT.key(1.0);
-        let (w, h) = (self.w as usize, self.h as usize);
+        let (w, h) = (self.rect.w as usize, self.rect.h as usize);
         let t = TILE as usize;
         for row in self.depth[..h * t].chunks_exact_mut(t) {
             row[..w].fill(clear);
@@ -70,7 +50,7 @@ impl TileBuf {
     /// to 0, so that the pyramid's max ignores them: a tile cut by the screen edge drawn
     /// again in a session, whose pixels on the screen are loaded.
     pub(crate) fn zero_outside(&mut self) {
-        let (w, h) = (self.w as usize, self.h as usize);
+        let (w, h) = (self.rect.w as usize, self.rect.h as usize);
         let t = TILE as usize;
         if w == t && h == t {
             return;

@@ -130,7 +130,7 @@ fn incremental_tile_pyramid_equals_a_full_rebuild() {
         session.draw_clip_triangles(&tris, 1 + batch * 100);
         let (r, fb) = (session.renderer(), session.framebuffer());
         for lv in r.tile_levels().iter().filter(|lv| lv.touched) {
-            let t = lv.rect();
+            let t = lv.rect;
             // The tile's keys from the framebuffer it wrote through to, 0 off the screen.
             let mut keys = vec![0; (crate::tiling::TILE * crate::tiling::TILE) as usize];
             for (y, x) in (0..t.h).flat_map(|y| (0..t.w).map(move |x| (y, x))) {
