@@ -21,7 +21,11 @@
 //! no method culling these clusters this way draws fewer. Beside them: the clusters `hzb`
 //! drew, and those holding a visible triangle (what perfect culling at cluster granularity
 //! would draw). Both sets are also drawn as plain frames like the oracle (found beforehand,
-//! not timed; each checked against the reference): what a cluster culler costs at best.
+//! not timed; each checked against the reference), and the clusters holding a visible
+//! triangle once more into a frame session, in one batch, nearest box first (as `hzb` draws
+//! its first batch): a culler of whole clusters draws at least those, and draws into a
+//! session to keep its z-pyramid, so that frame is the least such a culler can expect to cost
+//! here (no time spent culling, the fewest clusters, the order coarse depth does best with).
 //! Every cluster holding a visible triangle must pass the box test: a run stops with an
 //! error otherwise, since the box projector's margins are meant to bound the rounding of
 //! projecting boxes and vertices (see `BoxProjector`).
@@ -236,7 +240,7 @@ fn run() -> Result<(), Error> {
         passing / oracle
     );
     println!(
-        "  the clusters holding a visible triangle in one session batch, nearest first (the least a culler of whole clusters draws into a session) {holding_session:.2} ms ({:.2}× oracle)",
+        "  the clusters holding a visible triangle in one session batch, nearest first (about the least a culler of whole clusters costs) {holding_session:.2} ms ({:.2}× oracle)",
         holding_session / oracle
     );
     println!(
