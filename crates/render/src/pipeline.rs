@@ -152,9 +152,8 @@ impl Renderer {
             target.clear(opts.background);
             return Ok(FrameStats::default());
         }
-        // Checked here for the transparency path, which does not go through `draw_items`
-        // (that checks again for its own callers: a few float comparisons).
-        opts.depth_format.check_resolves(&camera.projection)?;
+        // Both paths below start with `draw_items`, which refuses a depth range the format
+        // cannot resolve.
         // Masked or blended materials: the transparency module's frame driver.
         if let Some(stats) = self.draw_with_transparency(scene, instances, items, camera, target, opts)? {
             return Ok(stats);
