@@ -132,7 +132,7 @@ fn main() {
                     let ids = other.ids.iter().zip(&fb.ids).filter(|(a, b)| a != b).count();
                     let depths = other.depth.iter().zip(&fb.depth).filter(|(a, b)| a != b).count();
                     println!("    vs the instanced layout (other vertex rounding): {ids} IDs and {depths} depths differ");
-                    strict = Some((other.depth.clone(), other.ids.clone()));
+                    strict = Some((other.depth.to_vec(), other.ids.to_vec()));
                 }
                 Some((d, i)) => {
                     let same = &other.depth == d && &other.ids == i;

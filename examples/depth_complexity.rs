@@ -45,7 +45,7 @@ fn main() {
             tests.iter().max().unwrap_or(&0)
         );
         counts.push(tests);
-        depth = fb.depth;
+        depth = fb.depth.into();
     }
     // One scale for both: the brute-force maximum.
     let max = counts.iter().flat_map(|c| c.iter()).copied().max().unwrap_or(1).max(1) as f32;

@@ -422,7 +422,7 @@ impl Engine {
         let levels = p.level_count();
         let level = level.min(levels - 1);
         match level {
-            0 => LevelImage { level, levels, width: fb.width(), height: fb.height(), texels: fb.depth.clone() },
+            0 => LevelImage { level, levels, width: fb.width(), height: fb.height(), texels: fb.depth.to_vec() },
             k => {
                 p.build(&fb.depth);
                 let l = p.level(k).expect("level within the count");

@@ -51,7 +51,7 @@ mod tests {
         assert!(hits > 300, "{hits}");
         // The three holes: the view straight through the middle is not all material... and the
         // image has several shades (lit, shadowed, cut faces).
-        let mut shades: Vec<[u8; 4]> = fb.color.clone();
+        let mut shades: Vec<[u8; 4]> = fb.color.to_vec();
         shades.sort();
         shades.dedup();
         assert!(shades.len() > 20);

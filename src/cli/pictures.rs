@@ -115,7 +115,7 @@ pub fn picture(
         None => raster_picture(scene, camera, opts, size),
     }
     .with_context(|| format!("a {}x{} picture at {s}x{s} samples per pixel", size.0, size.1))?;
-    Ok(fb.color)
+    Ok(fb.color.into())
 }
 
 /// Every instance rasterized: the renderer supersamples by itself (`opts.antialias`), as it

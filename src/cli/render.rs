@@ -171,7 +171,7 @@ pub fn run(a: &RenderArgs) -> Result<()> {
             let v =
                 common::with_threads(a.threads, || draw(&loaded.scene, caster.as_ref(), cam, &mut part, &ro, &opts))??;
             if supersample {
-                part.color = picture(cam, (qw, qh))?;
+                part.color = picture(cam, (qw, qh))?.into();
             }
             blit_quadrant(&part, q, &mut fb);
             views.push(v);
@@ -181,7 +181,7 @@ pub fn run(a: &RenderArgs) -> Result<()> {
     let counters =
         common::with_threads(a.threads, || draw(&loaded.scene, caster.as_ref(), &camera, &mut fb, &ro, &opts))??;
     if supersample {
-        fb.color = picture(&camera, (a.size.width, a.size.height))?;
+        fb.color = picture(&camera, (a.size.width, a.size.height))?.into();
     }
     write_outputs(&fb, a, &counters)
 }

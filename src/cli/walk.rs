@@ -289,7 +289,8 @@ fn walk(
                 ));
             }
             if k == 0 && pics.as_ref().is_some_and(|p| p.wants(f)) {
-                picture.clone_from(&fb.color);
+                picture.clear();
+                picture.extend_from_slice(&fb.color);
             }
             out.push(FrameRecord {
                 frame: f,

@@ -89,7 +89,7 @@ mod tests {
     fn averages_colors_and_keeps_the_nearest_sample() {
         let mut ss = Framebuffer::new(4, 2).unwrap();
         let mut out = Framebuffer::new(2, 1).unwrap();
-        ss.color = vec![[0, 0, 0, 255]; 8];
+        ss.color = vec![[0, 0, 0, 255]; 8].into();
         ss.color[0] = [255, 255, 255, 255];
         ss.color[1] = [255, 255, 255, 255];
         ss.depth[6] = 0.25; // row 1, column 2: output pixel 1

@@ -5,24 +5,27 @@
 //! scene order (see [`triangle_id`]). Color, depth and ID are written together on a passed
 //! depth test.
 
+use crate::plane::Plane;
 use crate::{Error, Result};
 
 /// Largest accepted side length.
 pub const MAX_SIZE: u32 = 8192;
 
-/// Color, depth and triangle ID per pixel, plus an optional depth-test counter.
+/// Color, depth and triangle ID per pixel, plus an optional depth-test counter. Each plane
+/// is a [`Plane`]: a slice of one value per pixel (row-major, row 0 at the top) whose memory
+/// starts on a cache line, which the tile stage's writes rely on for speed.
 #[derive(Debug, Clone)]
 pub struct Framebuffer {
     width: u32,
     height: u32,
     /// RGBA8 per pixel, row-major, row 0 at the top.
-    pub color: Vec<[u8; 4]>,
+    pub color: Plane<[u8; 4]>,
     /// Window depth per pixel.
-    pub depth: Vec<f32>,
+    pub depth: Plane<f32>,
     /// Triangle ID per pixel (0 = background).
-    pub ids: Vec<u32>,
+    pub ids: Plane<u32>,
     /// Depth tests per pixel (depth complexity), when counting is on.
-    pub depth_tests: Option<Vec<u32>>,
+    pub depth_tests: Option<Plane<u32>>,
 }
 
 impl Framebuffer {
@@ -35,9 +38,9 @@ impl Framebuffer {
         Ok(Self {
             width,
             height,
-            color: vec![[0, 0, 0, 255]; n],
-            depth: vec![1.0; n],
-            ids: vec![0; n],
+            color: Plane::filled(n, [0, 0, 0, 255]),
+            depth: Plane::filled(n, 1.0),
+            ids: Plane::filled(n, 0),
             depth_tests: None,
         })
     }
@@ -65,7 +68,7 @@ impl Framebuffer {
     }
     /// Turns per-pixel depth-test counting on or off (off by default: it costs a write per test).
     pub fn count_depth_tests(&mut self, on: bool) {
-        self.depth_tests = on.then(|| vec![0; self.len()]);
+        self.depth_tests = on.then(|| Plane::filled(self.len(), 0));
     }
     /// Clears color to `background`, depth to 1.0, IDs to 0 and the counters to 0.
     pub fn clear(&mut self, background: [u8; 4]) {

@@ -28,6 +28,7 @@ pub mod hzb;
 mod options;
 pub mod output;
 mod pipeline;
+mod plane;
 mod raster;
 pub mod raycast;
 mod session;
@@ -44,6 +45,7 @@ mod world;
 
 pub use error::{Error, Result};
 pub use framebuffer::{triangle_id, Framebuffer, MAX_SIZE};
+pub use plane::{Plane, PlaneValue};
 pub use world::{FrameReport, Visibility, World};
 
 pub use cull::{

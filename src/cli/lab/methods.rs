@@ -203,7 +203,7 @@ fn abuffer(lab: &mut Lab, camera: &Camera, fb: &mut Framebuffer) -> Result<Ran> 
     let t = Instant::now();
     let st = render_abuffer(lab.scene, camera, fb, &look())?;
     let ms = ms_since(t);
-    lab.abuffer = Some((fb.color.clone(), st.max_fragments_per_pixel));
+    lab.abuffer = Some((fb.color.to_vec(), st.max_fragments_per_pixel));
     Ok(Ran { ms, counters: transparency_counters(&st), shaded: true })
 }
 

@@ -88,7 +88,7 @@ fn a_supersampled_picture_keeps_the_frame_s_size_and_smooths_its_edges() {
     .unwrap();
     assert_eq!((sharp.width(), sharp.height()), (w, h));
     // Colours between the one-sample ones appear along edges; flat areas stay as they are.
-    let mut one_colors: Vec<[u8; 4]> = one.color.clone();
+    let mut one_colors: Vec<[u8; 4]> = one.color.to_vec();
     one_colors.sort_unstable();
     one_colors.dedup();
     let new = sharp.color.iter().filter(|c| one_colors.binary_search(c).is_err()).count();

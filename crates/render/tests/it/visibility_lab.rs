@@ -24,7 +24,7 @@ fn zbuffer(soup: &Soup, camera: &Camera) -> Vec<u32> {
     let scene = one_node_scene("soup", Mesh::new("soup", positions, None, None, indices).unwrap());
     let mut fb = Framebuffer::new(W, H).unwrap();
     render_scene(&scene, camera, &mut fb, &RenderOptions::ids_only()).unwrap();
-    fb.ids
+    fb.ids.into()
 }
 
 fn camera(eye: Vec3, target: Vec3) -> Camera {
