@@ -102,4 +102,16 @@ mod tests {
         let f = Framebuffer::new(1, 1).unwrap();
         assert_eq!((f.len(), f.depth[0], f.ids[0]), (1, 1.0, 0));
     }
+
+    /// The planes are public: one replaced by a plane of another length is caught before
+    /// the tile stage writes through raw pointers.
+    #[test]
+    #[should_panic(expected = "does not hold")]
+    fn a_replaced_plane_of_the_wrong_length_is_caught_before_drawing() {
+        use glam::Vec4;
+        let mut fb = Framebuffer::new(64, 64).unwrap();
+        fb.ids = Plane::filled(10, 0);
+        let tri = [[Vec4::new(-1.0, -1.0, 0.0, 1.0), Vec4::new(1.0, -1.0, 0.0, 1.0), Vec4::new(0.0, 1.0, 0.0, 1.0)]];
+        crate::Renderer::new().draw_clip_triangles(&tri, 1, &mut fb, &crate::RenderOptions::default());
+    }
 }

@@ -1,12 +1,12 @@
 //! A framebuffer plane: one value per pixel, in memory that starts on a 64-byte cache line.
 //!
 //! The tile stage draws 64-pixel-wide screen tiles on every worker at once and writes each
-//! tile's rows into the planes. In a plane that starts on a line boundary, a tile row of
-//! 4-byte values (256 bytes) covers four whole lines, so two workers drawing neighbouring
-//! tiles never write the same line, and a row store never has to read a line it only
-//! partly writes. A `Vec` from the system allocator gives no such start: at 1280 × 720 the
-//! planes began 16 bytes past a line, and every tile row shared its end lines with the next
-//! tile's. With aligned planes, `hzb` street walks (eight rounds alternated with the
+//! tile's rows into the planes. In a plane that starts on a line boundary, and whose width is
+//! a multiple of 16 pixels (1280 is), a tile row of 4-byte values (256 bytes) covers four
+//! whole lines, so two workers drawing neighbouring tiles never write the same line, and a
+//! row store never has to read a line it only partly writes. A `Vec` from the system
+//! allocator gives no such start: at 1280 × 720 the planes began 16 bytes past a line, and
+//! every tile row shared its end lines with the next tile's. With aligned planes, `hzb` street walks (eight rounds alternated with the
 //! unaligned build, two threads) took 0.969× as long on the default city and 0.985× on the
 //! exported OBJ city (medians); brute force and ray casting the same.
 
@@ -38,7 +38,11 @@ const LINE: usize = 64;
 struct Line([u8; LINE]);
 
 /// `len` values of `T` starting on a cache line; derefs to `[T]`, so it reads and writes
-/// like a slice (`plane[i]`, `plane.iter()`, `plane.to_vec()`).
+/// like a slice (`plane[i]`, `plane.iter()`, `plane.to_vec()`). Converting to a `Vec` (and
+/// iterating by value) copies the values.
+///
+/// Invariant: `lines` holds at least `len` values (`lines.len() · 64 ≥ len · 4`), every
+/// byte of it initialized.
 #[derive(Clone)]
 pub struct Plane<T: PlaneValue> {
     lines: Vec<Line>,
@@ -47,12 +51,16 @@ pub struct Plane<T: PlaneValue> {
 }
 
 impl<T: PlaneValue> Plane<T> {
-    /// Values per line (every [`PlaneValue`] is 4 bytes).
-    const PER_LINE: usize = LINE / size_of::<T>();
+    /// Values per line (every [`PlaneValue`] is 4 bytes, aligned to at most 4).
+    const PER_LINE: usize = {
+        assert!(size_of::<T>() == 4 && align_of::<T>() <= 4);
+        LINE / size_of::<T>()
+    };
 
     /// `len` copies of `value`.
     pub fn filled(len: usize, value: T) -> Self {
-        // SAFETY: every `PlaneValue` is 4 bytes of plain data.
+        // SAFETY: every `PlaneValue` is 4 bytes of plain data without padding
+        // (`transmute_copy` reads it unaligned).
         let bytes: [u8; 4] = unsafe { std::mem::transmute_copy(&value) };
         let mut line = [0u8; LINE];
         for v in line.chunks_exact_mut(4) {
@@ -77,9 +85,9 @@ impl<T: PlaneValue> Deref for Plane<T> {
 
     #[inline]
     fn deref(&self) -> &[T] {
-        // SAFETY: the lines hold at least `len` values of `T` (4 bytes each, alignment at
-        // most 4, below the lines' 64), all initialized by `filled`, and every bit pattern is
-        // a `T` (`PlaneValue`).
+        // SAFETY: by the type's invariant the lines hold at least `len` initialized values
+        // of `T` (4 bytes each, alignment at most 4, below the lines' 64), and every bit
+        // pattern is a `T` (`PlaneValue`). An empty `Vec`'s pointer is non-null and aligned.
         unsafe { std::slice::from_raw_parts(self.lines.as_ptr().cast::<T>(), self.len) }
     }
 }
@@ -116,6 +124,57 @@ impl<T: PlaneValue + PartialEq> PartialEq<Vec<T>> for Plane<T> {
     }
 }
 
+impl<T: PlaneValue> Default for Plane<T> {
+    /// An empty plane.
+    fn default() -> Self {
+        Plane { lines: Vec::new(), len: 0, values: PhantomData }
+    }
+}
+
+impl<T: PlaneValue + Eq> Eq for Plane<T> {}
+
+impl<T: PlaneValue + std::hash::Hash> std::hash::Hash for Plane<T> {
+    fn hash<H: std::hash::Hasher>(&self, state: &mut H) {
+        self.as_slice().hash(state);
+    }
+}
+
+impl<T: PlaneValue> AsRef<[T]> for Plane<T> {
+    fn as_ref(&self) -> &[T] {
+        self
+    }
+}
+
+impl<T: PlaneValue> AsMut<[T]> for Plane<T> {
+    fn as_mut(&mut self) -> &mut [T] {
+        self
+    }
+}
+
+impl<T: PlaneValue> std::borrow::Borrow<[T]> for Plane<T> {
+    fn borrow(&self) -> &[T] {
+        self
+    }
+}
+
+impl<T: PlaneValue + PartialEq, const N: usize> PartialEq<[T; N]> for Plane<T> {
+    fn eq(&self, other: &[T; N]) -> bool {
+        self.as_slice() == other.as_slice()
+    }
+}
+
+impl<T: PlaneValue + PartialEq> PartialEq<&[T]> for Plane<T> {
+    fn eq(&self, other: &&[T]) -> bool {
+        self.as_slice() == *other
+    }
+}
+
+impl<T: PlaneValue + PartialEq> PartialEq<Plane<T>> for [T] {
+    fn eq(&self, other: &Plane<T>) -> bool {
+        self == other.as_slice()
+    }
+}
+
 impl<T: PlaneValue + PartialEq> PartialEq<Plane<T>> for Vec<T> {
     fn eq(&self, other: &Plane<T>) -> bool {
         self.as_slice() == other.as_slice()
@@ -148,7 +207,7 @@ impl<T: PlaneValue> From<&[T]> for Plane<T> {
                 p.copy_from_slice(values);
                 p
             }
-            None => Plane { lines: Vec::new(), len: 0, values: PhantomData },
+            None => Plane::default(),
         }
     }
 }
@@ -165,6 +224,41 @@ impl<T: PlaneValue> FromIterator<T> for Plane<T> {
     }
 }
 
+/// The values by value.
+impl<T: PlaneValue> IntoIterator for Plane<T> {
+    type Item = T;
+    type IntoIter = PlaneIntoIter<T>;
+
+    fn into_iter(self) -> PlaneIntoIter<T> {
+        PlaneIntoIter { plane: self, next: 0 }
+    }
+}
+
+/// The iterator of a [`Plane`]'s values by value.
+#[derive(Debug, Clone)]
+pub struct PlaneIntoIter<T: PlaneValue> {
+    plane: Plane<T>,
+    next: usize,
+}
+
+impl<T: PlaneValue> Iterator for PlaneIntoIter<T> {
+    type Item = T;
+
+    fn next(&mut self) -> Option<T> {
+        let v = self.plane.get(self.next).copied();
+        self.next += v.is_some() as usize;
+        v
+    }
+
+    fn size_hint(&self) -> (usize, Option<usize>) {
+        let n = self.plane.len() - self.next;
+        (n, Some(n))
+    }
+}
+
+impl<T: PlaneValue> ExactSizeIterator for PlaneIntoIter<T> {}
+
+/// Copies the values into a `Vec`.
 impl<T: PlaneValue> From<Plane<T>> for Vec<T> {
     fn from(p: Plane<T>) -> Vec<T> {
         p.to_vec()
@@ -196,5 +290,14 @@ mod tests {
         let e: Plane<u32> = (0..40).collect();
         assert_eq!((e.as_ptr() as usize % LINE, e.len(), e[39]), (0, 40, 39));
         assert!(Plane::<u32>::from(Vec::new()).is_empty());
+        assert!(Plane::<f32>::default().is_empty());
+        let f = Plane::filled(3, 5u32);
+        let s: &[u32] = &[5, 5, 5];
+        assert!(f == [5, 5, 5] && f == s && *s == f);
+        assert_eq!(f.clone().into_iter().sum::<u32>(), 15);
+        assert_eq!(f.clone().into_iter().len(), 3);
+        let mut g = f.clone();
+        g.as_mut()[0] = 1;
+        assert_eq!((g.as_ref()[0], g == f), (1, false));
     }
 }
