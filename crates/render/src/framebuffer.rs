@@ -13,7 +13,9 @@ pub const MAX_SIZE: u32 = 8192;
 
 /// Color, depth and triangle ID per pixel, plus an optional depth-test counter. Each plane
 /// is a [`Plane`]: a slice of one value per pixel (row-major, row 0 at the top) whose memory
-/// starts on a cache line, which the tile stage's writes rely on for speed.
+/// starts on a cache line, which the tile stage's writes rely on for speed. Every plane
+/// holds width × height values; drawing into a framebuffer one of whose planes was replaced
+/// by a plane of another length panics, naming the size.
 #[derive(Debug, Clone)]
 pub struct Framebuffer {
     width: u32,
