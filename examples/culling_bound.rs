@@ -389,24 +389,22 @@ fn session_frame(
 fn front_to_back(set: &[u32], clustered: &ClusteredScene, boxes: &[Aabb], camera: &Camera) -> Vec<DrawItem> {
     let eye = camera.view.eye;
     let mut order = set.to_vec();
-    // Ties (boxes holding the eye) by index, as `hzb` breaks them, so every run draws alike.
+    // The key of `hzb`'s first batch (its `hzb_two_pass`): ties (boxes holding the eye) by
+    // index, so every run draws alike.
     order.sort_unstable_by_key(|&i| (boxes[i as usize].distance_squared(eye).to_bits(), i));
-    runs(order.iter().flat_map(|&i| {
-        let instance = clustered.item(i).instance;
-        clustered.triangles(i).iter().map(move |&t| (instance, t))
-    }))
+    runs(order.iter().flat_map(|&i| cluster_triangles(i, clustered)))
+}
+
+/// The (instance, triangle) pairs of cluster `i`.
+fn cluster_triangles(i: u32, clustered: &ClusteredScene) -> impl Iterator<Item = (u32, u32)> + '_ {
+    let instance = clustered.item(i).instance;
+    clustered.triangles(i).iter().map(move |&t| (instance, t))
 }
 
 /// Every triangle of the clusters `set`, as draw items (runs of consecutive triangles of
 /// one instance merged), in scene order as the oracle's.
 fn cluster_items(set: &[u32], clustered: &ClusteredScene) -> Vec<DrawItem> {
-    let mut tris: Vec<(u32, u32)> = set
-        .iter()
-        .flat_map(|&i| {
-            let instance = clustered.item(i).instance;
-            clustered.triangles(i).iter().map(move |&t| (instance, t))
-        })
-        .collect();
+    let mut tris: Vec<(u32, u32)> = set.iter().flat_map(|&i| cluster_triangles(i, clustered)).collect();
     tris.sort_unstable();
     runs(tris)
 }

@@ -14,8 +14,8 @@ pub const MAX_SIZE: u32 = 8192;
 /// Color, depth and triangle ID per pixel, plus an optional depth-test counter. Each plane
 /// is a [`Plane`]: a slice of one value per pixel (row-major, row 0 at the top) whose memory
 /// starts on a cache line, which the tile stage's writes rely on for speed. Every plane
-/// holds width × height values; drawing into a framebuffer one of whose planes was replaced
-/// by a plane of another length panics, naming the size.
+/// holds width × height values; drawing into a framebuffer one of whose planes (color,
+/// depth, IDs or counts) was replaced by a plane of another length panics, naming the size.
 #[derive(Debug, Clone)]
 pub struct Framebuffer {
     width: u32,
@@ -115,5 +115,15 @@ mod tests {
         fb.ids = Plane::filled(10, 0);
         let tri = [[Vec4::new(-1.0, -1.0, 0.0, 1.0), Vec4::new(1.0, -1.0, 0.0, 1.0), Vec4::new(0.0, 1.0, 0.0, 1.0)]];
         crate::Renderer::new().draw_clip_triangles(&tri, 1, &mut fb, &crate::RenderOptions::default());
+    }
+
+    /// The color plane too, though only shading writes it: a short one is caught, not left
+    /// partly unshaded.
+    #[test]
+    #[should_panic(expected = "does not hold")]
+    fn a_replaced_color_plane_of_the_wrong_length_is_caught_before_drawing() {
+        let mut fb = Framebuffer::new(64, 64).unwrap();
+        fb.color = Plane::filled(64, [0, 0, 0, 255]);
+        crate::Renderer::new().draw_clip_triangles(&[], 1, &mut fb, &crate::RenderOptions::default());
     }
 }

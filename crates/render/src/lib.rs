@@ -45,7 +45,7 @@ mod world;
 
 pub use error::{Error, Result};
 pub use framebuffer::{triangle_id, Framebuffer, MAX_SIZE};
-pub use plane::{Plane, PlaneIntoIter, PlaneValue};
+pub use plane::{Plane, PlaneValue};
 pub use world::{FrameReport, Visibility, World};
 
 pub use cull::{

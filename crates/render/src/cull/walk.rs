@@ -324,7 +324,8 @@ impl Clusters {
         // Front to back (by the distance from the eye to each box): the rasterizer's coarse
         // depth then skips the 8×8 blocks that nearer clusters of the same batch already hide. The set keeps the order it was found in otherwise,
         // which goes stale as the camera moves.
-        // (A distance is ≥ 0, so its bits order like it; NaN sorts last.)
+        // (A distance is ≥ 0, so its bits order like it; NaN sorts last.) The example
+        // `culling_bound` orders its reference frame by the same key.
         first.sort_unstable_by_key(|&i| (boxes[i as usize].distance_squared(eye).to_bits(), i));
         for &i in &first {
             two.drawn_in[i as usize] = frame;

@@ -156,7 +156,8 @@ pub(crate) struct TileStats {
     pub tested: u64,
     pub written: u64,
     pub empty: u64,
-    /// Pixels with an ID after the pass, of the tiles stored to a target.
+    /// Pixels with an ID after the pass, counted on a fresh frame only (0 otherwise; a
+    /// session keeps its tiles' counts in their records).
     pub covered: u64,
 }
 
@@ -347,7 +348,7 @@ unsafe fn raster_tile<D: DepthCodec, const C: bool, K: Kernel>(
         unsafe { raster_bins::<D, C, true, K>(tile, lv, index, pass.chunks, &mut st) };
         lv.update::<D>(&tile.depth);
         // SAFETY: as above.
-        let covered_after = unsafe { out.store::<D>(tile, span) };
+        let covered_after = unsafe { out.store::<D, true>(tile, span) };
         // The tile's covered pixels: those outside the span are unchanged.
         lv.covered = lv.covered + covered_after - covered_before;
         return st;
@@ -368,8 +369,14 @@ unsafe fn raster_tile<D: DepthCodec, const C: bool, K: Kernel>(
     }
     // SAFETY: forwarded from the caller.
     unsafe { raster_bins::<D, C, false, K>(tile, lv, index, pass.chunks, &mut st) };
-    // SAFETY: as above.
-    st.covered = unsafe { out.store::<D>(tile, span) };
+    // Only a fresh frame's count is used (a plain batch's would include earlier batches').
+    st.covered = if pass.fresh {
+        // SAFETY: as above.
+        unsafe { out.store::<D, true>(tile, span) }
+    } else {
+        // SAFETY: as above.
+        unsafe { out.store::<D, false>(tile, span) }
+    };
     st
 }
 

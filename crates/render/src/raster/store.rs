@@ -75,8 +75,13 @@ impl<'a> Planes<'a> {
         // The raw row accesses rely on every plane holding width × height values; the planes
         // are public fields, so a caller could have replaced one.
         let n = width * height;
+        // (Color is checked too, though only the shading pass writes it, by checked slices:
+        // a short color plane would leave pixels unshaded without a word.)
         assert!(
-            fb.depth.len() == n && fb.ids.len() == n && fb.depth_tests.as_ref().is_none_or(|c| c.len() == n),
+            fb.color.len() == n
+                && fb.depth.len() == n
+                && fb.ids.len() == n
+                && fb.depth_tests.as_ref().is_none_or(|c| c.len() == n),
             "a framebuffer plane does not hold {width} × {height} values"
         );
         let counts = fb.depth_tests.as_mut().map_or(std::ptr::null_mut(), |c| c.as_mut_ptr());
@@ -165,12 +170,12 @@ impl<'a> Planes<'a> {
         covered
     }
 
-    /// Stores `span` of `tile` into the planes (depth-test counts too when present);
-    /// returns the covered pixels (ID ≠ 0) of the span.
+    /// Stores `span` of `tile` into the planes (depth-test counts too when present); with
+    /// `COVERED`, returns the covered pixels (ID ≠ 0) of the span (else 0).
     ///
     /// # Safety
     /// No other task may access this tile's rectangle at the same time.
-    pub(crate) unsafe fn store<D: DepthCodec>(&self, tile: &TileBuf, span: Span) -> u64 {
+    pub(crate) unsafe fn store<D: DepthCodec, const COVERED: bool>(&self, tile: &TileBuf, span: Span) -> u64 {
         let (x0, x1) = (span.x0, span.x1);
         let mut covered = 0;
         for r in span.y0..span.y1 {
@@ -183,7 +188,9 @@ impl<'a> Planes<'a> {
             if let Some(c) = counts {
                 c[x0..x1].copy_from_slice(&tile.counts[at + x0..at + x1]);
             }
-            covered += count_covered(src);
+            if COVERED {
+                covered += count_covered(src);
+            }
         }
         covered
     }
