@@ -22,11 +22,15 @@
 //! drew, and those holding a visible triangle (what perfect culling at cluster granularity
 //! would draw). Both sets are also drawn as plain frames like the oracle (found beforehand,
 //! not timed; each checked against the reference), and the clusters holding a visible
-//! triangle once more into a frame session, in one batch, nearest box first (as `hzb` draws
-//! its first batch): a culler of whole clusters draws at least those, and draws into a
-//! session to keep its z-pyramid, so that frame is a reference cost for such a culler here
-//! (no time spent culling, the fewest clusters; one batch in one order, so not a proof that
-//! no other batching or order costs less).
+//! triangle once more into a frame session, in one batch, nearest box first, the way `hzb`
+//! draws its first batch (`Culler::draw_clusters`: each cluster one range of its meshlets,
+//! whose triangles lie together; the plain frames draw the original meshes' triangles, in
+//! runs). A culler of whole clusters draws at least those, and draws into a session to keep
+//! its z-pyramid, so that frame is a reference cost for such a culler here (no time spent
+//! culling, the fewest clusters; one batch in one order, so not a proof that no other
+//! batching or order costs less). Drawn from the original meshes instead, the clusters'
+//! triangles are scattered (a cluster is a patch of its mesh, not a run of it): about 100,000
+//! separate runs at 10^9 triangles, which cost more than the frame itself.
 //! Every cluster holding a visible triangle must pass the box test: a run stops with an
 //! error otherwise, since the box projector's margins are meant to bound the rounding of
 //! projecting boxes and vertices (see `BoxProjector`).
@@ -175,7 +179,7 @@ fn run() -> Result<(), Error> {
                         format!("frame {k}: cluster {i} holds a visible triangle and fails the box test").into()
                     );
                 }
-                let ordered = front_to_back(&holding, culler.clustered(), &boxes, cam);
+                let ordered = front_to_back(&holding, &boxes, cam);
                 ([draw(&holding), draw(&passing)], ordered, [tally(&passing), tally(&holding)])
             };
             let mut cluster_ms = [0.0; 3];
@@ -190,9 +194,14 @@ fn run() -> Result<(), Error> {
                 }
             }
             // About the least a culler of whole clusters drawing into a session costs: the
-            // clusters it must draw, in one batch, nearest first (as `hzb` draws its first).
+            // clusters it must draw, in one batch, nearest first, drawn as `hzb` draws them.
             let t = Instant::now();
-            session_frame(&mut renderer, world.scene(), &instances, &ordered, cam, &mut fb, &opts)?;
+            {
+                let mut session = renderer.begin(&mut fb, &opts);
+                world.culler()?.draw_clusters(&mut session, &ordered, cam)?;
+                session.finish();
+            }
+            shade_pass(world.scene(), &instances, cam, &mut fb, &opts.shading, opts.background);
             cluster_ms[2] = ms(t);
             if let Some(m) = compare_ids(&reference.ids, &fb.ids, fb.width()) {
                 return Err(format!("frame {k}: the clusters drawn in a session differ: {m:?}").into());
@@ -384,15 +393,15 @@ fn session_frame(
     Ok(())
 }
 
-/// Every triangle of the clusters `set`, cluster by cluster, nearest box first (by the
-/// distance from the eye, as `hzb` orders its first batch).
-fn front_to_back(set: &[u32], clustered: &ClusteredScene, boxes: &[Aabb], camera: &Camera) -> Vec<DrawItem> {
+/// The clusters `set`, nearest box first (by the distance from the eye, as `hzb` orders its
+/// first batch).
+fn front_to_back(set: &[u32], boxes: &[Aabb], camera: &Camera) -> Vec<u32> {
     let eye = camera.view.eye;
     let mut order = set.to_vec();
     // The key of `hzb`'s first batch (its `hzb_two_pass`): ties (boxes holding the eye) by
     // index, so every run draws alike.
     order.sort_unstable_by_key(|&i| (boxes[i as usize].distance_squared(eye).to_bits(), i));
-    runs(order.iter().flat_map(|&i| cluster_triangles(i, clustered)))
+    order
 }
 
 /// The (instance, triangle) pairs of cluster `i`.

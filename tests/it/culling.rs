@@ -2,7 +2,7 @@
 //! the brute-force one, on many cameras, for the instanced city, for the same city loaded
 //! back as one big OBJ mesh, and for a glTF scene.
 
-use sightline::render::{compare_ids, Culler, Framebuffer, Method, RenderOptions};
+use sightline::render::{compare_ids, Culler, Framebuffer, Method, RenderOptions, Renderer};
 use sightline::scene::builders::{city, CityParams};
 use sightline::scene::path::CameraKey;
 use sightline::scene::Scene;
@@ -207,4 +207,53 @@ fn culled_city_with_integer_depth_equals_brute_force() {
         opts.depth_format = fmt;
         check_with(&c.scene, &street, &format!("{fmt:?}"), &opts);
     }
+}
+
+/// `Culler::draw_clusters` draws what the culling methods draw: every cluster, in any order
+/// and in several batches of one session, gives brute force's IDs; a part of the clusters
+/// gives only their triangles; a cluster the culler does not have is an error naming it.
+#[test]
+fn drawing_the_culler_s_clusters_yourself_equals_brute_force() {
+    let c = city(&CityParams::for_triangles(50_000)).unwrap();
+    let culler = Culler::new(&c.scene);
+    let opts = RenderOptions::ids_only();
+    let mut renderer = Renderer::new();
+    let (mut reference, mut fb) = (Framebuffer::new(W, H).unwrap(), Framebuffer::new(W, H).unwrap());
+    let n = culler.clustered().item_count() as u32;
+    // Farthest-first by index, in three batches.
+    let every: Vec<u32> = (0..n).rev().collect();
+    let part: Vec<u32> = (0..n).filter(|i| i % 3 == 0).collect();
+    let mut brute = Culler::new(&c.scene);
+    for key in c.layout.street_path(6, 3) {
+        let cam = key.camera(W as f32 / H as f32).unwrap();
+        brute.render(&c.scene, &cam, Method::Brute, &mut reference, &opts).unwrap();
+        let mut s = renderer.begin(&mut fb, &opts);
+        for batch in every.chunks(every.len() / 3 + 1) {
+            culler.draw_clusters(&mut s, batch, &cam).unwrap();
+        }
+        s.finish();
+        if let Some(mm) = compare_ids(&reference.ids, &fb.ids, W) {
+            panic!("every cluster: {mm:?}");
+        }
+        let mut s = renderer.begin(&mut fb, &opts);
+        culler.draw_clusters(&mut s, &part, &cam).unwrap();
+        s.finish();
+        // The triangle IDs the part may show: 1 + instance's first triangle + mesh triangle.
+        let instances = culler.instances();
+        let mut allowed: Vec<u32> = part
+            .iter()
+            .flat_map(|&i| {
+                let first = instances[culler.clustered().item(i).instance as usize].first_triangle;
+                culler.clustered().triangles(i).iter().map(move |&t| first + t + 1)
+            })
+            .collect();
+        allowed.sort_unstable();
+        let shown: Vec<u32> = fb.ids.iter().copied().filter(|&id| id != 0).collect();
+        assert!(!shown.is_empty(), "the part shows nothing");
+        assert!(shown.iter().all(|id| allowed.binary_search(id).is_ok()), "a triangle outside the part was drawn");
+    }
+    let cam = c.layout.street_path(1, 3)[0].camera(W as f32 / H as f32).unwrap();
+    let mut s = renderer.begin(&mut fb, &opts);
+    let err = culler.draw_clusters(&mut s, &[0, n], &cam).unwrap_err().to_string();
+    assert!(err.contains(&format!("cluster {n}")) && err.contains(&format!("{n} clusters")), "{err}");
 }

@@ -454,6 +454,22 @@ impl Culler {
         Ok((cs, fs))
     }
 
+    /// Draws the clusters `items` (items of [`Culler::clustered`]), in the order given,
+    /// into an open frame session of any renderer, as the culling methods draw a batch:
+    /// each cluster's triangles as one range of its meshlets (consecutive in memory, see
+    /// [`Meshlets`]) under its instance's transform as of the last [`Culler::sync`], with
+    /// the scene's triangle IDs. For culling of one's own over the culler's clusters, and
+    /// for measuring what a set of clusters costs to draw.
+    pub fn draw_clusters(&self, session: &mut Session, items: &[u32], camera: &Camera) -> Result<FrameStats> {
+        let n = self.c.draws.len();
+        if let Some(i) = items.iter().find(|&&i| i as usize >= n) {
+            return Err(crate::Error::InvalidDraw(format!("cluster {i} is not one of the culler's {n} clusters")));
+        }
+        let sources = self.c.sources(items, |&i| i, &mut CullStats::default());
+        // Meshlet indices point into their own positions by construction.
+        session.draw_sources_checked(&sources, camera, false)
+    }
+
     /// Draws every cluster in the view frustum as occluders (depth and IDs; back faces as
     /// `opts` says) into a frame session, and returns it as an [`OccluderPass`] that
     /// answers box queries against the resulting pyramid. The pass draws into `fb` (its
