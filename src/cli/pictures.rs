@@ -12,7 +12,9 @@ use std::path::{Path, PathBuf};
 
 use anyhow::{Context, Result};
 use sightline::gif_out::{self, GifOut};
-use sightline::render::{aa, draw_all, Framebuffer, RayCaster, RaycastOptions, RenderOptions, Renderer};
+use sightline::render::{
+    aa, draw_all, Culler, Framebuffer, Method, RayCaster, RaycastOptions, RenderOptions, Renderer, Wireframe,
+};
 use sightline::scene::{Camera, Scene};
 
 use super::report::{FrameRecord, WALK_GIF};
@@ -118,6 +120,33 @@ pub fn picture(
     Ok(fb.color.into())
 }
 
+/// [`picture`] rasterized, drawn by `culler` (`hzb-one-pass`, at s × s the size, then
+/// box-filtered down as the renderer's own supersampling does) when that draws the same
+/// picture: a culled frame's IDs are brute force's, so for a scene whose materials are all
+/// opaque and a picture without a wireframe (the culler draws every material opaque, and no
+/// wireframe) the colors are too. In big scenes it is far faster: a street picture of the
+/// 10^9-triangle city at 2 × 2 samples took about 2.5 s drawing every instance. The one-pass
+/// method keeps no state from frame to frame, so the next timed frame is not touched.
+pub fn culled_picture(
+    culler: &mut Culler,
+    scene: &Scene,
+    camera: &Camera,
+    opts: &RenderOptions,
+    size: (u32, u32),
+) -> Result<Vec<[u8; 4]>> {
+    let opaque = scene.materials().all(|(_, m)| m.alpha_mode.is_opaque());
+    if !opaque || opts.wireframe != Wireframe::Off {
+        return picture(scene, None, camera, opts, size);
+    }
+    let s = opts.antialias.factor();
+    let fb = aa::supersample(size.0, size.1, s, |fb| -> Result<()> {
+        culler.render(scene, camera, Method::HzbOnePass, fb, opts)?;
+        Ok(())
+    })
+    .with_context(|| format!("a {}x{} picture at {s}x{s} samples per pixel", size.0, size.1))?;
+    Ok(fb.color.into())
+}
+
 /// Every instance rasterized: the renderer supersamples by itself (`opts.antialias`), as it
 /// does every frame it draws, the wireframe over the resolved picture.
 fn raster_picture(scene: &Scene, camera: &Camera, opts: &RenderOptions, size: (u32, u32)) -> Result<Framebuffer> {
@@ -125,4 +154,54 @@ fn raster_picture(scene: &Scene, camera: &Camera, opts: &RenderOptions, size: (u
     let instances = scene.instances();
     Renderer::new().render(scene, &instances, &draw_all(&instances), camera, &mut fb, opts)?;
     Ok(fb)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use sightline::render::Antialias;
+    use sightline::scene::builders::{city, CityParams};
+    use sightline::scene::Material;
+
+    fn street_camera(c: &sightline::scene::builders::City, k: usize) -> Camera {
+        c.layout.street_path(4, 3)[k].camera(16.0 / 9.0).unwrap()
+    }
+
+    /// The culled picture is the plain one, pixel for pixel, at every supersampling factor.
+    #[test]
+    fn culled_pictures_equal_the_plain_ones() {
+        let c = city(&CityParams::for_triangles(30_000)).unwrap();
+        let mut culler = Culler::new(&c.scene);
+        for (k, aa) in [(0, Antialias::Off), (1, Antialias::Ssaa2x2), (2, Antialias::Ssaa4x4)] {
+            let opts = RenderOptions { antialias: aa, ..RenderOptions::default() };
+            let cam = street_camera(&c, k);
+            let plain = picture(&c.scene, None, &cam, &opts, (96, 54)).unwrap();
+            let culled = culled_picture(&mut culler, &c.scene, &cam, &opts, (96, 54)).unwrap();
+            assert!(plain.iter().collect::<std::collections::HashSet<_>>().len() > 10, "{aa:?}: a picture of nothing");
+            assert!(plain == culled, "{aa:?}: the culled picture differs");
+        }
+    }
+
+    /// What the culler would draw otherwise (a see-through material, a wireframe) is drawn by
+    /// the plain renderer.
+    #[test]
+    fn pictures_the_culler_would_draw_otherwise_are_drawn_plainly() {
+        let mut c = city(&CityParams::for_triangles(30_000)).unwrap();
+        let mut culler = Culler::new(&c.scene);
+        let cam = street_camera(&c, 0);
+        let wire = RenderOptions { wireframe: Wireframe::Overlay, ..RenderOptions::default() };
+        let plain = picture(&c.scene, None, &cam, &wire, (96, 54)).unwrap();
+        assert!(plain == culled_picture(&mut culler, &c.scene, &cam, &wire, (96, 54)).unwrap(), "wireframe");
+        // Every instance see-through: the culler would draw it opaque.
+        let glass = c.scene.add_material(Material::translucent("glass", [0.2, 0.5, 0.9], 0.4));
+        // Every other instance, so that the glass has something behind it.
+        for inst in c.scene.instances().into_iter().step_by(2) {
+            c.scene.set_material(inst.node, Some(glass)).unwrap();
+        }
+        c.scene.update_transforms();
+        let opts = RenderOptions::default();
+        let plain = picture(&c.scene, None, &cam, &opts, (96, 54)).unwrap();
+        let mut culler = Culler::new(&c.scene);
+        assert!(plain == culled_picture(&mut culler, &c.scene, &cam, &opts, (96, 54)).unwrap(), "blended");
+    }
 }

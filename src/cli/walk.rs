@@ -309,12 +309,17 @@ fn walk(
             let sharp = (p.wants_png(f) && pic_opts.antialias.factor() > 1)
                 .then(|| {
                     let size = (a.size.width, a.size.height);
-                    if list[0] == Visibility::RayCast {
-                        let (caster, scene) = world.caster_and_scene()?;
-                        let rc_opts = RaycastOptions::from_render(opts);
-                        pictures::picture(scene, Some((caster, &rc_opts)), &cam, pic_opts, size)
-                    } else {
-                        pictures::picture(world.scene(), None, &cam, pic_opts, size)
+                    match list[0] {
+                        Visibility::RayCast => {
+                            let (caster, scene) = world.caster_and_scene()?;
+                            let rc_opts = RaycastOptions::from_render(opts);
+                            pictures::picture(scene, Some((caster, &rc_opts)), &cam, pic_opts, size)
+                        }
+                        Visibility::Cull(Method::Brute) => pictures::picture(world.scene(), None, &cam, pic_opts, size),
+                        Visibility::Cull(_) => {
+                            let (culler, scene) = world.culler_and_scene()?;
+                            pictures::culled_picture(culler, scene, &cam, pic_opts, size)
+                        }
                     }
                 })
                 .transpose()?;
