@@ -29,18 +29,14 @@ fn median(mut v: Vec<f64>) -> f64 {
     v[v.len() / 2]
 }
 
-/// The worker count of `--threads N` (1 without it).
-fn threads() -> Result<usize, String> {
-    let args: Vec<String> = std::env::args().skip(1).collect();
-    match args.as_slice() {
-        [] => Ok(1),
-        [flag, n] if flag == "--threads" || flag == "-j" => match n.parse::<usize>() {
-            Ok(n) if (1..=256).contains(&n) => Ok(n),
-            _ => Err(format!("--threads: '{n}' is not a thread count from 1 to 256")),
-        },
-        [flag] if flag == "--threads" || flag == "-j" => Err(format!("{flag} needs a thread count (1 to 256)")),
-        _ => Err(format!("unexpected arguments {args:?}; usage: boxfield [--threads N | -j N]")),
-    }
+/// The command line.
+#[derive(clap::Parser)]
+#[command(about = "The boxfield occlusion benchmark: occluder passes and box queries, checked")]
+struct Args {
+    /// Worker threads (1: the benchmark as stated; 2 shows how the passes scale, and the
+    /// queries then run in parallel)
+    #[arg(short = 'j', long, default_value_t = 1, value_parser = clap::value_parser!(u16).range(1..=256))]
+    threads: u16,
 }
 
 /// The box queries: on one thread the serial form (the benchmark as stated), on more the
@@ -54,13 +50,7 @@ fn test(q: &OccluderPass, boxes: &[Aabb], out: &mut Vec<BoxVisibility>, threads:
 }
 
 fn main() {
-    let threads = match threads() {
-        Ok(n) => n,
-        Err(e) => {
-            eprintln!("error: {e}");
-            std::process::exit(2);
-        }
-    };
+    let threads = usize::from(<Args as clap::Parser>::parse().threads);
     let th = if threads == 1 { "1 thread".to_string() } else { format!("{threads} threads") };
     let bf = Boxfield::new(QUERIES);
     println!("boxfield: {} triangles, {} queries, {}x{}", bf.scene.stats().triangles, bf.queries.len(), SIZE.0, SIZE.1);
