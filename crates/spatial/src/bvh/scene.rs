@@ -25,6 +25,13 @@ use crate::{CullCounters, CullOptions, FrontToBack, Frustum, FrustumCull, Visibl
 
 /// Items per BVH leaf.
 const SCENE_LEAF: u32 = 4;
+/// The build of the BVH over clusters: obvhs's medium preset (a wider PLOC search, and
+/// reinsertion after collapsing leaves too) against its fast one, on the street path (120
+/// frames) of the 10^9-triangle city: 9.8% fewer occlusion tests and 5% fewer clusters drawn
+/// a frame (10^8: 5.8% and 1.5%; the default city the same), for 5.7 s of build instead of
+/// 4.2 s there (10^8: 0.53 s instead of 0.41 s). The walk visits fewer boxes of a tree whose
+/// boxes overlap less.
+const SCENE_PRESET: BvhPreset = BvhPreset::Medium;
 
 /// One BVH item: a cluster of an instance's mesh.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
@@ -107,7 +114,7 @@ impl ClusteredScene {
         let mut s =
             ClusteredScene { meshes, mesh_ids, instance_mesh, instance_first_item, items, ..Default::default() };
         let boxes = s.item_boxes(instances);
-        s.bvh = Bvh::build(&boxes, BvhPreset::Fast, SCENE_LEAF);
+        s.bvh = Bvh::build(&boxes, SCENE_PRESET, SCENE_LEAF);
         s.build_cost = s.bvh.sah_cost();
         s
     }
@@ -192,7 +199,7 @@ impl ClusteredScene {
     fn settle(&mut self, boxes: &[Aabb], cost: Option<f32>) -> RefitOutcome {
         let ratio = cost.map(|c| cost_ratio(c, self.build_cost));
         RefitOutcome::decide(ratio, || {
-            self.bvh = Bvh::build(boxes, BvhPreset::Fast, SCENE_LEAF);
+            self.bvh = Bvh::build(boxes, SCENE_PRESET, SCENE_LEAF);
             self.build_cost = self.bvh.sah_cost();
         })
     }
