@@ -333,6 +333,20 @@ mod tests {
         }
     }
 
+    /// obvhs reinserts and collapses on every worker: the tree must not depend on how many
+    /// there are (culling counters and ray-cast ties follow the tree).
+    #[test]
+    fn trees_are_the_same_on_one_and_two_threads() {
+        let boxes = random_boxes(20_000, 7);
+        let pool = |n| rayon::ThreadPoolBuilder::new().num_threads(n).build().unwrap();
+        for preset in [BvhPreset::Fast, BvhPreset::Medium] {
+            let one = pool(1).install(|| Bvh::build(&boxes, preset, 4));
+            let two = pool(2).install(|| Bvh::build(&boxes, preset, 4));
+            one.validate().unwrap();
+            assert!(one.nodes() == two.nodes() && one.items() == two.items(), "{preset:?}");
+        }
+    }
+
     #[test]
     fn bad_boxes_are_sorted_out() {
         let mut boxes = random_boxes(50, 1);
