@@ -13,7 +13,7 @@ use std::path::{Path, PathBuf};
 use anyhow::{Context, Result};
 use sightline::gif_out::{self, GifOut};
 use sightline::render::{
-    aa, draw_all, Culler, Framebuffer, Method, RayCaster, RaycastOptions, RenderOptions, Renderer, Wireframe,
+    aa, draw_all, Culler, Framebuffer, Method, RayCaster, RaycastOptions, RenderOptions, Renderer,
 };
 use sightline::scene::{Camera, Scene};
 
@@ -93,56 +93,51 @@ impl Pictures {
     }
 }
 
-/// A picture of `scene` seen by `camera`: ray cast with `caster` and its options when
-/// given (their shading and background replaced by `opts`'), else rasterized (every
-/// instance), supersampled as `opts.antialias` says.
+/// What draws a picture.
+pub enum Painter<'a> {
+    /// The plain renderer, every instance.
+    Plain,
+    /// A culler (`hzb-one-pass`), drawing with a renderer kept for pictures
+    /// ([`Culler::render_with`]: the culler's own buffers stay sized for the timed frames),
+    /// when its frames show what the plain renderer's show
+    /// ([`Culler::draws_like_renderer`]); else the plain renderer. A culled frame has brute
+    /// force's IDs, so the picture is the same, far faster in big scenes: a street picture of
+    /// the 10^9-triangle city at 2 × 2 samples took about 2.5 s drawing every instance.
+    /// One-pass culling keeps no state from frame to frame.
+    Culler(&'a mut Culler, &'a mut Renderer),
+    /// The ray caster and its options (their shading and background replaced by the
+    /// picture's).
+    Rays(&'a RayCaster, &'a RaycastOptions),
+}
+
+/// A picture of `scene` seen by `camera`, drawn by `painter`, supersampled as
+/// `opts.antialias` says.
 pub fn picture(
     scene: &Scene,
-    caster: Option<(&RayCaster, &RaycastOptions)>,
+    painter: Painter,
     camera: &Camera,
     opts: &RenderOptions,
     size: (u32, u32),
 ) -> Result<Vec<[u8; 4]>> {
     let s = opts.antialias.factor();
-    let fb = match caster {
-        // The ray caster takes one sample per pixel: the picture is cast s times larger and
-        // box-filtered down.
-        Some((c, ro)) => {
+    let fb = match painter {
+        // The ray caster and the culler take one sample per pixel: the picture is drawn s
+        // times larger and box-filtered down.
+        Painter::Rays(c, ro) => {
             let ro = RaycastOptions { shading: opts.shading, background: opts.background, ..*ro };
             aa::supersample(size.0, size.1, s, |fb| -> Result<()> {
                 c.render(scene, camera, fb, &ro)?;
                 Ok(())
             })
         }
-        None => raster_picture(scene, camera, opts, size),
+        Painter::Culler(culler, renderer) if Culler::draws_like_renderer(scene, opts) => {
+            aa::supersample(size.0, size.1, s, |fb| -> Result<()> {
+                culler.render_with(renderer, scene, camera, Method::HzbOnePass, fb, opts)?;
+                Ok(())
+            })
+        }
+        Painter::Culler(..) | Painter::Plain => raster_picture(scene, camera, opts, size),
     }
-    .with_context(|| format!("a {}x{} picture at {s}x{s} samples per pixel", size.0, size.1))?;
-    Ok(fb.color.into())
-}
-
-/// [`picture`] rasterized, drawn by `culler` (`hzb-one-pass`, at s × s the size, then
-/// box-filtered down as the renderer's own supersampling does) when that draws the same
-/// picture: a culled frame's IDs are brute force's, so for a scene whose materials are all
-/// opaque and a picture without a wireframe (the culler draws every material opaque, and no
-/// wireframe) the colors are too. In big scenes it is far faster: a street picture of the
-/// 10^9-triangle city at 2 × 2 samples took about 2.5 s drawing every instance. The one-pass
-/// method keeps no state from frame to frame, so the next timed frame is not touched.
-pub fn culled_picture(
-    culler: &mut Culler,
-    scene: &Scene,
-    camera: &Camera,
-    opts: &RenderOptions,
-    size: (u32, u32),
-) -> Result<Vec<[u8; 4]>> {
-    let opaque = scene.materials().all(|(_, m)| m.alpha_mode.is_opaque());
-    if !opaque || opts.wireframe != Wireframe::Off {
-        return picture(scene, None, camera, opts, size);
-    }
-    let s = opts.antialias.factor();
-    let fb = aa::supersample(size.0, size.1, s, |fb| -> Result<()> {
-        culler.render(scene, camera, Method::HzbOnePass, fb, opts)?;
-        Ok(())
-    })
     .with_context(|| format!("a {}x{} picture at {s}x{s} samples per pixel", size.0, size.1))?;
     Ok(fb.color.into())
 }
@@ -159,49 +154,73 @@ fn raster_picture(scene: &Scene, camera: &Camera, opts: &RenderOptions, size: (u
 #[cfg(test)]
 mod tests {
     use super::*;
-    use sightline::render::Antialias;
+    use sightline::render::{Antialias, Wireframe};
     use sightline::scene::builders::{city, CityParams};
     use sightline::scene::Material;
+
+    const SIZE: (u32, u32) = (96, 54);
 
     fn street_camera(c: &sightline::scene::builders::City, k: usize) -> Camera {
         c.layout.street_path(4, 3)[k].camera(16.0 / 9.0).unwrap()
     }
 
-    /// The culled picture is the plain one, pixel for pixel, at every supersampling factor.
+    /// The culler's own frame at s × s the size, box-filtered: what the culler would paint.
+    fn culler_alone(culler: &mut Culler, scene: &Scene, cam: &Camera, opts: &RenderOptions) -> Vec<[u8; 4]> {
+        let s = opts.antialias.factor();
+        let mut renderer = Renderer::new();
+        let fb = aa::supersample(SIZE.0, SIZE.1, s, |fb| -> Result<()> {
+            culler.render_with(&mut renderer, scene, cam, Method::HzbOnePass, fb, opts)?;
+            Ok(())
+        })
+        .unwrap();
+        fb.color.into()
+    }
+
+    /// For an opaque city the culler paints (`draws_like_renderer`), and its picture is the
+    /// plain one, pixel for pixel, at every supersampling factor.
     #[test]
     fn culled_pictures_equal_the_plain_ones() {
         let c = city(&CityParams::for_triangles(30_000)).unwrap();
-        let mut culler = Culler::new(&c.scene);
+        let (mut culler, mut renderer) = (Culler::new(&c.scene), Renderer::new());
         for (k, aa) in [(0, Antialias::Off), (1, Antialias::Ssaa2x2), (2, Antialias::Ssaa4x4)] {
             let opts = RenderOptions { antialias: aa, ..RenderOptions::default() };
+            assert!(Culler::draws_like_renderer(&c.scene, &opts), "{aa:?}");
             let cam = street_camera(&c, k);
-            let plain = picture(&c.scene, None, &cam, &opts, (96, 54)).unwrap();
-            let culled = culled_picture(&mut culler, &c.scene, &cam, &opts, (96, 54)).unwrap();
+            let plain = picture(&c.scene, Painter::Plain, &cam, &opts, SIZE).unwrap();
+            let culled = picture(&c.scene, Painter::Culler(&mut culler, &mut renderer), &cam, &opts, SIZE).unwrap();
             assert!(plain.iter().collect::<std::collections::HashSet<_>>().len() > 10, "{aa:?}: a picture of nothing");
             assert!(plain == culled, "{aa:?}: the culled picture differs");
+            assert!(culled == culler_alone(&mut culler, &c.scene, &cam, &opts), "{aa:?}: not the culler's");
         }
     }
 
-    /// What the culler would draw otherwise (a see-through material, a wireframe) is drawn by
-    /// the plain renderer.
+    /// What the culler would paint otherwise (a wireframe, see-through materials) is painted
+    /// by the plain renderer, and the culler's own frame would indeed differ.
     #[test]
     fn pictures_the_culler_would_draw_otherwise_are_drawn_plainly() {
         let mut c = city(&CityParams::for_triangles(30_000)).unwrap();
-        let mut culler = Culler::new(&c.scene);
+        let mut renderer = Renderer::new();
         let cam = street_camera(&c, 0);
         let wire = RenderOptions { wireframe: Wireframe::Overlay, ..RenderOptions::default() };
-        let plain = picture(&c.scene, None, &cam, &wire, (96, 54)).unwrap();
-        assert!(plain == culled_picture(&mut culler, &c.scene, &cam, &wire, (96, 54)).unwrap(), "wireframe");
-        // Every instance see-through: the culler would draw it opaque.
+        // Every other instance see-through, so that the glass has something behind it.
         let glass = c.scene.add_material(Material::translucent("glass", [0.2, 0.5, 0.9], 0.4));
-        // Every other instance, so that the glass has something behind it.
         for inst in c.scene.instances().into_iter().step_by(2) {
             c.scene.set_material(inst.node, Some(glass)).unwrap();
         }
         c.scene.update_transforms();
         let opts = RenderOptions::default();
-        let plain = picture(&c.scene, None, &cam, &opts, (96, 54)).unwrap();
         let mut culler = Culler::new(&c.scene);
-        assert!(plain == culled_picture(&mut culler, &c.scene, &cam, &opts, (96, 54)).unwrap(), "blended");
+        for (what, o) in [("wireframe", &wire), ("glass", &opts)] {
+            assert!(!Culler::draws_like_renderer(&c.scene, o), "{what}");
+            let plain = picture(&c.scene, Painter::Plain, &cam, o, SIZE).unwrap();
+            let painted = picture(&c.scene, Painter::Culler(&mut culler, &mut renderer), &cam, o, SIZE).unwrap();
+            assert!(plain == painted, "{what}: not drawn plainly");
+            assert!(plain != culler_alone(&mut culler, &c.scene, &cam, o), "{what}: the culler would paint it alike");
+        }
+        // Transparency ignored: the plain renderer draws the glass opaque too.
+        let ignored = RenderOptions { transparency: sightline::render::Transparency::Ignore, ..opts };
+        assert!(Culler::draws_like_renderer(&c.scene, &ignored));
+        let plain = picture(&c.scene, Painter::Plain, &cam, &ignored, SIZE).unwrap();
+        assert!(plain == culler_alone(&mut culler, &c.scene, &cam, &ignored), "transparency ignored");
     }
 }

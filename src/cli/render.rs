@@ -7,7 +7,7 @@ use glam::Vec3;
 use sightline::render::{output, Framebuffer, RayCaster, RaycastOptions, Renderer};
 
 use super::common::{self, Look, OnOff, Size};
-use super::pictures;
+use super::pictures::{self, Painter};
 
 /// Visibility method of a single frame.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
@@ -155,8 +155,8 @@ pub fn run(a: &RenderArgs) -> Result<()> {
     let mut ro = RaycastOptions::from_render(&opts);
     ro.shadows = a.shadows;
     let picture = |cam: &sightline::scene::Camera, size: (u32, u32)| -> Result<Vec<[u8; 4]>> {
-        let caster = caster.as_ref().map(|c| (c, &ro));
-        common::with_threads(a.threads, || pictures::picture(&loaded.scene, caster, cam, &pic_opts, size))?
+        let painter = caster.as_ref().map_or(Painter::Plain, |c| Painter::Rays(c, &ro));
+        common::with_threads(a.threads, || pictures::picture(&loaded.scene, painter, cam, &pic_opts, size))?
     };
     fb.count_depth_tests(counting);
     if a.projection == ProjectionArg::Multiview {

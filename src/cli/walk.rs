@@ -12,12 +12,12 @@ use std::time::Instant;
 
 use anyhow::{bail, Context, Result};
 use sightline::render::{
-    compare_ids, CullStats, Culler, Framebuffer, Method, RaycastOptions, RenderOptions, Visibility, World,
+    compare_ids, CullStats, Culler, Framebuffer, Method, RaycastOptions, RenderOptions, Renderer, Visibility, World,
 };
 use sightline::scene::Scene;
 
 use super::common::{self, Look, OnOff, Size};
-use super::pictures::{self, Pictures};
+use super::pictures::{self, Painter, Pictures};
 use super::report::{self, FrameRecord, RunInfo, WalkReport};
 
 /// Methods `walk` can run.
@@ -244,6 +244,8 @@ fn walk(
     let mut fb = Framebuffer::new(a.size.width, a.size.height)?;
     let mut reference = Framebuffer::new(a.size.width, a.size.height)?;
     let mut picture: Vec<[u8; 4]> = Vec::new();
+    // Pictures are drawn larger than the frames: with a renderer of their own.
+    let mut picture_renderer = Renderer::new();
     let bar = indicatif::ProgressBar::new((range.len() * list.len()) as u64).with_style(
         indicatif::ProgressStyle::with_template("{bar:40} {pos}/{len} frames·methods {msg} [{elapsed} < {eta}]")
             .unwrap_or_else(|_| indicatif::ProgressStyle::default_bar()),
@@ -313,12 +315,15 @@ fn walk(
                         Visibility::RayCast => {
                             let (caster, scene) = world.caster_and_scene()?;
                             let rc_opts = RaycastOptions::from_render(opts);
-                            pictures::picture(scene, Some((caster, &rc_opts)), &cam, pic_opts, size)
+                            pictures::picture(scene, Painter::Rays(caster, &rc_opts), &cam, pic_opts, size)
                         }
-                        Visibility::Cull(Method::Brute) => pictures::picture(world.scene(), None, &cam, pic_opts, size),
+                        Visibility::Cull(Method::Brute) => {
+                            pictures::picture(world.scene(), Painter::Plain, &cam, pic_opts, size)
+                        }
                         Visibility::Cull(_) => {
                             let (culler, scene) = world.culler_and_scene()?;
-                            pictures::culled_picture(culler, scene, &cam, pic_opts, size)
+                            let painter = Painter::Culler(culler, &mut picture_renderer);
+                            pictures::picture(scene, painter, &cam, pic_opts, size)
                         }
                     }
                 })

@@ -215,7 +215,7 @@ fn culled_city_with_integer_depth_equals_brute_force() {
 #[test]
 fn drawing_the_culler_s_clusters_yourself_equals_brute_force() {
     let c = city(&CityParams::for_triangles(50_000)).unwrap();
-    let culler = Culler::new(&c.scene);
+    let mut culler = Culler::new(&c.scene);
     let opts = RenderOptions::ids_only();
     let mut renderer = Renderer::new();
     let (mut reference, mut fb) = (Framebuffer::new(W, H).unwrap(), Framebuffer::new(W, H).unwrap());
@@ -252,7 +252,25 @@ fn drawing_the_culler_s_clusters_yourself_equals_brute_force() {
         assert!(!shown.is_empty(), "the part shows nothing");
         assert!(shown.iter().all(|id| allowed.binary_search(id).is_ok()), "a triangle outside the part was drawn");
     }
+    // After the buildings move (and the culler syncs), the clusters are drawn where they are.
+    let mut scene = c.scene;
+    let shift = glam::Affine3A::from_translation(glam::Vec3::new(1.5, 0.0, 0.5));
+    for inst in scene.instances() {
+        // world' = shift · world: the local matrix becomes parent⁻¹ · shift · parent · local.
+        let local = scene.node(inst.node).unwrap().local_matrix();
+        let parent = inst.world_from_local * local.inverse();
+        scene.set_local_matrix(inst.node, parent.inverse() * shift * parent * local).unwrap();
+    }
+    scene.update_transforms();
+    culler.sync(&scene).unwrap();
     let cam = c.layout.street_path(1, 3)[0].camera(W as f32 / H as f32).unwrap();
+    brute.render(&scene, &cam, Method::Brute, &mut reference, &opts).unwrap();
+    let mut s = renderer.begin(&mut fb, &opts);
+    culler.draw_clusters(&mut s, &every, &cam).unwrap();
+    s.finish();
+    if let Some(mm) = compare_ids(&reference.ids, &fb.ids, W) {
+        panic!("moved: {mm:?}");
+    }
     let mut s = renderer.begin(&mut fb, &opts);
     let err = culler.draw_clusters(&mut s, &[0, n], &cam).unwrap_err().to_string();
     assert!(err.contains(&format!("cluster {n}")) && err.contains(&format!("{n} clusters")), "{err}");

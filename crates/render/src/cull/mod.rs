@@ -351,10 +351,41 @@ impl Culler {
             + c.octree.memory_bytes()
     }
 
+    /// True when this culler's frames of `scene` with `opts` show what the plain
+    /// [`Renderer`]'s show, antialiasing aside (both can draw larger and box-filter down,
+    /// see [`crate::aa::supersample`]): a culled frame has brute force's IDs and is shaded
+    /// from them, but the culler draws every material opaque and no wireframe. So: no
+    /// wireframe, and transparency ignored or every material opaque.
+    pub fn draws_like_renderer(scene: &Scene, opts: &RenderOptions) -> bool {
+        opts.wireframe == crate::Wireframe::Off
+            && (opts.transparency == crate::Transparency::Ignore
+                || scene.materials().all(|(_, m)| m.alpha_mode.is_opaque()))
+    }
+
+    /// [`Culler::render`], drawing with `renderer` (its tiles, bins and scratch buffers)
+    /// instead of the culler's own: for frames of another size beside the regular ones (a
+    /// supersampled picture between timed frames), which would otherwise resize the culler's
+    /// buffers and make its next regular frame build them again.
+    pub fn render_with(
+        &mut self,
+        renderer: &mut Renderer,
+        scene: &Scene,
+        camera: &Camera,
+        method: Method,
+        fb: &mut Framebuffer,
+        opts: &RenderOptions,
+    ) -> Result<(CullStats, FrameStats)> {
+        std::mem::swap(&mut self.renderer, renderer);
+        let r = self.render(scene, camera, method, fb, opts);
+        std::mem::swap(&mut self.renderer, renderer);
+        r
+    }
+
     /// Renders one frame with `method` into `fb` (every plane written, so no clear needed;
     /// after an error its contents are unspecified), shaded as `opts` says; antialiasing,
     /// wireframe and transparency are the plain renderer's business and ignored here (every
-    /// material is drawn opaque: occlusion culling assumes opaque occluders).
+    /// material is drawn opaque: occlusion culling assumes opaque occluders; see
+    /// [`Culler::draws_like_renderer`]).
     pub fn render(
         &mut self,
         scene: &Scene,

@@ -337,7 +337,7 @@ mod tests {
     /// there are (culling counters and ray-cast ties follow the tree).
     #[test]
     fn trees_are_the_same_on_one_and_two_threads() {
-        let boxes = random_boxes(20_000, 7);
+        let boxes = random_boxes(60_000, 7);
         let pool = |n| rayon::ThreadPoolBuilder::new().num_threads(n).build().unwrap();
         for preset in [BvhPreset::Fast, BvhPreset::Medium] {
             let one = pool(1).install(|| Bvh::build(&boxes, preset, 4));
