@@ -407,6 +407,7 @@ fn obj_groups_become_child_nodes_and_unreferenced_vertices_are_fine() {
     let kids: Vec<&str> = scene.node(root).unwrap().children().map(|c| scene.node(c).unwrap().name()).collect();
     assert_eq!(kids, ["first", "second"]);
     assert_eq!(scene.stats().triangles, 3);
-    // The unreferenced vertex (9, 9, 9) does not inflate any bounds.
-    assert!(scene.world_aabb().max.max_element() <= 1.0);
+    // The unreferenced vertex (9, 9, 9) does not inflate any bounds (world boxes are widened
+    // by a bound on their rounding only).
+    assert!(scene.world_aabb().max.max_element() <= 1.0 + 1e-5);
 }
