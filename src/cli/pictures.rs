@@ -13,7 +13,7 @@ use std::path::{Path, PathBuf};
 use anyhow::{Context, Result};
 use sightline::gif_out::{self, GifOut};
 use sightline::render::{
-    aa, draw_all, Culler, Framebuffer, Method, RayCaster, RaycastOptions, RenderOptions, Renderer,
+    aa, draw_all, Culler, Framebuffer, Method, Plane, RayCaster, RaycastOptions, RenderOptions, Renderer,
 };
 use sightline::scene::{Camera, Scene};
 
@@ -111,14 +111,14 @@ pub enum Painter<'a> {
 }
 
 /// A picture of `scene` seen by `camera`, drawn by `painter`, supersampled as
-/// `opts.antialias` says.
+/// `opts.antialias` says: the color plane of the drawn frame.
 pub fn picture(
     scene: &Scene,
     painter: Painter,
     camera: &Camera,
     opts: &RenderOptions,
     size: (u32, u32),
-) -> Result<Vec<[u8; 4]>> {
+) -> Result<Plane<[u8; 4]>> {
     let s = opts.antialias.factor();
     let fb = match painter {
         // The ray caster and the culler take one sample per pixel: the picture is drawn s
@@ -139,7 +139,7 @@ pub fn picture(
         Painter::Culler(..) | Painter::Plain => raster_picture(scene, camera, opts, size),
     }
     .with_context(|| format!("a {}x{} picture at {s}x{s} samples per pixel", size.0, size.1))?;
-    Ok(fb.color.into())
+    Ok(fb.color)
 }
 
 /// Every instance rasterized: the renderer supersamples by itself (`opts.antialias`), as it

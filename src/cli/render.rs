@@ -154,7 +154,7 @@ pub fn run(a: &RenderArgs) -> Result<()> {
         .transpose()?;
     let mut ro = RaycastOptions::from_render(&opts);
     ro.shadows = a.shadows;
-    let picture = |cam: &sightline::scene::Camera, size: (u32, u32)| -> Result<Vec<[u8; 4]>> {
+    let picture = |cam: &sightline::scene::Camera, size: (u32, u32)| -> Result<sightline::render::Plane<[u8; 4]>> {
         let painter = caster.as_ref().map_or(Painter::Plain, |c| Painter::Rays(c, &ro));
         common::with_threads(a.threads, || pictures::picture(&loaded.scene, painter, cam, &pic_opts, size))?
     };
@@ -171,7 +171,7 @@ pub fn run(a: &RenderArgs) -> Result<()> {
             let v =
                 common::with_threads(a.threads, || draw(&loaded.scene, caster.as_ref(), cam, &mut part, &ro, &opts))??;
             if supersample {
-                part.color = picture(cam, (qw, qh))?.into();
+                part.color = picture(cam, (qw, qh))?;
             }
             blit_quadrant(&part, q, &mut fb);
             views.push(v);
@@ -181,7 +181,7 @@ pub fn run(a: &RenderArgs) -> Result<()> {
     let counters =
         common::with_threads(a.threads, || draw(&loaded.scene, caster.as_ref(), &camera, &mut fb, &ro, &opts))??;
     if supersample {
-        fb.color = picture(&camera, (a.size.width, a.size.height))?.into();
+        fb.color = picture(&camera, (a.size.width, a.size.height))?;
     }
     write_outputs(&fb, a, &counters)
 }

@@ -117,13 +117,16 @@ mod tests {
         crate::Renderer::new().draw_clip_triangles(&tri, 1, &mut fb, &crate::RenderOptions::default());
     }
 
-    /// The color plane too, though only shading writes it: a short one is caught, not left
-    /// partly unshaded.
+    /// The color plane too, where the shading pass writes it: a short one is caught, not
+    /// left partly unshaded.
     #[test]
     #[should_panic(expected = "does not hold")]
-    fn a_replaced_color_plane_of_the_wrong_length_is_caught_before_drawing() {
+    fn a_replaced_color_plane_of_the_wrong_length_is_caught_before_shading() {
         let mut fb = Framebuffer::new(64, 64).unwrap();
         fb.color = Plane::filled(64, [0, 0, 0, 255]);
-        crate::Renderer::new().draw_clip_triangles(&[], 1, &mut fb, &crate::RenderOptions::default());
+        let scene = sightline_scene::Scene::new();
+        let look = sightline_scene::LookAt { target: glam::Vec3::NEG_Z, ..Default::default() };
+        let camera = sightline_scene::Camera::perspective(&look, 1.0).unwrap();
+        crate::shade_pass(&scene, &[], &camera, &mut fb, &crate::ShadeOptions::default(), [0, 0, 0, 255]);
     }
 }

@@ -416,9 +416,9 @@ impl Renderer {
         let ts = raster_tiles(&mut self.levels, &mut self.scratch, &pass, opts.depth_format, SimdLevel::Auto);
         if session {
             self.upper.update(&self.levels);
-        } else if fresh {
-            // Only a fresh draw wrote every pixel; after a plain batch the count would include
-            // earlier batches' pixels.
+        } else {
+            // The tile store counts only on a fresh draw, which writes every pixel (after a
+            // plain batch the count would include earlier batches' pixels): 0 otherwise.
             st.covered_pixels = ts.covered;
         }
         st.ms_raster = ms_since(t);

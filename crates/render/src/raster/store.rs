@@ -75,13 +75,9 @@ impl<'a> Planes<'a> {
         // The raw row accesses rely on every plane holding width × height values; the planes
         // are public fields, so a caller could have replaced one.
         let n = width * height;
-        // (Color is checked too, though only the shading pass writes it, by checked slices:
-        // a short color plane would leave pixels unshaded without a word.)
+        // (Color is the shading pass's to check: `deferred::shade_pass`.)
         assert!(
-            fb.color.len() == n
-                && fb.depth.len() == n
-                && fb.ids.len() == n
-                && fb.depth_tests.as_ref().is_none_or(|c| c.len() == n),
+            fb.depth.len() == n && fb.ids.len() == n && fb.depth_tests.as_ref().is_none_or(|c| c.len() == n),
             "a framebuffer plane does not hold {width} × {height} values"
         );
         let counts = fb.depth_tests.as_mut().map_or(std::ptr::null_mut(), |c| c.as_mut_ptr());
