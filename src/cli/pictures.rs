@@ -201,7 +201,12 @@ mod tests {
         let mut c = city(&CityParams::for_triangles(30_000)).unwrap();
         let mut renderer = Renderer::new();
         let cam = street_camera(&c, 0);
-        let wire = RenderOptions { wireframe: Wireframe::Overlay, ..RenderOptions::default() };
+        // Transparency ignored, so that the wireframe alone keeps the culler from painting.
+        let wire = RenderOptions {
+            wireframe: Wireframe::Overlay,
+            transparency: sightline::render::Transparency::Ignore,
+            ..RenderOptions::default()
+        };
         // Every other instance see-through, so that the glass has something behind it.
         let glass = c.scene.add_material(Material::translucent("glass", [0.2, 0.5, 0.9], 0.4));
         for inst in c.scene.instances().into_iter().step_by(2) {

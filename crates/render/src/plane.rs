@@ -59,14 +59,14 @@ impl<T: PlaneValue> Plane<T> {
 
     /// `len` copies of `value`.
     pub fn filled(len: usize, value: T) -> Self {
-        // SAFETY: every `PlaneValue` is 4 bytes of plain data without padding
-        // (`transmute_copy` reads it unaligned).
-        let bytes: [u8; 4] = unsafe { std::mem::transmute_copy(&value) };
-        let mut line = [0u8; LINE];
-        for v in line.chunks_exact_mut(4) {
-            v.copy_from_slice(&bytes);
-        }
-        Plane { lines: vec![Line(line); len.div_ceil(Self::PER_LINE)], len, values: PhantomData }
+        let mut plane = Self::zeroed(len);
+        plane.fill(value);
+        plane
+    }
+
+    /// `len` values of all-zero bits (a value of every `PlaneValue`), to be written over.
+    fn zeroed(len: usize) -> Self {
+        Plane { lines: vec![Line([0; LINE]); len.div_ceil(Self::PER_LINE)], len, values: PhantomData }
     }
 
     /// The values as a slice.
@@ -164,14 +164,9 @@ impl<'a, T: PlaneValue> IntoIterator for &'a mut Plane<T> {
 
 impl<T: PlaneValue> From<&[T]> for Plane<T> {
     fn from(values: &[T]) -> Self {
-        match values.first() {
-            Some(&v) => {
-                let mut p = Plane::filled(values.len(), v);
-                p.copy_from_slice(values);
-                p
-            }
-            None => Plane::default(),
-        }
+        let mut p = Plane::zeroed(values.len());
+        p.copy_from_slice(values);
+        p
     }
 }
 

@@ -357,9 +357,13 @@ impl Culler {
     /// from them, but the culler draws every material opaque and no wireframe. So: no
     /// wireframe, and transparency ignored or every material opaque.
     pub fn draws_like_renderer(scene: &Scene, opts: &RenderOptions) -> bool {
-        opts.wireframe == crate::Wireframe::Off
-            && (opts.transparency == crate::Transparency::Ignore
-                || scene.materials().all(|(_, m)| m.alpha_mode.is_opaque()))
+        let drawn = culled_options(opts);
+        // Equal to what is drawn, antialiasing aside; with every material opaque, the way
+        // transparency is drawn makes no difference either.
+        let alike = |o: RenderOptions| RenderOptions { antialias: drawn.antialias, ..o } == drawn;
+        alike(*opts)
+            || (scene.materials().all(|(_, m)| m.alpha_mode.is_opaque())
+                && alike(RenderOptions { transparency: drawn.transparency, ..*opts }))
     }
 
     /// [`Culler::render`], drawing with `renderer` (its tiles, bins and scratch buffers)
@@ -398,10 +402,7 @@ impl Culler {
         self.sync(scene)?;
         let t0 = Instant::now();
         let mut cs = CullStats { clusters: self.c.clustered.item_count() as u64, ..Default::default() };
-        let mut opts = *opts;
-        opts.antialias = crate::Antialias::Off;
-        opts.wireframe = crate::Wireframe::Off;
-        opts.transparency = crate::Transparency::Ignore;
+        let opts = culled_options(opts);
         if method == Method::Brute {
             let items = draw_all(&self.c.instances);
             let fs = self.renderer.render(scene, &self.c.instances, &items, camera, fb, &opts)?;
@@ -603,5 +604,18 @@ impl OccluderPass<'_> {
     /// covered.
     pub fn finish(self) -> u64 {
         self.session.finish()
+    }
+}
+
+/// The options a culled frame is drawn with, out of those asked for: no antialiasing,
+/// wireframe or transparency (the culler draws one sample per pixel and every material
+/// opaque: occlusion culling assumes opaque occluders). [`Culler::render`] draws with them,
+/// and [`Culler::draws_like_renderer`] compares with them.
+fn culled_options(opts: &RenderOptions) -> RenderOptions {
+    RenderOptions {
+        antialias: crate::Antialias::Off,
+        wireframe: crate::Wireframe::Off,
+        transparency: crate::Transparency::Ignore,
+        ..*opts
     }
 }
