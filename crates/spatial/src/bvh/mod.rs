@@ -110,6 +110,9 @@ pub struct Bvh {
     /// How a refit splits the tree into subtrees refitted in parallel, made on the first
     /// refit (see the `refit` module).
     pub(crate) parts: Option<refit::Parts>,
+    /// What a refit along the paths of a few changed items reads (each node's parent, each
+    /// item slot's leaf), made on the first such refit (see the `refit` module).
+    pub(crate) paths: Option<refit::Paths>,
 }
 
 impl Bvh {
@@ -261,6 +264,7 @@ impl Bvh {
             + self.items.capacity() * 4
             + self.item_boxes.capacity() * std::mem::size_of::<Aabb>()
             + self.unbounded.capacity() * 4
+            + self.paths.as_ref().map_or(0, refit::Paths::memory_bytes)
     }
 
     /// Checks the structure: every child inside its parent, every finite item exactly once,
