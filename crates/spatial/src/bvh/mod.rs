@@ -242,23 +242,14 @@ impl Bvh {
     /// The SAH cost relative to the root's area: `Σ_inner A(n) + Σ_leaf A(n)·count`, over
     /// `A(root)` (traversal and intersection cost 1). 0 for an empty tree.
     pub fn sah_cost(&self) -> f32 {
-        let Some(root) = self.nodes.first() else {
+        if self.nodes.is_empty() {
             return 0.0;
-        };
-        let mut cost = 0.0f64;
-        for n in &self.nodes {
-            let a = n.aabb().half_area() as f64;
-            cost += if n.is_leaf() { a * n.count as f64 } else { a };
         }
-        let ra = root.aabb().half_area() as f64;
-        if ra > 0.0 {
-            (cost / ra) as f32
-        } else {
-            self.nodes.len() as f32
-        }
+        refit::normalized_cost(refit::unnormalized_cost(&self.nodes), &self.nodes)
     }
 
-    /// Heap bytes held (nodes, items, item boxes).
+    /// Heap bytes held (nodes, items, item boxes, and the parents and leaves a refit along
+    /// paths reads once one has run).
     pub fn memory_bytes(&self) -> usize {
         self.nodes.capacity() * std::mem::size_of::<BvhNode>()
             + self.items.capacity() * 4

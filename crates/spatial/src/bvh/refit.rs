@@ -59,15 +59,14 @@ impl Paths {
     fn of(nodes: &[BvhNode], slots: usize) -> Paths {
         let mut up = vec![u32::MAX; nodes.len()];
         let mut leaf = vec![u32::MAX; slots];
-        let mut cost = 0.0;
         for (i, n) in nodes.iter().enumerate() {
-            cost += node_cost(n);
             if n.is_leaf() {
                 leaf[n.index as usize..(n.index + n.count) as usize].fill(i as u32);
             } else {
                 up[n.index as usize..n.index as usize + 2].fill(i as u32);
             }
         }
+        let cost = unnormalized_cost(nodes);
         Paths { up, leaf, cost, list: Vec::new(), listed: vec![0; nodes.len().div_ceil(64)] }
     }
 
@@ -76,8 +75,14 @@ impl Paths {
     }
 }
 
+/// The SAH cost of the tree `nodes` before [`normalized_cost`]: its nodes' [`node_cost`]s
+/// summed in order.
+pub(crate) fn unnormalized_cost(nodes: &[BvhNode]) -> f64 {
+    nodes.iter().map(node_cost).sum()
+}
+
 /// A node's share of the unnormalized SAH cost: its half area, times its item count for a
-/// leaf (as [`Bvh::sah_cost`] sums them).
+/// leaf.
 #[inline]
 fn node_cost(n: &BvhNode) -> f64 {
     let a = n.aabb().half_area() as f64;
@@ -329,9 +334,9 @@ impl Bvh {
     }
 }
 
-/// An unnormalized SAH cost over the root's half area, as [`Bvh::sah_cost`] gives it (the
-/// node count for a flat root).
-fn normalized_cost(cost: f64, nodes: &[BvhNode]) -> f32 {
+/// An unnormalized SAH cost of the non-empty tree `nodes` over its root's half area, as
+/// [`Bvh::sah_cost`] gives it (the node count for a flat root).
+pub(crate) fn normalized_cost(cost: f64, nodes: &[BvhNode]) -> f32 {
     let root = nodes[0].aabb().half_area() as f64;
     if root > 0.0 {
         (cost / root) as f32
