@@ -391,16 +391,16 @@ fn front_to_back(set: &[u32], boxes: &[Aabb], camera: &Camera) -> Vec<u32> {
     order
 }
 
-/// The (instance, triangle) pairs of cluster `i`.
-fn cluster_triangles(i: u32, clustered: &ClusteredScene) -> impl Iterator<Item = (u32, u32)> + '_ {
-    let instance = clustered.item(i).instance;
-    clustered.triangles(i).iter().map(move |&t| (instance, t))
-}
-
 /// Every triangle of the clusters `set`, as draw items (runs of consecutive triangles of
 /// one instance merged), in scene order as the oracle's.
 fn cluster_items(set: &[u32], clustered: &ClusteredScene) -> Vec<DrawItem> {
-    let mut tris: Vec<(u32, u32)> = set.iter().flat_map(|&i| cluster_triangles(i, clustered)).collect();
+    let mut tris: Vec<(u32, u32)> = set
+        .iter()
+        .flat_map(|&i| {
+            let instance = clustered.item(i).instance;
+            clustered.triangles(i).iter().map(move |&t| (instance, t))
+        })
+        .collect();
     tris.sort_unstable();
     runs(tris)
 }

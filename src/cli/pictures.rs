@@ -98,7 +98,7 @@ pub enum Painter<'a> {
     /// The plain renderer, every instance.
     Plain,
     /// A culler (`hzb-one-pass`), drawing with a renderer kept for pictures
-    /// ([`Culler::render_with`]: the culler's own buffers stay sized for the timed frames),
+    /// ([`Culler::with_renderer`]: the culler's own buffers stay sized for the timed frames),
     /// when its frames show what the plain renderer's show
     /// ([`Culler::draws_like_renderer`]); else the plain renderer. A culled frame has brute
     /// force's IDs, so the picture is the same, far faster in big scenes: a street picture of
@@ -131,15 +131,28 @@ pub fn picture(
             })
         }
         Painter::Culler(culler, renderer) if Culler::draws_like_renderer(scene, opts) => {
-            aa::supersample(size.0, size.1, s, |fb| -> Result<()> {
-                culler.render_with(renderer, scene, camera, Method::HzbOnePass, fb, opts)?;
-                Ok(())
-            })
+            culled_picture(culler, renderer, scene, camera, opts, size)
         }
         Painter::Culler(..) | Painter::Plain => raster_picture(scene, camera, opts, size),
     }
     .with_context(|| format!("a {}x{} picture at {s}x{s} samples per pixel", size.0, size.1))?;
     Ok(fb.color)
+}
+
+/// The culler's frame (`hzb-one-pass`, drawn with `renderer`) at s × s the size,
+/// box-filtered down, s as `opts.antialias` says: what the culler paints.
+fn culled_picture(
+    culler: &mut Culler,
+    renderer: &mut Renderer,
+    scene: &Scene,
+    camera: &Camera,
+    opts: &RenderOptions,
+    size: (u32, u32),
+) -> Result<Framebuffer> {
+    aa::supersample(size.0, size.1, opts.antialias.factor(), |fb| -> Result<()> {
+        culler.with_renderer(renderer, |c| c.render(scene, camera, Method::HzbOnePass, fb, opts))?;
+        Ok(())
+    })
 }
 
 /// Every instance rasterized: the renderer supersamples by itself (`opts.antialias`), as it
@@ -164,16 +177,9 @@ mod tests {
         c.layout.street_path(4, 3)[k].camera(16.0 / 9.0).unwrap()
     }
 
-    /// The culler's own frame at s × s the size, box-filtered: what the culler would paint.
+    /// What the culler would paint, whether or not `picture` lets it.
     fn culler_alone(culler: &mut Culler, scene: &Scene, cam: &Camera, opts: &RenderOptions) -> Vec<[u8; 4]> {
-        let s = opts.antialias.factor();
-        let mut renderer = Renderer::new();
-        let fb = aa::supersample(SIZE.0, SIZE.1, s, |fb| -> Result<()> {
-            culler.render_with(&mut renderer, scene, cam, Method::HzbOnePass, fb, opts)?;
-            Ok(())
-        })
-        .unwrap();
-        fb.color.into()
+        culled_picture(culler, &mut Renderer::new(), scene, cam, opts, SIZE).unwrap().color.into()
     }
 
     /// For an opaque city the culler paints (`draws_like_renderer`), and its picture is the

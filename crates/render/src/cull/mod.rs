@@ -366,21 +366,13 @@ impl Culler {
                 && alike(RenderOptions { transparency: drawn.transparency, ..*opts }))
     }
 
-    /// [`Culler::render`], drawing with `renderer` (its tiles, bins and scratch buffers)
-    /// instead of the culler's own: for frames of another size beside the regular ones (a
+    /// Runs `f` on this culler drawing with `renderer` (its tiles, bins and scratch buffers)
+    /// instead of its own: for frames of another size beside the regular ones (a
     /// supersampled picture between timed frames), which would otherwise resize the culler's
     /// buffers and make its next regular frame build them again.
-    pub fn render_with(
-        &mut self,
-        renderer: &mut Renderer,
-        scene: &Scene,
-        camera: &Camera,
-        method: Method,
-        fb: &mut Framebuffer,
-        opts: &RenderOptions,
-    ) -> Result<(CullStats, FrameStats)> {
+    pub fn with_renderer<R>(&mut self, renderer: &mut Renderer, f: impl FnOnce(&mut Culler) -> R) -> R {
         std::mem::swap(&mut self.renderer, renderer);
-        let r = self.render(scene, camera, method, fb, opts);
+        let r = f(self);
         std::mem::swap(&mut self.renderer, renderer);
         r
     }
