@@ -10,6 +10,7 @@ use sightline::render::{
     compare_ids, render_scene, Culler, Framebuffer, Method, RayCaster, RaycastOptions, RenderOptions, SyncOutcome,
 };
 use sightline::scene::{shapes, Keep, Material, NodeDesc, NodeId, Scene, Transform};
+use sightline::spatial::{RefitOutcome, REBUILD_LAG};
 
 use crate::support::{camera_key, differences};
 
@@ -242,4 +243,39 @@ fn moves_refit_additions_rebuild_and_stale_scenes_are_refused() {
     assert_eq!(culler.sync(&st.scene).unwrap(), SyncOutcome::Rebuilt);
     caster.sync(&st.scene).unwrap();
     check_frame(&st.scene, &mut culler, &caster, "cube added");
+}
+
+/// Moves that degrade the cluster BVH start a rebuild off the frame: every frame while it is
+/// under way (the old tree refitted) and from the update that puts the new tree in place,
+/// [`REBUILD_LAG`] updates after the one that started it, equals brute force.
+#[test]
+fn frames_stay_exact_while_the_cluster_bvh_is_rebuilt_in_the_background() {
+    let mut st = Stage::new();
+    // A field of cubes behind the wall, 8 × 6, whose places are shuffled on every update.
+    let spot = |s: usize| [(s % 8) as f32 * 2.5 - 9.0, (s / 8) as f32 * 1.5 - 1.0, -12.0];
+    let first = st.nodes.len();
+    for s in 0..48 {
+        st.add(None, spot(s), false);
+    }
+    st.scene.update_transforms();
+    let mut culler = Culler::new(&st.scene);
+    let mut caster = RayCaster::build(&st.scene).unwrap();
+    let (mut started, mut installed) = (None, None);
+    for i in 0..REBUILD_LAG + 4 {
+        for k in 0..48 {
+            let at = spot((k * 17 + i as usize * 5) % 48);
+            st.scene.set_local_transform(st.nodes[first + k], Transform::from_translation(at.into())).unwrap();
+        }
+        st.scene.update_transforms();
+        match culler.sync(&st.scene).unwrap() {
+            SyncOutcome::Moved { bvh: RefitOutcome::Rebuilding { .. }, .. } => _ = started.get_or_insert(i),
+            SyncOutcome::Moved { bvh: RefitOutcome::Rebuilt { cost_ratio }, .. } if cost_ratio.is_finite() => {
+                installed = Some(i)
+            }
+            o => assert!(matches!(o, SyncOutcome::Moved { bvh: RefitOutcome::Refitted { .. }, .. }), "{o:?}"),
+        }
+        caster.sync(&st.scene).unwrap();
+        check_frame(&st.scene, &mut culler, &caster, &format!("update {i}"));
+    }
+    assert_eq!((started, installed), (Some(0), Some(REBUILD_LAG)));
 }

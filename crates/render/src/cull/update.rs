@@ -8,7 +8,8 @@
 //! or rebuilt once refitting has let its SAH cost grow past `REBUILD_RATIO` times that of a
 //! fresh build (the rule of Wald, Boulos and Shirley 2007, "Ray tracing deformable scenes
 //! using dynamic bounding volume hierarchies": refit while the tree stays good, rebuild when
-//! it has degraded). A material change only updates the instance records (shading reads
+//! it has degraded; the rebuild runs on a background thread and its tree is put in place
+//! `REBUILD_LAG` syncs later, so that it costs no frame a hitch). A material change only updates the instance records (shading reads
 //! them). A change of what is drawn (instances added, removed or reordered, a mesh swapped)
 //! rebuilds the world side but keeps the clusters and meshlets of every mesh that is still
 //! drawn, so a mesh is clustered once, however the scene changes.
@@ -189,7 +190,7 @@ pub enum SyncOutcome {
     /// Only materials changed (shading reads them; nothing spatial moved).
     Restyled,
     /// Instances moved: their boxes, cones and octree entries followed, and the cluster BVH
-    /// was refitted or rebuilt.
+    /// was refitted or rebuilt (or is being rebuilt in the background, see [`RefitOutcome`]).
     Moved {
         /// How many instances moved.
         instances: usize,

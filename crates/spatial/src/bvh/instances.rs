@@ -29,8 +29,19 @@ pub enum RefitOutcome {
         /// SAH cost after refit over SAH cost after the last build.
         cost_ratio: f32,
     },
+    /// Refitted, with the SAH cost beyond [`REBUILD_RATIO`] × the fresh build's: a fresh
+    /// tree is being built off the frame, started by this update or one of the previous
+    /// [`REBUILD_LAG`](crate::REBUILD_LAG), and put in place by the update that many after
+    /// the one that started it (trees that rebuild in the background: the
+    /// [`ClusteredScene`](crate::ClusteredScene)'s).
+    Rebuilding {
+        /// SAH cost after refit over SAH cost after the last build.
+        cost_ratio: f32,
+    },
     /// Rebuilt from scratch: refit degraded too much (`cost_ratio` is the refit's ratio) or
-    /// the set of valid boxes changed (ratio infinite).
+    /// the set of valid boxes changed (ratio infinite); or a tree built in the background
+    /// was put in place and refitted to the current boxes (`cost_ratio` is the ratio that
+    /// started its build).
     Rebuilt {
         /// The ratio that triggered the rebuild.
         cost_ratio: f32,

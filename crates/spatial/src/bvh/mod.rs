@@ -22,6 +22,7 @@
 //! Bad input: items with empty boxes are left out; items with NaN/infinite boxes are kept in
 //! [`Bvh::unbounded`] and reported by every traversal as visible (see the crate docs).
 
+pub(crate) mod background;
 pub mod cluster;
 pub mod front_to_back;
 pub mod instances;

@@ -17,9 +17,10 @@ use glam::Vec3;
 use rayon::prelude::*;
 use sightline_scene::{Aabb, Instance, MeshId, Scene};
 
+use super::background::Background;
 use super::cluster::MeshClusters;
 use super::front_to_back::FrontToBackCursor;
-use super::instances::{cost_ratio, RefitOutcome};
+use super::instances::RefitOutcome;
 use super::{Bvh, BvhPreset};
 use crate::{CullCounters, CullOptions, FrontToBack, Frustum, FrustumCull, Visible, Visit};
 
@@ -54,6 +55,8 @@ pub struct ClusteredScene {
     items: Vec<ClusterItem>,
     bvh: Bvh,
     build_cost: f32,
+    /// The rebuild of `bvh` under way off the frame, if any.
+    background: Background<Bvh>,
 }
 
 impl ClusteredScene {
@@ -115,9 +118,7 @@ impl ClusteredScene {
         instance_first_item.push(items.len() as u32);
         let mut s =
             ClusteredScene { meshes, mesh_ids, instance_mesh, instance_first_item, items, ..Default::default() };
-        let boxes = s.item_boxes(instances);
-        s.bvh = Bvh::build(&boxes, SCENE_PRESET, SCENE_LEAF);
-        s.build_cost = s.bvh.sah_cost();
+        (s.bvh, s.build_cost) = fresh_tree(&s.item_boxes(instances));
         s
     }
 
@@ -169,10 +170,10 @@ impl ClusteredScene {
                 .all(|(inst, &m)| m == u32::MAX || self.mesh_ids[m as usize] == inst.mesh)
     }
 
-    /// Refits after instances moved (same instances, same order as the build), rebuilding
-    /// the BVH when its SAH cost grew beyond [`REBUILD_RATIO`](crate::REBUILD_RATIO) × the fresh build's. Clusters
-    /// are mesh-local and never rebuilt. `None` when `instances` do not match the build
-    /// (count or meshes changed): build a new `ClusteredScene` then.
+    /// Refits after instances moved (same instances, same order as the build); see
+    /// [`ClusteredScene::refit_boxes`] for when the BVH is rebuilt. Clusters are mesh-local
+    /// and never rebuilt. `None` when `instances` do not match the build (count or meshes
+    /// changed): build a new `ClusteredScene` then.
     pub fn update(&mut self, instances: &[Instance]) -> Option<RefitOutcome> {
         if !self.matches(instances) {
             return None;
@@ -181,29 +182,32 @@ impl ClusteredScene {
         Some(self.refit_boxes(&boxes))
     }
 
-    /// Refits the BVH to new item boxes (index = item), rebuilding it when its SAH cost grew
-    /// beyond [`REBUILD_RATIO`](crate::REBUILD_RATIO) × the fresh build's or when an item's box changed kind (became
-    /// empty, unbounded or finite again).
+    /// Refits the BVH to new item boxes (index = item). When its SAH cost has grown beyond
+    /// [`REBUILD_RATIO`](crate::REBUILD_RATIO) × the fresh build's, a new tree is built on a
+    /// background thread from these boxes, and the update [`REBUILD_LAG`](crate::REBUILD_LAG)
+    /// updates later puts it in place, refitted to the boxes of then (waiting for it if it
+    /// is not done); the updates between refit the old tree. When an item's box changed kind
+    /// (became empty, unbounded or finite again) the BVH is rebuilt here and now.
     pub fn refit_boxes(&mut self, boxes: &[Aabb]) -> RefitOutcome {
-        let cost = self.bvh.refit_cost(boxes);
-        self.settle(boxes, cost)
+        self.background.update(
+            (&mut self.bvh, &mut self.build_cost),
+            boxes,
+            Bvh::refit_cost,
+            |bvh| bvh.refit_cost(boxes),
+            fresh_tree,
+        )
     }
 
     /// [`ClusteredScene::refit_boxes`] when only the items `changed` have new boxes (see
     /// [`Bvh::refit_changed`]).
     pub fn refit_changed(&mut self, boxes: &[Aabb], changed: &[u32]) -> RefitOutcome {
-        let cost = self.bvh.refit_changed_cost(boxes, changed);
-        self.settle(boxes, cost)
-    }
-
-    /// After a refit (`cost`: the refitted tree's SAH cost, `None` when the refit failed),
-    /// keeps the tree or rebuilds it by the rule above.
-    fn settle(&mut self, boxes: &[Aabb], cost: Option<f32>) -> RefitOutcome {
-        let ratio = cost.map(|c| cost_ratio(c, self.build_cost));
-        RefitOutcome::decide(ratio, || {
-            self.bvh = Bvh::build(boxes, SCENE_PRESET, SCENE_LEAF);
-            self.build_cost = self.bvh.sah_cost();
-        })
+        self.background.update(
+            (&mut self.bvh, &mut self.build_cost),
+            boxes,
+            Bvh::refit_cost,
+            |bvh| bvh.refit_changed_cost(boxes, changed),
+            fresh_tree,
+        )
     }
 
     /// Number of items ((instance, cluster) pairs).
@@ -289,6 +293,13 @@ impl ClusteredScene {
     }
 }
 
+/// The BVH over item boxes `boxes`, with its SAH cost.
+fn fresh_tree(boxes: &[Aabb]) -> (Bvh, f32) {
+    let bvh = Bvh::build(boxes, SCENE_PRESET, SCENE_LEAF);
+    let cost = bvh.sah_cost();
+    (bvh, cost)
+}
+
 impl FrustumCull for ClusteredScene {
     fn cull(&self, frustum: &Frustum, out: &mut Vec<Visible>) {
         self.bvh.cull_with(frustum, CullOptions::default(), out);
@@ -357,5 +368,74 @@ mod tests {
         assert!(matches!(cs.clone().update(&inst), Some(RefitOutcome::Refitted { .. })));
         assert!(cs.clone().update(&inst[1..]).is_none());
         assert_eq!(cs.item_boxes(&inst).len(), cs.item_count());
+    }
+
+    /// Moves every instance by `d` (plus its index's share of `spread`, scattering them).
+    fn shift(inst: &mut [Instance], d: Vec3, spread: f32) {
+        for (k, i) in inst.iter_mut().enumerate() {
+            let o = d + Vec3::new(((k * 37) % 101) as f32 - 50.0, 0.0, ((k * 53) % 97) as f32 - 48.0) * spread;
+            i.world_aabb = Aabb::new(i.world_aabb.min + o, i.world_aabb.max + o);
+        }
+    }
+
+    /// 300 cubes over a 100 × 100 area, scattered after the build so that a background
+    /// rebuild starts: the instances, the scene, the boxes the build starts from and the
+    /// cost ratio that started it.
+    fn rebuild_started() -> (Vec<Instance>, ClusteredScene, Vec<Aabb>, f32) {
+        let mut scene = Scene::new();
+        let cube = scene.add_mesh(shapes::cube("c").unwrap());
+        let mut rng = sightline_scene::rng::Rng::new(9);
+        for _ in 0..300 {
+            let t = Transform::from_translation(Vec3::new(rng.range(-50.0, 50.0), 0.0, rng.range(-50.0, 50.0)));
+            scene.add_node(None, NodeDesc::new("c").transform(t).mesh(cube)).unwrap();
+        }
+        scene.update_transforms();
+        let mut inst = scene.instances();
+        let mut cs = ClusteredScene::build(&scene);
+        shift(&mut inst, Vec3::ZERO, 1.0);
+        let started_from = cs.item_boxes(&inst);
+        match cs.update(&inst) {
+            Some(RefitOutcome::Rebuilding { cost_ratio }) => (inst, cs, started_from, cost_ratio),
+            o => panic!("expected a background rebuild, got {o:?}"),
+        }
+    }
+
+    #[test]
+    fn a_degraded_tree_is_rebuilt_in_the_background_and_put_in_place_lag_updates_later() {
+        let (mut inst, mut cs, started_from, trigger) = rebuild_started();
+        assert!(trigger > crate::REBUILD_RATIO);
+        // Until it is due the old tree is refitted (and stays as degraded).
+        for _ in 1..crate::REBUILD_LAG {
+            shift(&mut inst, Vec3::new(0.5, 0.0, 0.0), 0.0);
+            assert!(matches!(cs.update(&inst), Some(RefitOutcome::Rebuilding { .. })));
+            cs.bvh().validate().unwrap();
+        }
+        // The due update puts in place the tree of the boxes it started from, refitted to
+        // the boxes of now.
+        shift(&mut inst, Vec3::new(0.5, 0.0, 0.0), 0.0);
+        assert_eq!(cs.update(&inst), Some(RefitOutcome::Rebuilt { cost_ratio: trigger }));
+        let mut expected = Bvh::build(&started_from, SCENE_PRESET, SCENE_LEAF);
+        assert!(expected.refit(&cs.item_boxes(&inst)));
+        assert!(cs.bvh().nodes() == expected.nodes() && cs.bvh().items() == expected.items());
+        shift(&mut inst, Vec3::new(0.5, 0.0, 0.0), 0.0);
+        match cs.update(&inst) {
+            Some(RefitOutcome::Refitted { cost_ratio }) => assert!(cost_ratio < 1.01, "{cost_ratio}"),
+            o => panic!("expected a refit of the new tree, got {o:?}"),
+        }
+    }
+
+    /// A box changing kind while a build is under way rebuilds at once, and the build from
+    /// the boxes of before is never put in place.
+    #[test]
+    fn a_box_changing_kind_rebuilds_now_and_drops_the_background_build() {
+        let (mut inst, mut cs, _, _) = rebuild_started();
+        inst[7].world_aabb = Aabb::new(Vec3::NAN, Vec3::NAN);
+        assert!(matches!(cs.update(&inst), Some(RefitOutcome::Rebuilt { cost_ratio }) if cost_ratio.is_infinite()));
+        assert_eq!(cs.bvh().unbounded(), &[7]);
+        for _ in 0..2 * crate::REBUILD_LAG {
+            shift(&mut inst, Vec3::new(0.1, 0.0, 0.0), 0.0);
+            assert!(matches!(cs.update(&inst), Some(RefitOutcome::Refitted { .. })));
+        }
+        assert_eq!(cs.bvh().unbounded(), &[7]);
     }
 }

@@ -13,7 +13,7 @@ use obvhs::aabb::Aabb as ObAabb;
 
 use super::blas::WideBlas;
 use super::{WideBuildParams, WideBvh};
-use crate::bvh::instances::cost_ratio;
+use crate::bvh::background::Background;
 use crate::RefitOutcome;
 
 /// One placed BLAS.
@@ -68,6 +68,8 @@ pub struct WideTlas {
     boxes: Vec<ObAabb>,
     /// Instances placed anew since the last refit (their boxes are recomputed by it).
     moved: Vec<u32>,
+    /// The rebuild of `bvh` under way off the frame, if any.
+    background: Background<WideBvh>,
 }
 
 impl WideTlas {
@@ -79,9 +81,8 @@ impl WideTlas {
             .filter(|rec| blases.get(rec.blas as usize).is_some_and(|b| !b.tris().is_empty()))
             .collect();
         let boxes: Vec<ObAabb> = instances.iter().map(|rec| world_box(rec, blases)).collect();
-        let bvh = WideBvh::build_obvhs(&boxes, WideBuildParams::TLAS);
-        let build_cost = bvh.sah_cost();
-        WideTlas { instances, bvh, build_cost, boxes, moved: Vec::new() }
+        let (bvh, build_cost) = fresh_tree(&boxes);
+        WideTlas { instances, bvh, build_cost, boxes, moved: Vec::new(), background: Background::default() }
     }
 
     /// Places instance `i` (of [`WideTlas::instances`], made by [`InstanceRecord::placed`])
@@ -98,20 +99,26 @@ impl WideTlas {
         true
     }
 
-    /// Refits the tree to the instances' current transforms, or rebuilds it when refitting
-    /// has let its SAH cost grow past [`REBUILD_RATIO`](crate::REBUILD_RATIO) times that of the last build.
-    /// The boxes of the instances placed since the last refit are recomputed; the others are
-    /// kept (`blases` must be the list the tree was built with).
+    /// Refits the tree to the instances' current transforms. When refitting has let its SAH
+    /// cost grow past [`REBUILD_RATIO`](crate::REBUILD_RATIO) times that of the last build,
+    /// a new tree is built off the frame and put in place
+    /// [`REBUILD_LAG`](crate::REBUILD_LAG) refits later, as the
+    /// [`ClusteredScene`](crate::ClusteredScene)'s is. The boxes of the instances placed
+    /// since the last refit are recomputed; the others are kept (`blases` must be the list
+    /// the tree was built with).
     pub fn refit(&mut self, blases: &[WideBlas]) -> RefitOutcome {
         for &i in &self.moved {
             self.boxes[i as usize] = world_box(&self.instances[i as usize], blases);
         }
         self.moved.clear();
-        let ratio = self.bvh.refit_cost(&self.boxes).map(|cost| cost_ratio(cost, self.build_cost));
-        RefitOutcome::decide(ratio, || {
-            self.bvh = WideBvh::build_obvhs(&self.boxes, WideBuildParams::TLAS);
-            self.build_cost = self.bvh.sah_cost();
-        })
+        let boxes = &self.boxes;
+        self.background.update(
+            (&mut self.bvh, &mut self.build_cost),
+            boxes,
+            WideBvh::refit_cost,
+            |bvh| bvh.refit_cost(boxes),
+            fresh_tree,
+        )
     }
 
     /// The instances kept (in the order given to [`WideTlas::build`]); the BVH's primitive
@@ -126,6 +133,13 @@ impl WideTlas {
     pub fn bvh(&self) -> &WideBvh {
         &self.bvh
     }
+}
+
+/// The tree over instance boxes `boxes`, with its SAH cost.
+fn fresh_tree(boxes: &[ObAabb]) -> (WideBvh, f32) {
+    let bvh = WideBvh::build_obvhs(boxes, WideBuildParams::TLAS);
+    let cost = bvh.sah_cost();
+    (bvh, cost)
 }
 
 /// The world box of an instance (its BLAS bounds mapped by `world_from_blas`), padded by a
@@ -200,5 +214,36 @@ mod tests {
         assert!(tlas.instances()[0].identity && !tlas.instances()[1].identity);
         assert!(!invertible(&Affine3A::from_scale(Vec3::new(1.0, 0.0, 1.0))));
         assert!(invertible(&shift));
+    }
+
+    /// Shuffling the instances degrades the tree: it is rebuilt in the background from the
+    /// boxes of that refit, and put in place, refitted, `REBUILD_LAG` refits later.
+    #[test]
+    fn a_degraded_tree_is_rebuilt_in_the_background() {
+        let blases = vec![WideBlas::build(1, |_| [Vec3::ZERO, Vec3::X, Vec3::Y])];
+        let at = |s: usize| Affine3A::from_translation(Vec3::new((s % 20) as f32 * 3.0, 0.0, (s / 20) as f32 * 3.0));
+        let records = (0..200).map(|i| InstanceRecord::placed(0, i, 1 + i, at(i as usize))).collect();
+        let mut tlas = WideTlas::build(records, &blases);
+        let place = |tlas: &mut WideTlas, round: usize| {
+            for i in 0..200 {
+                assert!(tlas.set_transform(i, at((i * 71 + round * 3) % 200)));
+            }
+            tlas.refit(&blases)
+        };
+        let trigger = match place(&mut tlas, 1) {
+            RefitOutcome::Rebuilding { cost_ratio } => cost_ratio,
+            o => panic!("expected a background rebuild, got {o:?}"),
+        };
+        let started_from = tlas.boxes.clone();
+        for round in 2..=crate::REBUILD_LAG as usize {
+            assert!(matches!(place(&mut tlas, round), RefitOutcome::Rebuilding { .. }));
+        }
+        assert_eq!(place(&mut tlas, 0), RefitOutcome::Rebuilt { cost_ratio: trigger });
+        let (mut expected, _) = fresh_tree(&started_from);
+        assert!(expected.refit(&tlas.boxes));
+        assert_eq!(tlas.bvh().order(), expected.order());
+        let boxes = |b: &WideBvh| b.nodes().iter().map(|n| format!("{n:?}")).collect::<Vec<_>>();
+        assert_eq!(boxes(tlas.bvh()), boxes(&expected));
+        tlas.bvh().validate(200).unwrap();
     }
 }
