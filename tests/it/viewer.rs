@@ -6,8 +6,9 @@
 //! The window tests need `xvfb-run` (`.ci/run` installs it). Where it is missing they fail,
 //! saying so, unless `SIGHTLINE_SKIP_WINDOW_TESTS=1` is set.
 
+use std::ffi::OsString;
 use std::path::{Path, PathBuf};
-use std::process::Command;
+use std::process::{Command, Output};
 
 const EYE: &str = "60,40,70";
 const TARGET: &str = "0,0,0";
@@ -51,16 +52,10 @@ fn window_and_headless(
     render_extra: &[&str],
 ) -> (image::RgbaImage, image::RgbaImage) {
     let shot = dir.join("shot.png");
-    // A 24-bit screen: xvfb-run's default depth of 8 bits has no true-colour visual.
-    let out = Command::new("xvfb-run")
-        .args(["-a", "-s", "-screen 0 640x480x24"])
-        .arg(viewer_binary())
-        .args(camera)
-        .args(viewer_extra)
-        .args(["--no-hud", "--after-frames", "3", "--screenshot"])
-        .arg(&shot)
-        .output()
-        .expect("xvfb-run starts");
+    let mut args: Vec<OsString> = camera.iter().chain(viewer_extra).map(OsString::from).collect();
+    args.extend(["--no-hud", "--after-frames", "3", "--screenshot"].map(OsString::from));
+    args.push(shot.clone().into());
+    let out = viewer_under_xvfb(&args);
     let err = String::from_utf8_lossy(&out.stderr);
     assert!(out.status.success(), "the viewer failed under xvfb-run: {err}");
     assert!(err.contains("read back from the window"), "the screenshot is the window's pixels: {err}");
@@ -83,26 +78,39 @@ fn render(dir: &Path, camera: &[&str], extra: &[&str]) -> image::RgbaImage {
     rgba(&render_dir.join("color.png"))
 }
 
-/// The viewer's exit code and stderr when started in a window with `args` it should refuse
-/// after loading the scene. xvfb-run -a can lose the race for a display number to a server
-/// another test starts at the same moment: try again then, never on the viewer's own answer.
-fn viewer_refusal(dir: &Path, args: &[&str]) -> (Option<i32>, String) {
-    let (mut code, mut err) = (None, String::new());
-    for _ in 0..3 {
-        let out = Command::new("xvfb-run")
+/// The viewer's output when run with `args` on a 24-bit virtual screen (xvfb-run's default
+/// depth of 8 bits has no true-colour visual). xvfb-run can fail on its own: lose the race
+/// for a display number to a server another test starts at the same moment, or fail to
+/// remove its temporary folder after the viewer exited (its exit code then replaces the
+/// viewer's). It says so ("xvfb-run: error"), and the run is tried again then, never on the
+/// viewer's own answer.
+fn viewer_under_xvfb(args: &[OsString]) -> Output {
+    let run = || {
+        Command::new("xvfb-run")
             .args(["-a", "-s", "-screen 0 640x480x24"])
             .arg(viewer_binary())
             .args(args)
-            .arg("--screenshot")
-            .arg(dir.join("none.png"))
             .output()
-            .expect("xvfb-run starts");
-        (code, err) = (out.status.code(), String::from_utf8_lossy(&out.stderr).into_owned());
-        if err.contains("loading") {
+            .expect("xvfb-run starts")
+    };
+    let mut out = run();
+    for _ in 0..2 {
+        if !String::from_utf8_lossy(&out.stderr).contains("xvfb-run: error") {
             break;
         }
+        out = run();
     }
-    (code, err)
+    out
+}
+
+/// The viewer's exit code and stderr when started in a window with `args` it should refuse
+/// after loading the scene.
+fn viewer_refusal(dir: &Path, args: &[&str]) -> (Option<i32>, String) {
+    let mut args: Vec<OsString> = args.iter().map(OsString::from).collect();
+    args.push("--screenshot".into());
+    args.push(dir.join("none.png").into());
+    let out = viewer_under_xvfb(&args);
+    (out.status.code(), String::from_utf8_lossy(&out.stderr).into_owned())
 }
 
 /// The pixels where two pictures differ.
