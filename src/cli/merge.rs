@@ -75,6 +75,7 @@ pub fn run(a: &MergeArgs) -> Result<()> {
     let gif_frames = join_gifs(&shards, &a.out, &run)?;
     let merged = WalkReport {
         methods: report::summarize(&records, &run.method_set),
+        scene_update: report::summarize_updates(&records),
         run,
         frame_range: [lo.min(hi), hi],
         missing_frames: missing,

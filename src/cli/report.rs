@@ -37,6 +37,21 @@ pub struct FrameRecord {
     /// Share of pixels whose ID equals brute force's (ray casting is checked this way: it
     /// decides visibility differently, so it agrees on ≥ 99.5% rather than exactly).
     pub agreement: Option<f64>,
+    /// Milliseconds posing the frame's animations and bringing the scene, the culler and the
+    /// ray caster up to date (animated walks): shared by every method of the frame, so
+    /// outside `ms`, and the same in each of the frame's records.
+    #[serde(default)]
+    pub scene_update_ms: Option<f64>,
+}
+
+/// The scene's update per frame of an animated walk (see [`FrameRecord::scene_update_ms`]).
+#[derive(Debug, Clone, Serialize, Deserialize)]
+pub struct UpdateSummary {
+    pub frames: usize,
+    pub median_ms: f64,
+    pub p95_ms: f64,
+    pub max_ms: f64,
+    pub mean_ms: f64,
 }
 
 /// One method's summary: what scripts read.
@@ -87,6 +102,9 @@ pub struct WalkReport {
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub missing_frames: Vec<[usize; 2]>,
     pub methods: Vec<MethodSummary>,
+    /// The scene's update per frame, for animated walks.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub scene_update: Option<UpdateSummary>,
 }
 
 fn percentile(sorted: &[f64], p: f64) -> f64 {
@@ -132,6 +150,28 @@ pub fn summarize(records: &[FrameRecord], methods: &[String]) -> Vec<MethodSumma
         .collect()
 }
 
+/// The scene's update per frame over `records` (one value per frame: the frame's first
+/// record's), `None` when no frame was updated (a static walk).
+pub fn summarize_updates(records: &[FrameRecord]) -> Option<UpdateSummary> {
+    let mut ms: Vec<f64> = Vec::new();
+    let mut last = None;
+    for r in records {
+        if last != Some(r.frame) {
+            last = Some(r.frame);
+            ms.extend(r.scene_update_ms);
+        }
+    }
+    ms.sort_by(f64::total_cmp);
+    let max_ms = *ms.last()?;
+    Some(UpdateSummary {
+        frames: ms.len(),
+        median_ms: percentile(&ms, 0.5),
+        p95_ms: percentile(&ms, 0.95),
+        max_ms,
+        mean_ms: ms.iter().sum::<f64>() / ms.len() as f64,
+    })
+}
+
 /// The summary table, one row per method.
 pub fn print_table(w: &mut dyn Write, s: &[MethodSummary]) -> std::io::Result<()> {
     let brute = s.iter().find(|m| m.method == "brute").map(|m| m.median_ms);
@@ -166,13 +206,27 @@ pub fn print_table(w: &mut dyn Write, s: &[MethodSummary]) -> std::io::Result<()
     Ok(())
 }
 
-/// Prints the table on standard output, or on standard error when the JSON summary goes to
-/// standard output.
-pub fn print_summary(s: &[MethodSummary], json: Option<&Path>) -> Result<()> {
-    if json.is_some_and(super::common::is_stdout) {
-        print_table(&mut std::io::stderr(), s)?;
+/// The line under the table of an animated walk: what updating the scene cost per frame.
+fn print_update(w: &mut dyn Write, u: &UpdateSummary) -> std::io::Result<()> {
+    writeln!(
+        w,
+        "scene update per frame (posing, propagating, syncing the culler and ray caster; not in the times above): \
+         median {:.2} ms, p95 {:.2} ms, max {:.2} ms, mean {:.2} ms over {} frames",
+        u.median_ms, u.p95_ms, u.max_ms, u.mean_ms, u.frames
+    )
+}
+
+/// Prints the table (and the scene update of an animated walk) on standard output, or on
+/// standard error when the JSON summary goes to standard output.
+pub fn print_summary(report: &WalkReport, json: Option<&Path>) -> Result<()> {
+    let mut out: Box<dyn Write> = if json.is_some_and(super::common::is_stdout) {
+        Box::new(std::io::stderr())
     } else {
-        print_table(&mut std::io::stdout(), s)?;
+        Box::new(std::io::stdout())
+    };
+    print_table(&mut out, &report.methods)?;
+    if let Some(u) = &report.scene_update {
+        print_update(&mut out, u)?;
     }
     Ok(())
 }
@@ -216,13 +270,13 @@ fn write_csv(csv: &Path, records: &[FrameRecord]) -> Result<()> {
         std::io::BufWriter::new(std::fs::File::create(csv).with_context(|| format!("creating {}", csv.display()))?);
     writeln!(
         f,
-        "frame,method,ms,triangles_drawn,clusters_in_frustum,clusters_drawn,culled_by_frustum,culled_by_occlusion,occlusion_tests,batches,ms_cull,ms_draw,ms_shading,ms_geometry,ms_binning,ms_raster,fragments_written,verified"
+        "frame,method,ms,triangles_drawn,clusters_in_frustum,clusters_drawn,culled_by_frustum,culled_by_occlusion,occlusion_tests,batches,ms_cull,ms_draw,ms_shading,ms_geometry,ms_binning,ms_raster,fragments_written,verified,scene_update_ms"
     )?;
     for r in records {
         let c = &r.cull;
         writeln!(
             f,
-            "{},{},{:.3},{},{},{},{},{},{},{},{:.3},{:.3},{:.3},{:.3},{:.3},{:.3},{},{}",
+            "{},{},{:.3},{},{},{},{},{},{},{},{:.3},{:.3},{:.3},{:.3},{:.3},{:.3},{},{},{}",
             r.frame,
             r.method,
             r.ms,
@@ -240,7 +294,8 @@ fn write_csv(csv: &Path, records: &[FrameRecord]) -> Result<()> {
             r.raster.ms_binning,
             r.raster.ms_raster,
             r.raster.fragments_written,
-            r.verified.map_or("".into(), |v| v.to_string())
+            r.verified.map_or("".into(), |v| v.to_string()),
+            r.scene_update_ms.map_or("".into(), |v| format!("{v:.3}"))
         )?;
     }
     f.flush().with_context(|| format!("writing {}", csv.display()))

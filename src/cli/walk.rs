@@ -152,6 +152,7 @@ pub fn run(a: &WalkArgs) -> Result<()> {
     let gif_frames = pics.and_then(Pictures::finish);
     let report = WalkReport {
         methods: report::summarize(&records, &run.method_set),
+        scene_update: report::summarize_updates(&records),
         run,
         frame_range: [range.start, range.end],
         missing_frames: Vec::new(),
@@ -170,7 +171,7 @@ pub fn finish(
     gif_frames: Option<usize>,
     min_agreement: f64,
 ) -> Result<()> {
-    report::print_summary(&report.methods, json)?;
+    report::print_summary(report, json)?;
     if let Some(dir) = out {
         report::write_report(dir, report, records)?;
     }
@@ -253,9 +254,13 @@ fn walk(
     let mut out = Vec::new();
     for (f, key) in keys.iter().enumerate().take(range.end).skip(first) {
         let recorded = f >= range.start;
-        if run.animate {
+        let scene_update_ms = if run.animate {
+            let t = Instant::now();
             pose(&mut world, f)?;
-        }
+            Some(t.elapsed().as_secs_f64() * 1e3)
+        } else {
+            None
+        };
         let cam = key.camera(a.size.aspect()).with_context(|| format!("frame {f} of the path"))?;
         let mut have_reference = false;
         if a.verify {
@@ -303,6 +308,7 @@ fn walk(
                 raster: report.raster.unwrap_or_default(),
                 verified: verified.map(|m| m.is_none()),
                 agreement,
+                scene_update_ms,
             });
             bar.inc(1);
         }
@@ -338,8 +344,9 @@ fn walk(
 
 /// Poses the world's animations at frame `f` of the walk (time f / 30 s) and brings the
 /// culler and the ray caster up to date before any frame is timed: a walk times how each
-/// method draws the frame, not the scene's change, which every method shares (a moved
-/// vehicle costs a refit of the culler's and the ray caster's trees, never a BLAS).
+/// method draws the frame apart from the scene's change, which every method shares (a moved
+/// vehicle costs a refit of the culler's and the ray caster's trees, never a BLAS) and
+/// which is reported on its own line.
 fn pose(world: &mut World, f: usize) -> Result<()> {
     let t = f as f32 / 30.0;
     world.animate(t).with_context(|| format!("playing the animations at {t} s"))?;
@@ -362,7 +369,23 @@ mod tests {
             raster: FrameStats::default(),
             verified: None,
             agreement,
+            scene_update_ms: None,
         }
+    }
+
+    /// The scene's update counts once per frame, however many methods drew it; a static
+    /// walk has none.
+    #[test]
+    fn the_scene_update_is_summed_up_once_per_frame() {
+        let mut rs = Vec::new();
+        for (f, ms) in [(0, 1.0), (1, 3.0), (2, 2.0), (3, 10.0)] {
+            for m in ["hzb", "raycast"] {
+                rs.push(FrameRecord { scene_update_ms: Some(ms), ..record(f, m, None) });
+            }
+        }
+        let u = report::summarize_updates(&rs).expect("an animated walk");
+        assert_eq!((u.frames, u.median_ms, u.p95_ms, u.max_ms, u.mean_ms), (4, 3.0, 10.0, 10.0, 4.0));
+        assert!(report::summarize_updates(&[record(0, "hzb", None)]).is_none());
     }
 
     #[test]

@@ -111,6 +111,7 @@ fn short_options_json_and_out_mean_the_same_on_every_command() {
     assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
     let summary: serde_json::Value = serde_json::from_slice(&out.stdout).expect("stdout is the JSON summary alone");
     assert_eq!(summary["methods"][0]["frames"], 2);
+    assert!(summary.get("scene_update").is_none(), "a static walk updates no scene");
     assert!(dir.join("frames.csv").exists());
 
     let info = dir.join("info.json");
@@ -268,4 +269,22 @@ fn render_supersamples_the_picture_but_not_the_ids() {
     let info = Command::new(env!("CARGO_BIN_EXE_sightline")).args(["info", "--json"]).output().unwrap();
     let v: serde_json::Value = serde_json::from_slice(&info.stdout).unwrap();
     assert_eq!(v["triangles"], 1_000_342, "the default city's triangle count");
+}
+
+/// An animated walk reports what updating the scene cost per frame, apart from the methods'
+/// frame times: in its JSON summary, on the line under the table and per frame in the CSV.
+#[test]
+fn an_animated_walk_reports_its_scene_update() {
+    let out = Command::new(env!("CARGO_BIN_EXE_sightline"))
+        .args(["walk", "-s", "city+traffic:5", "-n", "3", "-m", "all", "--size", "32x18", "--json", "-"])
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "{err}");
+    let summary: serde_json::Value = serde_json::from_slice(&out.stdout).expect("stdout is the JSON summary alone");
+    let u = &summary["scene_update"];
+    assert_eq!(u["frames"], 3, "once per frame, not per method: {summary}");
+    let (median, max) = (u["median_ms"].as_f64().unwrap(), u["max_ms"].as_f64().unwrap());
+    assert!(median > 0.0 && max >= median, "{u}");
+    assert!(err.contains("scene update per frame") && err.contains("over 3 frames"), "{err}");
 }
