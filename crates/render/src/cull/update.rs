@@ -9,7 +9,7 @@
 //! fresh build (the rule of Wald, Boulos and Shirley 2007, "Ray tracing deformable scenes
 //! using dynamic bounding volume hierarchies": refit while the tree stays good, rebuild when
 //! it has degraded; the rebuild runs on a background thread and its tree is put in place
-//! `REBUILD_LAG` syncs later, so that it costs no frame a hitch). A material change only updates the instance records (shading reads
+//! `rebuild_lag` syncs later, so that it costs no frame a hitch). A material change only updates the instance records (shading reads
 //! them). A change of what is drawn (instances added, removed or reordered, a mesh swapped)
 //! rebuilds the world side but keeps the clusters and meshlets of every mesh that is still
 //! drawn, so a mesh is clustered once, however the scene changes.

@@ -166,7 +166,7 @@ pub enum HitTarget {
 /// or rebuilt once refitting has let its SAH cost grow past
 /// [`REBUILD_RATIO`](sightline_spatial::REBUILD_RATIO) times a fresh build's (off the
 /// frame, on a background thread: the new tree is put in place
-/// [`REBUILD_LAG`](sightline_spatial::REBUILD_LAG) syncs later); when what is
+/// [`rebuild_lag`](sightline_spatial::rebuild_lag) syncs later); when what is
 /// drawn changed, the instances and the TLAS are made anew, keeping the BLAS of every mesh
 /// still drawn. Either way a BLAS is built once per mesh. A frame of a scene the caster is
 /// not synced to is refused, never drawn stale.

@@ -31,7 +31,7 @@ pub enum RefitOutcome {
     },
     /// Refitted, with the SAH cost beyond [`REBUILD_RATIO`] × the fresh build's: a fresh
     /// tree is being built off the frame, started by this update or one of the previous
-    /// [`REBUILD_LAG`](crate::REBUILD_LAG), and put in place by the update that many after
+    /// [`rebuild_lag`](crate::rebuild_lag), and put in place by the update that many after
     /// the one that started it (trees that rebuild in the background: the
     /// [`ClusteredScene`](crate::ClusteredScene)'s).
     Rebuilding {

@@ -184,7 +184,7 @@ impl ClusteredScene {
 
     /// Refits the BVH to new item boxes (index = item). When its SAH cost has grown beyond
     /// [`REBUILD_RATIO`](crate::REBUILD_RATIO) × the fresh build's, a new tree is built on a
-    /// background thread from these boxes, and the update [`REBUILD_LAG`](crate::REBUILD_LAG)
+    /// background thread from these boxes, and the update [`rebuild_lag`](crate::rebuild_lag)
     /// updates later puts it in place, refitted to the boxes of then (waiting for it if it
     /// is not done); the updates between refit the old tree. When an item's box changed kind
     /// (became empty, unbounded or finite again) the BVH is rebuilt here and now.
@@ -378,14 +378,14 @@ mod tests {
         }
     }
 
-    /// 300 cubes over a 100 × 100 area, scattered after the build so that a background
+    /// `n` cubes over a 100 × 100 area, scattered after the build so that a background
     /// rebuild starts: the instances, the scene, the boxes the build starts from and the
     /// cost ratio that started it.
-    fn rebuild_started() -> (Vec<Instance>, ClusteredScene, Vec<Aabb>, f32) {
+    fn rebuild_started(n: usize) -> (Vec<Instance>, ClusteredScene, Vec<Aabb>, f32) {
         let mut scene = Scene::new();
         let cube = scene.add_mesh(shapes::cube("c").unwrap());
         let mut rng = sightline_scene::rng::Rng::new(9);
-        for _ in 0..300 {
+        for _ in 0..n {
             let t = Transform::from_translation(Vec3::new(rng.range(-50.0, 50.0), 0.0, rng.range(-50.0, 50.0)));
             scene.add_node(None, NodeDesc::new("c").transform(t).mesh(cube)).unwrap();
         }
@@ -400,9 +400,26 @@ mod tests {
         }
     }
 
+    /// A tree of up to `LAG_ITEMS` items waits `REBUILD_LAG` updates for its new tree, a
+    /// larger one one more per `LAG_ITEMS`.
+    #[test]
+    fn the_lag_grows_with_the_items() {
+        use crate::{rebuild_lag, LAG_ITEMS, REBUILD_LAG};
+        assert_eq!([0, LAG_ITEMS - 1, LAG_ITEMS, 1_140_000].map(rebuild_lag), [8, 8, 9, 147]);
+        assert_eq!(REBUILD_LAG, 8);
+        assert_eq!(rebuild_lag(usize::MAX), u32::MAX);
+        // Put in place at the lag of the tree's size.
+        let (mut inst, mut cs, _, trigger) = rebuild_started(LAG_ITEMS + 10);
+        for _ in 1..REBUILD_LAG + 1 {
+            assert!(matches!(cs.update(&inst), Some(RefitOutcome::Rebuilding { .. })));
+        }
+        shift(&mut inst, Vec3::new(0.5, 0.0, 0.0), 0.0);
+        assert_eq!(cs.update(&inst), Some(RefitOutcome::Rebuilt { cost_ratio: trigger }));
+    }
+
     #[test]
     fn a_degraded_tree_is_rebuilt_in_the_background_and_put_in_place_lag_updates_later() {
-        let (mut inst, mut cs, started_from, trigger) = rebuild_started();
+        let (mut inst, mut cs, started_from, trigger) = rebuild_started(300);
         assert!(trigger > crate::REBUILD_RATIO);
         // Until it is due the old tree is refitted (and stays as degraded).
         for _ in 1..crate::REBUILD_LAG {
@@ -428,7 +445,7 @@ mod tests {
     /// the boxes of before is never put in place.
     #[test]
     fn a_box_changing_kind_rebuilds_now_and_drops_the_background_build() {
-        let (mut inst, mut cs, _, _) = rebuild_started();
+        let (mut inst, mut cs, _, _) = rebuild_started(300);
         inst[7].world_aabb = Aabb::new(Vec3::NAN, Vec3::NAN);
         assert!(matches!(cs.update(&inst), Some(RefitOutcome::Rebuilt { cost_ratio }) if cost_ratio.is_infinite()));
         assert_eq!(cs.bvh().unbounded(), &[7]);

@@ -102,7 +102,7 @@ impl WideTlas {
     /// Refits the tree to the instances' current transforms. When refitting has let its SAH
     /// cost grow past [`REBUILD_RATIO`](crate::REBUILD_RATIO) times that of the last build,
     /// a new tree is built off the frame and put in place
-    /// [`REBUILD_LAG`](crate::REBUILD_LAG) refits later, as the
+    /// [`rebuild_lag`](crate::rebuild_lag) refits later, as the
     /// [`ClusteredScene`](crate::ClusteredScene)'s is. The boxes of the instances placed
     /// since the last refit are recomputed; the others are kept (`blases` must be the list
     /// the tree was built with).
@@ -217,7 +217,7 @@ mod tests {
     }
 
     /// Shuffling the instances degrades the tree: it is rebuilt in the background from the
-    /// boxes of that refit, and put in place, refitted, `REBUILD_LAG` refits later.
+    /// boxes of that refit, and put in place, refitted, `rebuild_lag` refits later.
     #[test]
     fn a_degraded_tree_is_rebuilt_in_the_background() {
         let blases = vec![WideBlas::build(1, |_| [Vec3::ZERO, Vec3::X, Vec3::Y])];
@@ -235,7 +235,7 @@ mod tests {
             o => panic!("expected a background rebuild, got {o:?}"),
         };
         let started_from = tlas.boxes.clone();
-        for round in 2..=crate::REBUILD_LAG as usize {
+        for round in 2..=crate::rebuild_lag(200) as usize {
             assert!(matches!(place(&mut tlas, round), RefitOutcome::Rebuilding { .. }));
         }
         assert_eq!(place(&mut tlas, 0), RefitOutcome::Rebuilt { cost_ratio: trigger });
