@@ -10,7 +10,7 @@ use sightline::render::{
     compare_ids, render_scene, Culler, Framebuffer, Method, RayCaster, RaycastOptions, RenderOptions, SyncOutcome,
 };
 use sightline::scene::{shapes, Keep, Material, NodeDesc, NodeId, Scene, Transform};
-use sightline::spatial::{RefitOutcome, REBUILD_LAG};
+use sightline::spatial::{rebuild_lag, RefitOutcome};
 
 use crate::support::{camera_key, differences};
 
@@ -247,7 +247,7 @@ fn moves_refit_additions_rebuild_and_stale_scenes_are_refused() {
 
 /// Moves that degrade the cluster BVH start a rebuild off the frame: every frame while it is
 /// under way (the old tree refitted) and from the update that puts the new tree in place,
-/// [`REBUILD_LAG`] updates after the one that started it, equals brute force.
+/// [`rebuild_lag`] updates after the one that started it, equals brute force.
 #[test]
 fn frames_stay_exact_while_the_cluster_bvh_is_rebuilt_in_the_background() {
     let mut st = Stage::new();
@@ -260,8 +260,9 @@ fn frames_stay_exact_while_the_cluster_bvh_is_rebuilt_in_the_background() {
     st.scene.update_transforms();
     let mut culler = Culler::new(&st.scene);
     let mut caster = RayCaster::build(&st.scene).unwrap();
+    let lag = rebuild_lag(culler.clustered().item_count());
     let (mut started, mut installed) = (None, None);
-    for i in 0..REBUILD_LAG + 4 {
+    for i in 0..lag + 4 {
         for k in 0..48 {
             let at = spot((k * 17 + i as usize * 5) % 48);
             st.scene.set_local_transform(st.nodes[first + k], Transform::from_translation(at.into())).unwrap();
@@ -277,5 +278,5 @@ fn frames_stay_exact_while_the_cluster_bvh_is_rebuilt_in_the_background() {
         caster.sync(&st.scene).unwrap();
         check_frame(&st.scene, &mut culler, &caster, &format!("update {i}"));
     }
-    assert_eq!((started, installed), (Some(0), Some(REBUILD_LAG)));
+    assert_eq!((started, installed), (Some(0), Some(lag)));
 }
