@@ -5,7 +5,9 @@
 //! * `dynamic/sync_culler`: bringing the culler's spatial structures up to date with one
 //!   such step (moved cluster boxes, octree entries, cones, BVH refit): the engine's share.
 //! * `dynamic/sync_raycaster`: the same for the ray caster (new instance transforms and a TLAS
-//!   refit, or a rebuild once the refitted tree has degraded).
+//!   refit). Once a refitted tree (the culler's or the TLAS) has degraded, its rebuild runs
+//!   on a background thread and is put in place some syncs later: it shows here only as
+//!   that thread's share of the cores.
 //! * `dynamic/hzb_moving` against `dynamic/hzb_parked`: an `hzb` street frame drawn through
 //!   the `World` facade while the vehicles move (everything above included) and the same
 //!   frames with them parked. `dynamic/hzb_moving_draw`: the moving frame with only the
