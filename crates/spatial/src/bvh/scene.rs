@@ -189,25 +189,18 @@ impl ClusteredScene {
     /// is not done); the updates between refit the old tree. When an item's box changed kind
     /// (became empty, unbounded or finite again) the BVH is rebuilt here and now.
     pub fn refit_boxes(&mut self, boxes: &[Aabb]) -> RefitOutcome {
-        self.background.update(
-            (&mut self.bvh, &mut self.build_cost),
-            boxes,
-            Bvh::refit_cost,
-            |bvh| bvh.refit_cost(boxes),
-            fresh_tree,
-        )
+        self.refit_by(boxes, |bvh| bvh.refit_cost(boxes))
     }
 
     /// [`ClusteredScene::refit_boxes`] when only the items `changed` have new boxes (see
     /// [`Bvh::refit_changed`]).
     pub fn refit_changed(&mut self, boxes: &[Aabb], changed: &[u32]) -> RefitOutcome {
-        self.background.update(
-            (&mut self.bvh, &mut self.build_cost),
-            boxes,
-            Bvh::refit_cost,
-            |bvh| bvh.refit_changed_cost(boxes, changed),
-            fresh_tree,
-        )
+        self.refit_by(boxes, |bvh| bvh.refit_changed_cost(boxes, changed))
+    }
+
+    /// One update to `boxes` by the background rule, the tree refitted by `refit`.
+    fn refit_by(&mut self, boxes: &[Aabb], refit: impl FnOnce(&mut Bvh) -> Option<f32>) -> RefitOutcome {
+        self.background.update((&mut self.bvh, &mut self.build_cost), boxes, Bvh::refit_cost, refit, fresh_tree)
     }
 
     /// Number of items ((instance, cluster) pairs).

@@ -82,7 +82,7 @@ impl WideChild {
 }
 
 /// An inner node: up to four children, boxes as structure of arrays.
-#[derive(Debug, Clone, Copy)]
+#[derive(Debug, Clone, Copy, PartialEq)]
 #[repr(C, align(64))]
 pub struct WideNode {
     /// Box minima, `[axis][child]`.

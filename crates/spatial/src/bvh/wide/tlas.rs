@@ -242,8 +242,7 @@ mod tests {
         let (mut expected, _) = fresh_tree(&started_from);
         assert!(expected.refit(&tlas.boxes));
         assert_eq!(tlas.bvh().order(), expected.order());
-        let boxes = |b: &WideBvh| b.nodes().iter().map(|n| format!("{n:?}")).collect::<Vec<_>>();
-        assert_eq!(boxes(tlas.bvh()), boxes(&expected));
+        assert_eq!(tlas.bvh().nodes(), expected.nodes());
         tlas.bvh().validate(200).unwrap();
     }
 }
