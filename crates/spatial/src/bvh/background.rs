@@ -15,7 +15,9 @@
 //! update waits for it then), so which tree a frame culls with, and every counter that
 //! follows from it, is the same in every run and for any number of threads. The background
 //! thread is one for the process, in a rayon pool of its own: the build's parallel loops run
-//! there one after another instead of taking the frame's workers.
+//! there one after another instead of taking the frame's workers. It comes on top of them:
+//! a run capped to one worker (`--threads 1`) still builds on a second core while a
+//! rebuild is under way, and culls with the same trees as a run on any number of workers.
 
 use std::fmt;
 use std::sync::{mpsc, Mutex, OnceLock};
