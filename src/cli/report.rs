@@ -238,7 +238,7 @@ pub fn write_report(dir: &Path, report: &WalkReport, records: &[FrameRecord]) ->
     let json = dir.join(FRAMES_JSON);
     std::fs::write(&json, serde_json::to_string(records)?).with_context(|| format!("writing {}", json.display()))?;
     super::common::write_json(&dir.join(WALK_JSON), &serde_json::to_value(report)?, true)?;
-    let series: Vec<(String, Vec<(f64, f64)>)> = report
+    let mut series: Vec<(String, Vec<(f64, f64)>)> = report
         .run
         .method_set
         .iter()
@@ -247,6 +247,13 @@ pub fn write_report(dir: &Path, report: &WalkReport, records: &[FrameRecord]) ->
             (m.clone(), pts)
         })
         .collect();
+    // An animated walk's scene update beside the methods' frames (once per frame: the
+    // first method's records carry it like every other's).
+    if let Some(first) = report.run.method_set.first().filter(|_| report.scene_update.is_some()) {
+        let pts =
+            records.iter().filter(|r| r.method == *first).filter_map(|r| Some((r.frame as f64, r.scene_update_ms?)));
+        series.push(("scene update".to_string(), pts.collect()));
+    }
     super::chart::line_chart(&dir.join(CHART_PNG), "frame time per frame", "frame", "ms", &series)
 }
 
