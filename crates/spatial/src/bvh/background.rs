@@ -6,10 +6,11 @@
 //! 2.5 s of animation, three frames' worth. So the rebuild runs on a background thread
 //! from a copy of the boxes at the update that asked for it, while the frames go on with the
 //! old tree refitted (still exact, a little slower to traverse); [`rebuild_lag`] updates
-//! later (8 for a tree of up to 8,191 items, more for larger trees) the new tree is put in place and refitted to the boxes of that moment. This is the
-//! "prepare in the background, swap at a fixed point" scheme of physics engines'
-//! broad phases (Jolt Physics' `BroadPhaseQuadTree::UpdatePrepare`/`UpdateFinalize`, the
-//! PhysX pruner's tree rebuilt across frames).
+//! later (8 for a tree of up to 8,191 items, more for larger trees) the new tree is put in
+//! place and refitted to the boxes of that moment. This is the "prepare in the background,
+//! swap at a fixed point" scheme of physics engines' broad phases (Jolt Physics'
+//! `BroadPhaseQuadTree::UpdatePrepare`/`UpdateFinalize`, the PhysX pruner's tree rebuilt
+//! across frames).
 //!
 //! The swap comes at a fixed count of updates, not when the thread happens to finish (the
 //! update waits for it then), so which tree a frame culls with, and every counter that
