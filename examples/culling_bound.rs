@@ -233,7 +233,6 @@ fn run() -> Result<(), Error> {
             median(visible)
         );
     }
-    let stage = |f: fn(&FrameStats) -> f64| median(stages.iter().map(f).collect());
     let count =
         |k: usize, tris: bool| median(clusters.iter().map(|c| if tris { c[k].1 } else { c[k].0 } as f64).collect());
     for (k, what) in ["hzb drew", "no box or cone test skips", "hold a visible triangle"].iter().enumerate() {
@@ -253,22 +252,16 @@ fn run() -> Result<(), Error> {
         "  the clusters holding a visible triangle in one session batch, nearest first (a reference cost for a culler of whole clusters: one batch, nearest first) {holding_session:.2} ms ({:.2}× oracle)",
         holding_session / oracle
     );
+    let [geometry, binning, raster, shading] = draw_stages(&stages);
     println!(
-        "  oracle stages: geometry {:.2}, binning {:.2}, raster and write-out {:.2}, shading {:.2} ms",
-        stage(|s| s.ms_geometry),
-        stage(|s| s.ms_binning),
-        stage(|s| s.ms_raster),
-        stage(|s| s.ms_shading)
+        "  oracle stages: geometry {geometry:.2}, binning {binning:.2}, raster and write-out {raster:.2}, shading {shading:.2} ms"
     );
     let hzb_stage = |k: usize| median(hzb_stages.iter().map(|s: &[f64; 3]| s[k]).collect());
-    let hzb_draw = |f: fn(&FrameStats) -> f64| median(hzb_setup.iter().map(f).collect());
+    let [geometry, binning, raster, _] = draw_stages(&hzb_setup);
     println!(
-        "  hzb stages: cull {:.2}, draw {:.2} (geometry {:.2}, binning {:.2}, raster and write-out {:.2}), shading {:.2} ms",
+        "  hzb stages: cull {:.2}, draw {:.2} (geometry {geometry:.2}, binning {binning:.2}, raster and write-out {raster:.2}), shading {:.2} ms",
         hzb_stage(0),
         hzb_stage(1),
-        hzb_draw(|s| s.ms_geometry),
-        hzb_draw(|s| s.ms_binning),
-        hzb_draw(|s| s.ms_raster),
         hzb_stage(2)
     );
     // Summed over the frames: where the triangles an hzb frame sends to setup end up.
@@ -276,7 +269,7 @@ fn run() -> Result<(), Error> {
     let sent = sum(|s| s.triangles_in).max(1.0);
     let share = |f: fn(&FrameStats) -> u64| 100.0 * sum(f) / sent;
     println!(
-        "  triangles hzb sends to setup: {:.0} a frame; {:.1}% cover no pixel centre, {:.1}% have no area once snapped, {:.1}% face away, {:.1}% outside the view, {:.1}% rasterized",
+        "  triangles hzb sends to setup: {:.0} a frame on average; {:.1}% cover no pixel centre, {:.1}% have no area once snapped, {:.1}% face away, {:.1}% outside the view, {:.1}% rasterized",
         sent / hzb_setup.len().max(1) as f64,
         share(|s| s.too_small),
         share(|s| s.degenerate),
@@ -289,6 +282,13 @@ fn run() -> Result<(), Error> {
         "  write-out floor: depth and IDs {ids_depth:.2} ms, with colors {all:.2} ms (every pixel written once, from cache)"
     );
     Ok(())
+}
+
+/// Medians over frames of the renderer's stages: geometry, binning, raster and write-out,
+/// shading (ms).
+fn draw_stages(frames: &[FrameStats]) -> [f64; 4] {
+    let stage = |f: fn(&FrameStats) -> f64| median(frames.iter().map(f).collect());
+    [stage(|s| s.ms_geometry), stage(|s| s.ms_binning), stage(|s| s.ms_raster), stage(|s| s.ms_shading)]
 }
 
 /// What writing a frame out costs at least on this machine: every pixel's depth and ID

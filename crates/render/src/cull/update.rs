@@ -294,7 +294,13 @@ mod tests {
         let row = |k: usize| (0..3).fold(0.0, |acc, j| acc + b.col(j)[k].abs() * v[j]);
         let expected = row(0).max(row(1)).max(row(2));
         assert_eq!(super::instance_reach(&scene, &inst), expected);
-        assert!(expected > 4.0 * 3.0 * 0.5, "the scale reaches it: {expected}");
+        // Independently: the row sums are reached by a corner of the box `[-v, v]`, the one
+        // whose signs follow the row's, so the reach is the largest coordinate any of its
+        // eight corners is carried to.
+        let sign = |s: u32, bit: u32| if s & bit != 0 { -1.0 } else { 1.0 };
+        let corners = (0..8u32).map(|s| Vec3::from(v) * Vec3::new(sign(s, 1), sign(s, 2), sign(s, 4)));
+        let farthest = corners.map(|c| (b * c).abs().max_element()).fold(0.0f32, f32::max);
+        assert!((farthest - expected).abs() <= 1e-5 * expected, "{farthest} against {expected}");
         inst.world_from_local.matrix3.y_axis.z = f32::NAN;
         assert_eq!(super::instance_reach(&scene, &inst), 0.0);
     }
