@@ -239,8 +239,8 @@ impl<'a> CastFrame<'a> {
         let v = blas.tris().get(hits.prim[c][j] as usize)?;
         let rdet = 1.0 / hits.det[c][j] as f64;
         let (b1, b2) = (hits.e1[c][j] as f64 * rdet, hits.e2[c][j] as f64 * rdet);
-        let v0 = Vec3::from(v[0]).as_dvec3();
-        let p = v0 + (Vec3::from(v[1]).as_dvec3() - v0) * b1 + (Vec3::from(v[2]).as_dvec3() - v0) * b2;
+        let v0 = v[0].as_dvec3();
+        let p = v0 + (v[1].as_dvec3() - v0) * b1 + (v[2].as_dvec3() - v0) * b2;
         Some((rec, p, b1, b2))
     }
 
@@ -354,7 +354,7 @@ impl<'a> CastFrame<'a> {
             let m = self.world_f64.get(rec)?;
             let r = caster.tlas.instances().get(rec)?;
             let v = caster.blases.get(r.blas as usize)?.tris().get(hits.prim[c][j] as usize)?;
-            let wv = v.map(|q| m.transform_point3(Vec3::from(q).as_dvec3()));
+            let wv = v.map(|q| m.transform_point3(q.as_dvec3()));
             Some((m.transform_point3(p), (wv[1] - wv[0]).cross(wv[2] - wv[0]).normalize_or_zero()))
         };
         // Shadows: lanes whose surface, turned to the viewer, faces the light.

@@ -53,7 +53,7 @@
 //! −1 keeps det > 0 (front faces of an instance whose transform mirrors). Degenerate
 //! triangles (det = 0) are never hit.
 
-use glam::Vec3A;
+use glam::{Vec3, Vec3A};
 
 use super::packet::{Hits, Rays, CHUNK, MIXED, NO_GID};
 use super::shear::AXES;
@@ -76,7 +76,8 @@ pub(crate) struct Shared {
 /// Prepares `tri` for rays starting at `o`, permuted once for permutation `p` (the one the
 /// packet's chunks are expected to share; [`MIXED`] for none).
 #[inline(always)]
-pub(crate) fn shared_setup(tri: &[Vec3A; 3], o: Vec3A, p: u8) -> Shared {
+pub(crate) fn shared_setup(tri: &[Vec3; 3], o: Vec3A, p: u8) -> Shared {
+    let o = Vec3::from(o);
     let rel = tri.map(|v| (v - o).to_array());
     let permuted = AXES.get(p as usize).map_or(rel, |&k| permute(&rel, k));
     Shared { rel, p, permuted }
@@ -322,7 +323,7 @@ pub(crate) fn intersect_shared<const ANY: bool>(s: &Shared, rays: &Rays, hits: &
 
 /// Intersects a triangle with the lanes of a chunk, each lane with its own origin.
 #[inline(always)]
-pub(crate) fn intersect_general<const ANY: bool>(tri: &[Vec3A; 3], rays: &Rays, hits: &mut Hits, job: Job) -> u64 {
+pub(crate) fn intersect_general<const ANY: bool>(tri: &[Vec3; 3], rays: &Rays, hits: &mut Hits, job: Job) -> u64 {
     let c = job.c;
     let v = [tri[0].to_array(), tri[1].to_array(), tri[2].to_array()];
     let o = [&rays.o[0][c], &rays.o[1][c], &rays.o[2][c]];

@@ -5,6 +5,15 @@ use sightline_scene::rng::Rng;
 use super::*;
 use crate::raycast::packet::{Lf, CHUNKS, LANES, MIXED, NO_HIT};
 
+// The fixtures are `Vec3A` triangles; the kernels read the BLAS's packed `Vec3` ones.
+fn shared_setup(tri: &[Vec3A; 3], o: Vec3A, p: u8) -> Shared {
+    super::shared_setup(&tri.map(Vec3::from), o, p)
+}
+
+fn intersect_general<const ANY: bool>(tri: &[Vec3A; 3], rays: &Rays, hits: &mut Hits, job: Job) -> u64 {
+    super::intersect_general::<ANY>(&tri.map(Vec3::from), rays, hits, job)
+}
+
 fn job(inst: u32, prim: u32) -> Job {
     Job { c: 0, bits: 1, inst, prim, gid: prim, cull: 0.0 }
 }
