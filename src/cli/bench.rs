@@ -70,8 +70,11 @@ pub fn run(a: &BenchArgs) -> Result<()> {
         methods.first().and_then(|m| m["frames"].as_u64()).unwrap_or(0),
         a.threads.map_or("all".into(), |t| t.to_string())
     )?;
-    writeln!(md, "| method | median ms | p95 ms | × faster than brute | triangles drawn (median) | verified |")?;
-    writeln!(md, "|---|---:|---:|---:|---:|---|")?;
+    writeln!(
+        md,
+        "| method | median ms | p95 ms | × faster than brute | triangles drawn (median) | cull / draw / shading ms (medians) | verified |"
+    )?;
+    writeln!(md, "|---|---:|---:|---:|---:|---:|---|")?;
     let mut bars = Vec::new();
     let mut tri_bars = Vec::new();
     for m in &methods {
@@ -86,7 +89,12 @@ pub fn run(a: &BenchArgs) -> Result<()> {
                 _ => "-".into(),
             };
         let ratio = brute.map_or("-".into(), |b| format!("{:.1}", b / med.max(1e-9)));
-        writeln!(md, "| {name} | {med:.2} | {p95:.2} | {ratio} | {tris} | {verified} |")?;
+        let st = &m["stages_median_ms"];
+        let stages = match (st["cull"].as_f64(), st["draw"].as_f64(), st["shading"].as_f64()) {
+            (Some(c), Some(d), Some(s)) => format!("{c:.2} / {d:.2} / {s:.2}"),
+            _ => "-".into(),
+        };
+        writeln!(md, "| {name} | {med:.2} | {p95:.2} | {ratio} | {tris} | {stages} | {verified} |")?;
         bars.push(Bar { label: name.into(), value: med, high: Some(p95) });
         if name != "raycast" {
             tri_bars.push(Bar { label: name.into(), value: tris as f64, high: None });

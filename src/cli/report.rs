@@ -10,7 +10,7 @@ use std::path::{Path, PathBuf};
 
 use anyhow::{Context, Result};
 use serde::{Deserialize, Serialize};
-use sightline::render::{CullStats, FrameStats};
+use sightline::render::{CullStats, FrameStats, Visibility};
 
 /// Per-frame counters, CSV.
 pub const FRAMES_CSV: &str = "frames.csv";
@@ -69,6 +69,19 @@ pub struct MethodSummary {
     pub mismatched_frames: usize,
     /// Lowest per-frame ID agreement with brute force (ray casting with --verify).
     pub min_id_agreement: Option<f64>,
+    /// Where a rasterizing method's frame time goes (medians); `None` for ray casting.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub stages_median_ms: Option<Stages>,
+}
+
+/// Medians over a method's frames of the parts of its frame time, in milliseconds: walking
+/// the culling structures and testing occlusion, drawing (geometry, binning, rasterizing,
+/// writing out), shading.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct Stages {
+    pub cull: f64,
+    pub draw: f64,
+    pub shading: f64,
 }
 
 /// How a walk was run: shards of one walk must agree on all of it but the frame range.
@@ -145,6 +158,18 @@ pub fn summarize(records: &[FrameRecord], methods: &[String]) -> Vec<MethodSumma
                 verified_frames: rs.iter().filter(|r| r.verified.is_some()).count(),
                 mismatched_frames: rs.iter().filter(|r| r.verified == Some(false)).count(),
                 min_id_agreement: rs.iter().filter_map(|r| r.agreement).reduce(f64::min),
+                stages_median_ms: (*name != Visibility::RayCast.name() && !rs.is_empty()).then(|| {
+                    let median = |f: fn(&CullStats) -> f64| {
+                        let mut v: Vec<f64> = rs.iter().map(|r| f(&r.cull)).collect();
+                        v.sort_by(f64::total_cmp);
+                        percentile(&v, 0.5)
+                    };
+                    Stages {
+                        cull: median(|c| c.ms_cull),
+                        draw: median(|c| c.ms_draw),
+                        shading: median(|c| c.ms_shading),
+                    }
+                }),
             }
         })
         .collect()
@@ -202,6 +227,16 @@ pub fn print_table(w: &mut dyn Write, s: &[MethodSummary]) -> std::io::Result<()
             100.0 * m.culled_by_occlusion_share,
             ver
         )?;
+    }
+    // Where each rasterizing method's time goes.
+    if s.iter().any(|m| m.stages_median_ms.is_some()) {
+        writeln!(w, "\nwhere the time goes (medians)")?;
+        writeln!(w, "{:<13} {:>10} {:>10} {:>10}", "method", "cull ms", "draw ms", "shading ms")?;
+        for m in s {
+            if let Some(st) = &m.stages_median_ms {
+                writeln!(w, "{:<13} {:>10.2} {:>10.2} {:>10.2}", m.method, st.cull, st.draw, st.shading)?;
+            }
+        }
     }
     Ok(())
 }

@@ -388,6 +388,26 @@ mod tests {
         assert!(report::summarize_updates(&[record(0, "hzb", None)]).is_none());
     }
 
+    /// Each rasterizing method's summary holds the medians of its cull, draw and shading
+    /// times (each part's own median); ray casting, which has no such parts, holds none.
+    #[test]
+    fn the_summary_holds_each_rasterizing_method_s_stage_medians() {
+        let mut rs = Vec::new();
+        for (f, (cull, draw, shading)) in [(0.1, 5.0, 1.0), (0.3, 2.0, 0.5), (0.2, 3.0, 9.0)].into_iter().enumerate() {
+            let cull = CullStats { ms_cull: cull, ms_draw: draw, ms_shading: shading, ..Default::default() };
+            rs.push(FrameRecord { cull, ..record(f, "hzb", None) });
+            rs.push(record(f, "raycast", None));
+        }
+        let s = report::summarize(&rs, &["hzb".into(), "raycast".into()]);
+        assert_eq!(s[0].stages_median_ms, Some(report::Stages { cull: 0.2, draw: 3.0, shading: 1.0 }));
+        assert_eq!(s[1].stages_median_ms, None);
+        let mut table = Vec::new();
+        report::print_table(&mut table, &s).unwrap();
+        let table = String::from_utf8(table).unwrap();
+        let row = table.lines().last().unwrap();
+        assert!(row.starts_with("hzb") && row.ends_with("0.20       3.00       1.00"), "{table}");
+    }
+
     #[test]
     fn verify_fails_a_walk_whose_ray_casting_agrees_too_little() {
         let rs = [
