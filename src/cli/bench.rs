@@ -6,7 +6,7 @@ use std::path::PathBuf;
 
 use anyhow::{Context, Result};
 
-use super::chart::{bar_chart, Bar};
+use super::chart::{bar_chart, stacked_bar_chart, Bar, Stack};
 use super::walk::{self, WalkArgs, WalkMethod};
 
 #[derive(Debug, clap::Args)]
@@ -77,6 +77,7 @@ pub fn run(a: &BenchArgs) -> Result<()> {
     writeln!(md, "|---|---:|---:|---:|---:|---:|---|")?;
     let mut bars = Vec::new();
     let mut tri_bars = Vec::new();
+    let mut stacks = Vec::new();
     for m in &methods {
         let name = m["method"].as_str().unwrap_or("?");
         let med = m["median_ms"].as_f64().unwrap_or(0.0);
@@ -91,7 +92,10 @@ pub fn run(a: &BenchArgs) -> Result<()> {
         let ratio = brute.map_or("-".into(), |b| format!("{:.1}", b / med.max(1e-9)));
         let st = &m["stages_median_ms"];
         let stages = match (st["cull"].as_f64(), st["draw"].as_f64(), st["shading"].as_f64()) {
-            (Some(c), Some(d), Some(s)) => format!("{c:.2} / {d:.2} / {s:.2}"),
+            (Some(c), Some(d), Some(s)) => {
+                stacks.push(Stack { label: name.into(), parts: vec![c, d, s] });
+                format!("{c:.2} / {d:.2} / {s:.2}")
+            }
             _ => "-".into(),
         };
         writeln!(md, "| {name} | {med:.2} | {p95:.2} | {ratio} | {tris} | {stages} | {verified} |")?;
@@ -100,10 +104,20 @@ pub fn run(a: &BenchArgs) -> Result<()> {
             tri_bars.push(Bar { label: name.into(), value: tris as f64, high: None });
         }
     }
-    writeln!(md, "\n![frame times](bench.png)\n\n![triangles drawn](triangles.png)")?;
+    writeln!(
+        md,
+        "\n![frame times](bench.png)\n\n![where the time goes](stages.png)\n\n![triangles drawn](triangles.png)"
+    )?;
     std::fs::write(a.out.join("bench.md"), &md)?;
     bar_chart(&a.out.join("bench.png"), "median frame time (bar) and p95 (line)", "ms", &bars)?;
     bar_chart(&a.out.join("triangles.png"), "triangles drawn per frame (median)", "triangles", &tri_bars)?;
+    stacked_bar_chart(
+        &a.out.join("stages.png"),
+        "where the frame time goes (medians of each part)",
+        "ms",
+        &["cull", "draw", "shading"],
+        &stacks,
+    )?;
     println!("\n{md}");
     println!("wrote {}", a.out.join("bench.md").display());
     result

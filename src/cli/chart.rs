@@ -1,9 +1,12 @@
 //! Charts of benchmark results (plotters), for people who would rather look than read: bars
-//! of medians, lines of frame times along a walk, and log–log lines of time against size.
+//! of medians, stacked bars of where a frame's time goes, lines of frame times along a walk,
+//! and log–log lines of time against size.
 
 use std::path::Path;
 
 use anyhow::{anyhow, Result};
+use plotters::coord::ranged1d::SegmentedCoord;
+use plotters::coord::types::{RangedCoordf64, RangedCoordusize};
 use plotters::prelude::*;
 
 /// Fonts tried for labels (Debian's fonts-dejavu-core); without one the chart has no text.
@@ -39,6 +42,44 @@ const PALETTE: [RGBColor; 9] = [
     RGBColor(204, 185, 116),
 ];
 
+/// The axes of a horizontal bar chart on `root`: values from 0 to `max` along x, one
+/// segment per label down y (labels, caption and unit only when a font was found).
+type BarAxes<'a, 'b> =
+    ChartContext<'a, BitMapBackend<'b>, Cartesian2d<RangedCoordf64, SegmentedCoord<RangedCoordusize>>>;
+
+fn bar_axes<'a, 'b>(
+    root: &'a DrawingArea<BitMapBackend<'b>, plotters::coord::Shift>,
+    path: &Path,
+    title: &str,
+    unit: &str,
+    max: f64,
+    labels: &[&str],
+    text: bool,
+) -> Result<BarAxes<'a, 'b>> {
+    let e = |e: &dyn std::fmt::Display| anyhow!("drawing {}: {e}", path.display());
+    let mut builder = ChartBuilder::on(root);
+    builder.margin(16).x_label_area_size(if text { 40 } else { 10 }).y_label_area_size(if text { 120 } else { 10 });
+    if text {
+        builder.caption(title, ("sans-serif", 22));
+    }
+    let mut chart = builder.build_cartesian_2d(0.0..max, (0..labels.len()).into_segmented()).map_err(|x| e(&x))?;
+    if text {
+        chart
+            .configure_mesh()
+            .disable_y_mesh()
+            .x_desc(unit)
+            .y_label_formatter(&|s: &SegmentValue<usize>| match s {
+                SegmentValue::CenterOf(i) | SegmentValue::Exact(i) => {
+                    labels.get(*i).copied().unwrap_or_default().into()
+                }
+                SegmentValue::Last => String::new(),
+            })
+            .draw()
+            .map_err(|x| e(&x))?;
+    }
+    Ok(chart)
+}
+
 /// One bar: label, value, and an optional error bar top (e.g. p95).
 pub struct Bar {
     pub label: String,
@@ -54,27 +95,8 @@ pub fn bar_chart(path: &Path, title: &str, unit: &str, bars: &[Bar]) -> Result<(
     let e = |e: &dyn std::fmt::Display| anyhow!("drawing {}: {e}", path.display());
     root.fill(&WHITE).map_err(|x| e(&x))?;
     let max = bars.iter().map(|b| b.high.unwrap_or(b.value).max(b.value)).fold(0.0, f64::max).max(1e-9) * 1.15;
-    let n = bars.len();
-    let mut builder = ChartBuilder::on(&root);
-    builder.margin(16).x_label_area_size(if text { 40 } else { 10 }).y_label_area_size(if text { 120 } else { 10 });
-    if text {
-        builder.caption(title, ("sans-serif", 22));
-    }
-    let mut chart = builder.build_cartesian_2d(0.0..max, (0..n).into_segmented()).map_err(|x| e(&x))?;
-    if text {
-        chart
-            .configure_mesh()
-            .disable_y_mesh()
-            .x_desc(unit)
-            .y_label_formatter(&|s: &SegmentValue<usize>| match s {
-                SegmentValue::CenterOf(i) | SegmentValue::Exact(i) => {
-                    bars.get(*i).map(|b| b.label.clone()).unwrap_or_default()
-                }
-                SegmentValue::Last => String::new(),
-            })
-            .draw()
-            .map_err(|x| e(&x))?;
-    }
+    let labels: Vec<&str> = bars.iter().map(|b| b.label.as_str()).collect();
+    let mut chart = bar_axes(&root, path, title, unit, max, &labels, text)?;
     chart
         .draw_series(bars.iter().enumerate().map(|(i, b)| {
             let c = PALETTE[i % PALETTE.len()];
@@ -100,6 +122,56 @@ pub fn bar_chart(path: &Path, title: &str, unit: &str, bars: &[Bar]) -> Result<(
                     ("sans-serif", 15),
                 )
             }))
+            .map_err(|x| e(&x))?;
+    }
+    root.present().map_err(|x| e(&x))?;
+    Ok(())
+}
+
+/// One stacked bar: label and its parts' values, in the order of the chart's part names.
+pub struct Stack {
+    pub label: String,
+    pub parts: Vec<f64>,
+}
+
+/// Writes a horizontal stacked bar chart PNG: each bar its parts end to end, one colour per
+/// part (named in the legend), the total written after it.
+pub fn stacked_bar_chart(path: &Path, title: &str, unit: &str, names: &[&str], bars: &[Stack]) -> Result<()> {
+    let text = register_font();
+    let h = 150 + 46 * bars.len() as u32;
+    let root = BitMapBackend::new(path, (900, h)).into_drawing_area();
+    let e = |e: &dyn std::fmt::Display| anyhow!("drawing {}: {e}", path.display());
+    root.fill(&WHITE).map_err(|x| e(&x))?;
+    let total = |b: &Stack| b.parts.iter().sum::<f64>();
+    let max = bars.iter().map(total).fold(0.0, f64::max).max(1e-9) * 1.2;
+    let labels: Vec<&str> = bars.iter().map(|b| b.label.as_str()).collect();
+    let mut chart = bar_axes(&root, path, title, unit, max, &labels, text)?;
+    for (k, name) in names.iter().enumerate() {
+        let c = PALETTE[k % PALETTE.len()];
+        let series = chart
+            .draw_series(bars.iter().enumerate().map(|(i, b)| {
+                let start: f64 = b.parts.iter().take(k).sum();
+                let end = start + b.parts.get(k).copied().unwrap_or(0.0);
+                Rectangle::new([(start, SegmentValue::Exact(i)), (end, SegmentValue::Exact(i + 1))], c.filled())
+            }))
+            .map_err(|x| e(&x))?;
+        if text {
+            series.label(*name).legend(move |(x, y)| Rectangle::new([(x, y - 6), (x + 14, y + 6)], c.filled()));
+        }
+    }
+    if text {
+        chart
+            .draw_series(bars.iter().enumerate().map(|(i, b)| {
+                let t = total(b);
+                Text::new(format!("{t:.2} {unit}"), (t + max * 0.01, SegmentValue::CenterOf(i)), ("sans-serif", 15))
+            }))
+            .map_err(|x| e(&x))?;
+        chart
+            .configure_series_labels()
+            .position(SeriesLabelPosition::UpperRight)
+            .background_style(WHITE.mix(0.8))
+            .border_style(BLACK)
+            .draw()
             .map_err(|x| e(&x))?;
     }
     root.present().map_err(|x| e(&x))?;

@@ -56,6 +56,32 @@ fn unwritable_output_fails_first_and_bench_never_reprints_an_old_table() {
     let _ = std::fs::remove_dir_all(&dir);
 }
 
+/// `bench` reports where each rasterizing method's frame time goes: a column of `bench.md`
+/// (none for ray casting) and the stacked bars of `stages.png`, as well as `stages_median_ms`
+/// in `bench.json`.
+#[test]
+fn bench_reports_where_the_time_goes() {
+    let dir = std::env::temp_dir().join(format!("sightline-bench-stages-{}", std::process::id()));
+    let (code, err) = run(&["bench", "-s", "city:30000", "-n", "2", "--size", "64x36", "-o", dir.to_str().unwrap()]);
+    assert_eq!(code, Some(0), "{err}");
+    let md = std::fs::read_to_string(dir.join("bench.md")).unwrap();
+    assert!(md.contains("cull / draw / shading ms"), "{md}");
+    let row = |m: &str| md.lines().find(|l| l.starts_with(&format!("| {m} |"))).unwrap_or_else(|| panic!("{m}: {md}"));
+    let cells = |m: &str| row(m).split('|').map(str::trim).map(String::from).collect::<Vec<_>>();
+    let hzb = cells("hzb")[6].split(" / ").map(|v| v.parse::<f64>().unwrap()).collect::<Vec<_>>();
+    assert!(hzb.len() == 3 && hzb[1] > 0.0 && hzb[2] > 0.0, "{md}");
+    assert_eq!(cells("raycast")[6], "-", "{md}");
+    let summary: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(dir.join("bench.json")).unwrap()).unwrap();
+    let hzb_json = summary["methods"].as_array().unwrap().iter().find(|m| m["method"] == "hzb").unwrap();
+    assert_eq!(format!("{:.2}", hzb_json["stages_median_ms"]["draw"].as_f64().unwrap()), format!("{:.2}", hzb[1]));
+    // The draw parts are bars of the chart's second colour.
+    let png = image::open(dir.join("stages.png")).unwrap().to_rgb8();
+    let draw_colour = png.pixels().filter(|p| p.0 == [221, 132, 82]).count();
+    assert!(draw_colour > 1000, "{draw_colour} pixels of the draw parts' colour");
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
 /// Options that would be silently ignored are usage errors instead.
 #[test]
 fn options_that_would_be_ignored_are_usage_errors() {
