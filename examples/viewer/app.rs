@@ -457,6 +457,9 @@ fn readout(app: &App, ms_render: f64, level: Option<&LevelImage>) -> Vec<String>
             app.last_frame_ms, ms_render, i.ms, app.fps
         ),
     ];
+    if let Some([cull, draw, shading]) = i.stages {
+        lines.push(format!("engine: cull {cull:.2} ms  draw {draw:.2} ms  shading {shading:.2} ms"));
+    }
     match (i.triangles_drawn, i.clusters) {
         (Some(t), Some((drawn, all))) => {
             lines.push(format!(

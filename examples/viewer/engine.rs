@@ -121,6 +121,8 @@ pub struct FrameInfo {
     pub clusters: Option<(u64, u64)>,
     /// Clusters skipped: outside the frustum, facing away, hidden.
     pub culled: (u64, u64, u64),
+    /// Milliseconds culling, drawing and shading (`None` for ray casting).
+    pub stages: Option<[f64; 3]>,
 }
 
 /// Cluster boxes and what a camera's finished frame says of each: outside its view, hidden
@@ -374,6 +376,7 @@ impl Engine {
                 triangles_drawn: Some(cs.triangles_drawn),
                 clusters: Some((cs.clusters_drawn, cs.clusters)),
                 culled: (cs.culled_by_frustum, cs.culled_by_backface, cs.culled_by_occlusion),
+                stages: Some([cs.ms_cull, cs.ms_draw, cs.ms_shading]),
             },
             None => {
                 if let Some(c) = &mut fb.depth_tests {

@@ -182,16 +182,17 @@ fn write_csv(p: &Path, method: Method, rows: &[Row]) -> Result<()> {
     let mut f = std::io::BufWriter::new(std::fs::File::create(p).with_context(|| format!("creating {}", p.display()))?);
     writeln!(
         f,
-        "frame,method,ms,triangles_drawn,clusters_drawn,clusters,culled_by_frustum,culled_by_backface,culled_by_occlusion,eye_x,eye_y,eye_z"
+        "frame,method,ms,triangles_drawn,clusters_drawn,clusters,culled_by_frustum,culled_by_backface,culled_by_occlusion,eye_x,eye_y,eye_z,ms_cull,ms_draw,ms_shading"
     )?;
     for r in rows {
         let i = &r.info;
         let opt = |v: Option<u64>| v.map_or(String::new(), |v| v.to_string());
         let (drawn, all) = (i.clusters.map(|c| c.0), i.clusters.map(|c| c.1));
         let culled = |v: u64| if i.clusters.is_some() { v.to_string() } else { String::new() };
+        let stage = |k: usize| i.stages.map_or(String::new(), |s| format!("{:.3}", s[k]));
         writeln!(
             f,
-            "{},{},{:.3},{},{},{},{},{},{},{},{},{}",
+            "{},{},{:.3},{},{},{},{},{},{},{},{},{},{},{},{}",
             r.frame,
             method.name(),
             i.ms,
@@ -203,7 +204,10 @@ fn write_csv(p: &Path, method: Method, rows: &[Row]) -> Result<()> {
             culled(i.culled.2),
             r.eye.x,
             r.eye.y,
-            r.eye.z
+            r.eye.z,
+            stage(0),
+            stage(1),
+            stage(2)
         )?;
     }
     f.flush().with_context(|| format!("writing {}", p.display()))

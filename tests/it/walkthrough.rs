@@ -66,6 +66,12 @@ fn walk(scene: &str, method: &str, dir: &Path) {
                 .sum();
             assert_eq!(drawn + culled, all, "every cluster drawn or culled: {csv}");
             assert!(r[col("triangles_drawn")].parse::<u64>().expect("triangles_drawn") > 0);
+            // The frame's parts, timed inside it (three decimals in the file).
+            let [cull, draw, shading] =
+                ["ms_cull", "ms_draw", "ms_shading"].map(|c| r[col(c)].parse::<f64>().expect("a time"));
+            assert!(draw > 0.0 && cull + draw + shading <= ms + 2e-3, "{csv}");
+        } else {
+            assert!(r[col("ms_draw")].is_empty(), "rays have no draw stage: {csv}");
         }
     }
 }
