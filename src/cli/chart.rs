@@ -42,11 +42,12 @@ const PALETTE: [RGBColor; 9] = [
     RGBColor(204, 185, 116),
 ];
 
-/// The axes of a horizontal bar chart on `root`: values from 0 to `max` along x, one
-/// segment per label down y (labels, caption and unit only when a font was found).
+/// A horizontal bar chart: values along x, one segment per bar down y.
 type BarAxes<'a, 'b> =
     ChartContext<'a, BitMapBackend<'b>, Cartesian2d<RangedCoordf64, SegmentedCoord<RangedCoordusize>>>;
 
+/// The axes of a horizontal bar chart on `root`: values from 0 to `max` along x, one
+/// segment per label down y (labels, caption and unit only when a font was found).
 fn bar_axes<'a, 'b>(
     root: &'a DrawingArea<BitMapBackend<'b>, plotters::coord::Shift>,
     path: &Path,
