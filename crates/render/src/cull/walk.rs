@@ -6,12 +6,12 @@
 use std::time::Instant;
 
 use glam::Affine3A;
-use sightline_scene::Camera;
+use sightline_scene::{Aabb, Camera};
 use sightline_spatial::{
     prefetch, AabbExt, Containment, CullOptions, FrontToBackCursor, Frustum, OctreeCursor, Visible,
 };
 
-use super::{ClusterDraw, Clusters, CullStats, OcclusionQueries, PREFETCH_AHEAD};
+use super::{BoxVisibility, ClusterDraw, Clusters, CullStats, OcclusionQueries, PREFETCH_AHEAD};
 use crate::awake::join_helping;
 use crate::stats::ms_since;
 use crate::{DrawSource, FrameStats, RenderOptions, Result, Session};
@@ -345,15 +345,20 @@ impl Clusters {
             result = self.hzb_walk(s, f, frustum, Source::Bvh, walk, batching);
         }
         // Re-test last frame's clusters against the finished pyramid: the occluded ones leave
-        // the set (their pixels went to nearer clusters).
+        // the set (their pixels went to nearer clusters). The tests are independent: one
+        // batch, in parallel and eight boxes at a time.
         let t = Instant::now();
         let pyramid = s.pyramid();
         let projector = self.projector(f.camera, pyramid.width(), pyramid.height());
         let q = OcclusionQueries::with_projector(projector, pyramid);
-        let boxes = &self.item_boxes;
-        let still: Vec<u32> =
-            first.iter().copied().filter(|&i| q.counted_visible(&boxes[i as usize], &mut f.cs)).collect();
-        two.last_visible.extend(still);
+        let boxes: Vec<Aabb> = first.iter().map(|&i| self.item_boxes[i as usize]).collect();
+        let mut verdicts = Vec::new();
+        q.test_batch(&boxes, &mut verdicts);
+        let before = two.last_visible.len();
+        two.last_visible
+            .extend(first.iter().zip(&verdicts).filter(|(_, v)| **v == BoxVisibility::Visible).map(|(&i, _)| i));
+        f.cs.occlusion_tests += first.len() as u64;
+        f.cs.occluded_boxes += (first.len() - (two.last_visible.len() - before)) as u64;
         f.cs.ms_cull += ms_since(t);
         if result.is_err() {
             two.last_visible.clear();
