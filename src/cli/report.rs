@@ -120,6 +120,13 @@ pub struct WalkReport {
     pub scene_update: Option<UpdateSummary>,
 }
 
+/// `values` in ascending order (NaN last), as [`percentile`] takes them.
+fn sorted(values: impl IntoIterator<Item = f64>) -> Vec<f64> {
+    let mut v: Vec<f64> = values.into_iter().collect();
+    v.sort_by(f64::total_cmp);
+    v
+}
+
 fn percentile(sorted: &[f64], p: f64) -> f64 {
     if sorted.is_empty() {
         return 0.0;
@@ -134,8 +141,7 @@ pub fn summarize(records: &[FrameRecord], methods: &[String]) -> Vec<MethodSumma
         .iter()
         .map(|name| {
             let rs: Vec<&FrameRecord> = records.iter().filter(|r| r.method == *name).collect();
-            let mut ms: Vec<f64> = rs.iter().map(|r| r.ms).collect();
-            ms.sort_by(f64::total_cmp);
+            let ms = sorted(rs.iter().map(|r| r.ms));
             let mut tris: Vec<u64> = rs.iter().map(|r| r.triangles_drawn).collect();
             tris.sort_unstable();
             let share = |f: &dyn Fn(&CullStats) -> u64| {
@@ -159,11 +165,7 @@ pub fn summarize(records: &[FrameRecord], methods: &[String]) -> Vec<MethodSumma
                 mismatched_frames: rs.iter().filter(|r| r.verified == Some(false)).count(),
                 min_id_agreement: rs.iter().filter_map(|r| r.agreement).reduce(f64::min),
                 stages_median_ms: (*name != Visibility::RayCast.name() && !rs.is_empty()).then(|| {
-                    let median = |f: fn(&CullStats) -> f64| {
-                        let mut v: Vec<f64> = rs.iter().map(|r| f(&r.cull)).collect();
-                        v.sort_by(f64::total_cmp);
-                        percentile(&v, 0.5)
-                    };
+                    let median = |f: fn(&CullStats) -> f64| percentile(&sorted(rs.iter().map(|r| f(&r.cull))), 0.5);
                     Stages {
                         cull: median(|c| c.ms_cull),
                         draw: median(|c| c.ms_draw),
@@ -178,15 +180,9 @@ pub fn summarize(records: &[FrameRecord], methods: &[String]) -> Vec<MethodSumma
 /// The scene's update per frame over `records` (one value per frame: the frame's first
 /// record's), `None` when no frame was updated (a static walk).
 pub fn summarize_updates(records: &[FrameRecord]) -> Option<UpdateSummary> {
-    let mut ms: Vec<f64> = Vec::new();
     let mut last = None;
-    for r in records {
-        if last != Some(r.frame) {
-            last = Some(r.frame);
-            ms.extend(r.scene_update_ms);
-        }
-    }
-    ms.sort_by(f64::total_cmp);
+    let ms =
+        sorted(records.iter().filter(|r| last.replace(r.frame) != Some(r.frame)).filter_map(|r| r.scene_update_ms));
     let max_ms = *ms.last()?;
     Some(UpdateSummary {
         frames: ms.len(),
