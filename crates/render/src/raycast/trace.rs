@@ -52,8 +52,8 @@ fn leaf<const ANY: bool>(
     // The axis permutation of the first active chunk: usually every chunk's.
     let common = rays.uniform[(mask.trailing_zeros() as usize / CHUNK).min(CHUNKS - 1)];
     for k in first..end {
-        let tri = &blas.tris()[k as usize];
-        let gid = first_id.wrapping_add(blas.bvh().order()[k as usize]);
+        let rec = &blas.tris()[k as usize];
+        let (tri, gid) = (&rec.corners, first_id.wrapping_add(rec.index));
         let mut got = 0u64;
         match rays.shared {
             Some(o) => {
@@ -134,13 +134,11 @@ fn instance<I: Isa, const ANY: bool>(
     )
 }
 
-/// Asks for the cache lines of a leaf's triangles and of their mesh indices (see
-/// `traverse`'s `soon`).
+/// Asks for the cache lines of a leaf's triangles (see `traverse`'s `soon`).
 #[inline(always)]
 fn prefetch_leaf(blas: &WideBlas, first: u32, count: u32) {
     let (s, e) = (first as usize, first as usize + count as usize);
     prefetch_all(blas.tris().get(s..e).unwrap_or_default());
-    prefetch_all(blas.bvh().order().get(s..e).unwrap_or_default());
 }
 
 /// Traces the lanes of `mask` through the scene. `frustum` (world space; planes bounding

@@ -2,9 +2,11 @@
 //! instance of the mesh.
 //!
 //! Triangles are copied into leaf order (exact vertex positions, so a watertight edge test
-//! stays watertight); `bvh.order()` maps a leaf-order slot back to the mesh's triangle index,
-//! which is what triangle IDs and shading use. A triangle takes 36 bytes (three packed
-//! `Vec3`s, not 16-byte `Vec3A`s), so a leaf of four fills 2.25 cache lines instead of 3.
+//! stays watertight), each with the mesh's index of the triangle, which is what triangle IDs
+//! and shading use (`bvh.order()` holds the same mapping). A record takes 40 bytes (three
+//! packed `Vec3`s, not 16-byte `Vec3A`s, and the index), so a leaf of four fills 2.5 cache
+//! lines, and a leaf test reads its triangles' IDs from the lines it reads anyway, not from
+//! a second array.
 
 use glam::{Affine3A, Vec3, Vec3A};
 use obvhs::aabb::Aabb as ObAabb;
@@ -13,11 +15,21 @@ use sightline_scene::{Aabb, Mesh};
 
 use super::{WideBuildParams, WideBvh};
 
+/// One triangle of a [`WideBlas`]: its corners and its index in the mesh.
+#[derive(Debug, Clone, Copy, PartialEq)]
+#[repr(C)]
+pub struct BlasTriangle {
+    /// Vertex positions.
+    pub corners: [Vec3; 3],
+    /// The mesh's index of the triangle.
+    pub index: u32,
+}
+
 /// A wide triangle BVH in some local space, with the triangles in leaf order.
 #[derive(Debug, Clone)]
 pub struct WideBlas {
-    /// Vertex positions per triangle, in leaf order.
-    tris: Vec<[Vec3; 3]>,
+    /// The triangles, in leaf order.
+    tris: Vec<BlasTriangle>,
     /// The tree; `bvh.order()[k]` is the mesh triangle stored in slot `k`.
     bvh: WideBvh,
 }
@@ -30,7 +42,7 @@ impl WideBlas {
             let t = corners(i).map(Vec3A::from);
             ObAabb::new(t[0].min(t[1]).min(t[2]), t[0].max(t[1]).max(t[2]))
         });
-        let tris = bvh.order().par_iter().map(|&i| corners(i as usize)).collect();
+        let tris = bvh.order().par_iter().map(|&i| BlasTriangle { corners: corners(i as usize), index: i }).collect();
         WideBlas { tris, bvh }
     }
 
@@ -50,10 +62,10 @@ impl WideBlas {
         Self::build(mesh.triangle_count(), |i| mesh.triangle_positions(i).map(|p| world_from_local.transform_point3(p)))
     }
 
-    /// Vertex positions per triangle, in leaf order (slot `k` is mesh triangle
-    /// `bvh().order()[k]`).
+    /// The triangles in leaf order (slot `k` is mesh triangle `bvh().order()[k]`, which its
+    /// record also holds).
     #[inline]
-    pub fn tris(&self) -> &[[Vec3; 3]] {
+    pub fn tris(&self) -> &[BlasTriangle] {
         &self.tris
     }
 
@@ -83,7 +95,7 @@ mod tests {
         let blas = WideBlas::build(50, corners);
         blas.bvh().validate(50).unwrap();
         for (k, &i) in blas.bvh().order().iter().enumerate() {
-            assert_eq!(blas.tris()[k], corners(i as usize));
+            assert_eq!(blas.tris()[k], BlasTriangle { corners: corners(i as usize), index: i });
         }
         assert_eq!(blas.bounds(), Aabb::new(Vec3::ZERO, Vec3::new(7.0, 8.0, 2.0)));
         assert!(WideBlas::empty().tris().is_empty());

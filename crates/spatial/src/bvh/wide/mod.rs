@@ -30,7 +30,7 @@ mod sah;
 mod split;
 mod tlas;
 
-pub use blas::WideBlas;
+pub use blas::{BlasTriangle, WideBlas};
 pub use tlas::{invertible, InstanceRecord, WideTlas};
 
 use obvhs::aabb::Aabb as ObAabb;
