@@ -437,7 +437,7 @@ impl RayCaster {
             let rec = &self.tlas.instances()[hits.inst[0][0] as usize];
             let blas = &self.blases[rec.blas as usize];
             let slot = hits.prim[0][0] as usize;
-            let triangle = blas.bvh().order()[slot];
+            let triangle = blas.tris()[slot].index;
             let inst = &self.instances[rec.scene_index as usize];
             let det = hits.det[0][0];
             best = Some(RayHit {

@@ -148,3 +148,47 @@ fn raycast_matches_brute_force_on_transformed_instances() {
         check(&format!("instances {k}, both sides"), &scene, &cam, false);
     }
 }
+
+/// A single ray names the triangle it hits by its mesh index, whatever order the BVH keeps
+/// the triangles in: separate triangles listed in a scrambled order, in two instances, each
+/// hit at its centroid, give that instance, that mesh index, its ID and barycentric weights
+/// of a third.
+#[test]
+fn a_single_ray_names_the_mesh_triangle_it_hits() {
+    let (side, n) = (12usize, 144usize);
+    let mut positions = Vec::new();
+    let mut centroids = vec![Vec3::ZERO; n];
+    let mut indices = vec![0u32; 3 * n];
+    for k in 0..n {
+        // Mesh triangle k sits at cell (k·37) mod n, so mesh order is not spatial order.
+        let cell = (k * 37) % n;
+        let o = Vec3::new((cell % side) as f32 * 2.0, (cell / side) as f32 * 2.0, 0.0);
+        let first = positions.len() as u32;
+        positions.extend([o, o + Vec3::X, o + Vec3::Y]);
+        indices[3 * k..3 * k + 3].copy_from_slice(&[first, first + 1, first + 2]);
+        centroids[k] = o + Vec3::new(1.0, 1.0, 0.0) / 3.0;
+    }
+    let mut scene = Scene::new();
+    let m = scene.add_mesh(Mesh::new("scrambled", positions, None, None, indices).unwrap());
+    let shift = Vec3::new(0.0, 0.0, -10.0);
+    scene.add_node(None, NodeDesc::new("a").mesh(m)).unwrap();
+    scene.add_node(None, NodeDesc::new("b").transform(Transform::from_translation(shift)).mesh(m)).unwrap();
+    scene.update_transforms();
+    let caster = RayCaster::build(&scene).unwrap();
+    let instances = scene.instances();
+    for (i, inst) in instances.iter().enumerate() {
+        let moved = if inst.world_from_local.translation.z < 0.0 { shift } else { Vec3::ZERO };
+        for (k, c) in centroids.iter().enumerate() {
+            // From below: the ray meets instance b first only when it is b's turn.
+            let (o, d) =
+                if moved == Vec3::ZERO { (*c + Vec3::Z, Vec3::NEG_Z) } else { (*c + moved - Vec3::Z, Vec3::Z) };
+            let hit = caster.intersect(o, d, 0.0, f32::INFINITY).expect("the centroid is hit");
+            let sightline_render::raycast::HitTarget::Triangle { instance, triangle, barycentric } = hit.target else {
+                panic!("a mesh triangle is hit")
+            };
+            assert_eq!((instance, triangle), (i, k as u32), "instance {i}, triangle {k}");
+            assert_eq!(hit.id, sightline_render::triangle_id(inst.first_triangle, k as u32));
+            assert!((barycentric - glam::Vec2::splat(1.0 / 3.0)).abs().max_element() < 1e-5, "{barycentric}");
+        }
+    }
+}
