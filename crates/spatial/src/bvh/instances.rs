@@ -6,11 +6,14 @@
 //! large motions has overlapping, bloated nodes. The policy measures the SAH cost after each
 //! refit and rebuilds when it exceeds [`REBUILD_RATIO`] × the cost right after the last full
 //! build (a common heuristic, e.g. Kopta et al., "Fast, Effective BVH Updates for Animated
-//! Scenes", I3D 2012, rebuild on measured degradation).
+//! Scenes", I3D 2012, rebuild on measured degradation). The rebuild runs off the frame, as
+//! the cluster BVH's does (see [`crate::rebuild_lag`]): the updates in between refit the old
+//! tree.
 
 use glam::Vec3;
 use sightline_scene::{Aabb, Instance};
 
+use super::background::Background;
 use super::traverse::CoherencyCache;
 use super::{Bvh, BvhPreset};
 use crate::{CullCounters, CullOptions, FrontToBack, Frustum, FrustumCull, Visible, Visit};
@@ -32,8 +35,8 @@ pub enum RefitOutcome {
     /// Refitted, with the SAH cost beyond [`REBUILD_RATIO`] × the fresh build's: a fresh
     /// tree is being built off the frame, started by this update or one of the previous
     /// [`rebuild_lag`](crate::rebuild_lag), and put in place by the update that many after
-    /// the one that started it (trees that rebuild in the background: the
-    /// [`ClusteredScene`](crate::ClusteredScene)'s).
+    /// the one that started it (trees that rebuild in the background: [`InstanceBvh`]'s and
+    /// the [`ClusteredScene`](crate::ClusteredScene)'s).
     Rebuilding {
         /// SAH cost after refit over SAH cost after the last build.
         cost_ratio: f32,
@@ -78,6 +81,7 @@ pub struct InstanceBvh {
     bvh: Bvh,
     preset: BvhPreset,
     build_cost: f32,
+    background: Background<Bvh>,
 }
 
 impl InstanceBvh {
@@ -89,9 +93,8 @@ impl InstanceBvh {
 
     /// Builds over `boxes` (item `i` is `boxes[i]`).
     pub fn build(boxes: &[Aabb], preset: BvhPreset) -> InstanceBvh {
-        let bvh = Bvh::build(boxes, preset, INSTANCE_LEAF);
-        let build_cost = bvh.sah_cost();
-        InstanceBvh { bvh, preset, build_cost }
+        let (bvh, build_cost) = fresh_tree(preset)(boxes);
+        InstanceBvh { bvh, preset, build_cost, background: Background::default() }
     }
 
     /// The underlying BVH (for custom traversals).
@@ -117,11 +120,16 @@ impl InstanceBvh {
         cost_ratio(self.bvh.sah_cost(), self.build_cost)
     }
 
-    /// Refits to new boxes and rebuilds when the SAH cost grew beyond [`REBUILD_RATIO`] × the
-    /// fresh build's, or when the boxes no longer fit the tree.
+    /// Refits to new boxes (same count and order as the build). When the SAH cost has grown
+    /// beyond [`REBUILD_RATIO`] × the fresh build's, a new tree is built on a background
+    /// thread from these boxes, and the update [`rebuild_lag`](crate::rebuild_lag) updates
+    /// later puts it in place, refitted to the boxes of then (waiting for it if it is not
+    /// done); the updates between refit the old tree. When the boxes no longer fit the tree
+    /// (an item's box changed kind, or the count changed) it is rebuilt here and now.
     pub fn update(&mut self, boxes: &[Aabb]) -> RefitOutcome {
-        let ratio = self.refit(boxes);
-        RefitOutcome::decide(ratio, || *self = Self::build(boxes, self.preset))
+        let fresh = fresh_tree(self.preset);
+        let tree = (&mut self.bvh, &mut self.build_cost);
+        self.background.update(tree, boxes, Bvh::refit_cost, |bvh| bvh.refit_cost(boxes), fresh)
     }
 
     /// [`InstanceBvh::update`] from instances (their world boxes).
@@ -157,6 +165,22 @@ impl InstanceBvh {
     }
 }
 
+/// The builder of a fresh tree with `preset` (one function per preset: the background rule
+/// takes a plain function).
+fn fresh_tree(preset: BvhPreset) -> fn(&[Aabb]) -> (Bvh, f32) {
+    fn build(boxes: &[Aabb], preset: BvhPreset) -> (Bvh, f32) {
+        let bvh = Bvh::build(boxes, preset, INSTANCE_LEAF);
+        let cost = bvh.sah_cost();
+        (bvh, cost)
+    }
+    match preset {
+        BvhPreset::Fastest => |b| build(b, BvhPreset::Fastest),
+        BvhPreset::VeryFast => |b| build(b, BvhPreset::VeryFast),
+        BvhPreset::Fast => |b| build(b, BvhPreset::Fast),
+        BvhPreset::Medium => |b| build(b, BvhPreset::Medium),
+    }
+}
+
 impl FrustumCull for InstanceBvh {
     fn cull(&self, frustum: &Frustum, out: &mut Vec<Visible>) {
         self.bvh.cull_with(frustum, CullOptions::default(), out);
@@ -186,7 +210,7 @@ mod tests {
     use super::*;
 
     #[test]
-    fn big_moves_trigger_rebuild_small_ones_refit() {
+    fn big_moves_rebuild_in_the_background_small_ones_refit() {
         let mut rng = sightline_scene::rng::Rng::new(4);
         let mut boxes: Vec<Aabb> = (0..2000)
             .map(|_| {
@@ -194,25 +218,35 @@ mod tests {
                 Aabb::new(c, c + Vec3::ONE)
             })
             .collect();
-        let mut tree = InstanceBvh::build(&boxes, BvhPreset::Fast);
+        let mut tree = InstanceBvh::build(&boxes, BvhPreset::Medium);
         // Small jitter: refit.
         for b in &mut boxes {
             let d = Vec3::new(rng.range(-0.1, 0.1), 0.0, rng.range(-0.1, 0.1));
             *b = Aabb::new(b.min + d, b.max + d);
         }
         assert!(matches!(tree.update(&boxes), RefitOutcome::Refitted { .. }));
-        // Shuffle everything across the world: the refitted tree degrades, so rebuild.
+        // Shuffle everything across the world: the refitted tree degrades, so a rebuild
+        // starts, and the lag's last update puts in place the tree of the boxes it started
+        // from, built with the tree's own preset.
         for b in &mut boxes {
             let c = Vec3::new(rng.range(-100.0, 100.0), 0.0, rng.range(-100.0, 100.0));
             *b = Aabb::new(c, c + Vec3::ONE);
         }
-        match tree.update(&boxes) {
-            RefitOutcome::Rebuilt { cost_ratio } => assert!(cost_ratio > REBUILD_RATIO),
-            o => panic!("expected a rebuild, got {o:?}"),
+        let trigger = match tree.update(&boxes) {
+            RefitOutcome::Rebuilding { cost_ratio } => cost_ratio,
+            o => panic!("expected a background rebuild, got {o:?}"),
+        };
+        assert!(trigger > REBUILD_RATIO);
+        for _ in 1..crate::rebuild_lag(boxes.len()) {
+            assert!(matches!(tree.update(&boxes), RefitOutcome::Rebuilding { .. }));
         }
+        assert_eq!(tree.update(&boxes), RefitOutcome::Rebuilt { cost_ratio: trigger });
         tree.bvh().validate().unwrap();
         assert!((tree.cost_ratio() - 1.0).abs() < 1e-6);
-        // A box turning NaN forces a rebuild too, and the item stays visible.
+        let mut expected = Bvh::build(&boxes, BvhPreset::Medium, INSTANCE_LEAF);
+        assert!(expected.refit(&boxes));
+        assert!(tree.bvh().nodes() == expected.nodes() && tree.bvh().items() == expected.items());
+        // A box turning NaN forces a rebuild now, and the item stays visible.
         boxes[5] = Aabb::new(Vec3::NAN, Vec3::NAN);
         assert!(matches!(tree.update(&boxes), RefitOutcome::Rebuilt { .. }));
         assert_eq!(tree.bvh().unbounded(), &[5]);
