@@ -100,7 +100,7 @@ impl<T: Send + 'static> Background<T> {
         boxes: &[B],
         refit_all: impl FnOnce(&mut T, &[B]) -> Option<f32>,
         refit: impl FnOnce(&mut T) -> Option<f32>,
-        fresh: fn(&[B]) -> (T, f32),
+        fresh: impl Fn(&[B]) -> (T, f32) + Copy + Send + 'static,
     ) -> RefitOutcome {
         if let Some(((t, cost), trigger)) = self.due() {
             (*tree, *build_cost) = (t, cost);

@@ -93,7 +93,7 @@ impl InstanceBvh {
 
     /// Builds over `boxes` (item `i` is `boxes[i]`).
     pub fn build(boxes: &[Aabb], preset: BvhPreset) -> InstanceBvh {
-        let (bvh, build_cost) = fresh_tree(preset)(boxes);
+        let (bvh, build_cost) = fresh_tree(boxes, preset);
         InstanceBvh { bvh, preset, build_cost, background: Background::default() }
     }
 
@@ -127,9 +127,15 @@ impl InstanceBvh {
     /// done); the updates between refit the old tree. When the boxes no longer fit the tree
     /// (an item's box changed kind, or the count changed) it is rebuilt here and now.
     pub fn update(&mut self, boxes: &[Aabb]) -> RefitOutcome {
-        let fresh = fresh_tree(self.preset);
+        let preset = self.preset;
         let tree = (&mut self.bvh, &mut self.build_cost);
-        self.background.update(tree, boxes, Bvh::refit_cost, |bvh| bvh.refit_cost(boxes), fresh)
+        self.background.update(
+            tree,
+            boxes,
+            Bvh::refit_cost,
+            |bvh| bvh.refit_cost(boxes),
+            move |b| fresh_tree(b, preset),
+        )
     }
 
     /// [`InstanceBvh::update`] from instances (their world boxes).
@@ -165,20 +171,11 @@ impl InstanceBvh {
     }
 }
 
-/// The builder of a fresh tree with `preset` (one function per preset: the background rule
-/// takes a plain function).
-fn fresh_tree(preset: BvhPreset) -> fn(&[Aabb]) -> (Bvh, f32) {
-    fn build(boxes: &[Aabb], preset: BvhPreset) -> (Bvh, f32) {
-        let bvh = Bvh::build(boxes, preset, INSTANCE_LEAF);
-        let cost = bvh.sah_cost();
-        (bvh, cost)
-    }
-    match preset {
-        BvhPreset::Fastest => |b| build(b, BvhPreset::Fastest),
-        BvhPreset::VeryFast => |b| build(b, BvhPreset::VeryFast),
-        BvhPreset::Fast => |b| build(b, BvhPreset::Fast),
-        BvhPreset::Medium => |b| build(b, BvhPreset::Medium),
-    }
+/// A fresh tree over `boxes` with `preset`, and its SAH cost.
+fn fresh_tree(boxes: &[Aabb], preset: BvhPreset) -> (Bvh, f32) {
+    let bvh = Bvh::build(boxes, preset, INSTANCE_LEAF);
+    let cost = bvh.sah_cost();
+    (bvh, cost)
 }
 
 impl FrustumCull for InstanceBvh {
