@@ -180,9 +180,7 @@ pub fn summarize(records: &[FrameRecord], methods: &[String]) -> Vec<MethodSumma
 /// The scene's update per frame over `records` (one value per frame: the frame's first
 /// record's), `None` when no frame was updated (a static walk).
 pub fn summarize_updates(records: &[FrameRecord]) -> Option<UpdateSummary> {
-    let mut last = None;
-    let ms =
-        sorted(records.iter().filter(|r| last.replace(r.frame) != Some(r.frame)).filter_map(|r| r.scene_update_ms));
+    let ms = sorted(records.chunk_by(|a, b| a.frame == b.frame).filter_map(|frame| frame[0].scene_update_ms));
     let max_ms = *ms.last()?;
     Some(UpdateSummary {
         frames: ms.len(),

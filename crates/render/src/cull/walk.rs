@@ -354,11 +354,10 @@ impl Clusters {
         let boxes: Vec<Aabb> = first.iter().map(|&i| self.item_boxes[i as usize]).collect();
         let mut verdicts = Vec::new();
         q.test_batch(&boxes, &mut verdicts);
-        let before = two.last_visible.len();
-        two.last_visible
-            .extend(first.iter().zip(&verdicts).filter(|(_, v)| **v == BoxVisibility::Visible).map(|(&i, _)| i));
+        let visible = |v: &&BoxVisibility| **v == BoxVisibility::Visible;
+        two.last_visible.extend(first.iter().zip(&verdicts).filter(|(_, v)| visible(v)).map(|(&i, _)| i));
         f.cs.occlusion_tests += first.len() as u64;
-        f.cs.occluded_boxes += (first.len() - (two.last_visible.len() - before)) as u64;
+        f.cs.occluded_boxes += verdicts.iter().filter(|v| !visible(v)).count() as u64;
         f.cs.ms_cull += ms_since(t);
         if result.is_err() {
             two.last_visible.clear();
