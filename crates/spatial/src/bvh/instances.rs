@@ -93,7 +93,7 @@ impl InstanceBvh {
 
     /// Builds over `boxes` (item `i` is `boxes[i]`).
     pub fn build(boxes: &[Aabb], preset: BvhPreset) -> InstanceBvh {
-        let (bvh, build_cost) = fresh_tree(boxes, preset);
+        let (bvh, build_cost) = Bvh::build_costed(boxes, preset, INSTANCE_LEAF);
         InstanceBvh { bvh, preset, build_cost, background: Background::default() }
     }
 
@@ -134,7 +134,7 @@ impl InstanceBvh {
             boxes,
             Bvh::refit_cost,
             |bvh| bvh.refit_cost(boxes),
-            move |b| fresh_tree(b, preset),
+            move |b| Bvh::build_costed(b, preset, INSTANCE_LEAF),
         )
     }
 
@@ -169,13 +169,6 @@ impl InstanceBvh {
     pub fn memory_bytes(&self) -> usize {
         self.bvh.memory_bytes()
     }
-}
-
-/// A fresh tree over `boxes` with `preset`, and its SAH cost.
-fn fresh_tree(boxes: &[Aabb], preset: BvhPreset) -> (Bvh, f32) {
-    let bvh = Bvh::build(boxes, preset, INSTANCE_LEAF);
-    let cost = bvh.sah_cost();
-    (bvh, cost)
 }
 
 impl FrustumCull for InstanceBvh {

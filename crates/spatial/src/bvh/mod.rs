@@ -117,6 +117,14 @@ pub struct Bvh {
 }
 
 impl Bvh {
+    /// [`Bvh::build`], with the new tree's SAH cost: what a rebuild policy holds refits
+    /// against (see [`RefitOutcome`](crate::RefitOutcome)).
+    pub(crate) fn build_costed(boxes: &[Aabb], preset: BvhPreset, max_leaf: u32) -> (Bvh, f32) {
+        let bvh = Bvh::build(boxes, preset, max_leaf);
+        let cost = bvh.sah_cost();
+        (bvh, cost)
+    }
+
     /// Builds a BVH over `boxes` with `preset`, at most `max_leaf` items per leaf.
     /// Empty boxes are left out; NaN/infinite ones go to [`Bvh::unbounded`].
     pub fn build(boxes: &[Aabb], preset: BvhPreset, max_leaf: u32) -> Bvh {

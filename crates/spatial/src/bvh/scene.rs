@@ -288,9 +288,7 @@ impl ClusteredScene {
 
 /// The BVH over item boxes `boxes`, with its SAH cost.
 fn fresh_tree(boxes: &[Aabb]) -> (Bvh, f32) {
-    let bvh = Bvh::build(boxes, SCENE_PRESET, SCENE_LEAF);
-    let cost = bvh.sah_cost();
-    (bvh, cost)
+    Bvh::build_costed(boxes, SCENE_PRESET, SCENE_LEAF)
 }
 
 impl FrustumCull for ClusteredScene {
