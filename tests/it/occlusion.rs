@@ -233,3 +233,45 @@ fn the_pipelined_occluder_pass_is_the_same_on_any_thread_count() {
     Culler::new(&scene).render(&scene, &camera, Method::Brute, &mut brute, &opts).unwrap();
     assert_eq!(frames[0].1, brute.ids, "the occluder pass's IDs are brute force's");
 }
+
+/// The walks' counters of occlusion tests and occluded boxes: with nothing behind the wall no
+/// box is found occluded, though boxes are tested (and `hzb`'s later frames re-test the
+/// wall they drew first); with cubes behind it, boxes are found occluded, no more than were
+/// tested, and once the wall alone is drawn first every cube is culled by occlusion.
+#[test]
+fn occluded_boxes_count_the_boxes_found_hidden() {
+    use sightline::render::Method;
+    for cubes in [0usize, 16] {
+        let (mut scene, cam) = wall();
+        let cube = scene.add_mesh(sightline::scene::shapes::cube("cube").unwrap());
+        for k in 0..cubes {
+            let at = Vec3::new(-6.0 + 4.0 * (k % 4) as f32, -3.0 + 2.0 * (k / 4) as f32, -30.0);
+            scene
+                .add_node(
+                    None,
+                    NodeDesc::new(format!("cube{k}")).mesh(cube).matrix(glam::Affine3A::from_translation(at)),
+                )
+                .unwrap();
+        }
+        scene.update_transforms();
+        let mut culler = Culler::new(&scene);
+        let mut fb = Framebuffer::new(320, 180).unwrap();
+        let opts = RenderOptions::ids_only();
+        for (method, frame) in [(Method::HzbOnePass, 1), (Method::Hzb, 1), (Method::Hzb, 2), (Method::Hzb, 3)] {
+            let (cs, _) = culler.render(&scene, &cam, method, &mut fb, &opts).unwrap();
+            let what = format!("{cubes} cubes, {} frame {frame}", method.name());
+            assert!(cs.occlusion_tests > 0, "{what}: {cs:?}");
+            if cubes == 0 {
+                assert_eq!(cs.occluded_boxes, 0, "{what}: {cs:?}");
+            } else {
+                assert!(cs.occluded_boxes > 0 && cs.occluded_boxes <= cs.occlusion_tests, "{what}: {cs:?}");
+                assert_eq!(cs.clusters_drawn + cs.culled_by_occlusion, cs.clusters_in_frustum, "{what}: {cs:?}");
+                // The first batch of a walk from an empty pyramid draws some cubes, which
+                // `hzb` draws first again in its second frame, re-tests and drops: its third
+                // frame starts from the wall alone.
+                let hidden = if frame == 3 { cubes as u64 } else { 1 };
+                assert!(cs.culled_by_occlusion >= hidden, "{what}: {cs:?}");
+            }
+        }
+    }
+}

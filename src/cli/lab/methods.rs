@@ -146,6 +146,7 @@ fn cull_counters(cs: &CullStats, fs: &FrameStats) -> Counters {
         ("culled_by_backface", cs.culled_by_backface),
         ("culled_by_occlusion", cs.culled_by_occlusion),
         ("occlusion_tests", cs.occlusion_tests),
+        ("occluded_boxes", cs.occluded_boxes),
         ("clusters_drawn", cs.clusters_drawn),
         ("triangles_drawn", cs.triangles_drawn),
         ("fragments_tested", fs.fragments_tested),
