@@ -23,7 +23,7 @@
 use std::fmt;
 use std::sync::{mpsc, Mutex, OnceLock};
 
-use super::instances::{cost_ratio, RefitOutcome, REBUILD_RATIO};
+use super::policy::{cost_ratio, RefitOutcome, REBUILD_RATIO};
 
 /// Updates from the one that starts a background rebuild to the one that puts its tree in
 /// place, for trees of fewer than [`LAG_ITEMS`] items (see [`rebuild_lag`]). The build must

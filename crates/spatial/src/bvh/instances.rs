@@ -1,79 +1,21 @@
 //! The BVH over a scene's instances (one item per [`Instance`], its world box), for culling,
-//! with refit after instances move and a rebuild policy. (The ray caster's top level is the
-//! 4-wide [`crate::bvh::wide::WideTlas`].)
-//!
-//! Refit keeps the topology and recomputes boxes bottom-up: cheap, but a tree refitted after
-//! large motions has overlapping, bloated nodes. The policy measures the SAH cost after each
-//! refit and rebuilds when it exceeds [`REBUILD_RATIO`] × the cost right after the last full
-//! build (a common heuristic, e.g. Kopta et al., "Fast, Effective BVH Updates for Animated
-//! Scenes", I3D 2012, rebuild on measured degradation). The rebuild runs off the frame, as
-//! the cluster BVH's does (see [`crate::rebuild_lag`]): the updates in between refit the old
-//! tree.
+//! refitted after instances move and rebuilt when the refit has degraded it past
+//! [`REBUILD_RATIO`](crate::REBUILD_RATIO) (the rule of [`RefitOutcome`]). The rebuild runs
+//! off the frame, as the cluster BVH's does (see [`crate::rebuild_lag`]): the updates in
+//! between refit the old tree. (The ray caster's top level is the 4-wide
+//! [`crate::bvh::wide::WideTlas`].)
 
 use glam::Vec3;
 use sightline_scene::{Aabb, Instance};
 
 use super::background::Background;
+use super::policy::{cost_ratio, RefitOutcome};
 use super::traverse::CoherencyCache;
 use super::{Bvh, BvhPreset};
 use crate::{CullCounters, CullOptions, FrontToBack, Frustum, FrustumCull, Visible, Visit};
 
-/// Rebuild when the refitted tree's SAH cost exceeds this multiple of the fresh build's.
-pub const REBUILD_RATIO: f32 = 1.5;
-
 /// Instances per leaf: small leaves cull finely; items of bigger leaves are tested one by one.
 const INSTANCE_LEAF: u32 = 4;
-
-/// What [`InstanceBvh::update`] did.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub enum RefitOutcome {
-    /// Boxes refitted; the SAH cost is now `cost_ratio` × the fresh build's.
-    Refitted {
-        /// SAH cost after refit over SAH cost after the last build.
-        cost_ratio: f32,
-    },
-    /// Refitted, with the SAH cost beyond [`REBUILD_RATIO`] × the fresh build's: a fresh
-    /// tree is being built off the frame, started by this update or one of the previous
-    /// [`rebuild_lag`](crate::rebuild_lag), and put in place by the update that many after
-    /// the one that started it (trees that rebuild in the background: [`InstanceBvh`]'s and
-    /// the [`ClusteredScene`](crate::ClusteredScene)'s).
-    Rebuilding {
-        /// SAH cost after refit over SAH cost after the last build.
-        cost_ratio: f32,
-    },
-    /// Rebuilt from scratch: refit degraded too much (`cost_ratio` is the refit's ratio) or
-    /// the set of valid boxes changed (ratio infinite); or a tree built in the background
-    /// was put in place and refitted to the current boxes (`cost_ratio` is the ratio that
-    /// started its build).
-    Rebuilt {
-        /// The ratio that triggered the rebuild.
-        cost_ratio: f32,
-    },
-}
-
-impl RefitOutcome {
-    /// The rule every refitted tree here follows: `ratio` is the refitted tree's SAH cost
-    /// over its last build's (`None`: the refit failed, the boxes no longer fit the tree).
-    /// At most [`REBUILD_RATIO`] the refit stands; otherwise `rebuild` runs.
-    pub(crate) fn decide(ratio: Option<f32>, rebuild: impl FnOnce()) -> RefitOutcome {
-        match ratio {
-            Some(r) if r <= REBUILD_RATIO => RefitOutcome::Refitted { cost_ratio: r },
-            other => {
-                rebuild();
-                RefitOutcome::Rebuilt { cost_ratio: other.unwrap_or(f32::INFINITY) }
-            }
-        }
-    }
-}
-
-/// A tree's SAH cost over its cost right after the last build (1 when that was 0).
-pub(crate) fn cost_ratio(cost: f32, build_cost: f32) -> f32 {
-    if build_cost > 0.0 {
-        cost / build_cost
-    } else {
-        1.0
-    }
-}
 
 /// A BVH over instances: item `i` is instance `i` of the slice it was built from.
 #[derive(Debug, Clone, Default)]
@@ -121,10 +63,11 @@ impl InstanceBvh {
     }
 
     /// Refits to new boxes (same count and order as the build). When the SAH cost has grown
-    /// beyond [`REBUILD_RATIO`] × the fresh build's, a new tree is built on a background
-    /// thread from these boxes, and the update [`rebuild_lag`](crate::rebuild_lag) updates
-    /// later puts it in place, refitted to the boxes of then (waiting for it if it is not
-    /// done); the updates between refit the old tree. When the boxes no longer fit the tree
+    /// beyond [`REBUILD_RATIO`](crate::REBUILD_RATIO) × the fresh build's, a new tree is
+    /// built on a background thread from these boxes, and the update
+    /// [`rebuild_lag`](crate::rebuild_lag) updates later puts it in place, refitted to the
+    /// boxes of then (waiting for it if it is not done); the updates between refit the old
+    /// tree. When the boxes no longer fit the tree
     /// (an item's box changed kind, or the count changed) it is rebuilt here and now.
     pub fn update(&mut self, boxes: &[Aabb]) -> RefitOutcome {
         let preset = self.preset;
@@ -198,6 +141,7 @@ impl FrontToBack for Bvh {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::REBUILD_RATIO;
 
     #[test]
     fn big_moves_rebuild_in_the_background_small_ones_refit() {

@@ -27,6 +27,7 @@ pub mod cluster;
 pub mod front_to_back;
 pub mod instances;
 mod ploc;
+pub mod policy;
 mod refit;
 pub mod scene;
 pub mod traverse;

@@ -20,7 +20,7 @@ use sightline_scene::{Aabb, Instance, MeshId, Scene};
 use super::background::Background;
 use super::cluster::MeshClusters;
 use super::front_to_back::FrontToBackCursor;
-use super::instances::RefitOutcome;
+use super::policy::RefitOutcome;
 use super::{Bvh, BvhPreset};
 use crate::{CullCounters, CullOptions, FrontToBack, Frustum, FrustumCull, Visible, Visit};
 
