@@ -265,7 +265,6 @@ fn occluded_boxes_count_the_boxes_found_hidden() {
                 assert_eq!(cs.occluded_boxes, 0, "{what}: {cs:?}");
             } else {
                 assert!(cs.occluded_boxes > 0 && cs.occluded_boxes <= cs.occlusion_tests, "{what}: {cs:?}");
-                assert_eq!(cs.clusters_drawn + cs.culled_by_occlusion, cs.clusters_in_frustum, "{what}: {cs:?}");
                 // The first batch of a walk from an empty pyramid draws some cubes, which
                 // `hzb` draws first again in its second frame, re-tests and drops: its third
                 // frame starts from the wall alone.
