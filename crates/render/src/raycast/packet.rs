@@ -12,10 +12,10 @@
 //!
 //! The shape was measured (the exported 10^6-triangle city, 1280 × 720, two threads, runs
 //! alternated): a chunk is two rows of the tile, 8 × 2 pixels. With 4 × 4 chunks the aerial
-//! path took 7–11% longer and the street path 25–28% (whose edges run mostly across the
-//! image, along the rows); with 16 × 4 tiles of 16 × 1 chunks, 16–21% and 14–16% longer;
-//! and with 4 × 4 packets of one chunk (Embree's fastest packet shape) the aerial path took
-//! 52–54% longer, and 20–30% longer even at 640 × 360, where rays part ways most.
+//! path took 7–11% longer and the street path 25–28%; with 16 × 4 tiles of 16 × 1 chunks,
+//! 16–21% and 14–16% longer; and with 4 × 4 packets of one chunk (Embree's fastest packet
+//! shape) the aerial path took 52–54% longer, and 20–30% longer even at 640 × 360, where
+//! rays part ways most.
 
 use glam::{Affine3A, Vec3A, Vec4};
 
