@@ -67,8 +67,8 @@ impl InstanceBvh {
     /// built on a background thread from these boxes, and the update
     /// [`rebuild_lag`](crate::rebuild_lag) updates later puts it in place, refitted to the
     /// boxes of then (waiting for it if it is not done); the updates between refit the old
-    /// tree. When the boxes no longer fit the tree
-    /// (an item's box changed kind, or the count changed) it is rebuilt here and now.
+    /// tree. When the boxes no longer fit the tree (an item's box changed kind, or the count
+    /// changed) it is rebuilt here and now.
     pub fn update(&mut self, boxes: &[Aabb]) -> RefitOutcome {
         let preset = self.preset;
         let tree = (&mut self.bvh, &mut self.build_cost);
