@@ -375,7 +375,7 @@ impl RayCaster {
 
     /// Triangles stored in all BLASes (unique geometry).
     pub fn stored_triangles(&self) -> usize {
-        self.blases.iter().map(|b| b.tris().len()).sum()
+        self.blases.iter().map(|b| b.triangle_count()).sum()
     }
 
     /// How long [`RayCaster::build`] took, in milliseconds.
@@ -436,8 +436,7 @@ impl RayCaster {
         if hits.inst[0][0] != NO_HIT {
             let rec = &self.tlas.instances()[hits.inst[0][0] as usize];
             let blas = &self.blases[rec.blas as usize];
-            let slot = hits.prim[0][0] as usize;
-            let triangle = blas.tris()[slot].index;
+            let (_, triangle) = blas.triangle(hits.prim[0][0])?;
             let inst = &self.instances[rec.scene_index as usize];
             let det = hits.det[0][0];
             best = Some(RayHit {

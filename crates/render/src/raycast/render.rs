@@ -236,7 +236,7 @@ impl<'a> CastFrame<'a> {
         let rec = hits.inst[c][j] as usize;
         let r = self.caster.tlas.instances().get(rec)?;
         let blas = self.caster.blases.get(r.blas as usize)?;
-        let v = &blas.tris().get(hits.prim[c][j] as usize)?.corners;
+        let (v, _) = blas.triangle(hits.prim[c][j])?;
         let rdet = 1.0 / hits.det[c][j] as f64;
         let (b1, b2) = (hits.e1[c][j] as f64 * rdet, hits.e2[c][j] as f64 * rdet);
         let v0 = v[0].as_dvec3();
@@ -353,7 +353,7 @@ impl<'a> CastFrame<'a> {
             let (rec, p, _, _) = self.local_point(hits, c, j)?;
             let m = self.world_f64.get(rec)?;
             let r = caster.tlas.instances().get(rec)?;
-            let v = caster.blases.get(r.blas as usize)?.tris().get(hits.prim[c][j] as usize)?.corners;
+            let (v, _) = caster.blases.get(r.blas as usize)?.triangle(hits.prim[c][j])?;
             let wv = v.map(|q| m.transform_point3(q.as_dvec3()));
             Some((m.transform_point3(p), (wv[1] - wv[0]).cross(wv[2] - wv[0]).normalize_or_zero()))
         };

@@ -1,16 +1,19 @@
 //! Two-level packet tracing: the TLAS over instances, then each instance's BLAS with the
-//! packet mapped into its local space, then the triangles of each leaf.
+//! packet mapped into its local space, then the primitives of each leaf: quads (two
+//! triangles tested at once) or lone triangles, whichever the BLAS stores.
 //!
 //! Closest-hit queries (`ANY = false`) keep the nearest hit per lane; any-hit queries
 //! (`ANY = true`, shadow rays) close a lane at its first hit and stop when all are closed.
 
-use sightline_spatial::bvh::wide::{WideBlas, WideTlas};
+use sightline_spatial::bvh::wide::{BlasPrims, BlasQuad, BlasTriangle, WideBlas, WideTlas};
 use sightline_spatial::prefetch_all;
 
 use super::isa::Isa;
 use super::packet::{chunk_bits, BeamPlanes, Hits, Rays, CHUNK, CHUNKS};
 use super::traverse::{traverse, Entry};
-use super::triangle::{intersect_general, intersect_shared, shared_setup, Job};
+use super::triangle::{
+    intersect_general, intersect_quad_general, intersect_quad_shared, intersect_shared, shared_setup, Job,
+};
 
 /// Per-thread scratch space for tracing packets.
 pub(crate) struct Scratch {
@@ -33,7 +36,8 @@ impl Scratch {
     }
 }
 
-/// Tests the lanes of `mask` against the triangles of one BLAS leaf.
+/// Tests the lanes of `mask` against the primitives of one BLAS leaf (a hit records the
+/// triangle as `WideBlas::triangle` names it).
 #[inline(always)]
 #[allow(clippy::too_many_arguments)]
 fn leaf<const ANY: bool>(
@@ -42,46 +46,121 @@ fn leaf<const ANY: bool>(
     hits: &mut Hits,
     first: u32,
     count: u32,
-    mut mask: u64,
+    mask: u64,
     inst: u32,
     first_id: u32,
     cull: f32,
 ) -> u64 {
-    let mut done = 0u64;
-    let end = first.saturating_add(count).min(blas.tris().len() as u32);
-    // The axis permutation of the first active chunk: usually every chunk's.
-    let common = rays.uniform[(mask.trailing_zeros() as usize / CHUNK).min(CHUNKS - 1)];
-    for k in first..end {
-        let rec = &blas.tris()[k as usize];
-        let (tri, gid) = (&rec.corners, first_id.wrapping_add(rec.index));
+    let job = Job { c: 0, bits: 0, inst, prim: 0, gid: first_id, cull };
+    match blas.prims() {
+        BlasPrims::Quads(q) => quad_leaf::<ANY>(q, rays, hits, first, count, mask, job),
+        BlasPrims::Triangles(t) => triangle_leaf::<ANY>(t, rays, hits, first, count, mask, job),
+    }
+}
+
+/// The lanes hit when `$e` (the lanes of chunk `$c` hit, given its active lanes `$bits`)
+/// runs on each chunk with active lanes in `$mask`. A macro, not a closure: the kernels
+/// must inline into straight loops to vectorize.
+macro_rules! over_chunks {
+    ($mask:expr, |$c:ident, $bits:ident| $e:expr) => {{
         let mut got = 0u64;
-        match rays.shared {
-            Some(o) => {
-                let s = shared_setup(tri, o, common);
-                for c in 0..CHUNKS {
-                    let bits = chunk_bits(mask, c);
-                    if bits != 0 {
-                        let job = Job { c, bits, inst, prim: k, gid, cull };
-                        got |= intersect_shared::<ANY>(&s, rays, hits, job) << (c * CHUNK);
-                    }
-                }
-            }
-            None => {
-                for c in 0..CHUNKS {
-                    let bits = chunk_bits(mask, c);
-                    if bits != 0 {
-                        let job = Job { c, bits, inst, prim: k, gid, cull };
-                        got |= intersect_general::<ANY>(tri, rays, hits, job) << (c * CHUNK);
-                    }
-                }
+        for $c in 0..CHUNKS {
+            let $bits = chunk_bits($mask, $c);
+            if $bits != 0 {
+                got |= $e << ($c * CHUNK);
             }
         }
-        if ANY {
-            done |= got;
-            mask &= !got;
-            if mask == 0 {
-                break;
+        got
+    }};
+}
+
+/// With `ANY`, moves the lanes a record hit (`got`) from `mask` to `done`: true when no lane
+/// is left. Closest-hit lanes stay until the leaf ends.
+#[inline(always)]
+fn retire<const ANY: bool>(got: u64, done: &mut u64, mask: &mut u64) -> bool {
+    if ANY {
+        *done |= got;
+        *mask &= !got;
+    }
+    ANY && *mask == 0
+}
+
+/// The axis permutation of the first active chunk of `mask`: usually every chunk's.
+#[inline(always)]
+fn common_perm(rays: &Rays, mask: u64) -> u8 {
+    rays.uniform[(mask.trailing_zeros() as usize / CHUNK).min(CHUNKS - 1)]
+}
+
+/// [`leaf`] over lone triangles; `base` holds the instance, the instance's first ID (as
+/// `gid`) and the facing rule.
+#[inline(always)]
+fn triangle_leaf<const ANY: bool>(
+    tris: &[BlasTriangle],
+    rays: &Rays,
+    hits: &mut Hits,
+    first: u32,
+    count: u32,
+    mut mask: u64,
+    base: Job,
+) -> u64 {
+    let mut done = 0u64;
+    let end = first.saturating_add(count).min(tris.len() as u32);
+    let common = common_perm(rays, mask);
+    for k in first..end {
+        let rec = &tris[k as usize];
+        let gid = base.gid.wrapping_add(rec.index);
+        let job = |c, bits| Job { c, bits, prim: k, gid, ..base };
+        let got = match rays.shared {
+            Some(o) => {
+                let s = shared_setup(&rec.corners, o, common);
+                over_chunks!(mask, |c, bits| intersect_shared::<ANY>(&s, rays, hits, job(c, bits)))
             }
+            None => over_chunks!(mask, |c, bits| intersect_general::<ANY>(&rec.corners, rays, hits, job(c, bits))),
+        };
+        if retire::<ANY>(got, &mut done, &mut mask) {
+            break;
+        }
+    }
+    done
+}
+
+/// [`leaf`] over quads (a hit records triangle 2 · slot + half).
+#[inline(always)]
+fn quad_leaf<const ANY: bool>(
+    quads: &[BlasQuad],
+    rays: &Rays,
+    hits: &mut Hits,
+    first: u32,
+    count: u32,
+    mut mask: u64,
+    base: Job,
+) -> u64 {
+    let mut done = 0u64;
+    let end = first.saturating_add(count).min(quads.len() as u32);
+    let common = common_perm(rays, mask);
+    for k in first..end {
+        let q = &quads[k as usize];
+        let gid = [base.gid.wrapping_add(q.index[0]), base.gid.wrapping_add(q.index[1])];
+        let a = |c, bits| Job { c, bits, prim: 2 * k, gid: gid[0], ..base };
+        let ab = |c, bits| [a(c, bits), Job { c, bits, prim: 2 * k + 1, gid: gid[1], ..base }];
+        let got = match (rays.shared, q.is_pair()) {
+            (Some(o), true) => {
+                let s = shared_setup(&q.corners, o, common);
+                over_chunks!(mask, |c, bits| intersect_quad_shared::<ANY>(&s, rays, hits, ab(c, bits)))
+            }
+            (Some(o), false) => {
+                let s = shared_setup(&q.triangle(0), o, common);
+                over_chunks!(mask, |c, bits| intersect_shared::<ANY>(&s, rays, hits, a(c, bits)))
+            }
+            (None, true) => {
+                over_chunks!(mask, |c, bits| intersect_quad_general::<ANY>(&q.corners, rays, hits, ab(c, bits)))
+            }
+            (None, false) => {
+                over_chunks!(mask, |c, bits| intersect_general::<ANY>(&q.triangle(0), rays, hits, a(c, bits)))
+            }
+        };
+        if retire::<ANY>(got, &mut done, &mut mask) {
+            break;
         }
     }
     done
@@ -134,11 +213,14 @@ fn instance<I: Isa, const ANY: bool>(
     )
 }
 
-/// Asks for the cache lines of a leaf's triangles (see `traverse`'s `soon`).
+/// Asks for the cache lines of a leaf's primitives (see `traverse`'s `soon`).
 #[inline(always)]
 fn prefetch_leaf(blas: &WideBlas, first: u32, count: u32) {
     let (s, e) = (first as usize, first as usize + count as usize);
-    prefetch_all(blas.tris().get(s..e).unwrap_or_default());
+    match blas.prims() {
+        BlasPrims::Quads(q) => prefetch_all(q.get(s..e).unwrap_or_default()),
+        BlasPrims::Triangles(t) => prefetch_all(t.get(s..e).unwrap_or_default()),
+    }
 }
 
 /// Traces the lanes of `mask` through the scene. `frustum` (world space; planes bounding

@@ -1,12 +1,23 @@
-//! Bottom level: one wide BVH per mesh over its triangles, built once and shared by every
-//! instance of the mesh.
+//! Bottom level: one wide BVH per mesh over its triangles, paired into quads, built once
+//! and shared by every instance of the mesh.
 //!
-//! Triangles are copied into leaf order (exact vertex positions, so a watertight edge test
-//! stays watertight), each with the mesh's index of the triangle, which is what triangle IDs
-//! and shading use (`bvh.order()` holds the same mapping). A record takes 40 bytes (three
-//! packed `Vec3`s, not 16-byte `Vec3A`s, and the index), so a leaf of four fills 2.5 cache
-//! lines, and a leaf test reads its triangles' IDs from the lines it reads anyway, not from
-//! a second array.
+//! Meshes made of quads store each quad as two triangles that share a diagonal, and they
+//! usually come one after the other, `(a, b, c)` then `(a, c, d)`: the fan triangulation
+//! that mesh builders and OBJ loaders give a polygon. The BLAS keeps such a pair as one
+//! record of four corners, the quad primitive of Embree (Wald et al. 2014, "Embree: A
+//! Kernel Framework for Efficient CPU Ray Tracing"): the tree has half the primitives, a
+//! record is one cache line (four packed `Vec3`s and the two triangles' mesh indices,
+//! aligned to 64 bytes, against 80 bytes for two triangle records), and a ray test
+//! shears the shared corners and computes the shared edge once for both triangles. Each
+//! triangle keeps its own corners in its own order, so a test of the pair computes, bit
+//! for bit, what tests of the two triangles compute.
+//!
+//! Two neighbours are paired only when the pair's box is no larger (by surface area) than
+//! their two boxes together: a pair folded over its diagonal would make the tree worse.
+//! A triangle without a partner is a record of its own, whose second triangle is absent.
+//!
+//! Corners are exact copies of the mesh's positions (so the watertight edge test stays
+//! watertight), in leaf order.
 
 use glam::{Affine3A, Vec3, Vec3A};
 use obvhs::aabb::Aabb as ObAabb;
@@ -15,7 +26,41 @@ use sightline_scene::{Aabb, Mesh};
 
 use super::{WideBuildParams, WideBvh};
 
-/// One triangle of a [`WideBlas`]: its corners and its index in the mesh.
+/// [`BlasQuad::index`] of a quad's absent second triangle.
+pub const NO_TRIANGLE: u32 = u32::MAX;
+
+/// One or two triangles of a [`WideBlas`] that share an edge: triangle 0 is corners
+/// `(0, 1, 2)` and triangle 1 is corners `(0, 2, 3)`, each in its mesh's vertex order.
+#[derive(Debug, Clone, Copy, PartialEq)]
+#[repr(C, align(64))]
+pub struct BlasQuad {
+    /// Vertex positions (corner 3 repeats corner 2 when there is one triangle).
+    pub corners: [Vec3; 4],
+    /// The mesh's index of each triangle ([`NO_TRIANGLE`] for an absent second one).
+    pub index: [u32; 2],
+}
+
+impl BlasQuad {
+    /// Corners of triangle `half` (0 or 1), in the mesh's vertex order.
+    #[inline(always)]
+    pub fn triangle(&self, half: usize) -> [Vec3; 3] {
+        let c = &self.corners;
+        if half == 0 {
+            [c[0], c[1], c[2]]
+        } else {
+            [c[0], c[2], c[3]]
+        }
+    }
+
+    /// True when the record holds two triangles.
+    #[inline(always)]
+    pub fn is_pair(&self) -> bool {
+        self.index[1] != NO_TRIANGLE
+    }
+}
+
+/// One triangle of a [`WideBlas`] of lone triangles: its corners and its index in the mesh
+/// (40 bytes: a leaf of four fills 2.5 cache lines).
 #[derive(Debug, Clone, Copy, PartialEq)]
 #[repr(C)]
 pub struct BlasTriangle {
@@ -25,25 +70,87 @@ pub struct BlasTriangle {
     pub index: u32,
 }
 
-/// A wide triangle BVH in some local space, with the triangles in leaf order.
+/// The primitives of a [`WideBlas`], in leaf order.
+#[derive(Debug, Clone)]
+pub enum BlasPrims {
+    /// Quads, for meshes of which at least half the triangles pair up.
+    Quads(Vec<BlasQuad>),
+    /// Lone triangles, for the other meshes (a quad record would waste a third of its line).
+    Triangles(Vec<BlasTriangle>),
+}
+
+/// A wide triangle BVH in some local space, over its primitives in leaf order.
 #[derive(Debug, Clone)]
 pub struct WideBlas {
-    /// The triangles, in leaf order.
-    tris: Vec<BlasTriangle>,
-    /// The tree; `bvh.order()[k]` is the mesh triangle stored in slot `k`.
+    /// The primitives, in leaf order.
+    prims: BlasPrims,
+    /// The tree over the primitives; `bvh.order()[k]` is the primitive stored in slot `k`
+    /// (quads numbered in the order the pairing made them, which is mesh order).
     bvh: WideBvh,
+    /// Triangles stored.
+    triangles: usize,
+}
+
+/// The box of some corners.
+fn box_of(c: &[Vec3]) -> ObAabb {
+    let (lo, hi) = c.iter().fold((Vec3::INFINITY, Vec3::NEG_INFINITY), |(lo, hi), &p| (lo.min(p), hi.max(p)));
+    ObAabb::new(Vec3A::from(lo), Vec3A::from(hi))
+}
+
+/// Half the surface area of a box (what SAH weighs).
+fn half_area(b: &ObAabb) -> f32 {
+    let d = b.max - b.min;
+    d.x * d.y + d.y * d.z + d.z * d.x
+}
+
+/// Does triangle `b` complete triangle `a` to a quad `(a0, a1, a2, b2)`? It must be
+/// `(a0, a2, _)` and the pair's box no larger than the two boxes together (false for
+/// non-finite corners).
+fn completes(a: &[Vec3; 3], b: &[Vec3; 3]) -> bool {
+    let whole = box_of(&[a[0], a[1], a[2], b[2]]);
+    b[0] == a[0] && b[1] == a[2] && half_area(&whole) <= half_area(&box_of(a)) + half_area(&box_of(b))
+}
+
+/// Pairs each triangle with the next one when it completes it to a quad (greedily, in
+/// order): the mesh indices of each record's one or two triangles.
+fn pair_up(count: usize, corners: &(impl Fn(usize) -> [Vec3; 3] + Sync)) -> Vec<[u32; 2]> {
+    let next: Vec<bool> =
+        (0..count).into_par_iter().map(|i| i + 1 < count && completes(&corners(i), &corners(i + 1))).collect();
+    let mut out = Vec::with_capacity(count / 2 + 1);
+    let mut i = 0;
+    while i < count {
+        if next[i] {
+            out.push([i as u32, i as u32 + 1]);
+            i += 2;
+        } else {
+            out.push([i as u32, NO_TRIANGLE]);
+            i += 1;
+        }
+    }
+    out
 }
 
 impl WideBlas {
-    /// Builds over `count` triangles whose corners `corners(i)` gives (read twice: for the
-    /// boxes, and for the copy in leaf order, both made in parallel).
+    /// Builds over `count` triangles whose corners `corners(i)` gives, as quads when at
+    /// least half of them pair up with their neighbour, else as lone triangles (corners
+    /// read for the pairing, the boxes and the copy in leaf order, each in parallel).
     pub fn build(count: usize, corners: impl Fn(usize) -> [Vec3; 3] + Sync) -> WideBlas {
-        let bvh = WideBvh::build_fn(count, WideBuildParams::BLAS, |i| {
-            let t = corners(i).map(Vec3A::from);
-            ObAabb::new(t[0].min(t[1]).min(t[2]), t[0].max(t[1]).max(t[2]))
-        });
-        let tris = bvh.order().par_iter().map(|&i| BlasTriangle { corners: corners(i as usize), index: i }).collect();
-        WideBlas { tris, bvh }
+        let records = pair_up(count, &corners);
+        // Each pair saves a record.
+        if 4 * (count - records.len()) < count {
+            let bvh = WideBvh::build_fn(count, WideBuildParams::BLAS, |i| box_of(&corners(i)));
+            let tris =
+                bvh.order().par_iter().map(|&i| BlasTriangle { corners: corners(i as usize), index: i }).collect();
+            return WideBlas { prims: BlasPrims::Triangles(tris), bvh, triangles: count };
+        }
+        let quad = |p: [u32; 2]| {
+            let a = corners(p[0] as usize);
+            let d = if p[1] == NO_TRIANGLE { a[2] } else { corners(p[1] as usize)[2] };
+            BlasQuad { corners: [a[0], a[1], a[2], d], index: p }
+        };
+        let bvh = WideBvh::build_fn(records.len(), WideBuildParams::BLAS_QUADS, |i| box_of(&quad(records[i]).corners));
+        let quads = bvh.order().par_iter().map(|&i| quad(records[i as usize])).collect();
+        WideBlas { prims: BlasPrims::Quads(quads), bvh, triangles: count }
     }
 
     /// A BLAS with no triangles.
@@ -62,14 +169,34 @@ impl WideBlas {
         Self::build(mesh.triangle_count(), |i| mesh.triangle_positions(i).map(|p| world_from_local.transform_point3(p)))
     }
 
-    /// The triangles in leaf order (slot `k` is mesh triangle `bvh().order()[k]`, which its
-    /// record also holds).
+    /// The primitives in leaf order (slot `k` is the tree's primitive `k`).
     #[inline]
-    pub fn tris(&self) -> &[BlasTriangle] {
-        &self.tris
+    pub fn prims(&self) -> &BlasPrims {
+        &self.prims
     }
 
-    /// The tree over the triangles.
+    /// Triangle `prim`, as a hit names it: slot `prim` of lone triangles, or half
+    /// `prim % 2` of quad slot `prim / 2`. Its corners and its mesh index (`None` past the
+    /// end, or for a quad's absent second triangle).
+    #[inline]
+    pub fn triangle(&self, prim: u32) -> Option<([Vec3; 3], u32)> {
+        match &self.prims {
+            BlasPrims::Triangles(t) => t.get(prim as usize).map(|t| (t.corners, t.index)),
+            BlasPrims::Quads(q) => {
+                let q = q.get(prim as usize / 2)?;
+                let half = prim as usize % 2;
+                (half == 0 || q.is_pair()).then(|| (q.triangle(half), q.index[half]))
+            }
+        }
+    }
+
+    /// Number of triangles stored.
+    #[inline]
+    pub fn triangle_count(&self) -> usize {
+        self.triangles
+    }
+
+    /// The tree over the quads.
     #[inline]
     pub fn bvh(&self) -> &WideBvh {
         &self.bvh
@@ -86,18 +213,93 @@ impl WideBlas {
 mod tests {
     use super::*;
 
-    #[test]
-    fn triangles_are_stored_in_leaf_order() {
-        let corners = |i: usize| {
-            let o = Vec3::new((i % 7) as f32, (i / 7) as f32, (i % 3) as f32);
-            [o, o + Vec3::X, o + Vec3::Y]
-        };
-        let blas = WideBlas::build(50, corners);
-        blas.bvh().validate(50).unwrap();
-        for (k, &i) in blas.bvh().order().iter().enumerate() {
-            assert_eq!(blas.tris()[k], BlasTriangle { corners: corners(i as usize), index: i });
+    /// Triangle `i` of a strip of unit squares along x, each split `(a, b, c)`, `(a, c, d)`.
+    fn strip(i: usize) -> [Vec3; 3] {
+        let o = Vec3::new((i / 2) as f32, 0.0, 0.0);
+        let (a, b, c, d) = (o, o + Vec3::X, o + Vec3::new(1.0, 1.0, 0.0), o + Vec3::Y);
+        if i.is_multiple_of(2) {
+            [a, b, c]
+        } else {
+            [a, c, d]
         }
-        assert_eq!(blas.bounds(), Aabb::new(Vec3::ZERO, Vec3::new(7.0, 8.0, 2.0)));
-        assert!(WideBlas::empty().tris().is_empty());
+    }
+
+    /// Every triangle of `mesh` comes back once from the slots of `blas`, with its corners.
+    fn assert_all_triangles_once(blas: &WideBlas, count: usize, mesh: impl Fn(usize) -> [Vec3; 3]) {
+        let prims = match blas.prims() {
+            BlasPrims::Quads(q) => 2 * q.len(),
+            BlasPrims::Triangles(t) => t.len(),
+        };
+        let mut seen = vec![false; count];
+        for prim in 0..prims as u32 {
+            if let Some((corners, i)) = blas.triangle(prim) {
+                assert_eq!(corners, mesh(i as usize));
+                assert!(!std::mem::replace(&mut seen[i as usize], true), "triangle {i} twice");
+            }
+        }
+        assert!(seen.iter().all(|&s| s));
+        assert_eq!(blas.triangle(prims as u32), None);
+        assert_eq!(blas.triangle_count(), count);
+    }
+
+    #[test]
+    fn quads_are_stored_in_leaf_order_and_give_back_their_triangles() {
+        let blas = WideBlas::build(51, strip);
+        let BlasPrims::Quads(quads) = blas.prims() else { panic!("a strip of squares makes quads") };
+        assert_eq!(quads.len(), 26);
+        blas.bvh().validate(26).unwrap();
+        for (k, q) in quads.iter().enumerate() {
+            // Quads are numbered in mesh order: quad i holds triangles 2i and 2i + 1.
+            assert_eq!(q.index[0] as usize, 2 * blas.bvh().order()[k] as usize);
+            assert_eq!(q.is_pair(), q.index[0] != 50, "only the last triangle has no partner");
+            assert_eq!(blas.triangle(2 * k as u32 + 1).is_some(), q.is_pair());
+        }
+        assert_all_triangles_once(&blas, 51, strip);
+        assert_eq!(std::mem::size_of::<BlasQuad>(), 64);
+        assert_eq!(blas.bounds(), Aabb::new(Vec3::ZERO, Vec3::new(26.0, 1.0, 0.0)));
+        assert_eq!(WideBlas::empty().triangle_count(), 0);
+    }
+
+    #[test]
+    fn meshes_that_mostly_do_not_pair_keep_lone_triangles() {
+        // Each square's second triangle turned to start at c: no neighbours pair.
+        let turned = |i: usize| {
+            let t = strip(i);
+            if i.is_multiple_of(2) {
+                t
+            } else {
+                [t[1], t[2], t[0]]
+            }
+        };
+        let blas = WideBlas::build(40, turned);
+        let BlasPrims::Triangles(tris) = blas.prims() else { panic!("no pairs: lone triangles") };
+        blas.bvh().validate(40).unwrap();
+        for (k, t) in tris.iter().enumerate() {
+            assert_eq!(t.index, blas.bvh().order()[k]);
+        }
+        assert_all_triangles_once(&blas, 40, turned);
+        // A quarter of the triangles in pairs is enough for quads (one pair among four).
+        let some = |i: usize| if i < 2 { strip(i) } else { turned(i + 2) };
+        assert!(matches!(WideBlas::build(4, some).prims(), BlasPrims::Quads(q) if q.len() == 3));
+        assert!(matches!(WideBlas::build(5, some).prims(), BlasPrims::Triangles(_)));
+        assert_all_triangles_once(&WideBlas::build(4, some), 4, some);
+    }
+
+    #[test]
+    fn only_neighbours_that_make_a_flat_enough_quad_pair_up() {
+        let [a, b, c] = strip(0);
+        let d = strip(1)[2];
+        assert!(completes(&[a, b, c], &[a, c, d]));
+        // The same triangles in another order, or another rotation, are not this pattern.
+        assert!(!completes(&[a, c, d], &[a, b, c]));
+        assert!(!completes(&[a, b, c], &[c, d, a]));
+        // A long kite whose halves stick out along x and y: the pair's box (10 × 10) is far
+        // larger than the halves' (10 × 1 and 1 × 10).
+        assert!(!completes(&[a, Vec3::new(10.0, 0.0, 0.0), c], &[a, c, Vec3::new(0.0, 10.0, 0.0)]));
+        // A folded pair that stays compact (a box's corner) still pairs.
+        assert!(completes(&[a, b, c], &[a, c, Vec3::new(1.0, 1.0, 1.0)]));
+        // NaN corners never pair.
+        let nan = Vec3::splat(f32::NAN);
+        assert!(!completes(&[nan, b, c], &[nan, c, d]));
     }
 }

@@ -78,7 +78,7 @@ impl WideTlas {
     pub fn build(records: Vec<InstanceRecord>, blases: &[WideBlas]) -> WideTlas {
         let instances: Vec<InstanceRecord> = records
             .into_iter()
-            .filter(|rec| blases.get(rec.blas as usize).is_some_and(|b| !b.tris().is_empty()))
+            .filter(|rec| blases.get(rec.blas as usize).is_some_and(|b| b.triangle_count() > 0))
             .collect();
         let boxes: Vec<ObAabb> = instances.iter().map(|rec| world_box(rec, blases)).collect();
         let (bvh, build_cost) = fresh_tree(&boxes);
