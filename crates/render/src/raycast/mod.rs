@@ -433,10 +433,12 @@ impl RayCaster {
         let off = packet::BeamPlanes::OFF;
         trace::<isa::Portable, ANY>(&self.blases, &self.tlas, &rays, &off, false, &mut hits, 1, &mut s);
         let mut best = None;
-        if hits.inst[0][0] != NO_HIT {
+        let hit = (hits.inst[0][0] != NO_HIT).then(|| {
             let rec = &self.tlas.instances()[hits.inst[0][0] as usize];
-            let blas = &self.blases[rec.blas as usize];
-            let (_, triangle) = blas.triangle(hits.prim[0][0])?;
+            (rec, self.blases[rec.blas as usize].triangle(hits.prim[0][0]))
+        });
+        // A hit record always names a stored triangle.
+        if let Some((rec, Some((_, triangle)))) = hit {
             let inst = &self.instances[rec.scene_index as usize];
             let det = hits.det[0][0];
             best = Some(RayHit {
