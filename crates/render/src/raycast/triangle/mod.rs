@@ -161,7 +161,9 @@ fn inside(e0: f32, e1: f32, e2: f32, det: f32, t: f32, tmin: f32, cull: f32, on:
 }
 
 /// Tests a candidate in lane `j` of chunk `c` and records it when it wins; returns the lane
-/// bit when it does. With `ANY`, a hit closes the lane (t = −∞) instead.
+/// bit when it does. With `ANY`, a hit closes the lane (t = −∞) instead. (The same rule as
+/// [`Record::offer`], written on the record in place: through a `Record` loaded and stored
+/// around it, lone-triangle leaves took 4–5% longer on an aerial city path.)
 #[inline(always)]
 #[allow(clippy::too_many_arguments)]
 fn resolve<const ANY: bool>(hits: &mut Hits, j: usize, job: &Job, e0: f32, e1: f32, e2: f32, det: f32, t: f32) -> u64 {
@@ -358,28 +360,11 @@ fn quad_lanes<const ANY: bool>(fetch: impl Fn(usize) -> Rel4, rays: &Rays, hits:
     }
     let mut m = 0u64;
     for j in 0..CHUNK {
-        let c = ja.c;
-        let mut r = Record {
-            t: hits.t[c][j],
-            inst: hits.inst[c][j],
-            prim: hits.prim[c][j],
-            gid: hits.gid[c][j],
-            e1: hits.e1[c][j],
-            e2: hits.e2[c][j],
-            det: hits.det[c][j],
-        };
+        let mut r = Record::load(hits, c, j);
         let tmin = hits.tmin[c][j];
         m |= r.offer::<ANY>(j, tmin, &ja, lane(&ea, j), da[j], ta[j]);
         m |= r.offer::<ANY>(j, tmin, &jb, lane(&eb, j), db[j], tb[j]);
-        hits.t[c][j] = r.t;
-        hits.inst[c][j] = r.inst;
-        hits.prim[c][j] = r.prim;
-        if !ANY {
-            hits.gid[c][j] = r.gid;
-            hits.e1[c][j] = r.e1;
-            hits.e2[c][j] = r.e2;
-            hits.det[c][j] = r.det;
-        }
+        r.store::<ANY>(hits, c, j);
     }
     m
 }
@@ -402,7 +387,38 @@ struct Record {
 }
 
 impl Record {
-    /// [`resolve`] on the record of lane `j` (interval start `tmin`).
+    /// The record of lane `j` of chunk `c`.
+    #[inline(always)]
+    fn load(hits: &Hits, c: usize, j: usize) -> Record {
+        Record {
+            t: hits.t[c][j],
+            inst: hits.inst[c][j],
+            prim: hits.prim[c][j],
+            gid: hits.gid[c][j],
+            e1: hits.e1[c][j],
+            e2: hits.e2[c][j],
+            det: hits.det[c][j],
+        }
+    }
+
+    /// Writes the record back to lane `j` of chunk `c` (with `ANY`, only what any-hit
+    /// queries keep: t, closed at −∞, and the hit).
+    #[inline(always)]
+    fn store<const ANY: bool>(&self, hits: &mut Hits, c: usize, j: usize) {
+        hits.t[c][j] = self.t;
+        hits.inst[c][j] = self.inst;
+        hits.prim[c][j] = self.prim;
+        if !ANY {
+            hits.gid[c][j] = self.gid;
+            hits.e1[c][j] = self.e1;
+            hits.e2[c][j] = self.e2;
+            hits.det[c][j] = self.det;
+        }
+    }
+
+    /// Offers a candidate to the record of lane `j` (interval start `tmin`): it wins when
+    /// it is inside, faces the way `job.cull` keeps, and beats the record; returns the lane
+    /// bit when it does. With `ANY`, a win closes the lane (t = −∞) instead.
     #[inline(always)]
     fn offer<const ANY: bool>(&mut self, j: usize, tmin: f32, job: &Job, e: [f32; 3], det: f32, t: f32) -> u64 {
         let on = (job.bits >> j) & 1 != 0;
