@@ -371,12 +371,31 @@ fn record(lanes: u64, hits: &Hits) -> Record {
     (lanes, bits)
 }
 
-/// Every kernel (shared origin and per-lane origin, closest and any hit, each facing rule)
-/// on every case; with `split`, each chunk's lanes one call per lane (the sparse path).
+/// Kernel `kernel` on one triangle: 0 and 1 the shared-origin (prepared for the chunk's
+/// permutation) and per-lane-origin closest-hit kernels, 2 and 3 the same as any-hit
+/// queries (2 prepared for no permutation).
 #[inline(always)]
-fn run_kernels(cases: &[([Vec3A; 3], Rays)], split: bool) -> Vec<Record> {
+fn triangle_kernel(kernel: usize, tri: &[Vec3A; 3], rays: &Rays, hits: &mut Hits, job: Job) -> u64 {
+    let prep = |p| shared_setup(tri, rays.shared.unwrap(), p);
+    match kernel {
+        0 => intersect_shared::<false>(&prep(rays.uniform[0]), rays, hits, job),
+        1 => intersect_general::<false>(tri, rays, hits, job),
+        2 => intersect_shared::<true>(&prep(MIXED), rays, hits, job),
+        _ => intersect_general::<true>(tri, rays, hits, job),
+    }
+}
+
+/// `call(case, rays, kernel, hits, job)` for each of the four kernels, each facing rule and
+/// every case, on each chunk's lanes (with `split`, one call per lane: the sparse path),
+/// from freshly opened hits: the records.
+#[inline(always)]
+fn run_cases<C>(
+    cases: &[(C, Rays)],
+    split: bool,
+    mut call: impl FnMut(&C, &Rays, usize, &mut Hits, Job) -> u64,
+) -> Vec<Record> {
     let mut out = Vec::new();
-    for (tri, rays) in cases {
+    for (case, rays) in cases {
         for cull in [0.0, 1.0, -1.0] {
             for kernel in 0..4 {
                 let mut hits = open_hits();
@@ -384,23 +403,7 @@ fn run_kernels(cases: &[([Vec3A; 3], Rays)], split: bool) -> Vec<Record> {
                 for c in 0..CHUNKS {
                     for bits in chunk_calls(c, split) {
                         let job = Job { c, bits, inst: 3, prim: 9, gid: 5, cull };
-                        let m = match kernel {
-                            0 => intersect_shared::<false>(
-                                &shared_setup(tri, rays.shared.unwrap(), rays.uniform[0]),
-                                rays,
-                                &mut hits,
-                                job,
-                            ),
-                            1 => intersect_general::<false>(tri, rays, &mut hits, job),
-                            2 => intersect_shared::<true>(
-                                &shared_setup(tri, rays.shared.unwrap(), MIXED),
-                                rays,
-                                &mut hits,
-                                job,
-                            ),
-                            _ => intersect_general::<true>(tri, rays, &mut hits, job),
-                        };
-                        lanes |= m << (c * CHUNK);
+                        lanes |= call(case, rays, kernel, &mut hits, job) << (c * CHUNK);
                     }
                 }
                 out.push(record(lanes, &hits));
@@ -408,6 +411,18 @@ fn run_kernels(cases: &[([Vec3A; 3], Rays)], split: bool) -> Vec<Record> {
         }
     }
     out
+}
+
+/// Every kernel (shared origin and per-lane origin, closest and any hit, each facing rule)
+/// on every case; with `split`, each chunk's lanes one call per lane (the sparse path).
+#[inline(always)]
+fn run_kernels(cases: &[([Vec3A; 3], Rays)], split: bool) -> Vec<Record> {
+    run_cases(
+        cases,
+        split,
+        #[inline(always)]
+        |tri, rays, kernel, hits, job| triangle_kernel(kernel, tri, rays, hits, job),
+    )
 }
 
 #[cfg(target_arch = "x86_64")]
@@ -522,52 +537,27 @@ fn quad_cases() -> Vec<([Vec3A; 4], Rays)> {
 /// above the first's in even chunks and below it in odd ones, so that ties go both ways.
 #[inline(always)]
 fn run_quads(cases: &[([Vec3A; 4], Rays)], split: bool, as_pairs: bool) -> Vec<Record> {
-    let mut out = Vec::new();
-    for (q, rays) in cases {
-        let o = rays.shared.unwrap();
-        let halves = [[q[0], q[1], q[2]], [q[0], q[2], q[3]]];
-        let q3 = q.map(Vec3::from);
-        for cull in [0.0, 1.0, -1.0] {
-            for kernel in 0..4 {
-                let mut hits = open_hits();
-                let mut lanes = 0u64;
-                for c in 0..CHUNKS {
-                    for bits in chunk_calls(c, split) {
-                        let a = Job { c, bits, inst: 3, prim: 8, gid: 5, cull };
-                        let ab = [a, Job { prim: 9, gid: if c % 2 == 0 { 6 } else { 4 }, ..a }];
-                        let p = if kernel == 0 { rays.uniform[0] } else { MIXED };
-                        let m = match (as_pairs, kernel) {
-                            (true, 0 | 2) => (0..2)
-                                .map(|h| {
-                                    let s = shared_setup(&halves[h], o, p);
-                                    match kernel {
-                                        0 => intersect_shared::<false>(&s, rays, &mut hits, ab[h]),
-                                        _ => intersect_shared::<true>(&s, rays, &mut hits, ab[h]),
-                                    }
-                                })
-                                .fold(0, |m, x| m | x),
-                            (true, 1) => (0..2)
-                                .fold(0, |m, h| m | intersect_general::<false>(&halves[h], rays, &mut hits, ab[h])),
-                            (true, _) => {
-                                (0..2).fold(0, |m, h| m | intersect_general::<true>(&halves[h], rays, &mut hits, ab[h]))
-                            }
-                            (false, 0) => {
-                                intersect_quad_shared::<false>(&super::shared_setup(&q3, o, p), rays, &mut hits, ab)
-                            }
-                            (false, 1) => intersect_quad_general::<false>(&q3, rays, &mut hits, ab),
-                            (false, 2) => {
-                                intersect_quad_shared::<true>(&super::shared_setup(&q3, o, p), rays, &mut hits, ab)
-                            }
-                            (false, _) => intersect_quad_general::<true>(&q3, rays, &mut hits, ab),
-                        };
-                        lanes |= m << (c * CHUNK);
-                    }
-                }
-                out.push(record(lanes, &hits));
+    run_cases(
+        cases,
+        split,
+        #[inline(always)]
+        |q, rays, kernel, hits, job| {
+            let a = Job { prim: 8, ..job };
+            let ab = [a, Job { prim: 9, gid: if a.c.is_multiple_of(2) { 6 } else { 4 }, ..a }];
+            if as_pairs {
+                let halves = [[q[0], q[1], q[2]], [q[0], q[2], q[3]]];
+                return (0..2).fold(0, |m, h| m | triangle_kernel(kernel, &halves[h], rays, hits, ab[h]));
             }
-        }
-    }
-    out
+            let q3 = q.map(Vec3::from);
+            let prep = |p| super::shared_setup(&q3, rays.shared.unwrap(), p);
+            match kernel {
+                0 => intersect_quad_shared::<false>(&prep(rays.uniform[0]), rays, hits, ab),
+                1 => intersect_quad_general::<false>(&q3, rays, hits, ab),
+                2 => intersect_quad_shared::<true>(&prep(MIXED), rays, hits, ab),
+                _ => intersect_quad_general::<true>(&q3, rays, hits, ab),
+            }
+        },
+    )
 }
 
 #[cfg(target_arch = "x86_64")]
