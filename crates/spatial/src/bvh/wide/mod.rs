@@ -178,9 +178,10 @@ pub(crate) struct Ploc {
 impl WideBuildParams {
     /// For triangle BVHs traversed by packets: binned SAH, up to four triangles per leaf.
     pub const BLAS: WideBuildParams = WideBuildParams { max_leaf: 4, traversal_cost: 1.0, builder: Builder::BinnedSah };
-    /// [`WideBuildParams::BLAS`] for BVHs over quads (pairs of triangles): one per leaf.
-    /// Against two and four, on the exported 10^6-triangle city (aerial and street paths,
-    /// runs alternated), one was faster in most rounds.
+    /// [`WideBuildParams::BLAS`] for BVHs over quads (pairs of triangles): one per leaf. On
+    /// the exported 10^6-triangle city, runs alternated, one quad per leaf was faster than
+    /// two in five of six aerial rounds and two of three street rounds (four per leaf was
+    /// measured only with an earlier, slower quad kernel).
     pub const BLAS_QUADS: WideBuildParams = WideBuildParams { max_leaf: 1, ..WideBuildParams::BLAS };
     /// For the instance BVH: PLOC, one instance per leaf.
     pub const TLAS: WideBuildParams = WideBuildParams {
