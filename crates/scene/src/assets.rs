@@ -351,18 +351,18 @@ impl AssetReader {
 mod tests {
     use super::*;
 
-    fn fresh(test: &str) -> PathBuf {
-        let d = std::env::temp_dir().join(format!("sightline-assets-{}-{test}", std::process::id()));
-        let _ = std::fs::remove_dir_all(&d);
-        std::fs::create_dir_all(d.join("asset")).unwrap();
+    /// A scratch folder with an empty `asset/` inside, removed when dropped.
+    fn fresh(test: &str) -> tempfile::TempDir {
+        let d = tempfile::Builder::new().prefix(&format!("sightline-assets-{test}-")).tempdir().unwrap();
+        std::fs::create_dir_all(d.path().join("asset")).unwrap();
         d
     }
 
     #[test]
     fn a_file_named_many_ways_is_read_once() {
         let d = fresh("once");
-        std::fs::write(d.join("asset/a.bin"), [7u8; 1000]).unwrap();
-        let r = AssetReader::new(&d.join("asset/scene.gltf"), &LoadOptions::default()).unwrap();
+        std::fs::write(d.path().join("asset/a.bin"), [7u8; 1000]).unwrap();
+        let r = AssetReader::new(&d.path().join("asset/scene.gltf"), &LoadOptions::default()).unwrap();
         for name in ["a.bin", "./a.bin", "../asset/a.bin", "a.bin"] {
             let f = r.resolve(Path::new(name)).unwrap();
             let (bytes, size) = r.read(&f, 100, u64::MAX).unwrap();
@@ -379,13 +379,13 @@ mod tests {
     #[test]
     fn the_default_cap_grows_with_the_files_and_an_explicit_one_does_not() {
         let d = fresh("cap");
-        std::fs::write(d.join("asset/a.bin"), [1u8; 5000]).unwrap();
-        let r = AssetReader::new(&d.join("asset/x.obj"), &LoadOptions::default()).unwrap();
+        std::fs::write(d.path().join("asset/a.bin"), [1u8; 5000]).unwrap();
+        let r = AssetReader::new(&d.path().join("asset/x.obj"), &LoadOptions::default()).unwrap();
         assert_eq!(r.limit(), DEFAULT_BUDGET_BASE);
         let f = r.resolve(Path::new("a.bin")).unwrap();
         r.read(&f, u64::MAX, u64::MAX).unwrap();
         assert_eq!(r.limit(), DEFAULT_BUDGET_BASE + DEFAULT_BUDGET_FACTOR * 5000);
-        let r = AssetReader::new(&d.join("asset/x.obj"), &LoadOptions::default().max_total_bytes(4999)).unwrap();
+        let r = AssetReader::new(&d.path().join("asset/x.obj"), &LoadOptions::default().max_total_bytes(4999)).unwrap();
         let e = r.read(&f, u64::MAX, u64::MAX).unwrap_err();
         assert!(matches!(&e, AssetError::Refused(m) if m.contains("limit of 4999 bytes")), "{e:?}");
         assert_eq!(r.bytes_read(), 0);
@@ -394,8 +394,8 @@ mod tests {
     #[test]
     fn a_file_over_its_kind_limit_is_not_read() {
         let d = fresh("kind");
-        std::fs::write(d.join("asset/big.png"), [0u8; 300]).unwrap();
-        let r = AssetReader::new(&d.join("asset/x.gltf"), &LoadOptions::default()).unwrap();
+        std::fs::write(d.path().join("asset/big.png"), [0u8; 300]).unwrap();
+        let r = AssetReader::new(&d.path().join("asset/x.gltf"), &LoadOptions::default()).unwrap();
         let f = r.resolve(Path::new("big.png")).unwrap();
         let e = r.read(&f, u64::MAX, 200).unwrap_err();
         assert!(matches!(&e, AssetError::Unavailable(m) if m.contains("300 bytes")), "{e:?}");

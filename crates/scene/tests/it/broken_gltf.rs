@@ -283,7 +283,8 @@ fn other_gltf_problems_name_the_file() {
 
 #[test]
 fn unreadable_gltf_names_the_file() {
-    let e = err_text(load(tmp_dir("gone").join("gone.glb")));
+    let dir = tmp_dir("gone");
+    let e = err_text(load(dir.join("gone.glb")));
     assert_mentions(&e, &["gone.glb", "file not found"]);
 }
 

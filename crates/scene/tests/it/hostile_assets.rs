@@ -12,13 +12,12 @@ use sightline_scene::gltf_loader::{load_gltf, load_gltf_with};
 use sightline_scene::obj_loader::{load_obj, load_obj_with};
 use sightline_scene::{load, load_with, LoadOptions};
 
-use crate::support::{assert_mentions, err_text, TRI};
+use crate::support::{assert_mentions, err_text, TestDir, TRI};
 
 /// A fresh folder for one test, with the asset folder `asset/` inside it; files "outside" go
 /// in the test folder itself.
-fn tmp_dir(test: &str) -> PathBuf {
-    let d = std::env::temp_dir().join(format!("sightline-hostile-{}-{test}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&d);
+fn tmp_dir(test: &str) -> TestDir {
+    let d = crate::support::tmp_dir(test);
     std::fs::create_dir_all(d.join("asset")).unwrap();
     d
 }
@@ -151,7 +150,7 @@ fn an_allowed_root_accepts_files_outside_the_folder() {
         std::os::unix::fs::symlink("../outside.bin", dir.join("asset/link.bin")).unwrap();
         uris.push("link.bin".into());
     }
-    let opts = LoadOptions::default().allow_root(&dir);
+    let opts = LoadOptions::default().allow_root(&*dir);
     for uri in &uris {
         let path = write_gltf(&dir, "allowed.gltf", uri);
         assert!(load(&path).is_err(), "{uri} loads without the option");
@@ -179,7 +178,7 @@ fn gltf_image_outside_the_folder_is_an_error_not_a_warning() {
     let e = err_text(load(&path));
     assert_mentions(&e, &["image.gltf", "image 0 ('../secret.png')", "outside the asset folder"]);
     // Allowed, it is read (and, not being a PNG, skipped with a warning as before).
-    let scene = load_with(&path, &LoadOptions::default().allow_root(&dir)).unwrap();
+    let scene = load_with(&path, &LoadOptions::default().allow_root(&*dir)).unwrap();
     assert_eq!(scene.warnings.len(), 1, "{:?}", scene.warnings);
     assert_mentions(&scene.warnings[0], &["secret.png", "unknown image format"]);
 }
@@ -191,7 +190,7 @@ fn obj_mtllib_and_map_kd_outside_the_folder_are_refused() {
     let path = write_obj(&dir, "out.obj", "../outside.mtl");
     let e = err_text(load_obj(&path));
     assert_mentions(&e, &["out.obj", "material library '../outside.mtl'", "outside the asset folder"]);
-    let opts = LoadOptions::default().allow_root(&dir);
+    let opts = LoadOptions::default().allow_root(&*dir);
     let scene = load_obj_with(&path, &opts).unwrap();
     assert!(scene.warnings.is_empty(), "{:?}", scene.warnings);
     assert_eq!(scene.materials().next().unwrap().1.base_color, [1.0, 0.0, 0.0, 1.0]);

@@ -325,7 +325,8 @@ fn export_of_the_gltf_asset_matches_and_sees_unpropagated_edits() {
 #[test]
 fn export_to_a_bad_path_names_it() {
     let scene = hierarchy_scene();
-    let path = tmp_dir("export-bad").join("no/such/dir/out.obj");
+    let dir = tmp_dir("export-bad");
+    let path = dir.join("no/such/dir/out.obj");
     let e = export_obj(&scene, &path).unwrap_err().to_string();
     assert_mentions(&e, &["out.obj"]);
 }

@@ -251,7 +251,8 @@ fn an_animated_node_shared_by_two_parents_moves_in_both_copies() {
     let text = std::fs::read_to_string(asset("animated.gltf")).unwrap();
     let mut doc: serde_json::Value = serde_json::from_str(&text).unwrap();
     doc["nodes"][0]["children"] = serde_json::json!([1, 2]);
-    let path = tmp_dir("shared-animated").join("shared_animated.gltf");
+    let dir = tmp_dir("shared-animated");
+    let path = dir.join("shared_animated.gltf");
     std::fs::write(&path, doc.to_string()).unwrap();
     let mut s = load(&path).unwrap();
     let hands: Vec<NodeId> = s.depth_first().filter(|&id| s.node(id).unwrap().name() == "hand").collect();

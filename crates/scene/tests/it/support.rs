@@ -31,12 +31,21 @@ pub fn assert_mentions(msg: &str, parts: &[&str]) {
     }
 }
 
-/// A fresh, empty folder for one test.
-pub fn tmp_dir(test: &str) -> PathBuf {
-    let d = std::env::temp_dir().join(format!("sightline-loaders-{}-{test}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&d);
-    std::fs::create_dir_all(&d).unwrap();
-    d
+/// A fresh, empty folder for one test, removed with its contents when the test is done.
+pub fn tmp_dir(test: &str) -> TestDir {
+    let d = tempfile::Builder::new().prefix(&format!("sightline-{test}-")).tempdir();
+    TestDir(d.unwrap_or_else(|e| panic!("cannot make a scratch folder for test {test}: {e}")))
+}
+
+/// A test's scratch folder (see [`tmp_dir`]); derefs to its path.
+pub struct TestDir(tempfile::TempDir);
+
+impl std::ops::Deref for TestDir {
+    type Target = Path;
+
+    fn deref(&self) -> &Path {
+        self.0.path()
+    }
 }
 
 /// Every drawn triangle's world-space corners, in flattened (triangle ID) order.
