@@ -14,7 +14,8 @@
 //!
 //! Layout: nodes are 32 bytes (`min`, `count`, `max`, `index`) in depth-first order of sibling
 //! pairs: the root is node 0, an inner node's children are `index` and `index + 1`, and every
-//! child comes after its parent (so refit is one reverse sweep). A leaf holds the items
+//! child comes after its parent (so refit is one reverse sweep). Every pair sits on one
+//! 64-byte cache line (module `nodes`). A leaf holds the items
 //! `items[index .. index + count]`; items are stored in depth-first leaf order, so every
 //! subtree's items are one contiguous range (clusters rely on this). Each item's box is kept
 //! in `item_boxes` in the same order, so leaves with several items can test them one by one.
@@ -26,6 +27,7 @@ pub(crate) mod background;
 pub mod cluster;
 pub mod front_to_back;
 pub mod instances;
+mod nodes;
 mod ploc;
 pub mod policy;
 mod refit;
@@ -100,7 +102,7 @@ impl BvhPreset {
 /// A flat binary BVH over a list of boxes (item `i` is `boxes[i]` of the build).
 #[derive(Debug, Clone, Default)]
 pub struct Bvh {
-    pub(crate) nodes: Vec<BvhNode>,
+    pub(crate) nodes: nodes::NodeArray,
     pub(crate) items: Vec<u32>,
     pub(crate) item_boxes: Vec<Aabb>,
     pub(crate) unbounded: Vec<u32>,
@@ -177,7 +179,7 @@ impl Bvh {
     /// Copies an obvhs tree into the depth-first pair layout with contiguous leaf items.
     fn relayout(&mut self, src: &obvhs::bvh2::Bvh2, ids: &[u32], boxes: &[Aabb]) {
         let cap = src.nodes.len();
-        self.nodes = Vec::with_capacity(cap);
+        self.nodes = nodes::NodeArray::with_capacity(cap);
         self.items = Vec::with_capacity(ids.len());
         self.item_boxes = Vec::with_capacity(ids.len());
         let root = &src.nodes[0];
@@ -261,7 +263,7 @@ impl Bvh {
     /// Heap bytes held (nodes, items, item boxes, and the parents and leaves a refit along
     /// paths reads once one has run).
     pub fn memory_bytes(&self) -> usize {
-        self.nodes.capacity() * std::mem::size_of::<BvhNode>()
+        self.nodes.memory_bytes()
             + self.items.capacity() * 4
             + self.item_boxes.capacity() * std::mem::size_of::<Aabb>()
             + self.unbounded.capacity() * 4
