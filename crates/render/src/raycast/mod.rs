@@ -435,19 +435,22 @@ impl RayCaster {
         let mut best = None;
         let hit = (hits.inst[0][0] != NO_HIT).then(|| {
             let rec = &self.tlas.instances()[hits.inst[0][0] as usize];
-            (rec, self.blases[rec.blas as usize].triangle(hits.prim[0][0]))
+            let blas = &self.blases[rec.blas as usize];
+            (rec, blas, blas.triangle(hits.prim[0][0]))
         });
         // A hit record always names a stored triangle.
-        if let Some((rec, Some((_, triangle)))) = hit {
+        if let Some((rec, blas, Some((_, triangle)))) = hit {
             let inst = &self.instances[rec.scene_index as usize];
             let det = hits.det[0][0];
+            let (b1, b2) = (hits.e1[0][0] / det, hits.e2[0][0] / det);
+            let w = blas.mesh_weights(hits.prim[0][0], Vec3::new(1.0 - b1 - b2, b1, b2));
             best = Some(RayHit {
                 t: if ANY { t_min } else { hits.t[0][0] },
                 id: crate::triangle_id(inst.first_triangle, triangle),
                 target: HitTarget::Triangle {
                     instance: rec.scene_index as usize,
                     triangle,
-                    barycentric: Vec2::new(hits.e1[0][0] / det, hits.e2[0][0] / det),
+                    barycentric: Vec2::new(w.y, w.z),
                 },
             });
             if ANY {

@@ -411,11 +411,22 @@ impl<'a> CastFrame<'a> {
                 let Some(m) = self.csg_materials.get(k as usize) else { continue };
                 shade(m, normal, None, -d.normalize_or_zero(), dist, opts)
             } else {
-                let rdet = 1.0 / hits.det[c][j];
-                let (b1, b2) = (hits.e1[c][j] * rdet, hits.e2[c][j] * rdet);
                 let rec = hits.inst[c][j] as usize;
                 let Some(sh) = self.shader(&mut band.cache, rec, hits.gid[c][j], shadowed, eye) else { continue };
-                sh.shade(Vec3::new(1.0 - b1 - b2, b1, b2), opts)
+                match sh.constant() {
+                    Some(color) => color,
+                    None => {
+                        // The shader is the mesh's triangle: weights in mesh order.
+                        let rdet = 1.0 / hits.det[c][j];
+                        let (b1, b2) = (hits.e1[c][j] * rdet, hits.e2[c][j] * rdet);
+                        let Some(blas) =
+                            caster.tlas.instances().get(rec).and_then(|r| caster.blases.get(r.blas as usize))
+                        else {
+                            continue;
+                        };
+                        sh.shade(blas.mesh_weights(hits.prim[c][j], Vec3::new(1.0 - b1 - b2, b1, b2)), opts)
+                    }
+                }
             };
             let at = (i / TILE as usize) * w + x0 as usize + i % TILE as usize;
             if let Some(px) = out.color.get_mut(at) {

@@ -183,3 +183,67 @@ fn raycast_intersecting_triangles() {
         check(&format!("intersecting triangles {k}"), &scene, &cam, &opts);
     }
 }
+
+/// A smooth-shaded hill whose squares are split `(a, b, c)`, `(c, d, a)`, as many exporters
+/// write them: the ray caster stores each pair as a quad with the second triangle turned,
+/// and still shades with the mesh's vertex order (Gouraud and per-pixel colors agree with
+/// the rasterizer's), and a hit's barycentric weights are those of the mesh's vertices.
+#[test]
+fn raycast_turned_quads_shade_in_mesh_order() {
+    const N: u32 = 24;
+    let height = |x: f32, z: f32| (x * 0.7).sin() * (z * 0.5).cos();
+    let (mut positions, mut normals, mut indices) = (Vec::new(), Vec::new(), Vec::new());
+    for j in 0..=N {
+        for i in 0..=N {
+            let (x, z) = (i as f32 * 0.5 - 6.0, j as f32 * 0.5 - 6.0);
+            positions.push(Vec3::new(x, height(x, z), z));
+            // Normals far from the faces' own: weights in the wrong order show.
+            normals.push(Vec3::new((z * 1.3).sin(), 1.0, (x * 1.1).cos()).normalize());
+        }
+    }
+    let v = |i: u32, j: u32| j * (N + 1) + i;
+    for j in 0..N {
+        for i in 0..N {
+            let (a, b, c, d) = (v(i, j), v(i, j + 1), v(i + 1, j + 1), v(i + 1, j));
+            indices.extend_from_slice(&[a, b, c, c, d, a]);
+        }
+    }
+    let mut scene = Scene::new();
+    let m = scene.add_mesh(Mesh::new("hill", positions, Some(normals), None, indices).unwrap());
+    scene.add_node(None, NodeDesc::new("hill").mesh(m)).unwrap();
+    scene.update_transforms();
+    let cam = Camera::perspective(
+        &LookAt {
+            eye: Vec3::new(4.0, 6.0, 9.0),
+            target: Vec3::ZERO,
+            up: Vec3::Y,
+            fovy: Angle::degrees(60.0),
+            near: 0.1,
+            far: 50.0,
+        },
+        W as f32 / H as f32,
+    )
+    .unwrap();
+    for mode in [sightline_render::ShadingMode::Gouraud, sightline_render::ShadingMode::PerPixel] {
+        let mut opts = RenderOptions::default();
+        opts.shading.mode = mode;
+        check(&format!("turned quads, {mode:?}"), &scene, &cam, &opts);
+    }
+    let caster = RayCaster::build(&scene).unwrap();
+    let mesh = scene.mesh(m).unwrap();
+    let mut turned = 0;
+    for k in 0..40 {
+        let target = Vec3::new(k as f32 * 0.27 - 5.0, 0.0, (k as f32 * 0.61).sin() * 4.0);
+        let (origin, dir) = (Vec3::new(target.x, 5.0, target.z), -Vec3::Y);
+        let hit = caster.intersect(origin, dir, 0.0, 100.0).expect("the ray meets the hill");
+        let sightline_render::raycast::HitTarget::Triangle { triangle, barycentric: b, .. } = hit.target else {
+            panic!("a mesh triangle was hit")
+        };
+        let [p0, p1, p2] = mesh.triangle_positions(triangle as usize);
+        let at = p0 + (p1 - p0) * b.x + (p2 - p0) * b.y;
+        let p = origin + dir * hit.t;
+        assert!(at.distance(p) < 1e-4, "ray {k}: the weights give {at}, the hit is at {p}");
+        turned += triangle % 2;
+    }
+    assert!(turned > 0, "some rays must hit the turned halves");
+}

@@ -2,15 +2,19 @@
 //! allows), built once and shared by every instance of the mesh.
 //!
 //! Meshes made of quads store each quad as two triangles that share a diagonal, and they
-//! usually come one after the other, `(a, b, c)` then `(a, c, d)`: the fan triangulation
-//! that mesh builders and OBJ loaders give a polygon. The BLAS keeps such a pair as one
+//! usually come one after the other: `(a, b, c)` then `(a, c, d)`, the fan triangulation
+//! that mesh builders and OBJ loaders give a polygon, or another rotation of either, such
+//! as the `(a, b, c)`, `(c, d, a)` of many exporters. The BLAS keeps such a pair as one
 //! record of four corners, the quad primitive of Embree (Wald et al. 2014, "Embree: A
 //! Kernel Framework for Efficient CPU Ray Tracing"): the tree has half the primitives, a
 //! record is one cache line (four packed `Vec3`s and the two triangles' mesh indices,
 //! aligned to 64 bytes, against 80 bytes for two triangle records), and a ray test
 //! shears the shared corners and computes the shared edge once for both triangles. Each
-//! triangle keeps its own corners in its own order, so a test of the pair computes, bit
-//! for bit, what tests of the two triangles compute.
+//! triangle keeps its own corners in its own order, turned (a rotation keeps its facing
+//! and its edges, so the watertight test stays watertight) so that the diagonal runs from
+//! its third corner to its first; a test of the pair computes, bit for bit, what tests of
+//! the two triangles in their stored order compute, and [`WideBlas::mesh_barycentric`]
+//! gives a hit's weights back in the mesh's order.
 //!
 //! Two neighbours are paired only when the pair's box is no larger (by surface area) than
 //! their two boxes together: a pair folded over its diagonal would make the tree worse.
@@ -33,7 +37,8 @@ use super::{WideBuildParams, WideBvh};
 pub const NO_TRIANGLE: u32 = u32::MAX;
 
 /// One or two triangles of a [`WideBlas`] that share an edge: triangle 0 is corners
-/// `(0, 1, 2)` and triangle 1 is corners `(0, 2, 3)`, each in its mesh's vertex order.
+/// `(0, 1, 2)` and triangle 1 is corners `(0, 2, 3)`, each its mesh's vertex order turned
+/// by [`BlasQuad::turns`].
 #[derive(Debug, Clone, Copy, PartialEq)]
 #[repr(C, align(64))]
 pub struct BlasQuad {
@@ -41,10 +46,13 @@ pub struct BlasQuad {
     pub corners: [Vec3; 4],
     /// The mesh's index of each triangle ([`NO_TRIANGLE`] for an absent second one).
     pub index: [u32; 2],
+    /// How far each triangle's stored corners are turned from its mesh order: corner `k`
+    /// is the mesh's vertex `(k + turns) % 3` (0, 1 or 2).
+    pub turns: [u8; 2],
 }
 
 impl BlasQuad {
-    /// Corners of triangle `half` (0 or 1), in the mesh's vertex order.
+    /// Corners of triangle `half` (0 or 1), in stored order (see [`BlasQuad::turns`]).
     #[inline(always)]
     pub fn triangle(&self, half: usize) -> [Vec3; 3] {
         let c = &self.corners;
@@ -106,27 +114,48 @@ fn half_area(b: &ObAabb) -> f32 {
     d.x * d.y + d.y * d.z + d.z * d.x
 }
 
-/// Does triangle `b` complete triangle `a` to a quad `(a0, a1, a2, b2)`? It must be
-/// `(a0, a2, _)` and the pair's box no larger than the two boxes together (false for
-/// non-finite corners).
-fn completes(a: &[Vec3; 3], b: &[Vec3; 3]) -> bool {
-    let whole = box_of(&[a[0], a[1], a[2], b[2]]);
-    b[0] == a[0] && b[1] == a[2] && half_area(&whole) <= half_area(&box_of(a)) + half_area(&box_of(b))
+/// Triangle `t` turned by `k` corners: corner `i` is `t[(i + k) % 3]`.
+fn turned(t: &[Vec3; 3], k: u8) -> [Vec3; 3] {
+    let k = k as usize;
+    [t[k % 3], t[(k + 1) % 3], t[(k + 2) % 3]]
 }
 
+/// Does triangle `b` complete triangle `a` to a quad? The turns of `a` and `b` that make
+/// them `(p, q, r)` and `(p, r, s)`, the quad `(p, q, r, s)` (no turns when they already
+/// are): `b` runs one of `a`'s edges the other way, so both face the same way. `None` when
+/// they share no such edge, when the pair's box is larger (by surface area) than the two
+/// boxes together, or for non-finite corners.
+fn completes(a: &[Vec3; 3], b: &[Vec3; 3]) -> Option<[u8; 2]> {
+    let whole = box_of(&[a[0], a[1], a[2], b[0], b[1], b[2]]);
+    let finite = a.iter().chain(b).all(|c| c.is_finite());
+    if !finite || half_area(&whole) > half_area(&box_of(a)) + half_area(&box_of(b)) {
+        return None;
+    }
+    (0..9u8).map(|k| [k % 3, k / 3]).find(|&[ka, kb]| {
+        let (a, b) = (turned(a, ka), turned(b, kb));
+        b[0] == a[0] && b[1] == a[2]
+    })
+}
+
+/// One record before it is stored: the mesh indices of its one or two triangles and their
+/// turns.
+type Pairing = ([u32; 2], [u8; 2]);
+
 /// Pairs each triangle with the next one when it completes it to a quad (greedily, in
-/// order): the mesh indices of each record's one or two triangles.
-fn pair_up(count: usize, corners: &(impl Fn(usize) -> [Vec3; 3] + Sync)) -> Vec<[u32; 2]> {
-    let next: Vec<bool> =
-        (0..count).into_par_iter().map(|i| i + 1 < count && completes(&corners(i), &corners(i + 1))).collect();
+/// order).
+fn pair_up(count: usize, corners: &(impl Fn(usize) -> [Vec3; 3] + Sync)) -> Vec<Pairing> {
+    let next: Vec<Option<[u8; 2]>> = (0..count)
+        .into_par_iter()
+        .map(|i| if i + 1 < count { completes(&corners(i), &corners(i + 1)) } else { None })
+        .collect();
     let mut out = Vec::with_capacity(count / 2 + 1);
     let mut i = 0;
     while i < count {
-        if next[i] {
-            out.push([i as u32, i as u32 + 1]);
+        if let Some(turns) = next[i] {
+            out.push(([i as u32, i as u32 + 1], turns));
             i += 2;
         } else {
-            out.push([i as u32, NO_TRIANGLE]);
+            out.push(([i as u32, NO_TRIANGLE], [0; 2]));
             i += 1;
         }
     }
@@ -146,10 +175,10 @@ impl WideBlas {
                 bvh.order().par_iter().map(|&i| BlasTriangle { corners: corners(i as usize), index: i }).collect();
             return WideBlas { prims: BlasPrims::Triangles(tris), bvh, triangles: count };
         }
-        let quad = |p: [u32; 2]| {
-            let a = corners(p[0] as usize);
-            let d = if p[1] == NO_TRIANGLE { a[2] } else { corners(p[1] as usize)[2] };
-            BlasQuad { corners: [a[0], a[1], a[2], d], index: p }
+        let quad = |(index, turns): Pairing| {
+            let a = turned(&corners(index[0] as usize), turns[0]);
+            let d = if index[1] == NO_TRIANGLE { a[2] } else { turned(&corners(index[1] as usize), turns[1])[2] };
+            BlasQuad { corners: [a[0], a[1], a[2], d], index, turns }
         };
         let bvh = WideBvh::build_fn(records.len(), WideBuildParams::BLAS_QUADS, |i| box_of(&quad(records[i]).corners));
         let quads = bvh.order().par_iter().map(|&i| quad(records[i as usize])).collect();
@@ -179,8 +208,9 @@ impl WideBlas {
     }
 
     /// Triangle `prim`, as a hit names it: slot `prim` of lone triangles, or half
-    /// `prim % 2` of quad slot `prim / 2`. Its corners and its mesh index (`None` past the
-    /// end, or for a quad's absent second triangle).
+    /// `prim % 2` of quad slot `prim / 2`. Its corners in stored order (those a hit's
+    /// barycentric weights refer to) and its mesh index (`None` past the end, or for a
+    /// quad's absent second triangle).
     #[inline]
     pub fn triangle(&self, prim: u32) -> Option<([Vec3; 3], u32)> {
         match &self.prims {
@@ -190,6 +220,22 @@ impl WideBlas {
                 let half = prim as usize % 2;
                 (half == 0 || q.is_pair()).then(|| (q.triangle(half), q.index[half]))
             }
+        }
+    }
+
+    /// A hit's barycentric weights `w` of triangle `prim`'s stored corners as the weights
+    /// of its mesh's vertices, in mesh order (the same unless the quad turned the triangle;
+    /// see [`BlasQuad::turns`]).
+    pub fn mesh_weights(&self, prim: u32, w: Vec3) -> Vec3 {
+        let turns = match &self.prims {
+            BlasPrims::Quads(q) => q.get(prim as usize / 2).map_or(0, |q| q.turns[prim as usize % 2]),
+            BlasPrims::Triangles(_) => 0,
+        };
+        // Stored corner k is mesh vertex (k + turns) % 3.
+        match turns {
+            1 => Vec3::new(w.z, w.x, w.y),
+            2 => Vec3::new(w.y, w.z, w.x),
+            _ => w,
         }
     }
 
@@ -227,6 +273,17 @@ mod tests {
         }
     }
 
+    /// Triangle `i` of [`strip`], with each square's second triangle's corners taken in
+    /// `order`.
+    fn strip_reordered(i: usize, order: [usize; 3]) -> [Vec3; 3] {
+        let t = strip(i);
+        if i.is_multiple_of(2) {
+            t
+        } else {
+            order.map(|k| t[k])
+        }
+    }
+
     /// Every triangle of `mesh` comes back once from the slots of `blas`, with its corners.
     fn assert_all_triangles_once(blas: &WideBlas, count: usize, mesh: impl Fn(usize) -> [Vec3; 3]) {
         let prims = match blas.prims() {
@@ -236,7 +293,11 @@ mod tests {
         let mut seen = vec![false; count];
         for prim in 0..prims as u32 {
             if let Some((corners, i)) = blas.triangle(prim) {
-                assert_eq!(corners, mesh(i as usize));
+                let turns = match blas.prims() {
+                    BlasPrims::Quads(q) => q[prim as usize / 2].turns[prim as usize % 2],
+                    BlasPrims::Triangles(_) => 0,
+                };
+                assert_eq!(corners, turned(&mesh(i as usize), turns));
                 assert!(!std::mem::replace(&mut seen[i as usize], true), "triangle {i} twice");
             }
         }
@@ -263,26 +324,39 @@ mod tests {
         assert_eq!(WideBlas::empty().triangle_count(), 0);
     }
 
+    /// A strip of squares split `(a, b, c)`, `(c, d, a)` pairs as the fan split does: each
+    /// second triangle is stored turned, and a hit's weights go back to the mesh's order.
+    #[test]
+    fn turned_neighbours_pair_and_weights_go_back_to_mesh_order() {
+        let exported = |i: usize| strip_reordered(i, [1, 2, 0]);
+        let blas = WideBlas::build(40, exported);
+        let BlasPrims::Quads(quads) = blas.prims() else { panic!("turned neighbours pair") };
+        assert_eq!(quads.len(), 20);
+        assert!(quads.iter().all(|q| q.turns == [0, 2]));
+        assert_all_triangles_once(&blas, 40, exported);
+        let at = |c: [Vec3; 3], w: Vec3| c[0] * w.x + c[1] * w.y + c[2] * w.z;
+        for prim in 0..40 {
+            let (stored, i) = blas.triangle(prim).unwrap();
+            let w = Vec3::new(0.25, 0.5, 0.25);
+            let m = blas.mesh_weights(prim, w);
+            assert_eq!(at(stored, w), at(exported(i as usize), m), "prim {prim}: {m}");
+            assert_eq!(m == w, i.is_multiple_of(2), "only the turned halves change weights");
+        }
+    }
+
     #[test]
     fn meshes_that_mostly_do_not_pair_keep_lone_triangles() {
-        // Each square's second triangle turned to start at c: no neighbours pair.
-        let turned = |i: usize| {
-            let t = strip(i);
-            if i.is_multiple_of(2) {
-                t
-            } else {
-                [t[1], t[2], t[0]]
-            }
-        };
-        let blas = WideBlas::build(40, turned);
+        // Each square's second triangle mirrored, facing the other way: no neighbours pair.
+        let mirrored = |i: usize| strip_reordered(i, [0, 2, 1]);
+        let blas = WideBlas::build(40, mirrored);
         let BlasPrims::Triangles(tris) = blas.prims() else { panic!("no pairs: lone triangles") };
         blas.bvh().validate(40).unwrap();
         for (k, t) in tris.iter().enumerate() {
             assert_eq!(t.index, blas.bvh().order()[k]);
         }
-        assert_all_triangles_once(&blas, 40, turned);
+        assert_all_triangles_once(&blas, 40, mirrored);
         // A quarter of the triangles in pairs is enough for quads (one pair among four).
-        let some = |i: usize| if i < 2 { strip(i) } else { turned(i + 2) };
+        let some = |i: usize| if i < 2 { strip(i) } else { mirrored(i + 2) };
         assert!(matches!(WideBlas::build(4, some).prims(), BlasPrims::Quads(q) if q.len() == 3));
         assert!(matches!(WideBlas::build(5, some).prims(), BlasPrims::Triangles(_)));
         assert_all_triangles_once(&WideBlas::build(4, some), 4, some);
@@ -292,17 +366,26 @@ mod tests {
     fn only_neighbours_that_make_a_flat_enough_quad_pair_up() {
         let [a, b, c] = strip(0);
         let d = strip(1)[2];
-        assert!(completes(&[a, b, c], &[a, c, d]));
-        // The same triangles in another order, or another rotation, are not this pattern.
-        assert!(!completes(&[a, c, d], &[a, b, c]));
-        assert!(!completes(&[a, b, c], &[c, d, a]));
+        assert_eq!(completes(&[a, b, c], &[a, c, d]), Some([0, 0]));
+        // Other rotations and the other order pair too, turned to the same pattern: the
+        // `(0, 1, 2), (2, 3, 0)` of many exporters, and the second triangle first.
+        assert_eq!(completes(&[a, b, c], &[c, d, a]), Some([0, 2]));
+        assert_eq!(completes(&[b, c, a], &[d, a, c]), Some([2, 1]));
+        assert_eq!(completes(&[a, c, d], &[a, b, c]), Some([1, 2]));
+        // Neighbours that face opposite ways (the shared edge run the same way) do not.
+        assert_eq!(completes(&[a, b, c], &[a, d, c]), None);
+        assert_eq!(completes(&[a, b, c], &[c, a, d]), None);
+        // Nor do triangles that share a corner only.
+        assert_eq!(completes(&[a, b, c], &[c, Vec3::new(2.0, 1.0, 0.0), Vec3::new(2.0, 2.0, 0.0)]), None);
         // A long kite whose halves stick out along x and y: the pair's box (10 × 10) is far
         // larger than the halves' (10 × 1 and 1 × 10).
-        assert!(!completes(&[a, Vec3::new(10.0, 0.0, 0.0), c], &[a, c, Vec3::new(0.0, 10.0, 0.0)]));
+        assert_eq!(completes(&[a, Vec3::new(10.0, 0.0, 0.0), c], &[a, c, Vec3::new(0.0, 10.0, 0.0)]), None);
         // A folded pair that stays compact (a box's corner) still pairs.
-        assert!(completes(&[a, b, c], &[a, c, Vec3::new(1.0, 1.0, 1.0)]));
-        // NaN corners never pair.
+        assert_eq!(completes(&[a, b, c], &[a, c, Vec3::new(1.0, 1.0, 1.0)]), Some([0, 0]));
+        // Non-finite corners never pair, even with a shared edge.
         let nan = Vec3::splat(f32::NAN);
-        assert!(!completes(&[nan, b, c], &[nan, c, d]));
+        assert_eq!(completes(&[nan, b, c], &[nan, c, d]), None);
+        assert_eq!(completes(&[a, b, c], &[a, c, nan]), None);
+        assert_eq!(completes(&[a, b, c], &[a, c, Vec3::INFINITY]), None);
     }
 }
