@@ -13,7 +13,7 @@
 //! triangle keeps its own corners in its own order, turned (a rotation keeps its facing
 //! and its edges, so the watertight test stays watertight) so that the diagonal runs from
 //! its third corner to its first; a test of the pair computes, bit for bit, what tests of
-//! the two triangles in their stored order compute, and [`WideBlas::mesh_barycentric`]
+//! the two triangles in their stored order compute, and [`WideBlas::mesh_weights`]
 //! gives a hit's weights back in the mesh's order.
 //!
 //! Two neighbours are paired only when the pair's box is no larger (by surface area) than
@@ -227,15 +227,20 @@ impl WideBlas {
     /// of its mesh's vertices, in mesh order (the same unless the quad turned the triangle;
     /// see [`BlasQuad::turns`]).
     pub fn mesh_weights(&self, prim: u32, w: Vec3) -> Vec3 {
-        let turns = match &self.prims {
-            BlasPrims::Quads(q) => q.get(prim as usize / 2).map_or(0, |q| q.turns[prim as usize % 2]),
-            BlasPrims::Triangles(_) => 0,
-        };
         // Stored corner k is mesh vertex (k + turns) % 3.
-        match turns {
+        match self.turns(prim) {
             1 => Vec3::new(w.z, w.x, w.y),
             2 => Vec3::new(w.y, w.z, w.x),
             _ => w,
+        }
+    }
+
+    /// How far triangle `prim`'s stored corners are turned from its mesh order
+    /// ([`BlasQuad::turns`]; 0 for lone-triangle records and past the end).
+    fn turns(&self, prim: u32) -> u8 {
+        match &self.prims {
+            BlasPrims::Quads(q) => q.get(prim as usize / 2).map_or(0, |q| q.turns[prim as usize % 2]),
+            BlasPrims::Triangles(_) => 0,
         }
     }
 
@@ -293,11 +298,7 @@ mod tests {
         let mut seen = vec![false; count];
         for prim in 0..prims as u32 {
             if let Some((corners, i)) = blas.triangle(prim) {
-                let turns = match blas.prims() {
-                    BlasPrims::Quads(q) => q[prim as usize / 2].turns[prim as usize % 2],
-                    BlasPrims::Triangles(_) => 0,
-                };
-                assert_eq!(corners, turned(&mesh(i as usize), turns));
+                assert_eq!(corners, turned(&mesh(i as usize), blas.turns(prim)));
                 assert!(!std::mem::replace(&mut seen[i as usize], true), "triangle {i} twice");
             }
         }
