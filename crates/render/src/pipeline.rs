@@ -5,10 +5,10 @@
 //! clearing it. [`Renderer::render`] draws a whole frame, shades it (deferred: only the
 //! final visible pixel of each position is shaded, from its triangle ID), resolves
 //! supersampling and draws the wireframe; it writes every plane, so the target needs no
-//! clear. An occlusion culler draws batch after batch inside a frame [`Session`]
+//! clear. An occlusion culler draws batch after batch inside a frame [`Session`](crate::Session)
 //! ([`Renderer::begin`]): the tiles then keep their part of the z-pyramid up to date,
 //! each batch writes the tiles it drew through to the framebuffer, and
-//! [`Session::finish`] writes the tiles no batch touched as cleared.
+//! [`Session::finish`](crate::Session::finish) writes the tiles no batch touched as cleared.
 //!
 //! Stages and their parallelism (rayon; the image is bit-identical for any thread count):
 //! 1. geometry over chunks of the draw list (contiguous, so submission order is kept);
@@ -77,7 +77,7 @@ pub(crate) enum Target<'a> {
     /// Straight into a framebuffer: tiles load its pixels (or, when `fresh`, start from the
     /// clear values because every pixel will be written) and store them back.
     Frame { fb: &'a mut Framebuffer, fresh: bool },
-    /// Into an open [`Session`] on `fb` (its options give the depth format): tiles load from
+    /// Into an open [`Session`](crate::Session) on `fb` (its options give the depth format): tiles load from
     /// and store to `fb` as in a plain frame (cleared on first use), and keep their pyramid
     /// levels.
     Session { fb: &'a mut Framebuffer },

@@ -189,7 +189,7 @@ fn sum2(a: std::arch::x86_64::__m128i, b: std::arch::x86_64::__m128i) -> (u32, u
 }
 
 /// A row in groups of four pixels with SSE2, branch-free (coverage and the depth test are
-/// unpredictable along the edges of triangles). Same arithmetic as [`row_scalar`], so the same
+/// unpredictable along the edges of triangles). Same arithmetic as `row_scalar`, so the same
 /// result bit for bit. Lanes past the row are masked; they read and rewrite unchanged
 /// values of the next row or of the buffer's padding.
 #[cfg(target_arch = "x86_64")]

@@ -395,9 +395,9 @@ impl BeamPlanes {
         f
     }
 
-    /// [`BeamPlanes::culls`] for the four boxes of a node at once (`[axis][child]` layout),
-    /// as a 4-bit mask: the center–extent form of the plane test, `n·c + |n|·e + d < 0`,
-    /// on four boxes per SIMD operation.
+    /// `BeamPlanes::culls` (the one-box form, kept for the tests) for the four boxes of a
+    /// node at once (`[axis][child]` layout), as a 4-bit mask: the center–extent form of
+    /// the plane test, `n·c + |n|·e + d < 0`, on four boxes per SIMD operation.
     #[inline(always)]
     pub fn culls4(&self, lo: &[[f32; 4]; 3], hi: &[[f32; 4]; 3]) -> u32 {
         if !self.on {
