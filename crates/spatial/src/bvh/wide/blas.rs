@@ -100,6 +100,9 @@ pub struct WideBlas {
     bvh: WideBvh,
     /// Triangles stored.
     triangles: usize,
+    /// True when some quad stores a triangle turned ([`BlasQuad::turns`]): without one, a
+    /// hit's weights need no record read to go back to mesh order.
+    turned: bool,
 }
 
 /// The box of some corners.
@@ -173,7 +176,7 @@ impl WideBlas {
             let bvh = WideBvh::build_fn(count, WideBuildParams::BLAS, |i| box_of(&corners(i)));
             let tris =
                 bvh.order().par_iter().map(|&i| BlasTriangle { corners: corners(i as usize), index: i }).collect();
-            return WideBlas { prims: BlasPrims::Triangles(tris), bvh, triangles: count };
+            return WideBlas { prims: BlasPrims::Triangles(tris), bvh, triangles: count, turned: false };
         }
         let quad = |(index, turns): Pairing| {
             let a = turned(&corners(index[0] as usize), turns[0]);
@@ -182,7 +185,8 @@ impl WideBlas {
         };
         let bvh = WideBvh::build_fn(records.len(), WideBuildParams::BLAS_QUADS, |i| box_of(&quad(records[i]).corners));
         let quads = bvh.order().par_iter().map(|&i| quad(records[i as usize])).collect();
-        WideBlas { prims: BlasPrims::Quads(quads), bvh, triangles: count }
+        let turned = records.iter().any(|(_, turns)| *turns != [0; 2]);
+        WideBlas { prims: BlasPrims::Quads(quads), bvh, triangles: count, turned }
     }
 
     /// A BLAS with no triangles.
@@ -226,6 +230,7 @@ impl WideBlas {
     /// A hit's barycentric weights `w` of triangle `prim`'s stored corners as the weights
     /// of its mesh's vertices, in mesh order (the same unless the quad turned the triangle;
     /// see [`BlasQuad::turns`]).
+    #[inline]
     pub fn mesh_weights(&self, prim: u32, w: Vec3) -> Vec3 {
         // Stored corner k is mesh vertex (k + turns) % 3.
         match self.turns(prim) {
@@ -237,7 +242,11 @@ impl WideBlas {
 
     /// How far triangle `prim`'s stored corners are turned from its mesh order
     /// ([`BlasQuad::turns`]; 0 for lone-triangle records and past the end).
+    #[inline]
     fn turns(&self, prim: u32) -> u8 {
+        if !self.turned {
+            return 0;
+        }
         match &self.prims {
             BlasPrims::Quads(q) => q.get(prim as usize / 2).map_or(0, |q| q.turns[prim as usize % 2]),
             BlasPrims::Triangles(_) => 0,
