@@ -36,40 +36,13 @@ pub mod traverse;
 pub mod triangles;
 pub mod wide;
 
-use glam::Vec3;
+pub use nodes::BvhNode;
+
 use obvhs::bvh2::{leaf_collapser::collapse, reinsertion::ReinsertionOptimizer};
 use obvhs::BvhBuildParams;
 use sightline_scene::Aabb;
 
 use crate::{AabbExt, BoxKind};
-
-/// A BVH node: a box and either two children (`count == 0`: children `index`, `index + 1`) or
-/// a range of items (`count > 0`: `items[index .. index + count]`).
-#[derive(Debug, Clone, Copy, PartialEq)]
-#[repr(C)]
-pub struct BvhNode {
-    /// Smallest corner.
-    pub min: Vec3,
-    /// Number of items (0 for inner nodes).
-    pub count: u32,
-    /// Largest corner.
-    pub max: Vec3,
-    /// First child (inner) or first item slot (leaf).
-    pub index: u32,
-}
-
-impl BvhNode {
-    /// The node's box.
-    #[inline]
-    pub fn aabb(&self) -> Aabb {
-        Aabb::new(self.min, self.max)
-    }
-    /// True for leaves.
-    #[inline]
-    pub fn is_leaf(&self) -> bool {
-        self.count > 0
-    }
-}
 
 /// Build quality/speed presets (obvhs's `BvhBuildParams`), fastest first.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
@@ -314,6 +287,7 @@ impl Bvh {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use glam::Vec3;
 
     /// `n` random boxes over a 100 × 10 × 100 area (also the refit tests' input).
     pub(super) fn random_boxes(n: usize, seed: u64) -> Vec<Aabb> {

@@ -1,4 +1,5 @@
-//! The node array of a [`super::Bvh`], laid out so that every sibling pair is one cache line.
+//! The nodes of a [`super::Bvh`], and their array, laid out so that every sibling pair is
+//! one cache line.
 //!
 //! A node is 32 bytes and the root is alone at index 0, so the pairs are nodes `(1, 2)`,
 //! `(3, 4)`, …: a pair fills 64 bytes, exactly one line when it starts on one. A `Vec` from
@@ -11,7 +12,36 @@
 use std::fmt;
 use std::ops::{Deref, DerefMut};
 
-use super::BvhNode;
+use glam::Vec3;
+use sightline_scene::Aabb;
+
+/// A BVH node: a box and either two children (`count == 0`: children `index`, `index + 1`) or
+/// a range of items (`count > 0`: `items[index .. index + count]`).
+#[derive(Debug, Clone, Copy, PartialEq)]
+#[repr(C)]
+pub struct BvhNode {
+    /// Smallest corner.
+    pub min: Vec3,
+    /// Number of items (0 for inner nodes).
+    pub count: u32,
+    /// Largest corner.
+    pub max: Vec3,
+    /// First child (inner) or first item slot (leaf).
+    pub index: u32,
+}
+
+impl BvhNode {
+    /// The node's box.
+    #[inline]
+    pub fn aabb(&self) -> Aabb {
+        Aabb::new(self.min, self.max)
+    }
+    /// True for leaves.
+    #[inline]
+    pub fn is_leaf(&self) -> bool {
+        self.count > 0
+    }
+}
 
 /// Two nodes on one cache line.
 #[derive(Clone, Copy)]
@@ -19,7 +49,7 @@ use super::BvhNode;
 struct Line([BvhNode; 2]);
 
 /// The padding before the root, and the empty slot after an even node count.
-const PAD: BvhNode = BvhNode { min: glam::Vec3::ZERO, count: 0, max: glam::Vec3::ZERO, index: 0 };
+const PAD: BvhNode = BvhNode { min: Vec3::ZERO, count: 0, max: Vec3::ZERO, index: 0 };
 
 /// A BVH's nodes, root first, with every sibling pair on its own cache line; derefs to
 /// `[BvhNode]`.
@@ -93,7 +123,6 @@ impl fmt::Debug for NodeArray {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use glam::Vec3;
 
     fn node(i: u32) -> BvhNode {
         BvhNode { min: Vec3::splat(i as f32), count: i, max: Vec3::splat(i as f32 + 1.0), index: 2 * i }
