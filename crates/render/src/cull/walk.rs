@@ -99,25 +99,20 @@ impl Clusters {
     /// Drops clusters whose triangles all face away from the eye (normal cones), counting them.
     fn drop_backfacing(&self, items: &mut Vec<Visible>, eye: glam::Vec3, cs: &mut CullStats) {
         let n = items.len();
-        // The clusters' records are scattered over memory: ask for the cones a few ahead,
-        // and for the draw records that `sources` reads next.
-        for v in items.iter().take(PREFETCH_AHEAD).filter(|v| self.can_cull(v.index)) {
-            prefetch(&self.cones[v.index as usize]);
-        }
-        let mut kept = 0;
-        for k in 0..n {
-            if let Some(a) = items.get(k + PREFETCH_AHEAD).filter(|a| self.can_cull(a.index)) {
-                prefetch(&self.cones[a.index as usize]);
+        // Ask for the cones ahead, and for the draw records that `sources` reads next.
+        let ahead = |v: &Visible| {
+            if self.can_cull(v.index) {
+                prefetch(&self.cones[v.index as usize]);
             }
-            let v = items[k];
-            if !self.faces_away(v.index, eye) {
+        };
+        retain_ahead(items, ahead, |v| {
+            let keep = !self.faces_away(v.index, eye);
+            if keep {
                 prefetch(&self.draws[v.index as usize]);
-                items[kept] = v;
-                kept += 1;
             }
-        }
-        items.truncate(kept);
-        cs.culled_by_backface += (n - kept) as u64;
+            keep
+        });
+        cs.culled_by_backface += (n - items.len()) as u64;
     }
 
     /// The draw sources of the given items (cluster indices, `index` of each element), in
@@ -314,19 +309,36 @@ impl Clusters {
         // is itself inside), so the set is the one the walk would find, at a cost that grows
         // with last frame's visible clusters, not with those in view.
         let eye = f.camera.view.eye;
-        let mut first: Vec<u32> = std::mem::take(&mut two.last_visible);
         let boxes = &self.item_boxes;
-        first.retain(|&i| boxes.get(i as usize).is_some_and(|b| frustum.classify(b) != Containment::Outside));
-        if f.opts.backface_culling {
-            // Not counted here: the walk meets them again and counts them once.
-            first.retain(|&i| !self.faces_away(i, eye));
-        }
-        // Front to back (by the distance from the eye to each box): the rasterizer's coarse
-        // depth then skips the 8×8 blocks that nearer clusters of the same batch already hide. The set keeps the order it was found in otherwise,
-        // which goes stale as the camera moves.
-        // (A distance is ≥ 0, so its bits order like it; NaN sorts last.) The example
-        // `culling_bound` orders its reference frame by the same key.
-        first.sort_unstable_by_key(|&i| (boxes[i as usize].distance_squared(eye).to_bits(), i));
+        let backface = f.opts.backface_culling;
+        // (key, cluster): the key is set for the clusters kept.
+        let mut keyed: Vec<(u32, u32)> = two.last_visible.drain(..).map(|i| (0, i)).collect();
+        let ahead = |&(_, i): &(u32, u32)| {
+            if let (Some(b), Some(d)) = (boxes.get(i as usize), two.drawn_in.get(i as usize)) {
+                prefetch(b);
+                prefetch(d);
+                if backface && self.can_cull(i) {
+                    prefetch(&self.cones[i as usize]);
+                }
+            }
+        };
+        retain_ahead(&mut keyed, ahead, |(key, i)| {
+            let Some(b) = boxes.get(*i as usize) else { return false };
+            // Not counted here when facing away: the walk meets them again and counts them once.
+            if frustum.classify(b) == Containment::Outside || backface && self.faces_away(*i, eye) {
+                return false;
+            }
+            // Front to back (by the distance from the eye to each box): the rasterizer's
+            // coarse depth then skips the 8×8 blocks that nearer clusters of the same batch
+            // already hide. The set keeps the order it was found in otherwise, which goes
+            // stale as the camera moves. (A distance is ≥ 0, so its bits order like it; NaN
+            // sorts last.) The example `culling_bound` orders its reference frame by the same
+            // key.
+            *key = b.distance_squared(eye).to_bits();
+            true
+        });
+        keyed.sort_unstable();
+        let first: Vec<u32> = keyed.iter().map(|&(_, i)| i).collect();
         for &i in &first {
             two.drawn_in[i as usize] = frame;
         }
@@ -363,5 +375,70 @@ impl Clusters {
             two.last_visible.clear();
         }
         result
+    }
+}
+
+/// `items.retain_mut(keep)` over items whose data lies scattered in memory: `ahead(item)`,
+/// which asks for what `keep` will read of an item, runs [`PREFETCH_AHEAD`] items before
+/// `keep`, so that the waits on memory overlap instead of following one another. In a big
+/// scene a frame's few thousand clusters each have their box, cone and frame number in
+/// arrays of hundreds of megabytes.
+fn retain_ahead<T: Copy>(items: &mut Vec<T>, ahead: impl Fn(&T), mut keep: impl FnMut(&mut T) -> bool) {
+    items.iter().take(PREFETCH_AHEAD).for_each(&ahead);
+    let mut kept = 0;
+    for k in 0..items.len() {
+        if let Some(a) = items.get(k + PREFETCH_AHEAD) {
+            ahead(a);
+        }
+        let mut v = items[k];
+        if keep(&mut v) {
+            items[kept] = v;
+            kept += 1;
+        }
+    }
+    items.truncate(kept);
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// `retain_ahead` keeps what `retain_mut` keeps, in order, with the changes `keep` made,
+    /// and asks ahead for every item once, before `keep` sees it, for any length.
+    #[test]
+    fn retain_ahead_is_retain_mut_with_every_item_asked_for_first() {
+        for n in 0..40u32 {
+            let items: Vec<u32> = (0..n).map(|i| i * 7 % 13).collect();
+            let keep = |v: &mut u32| {
+                *v += 100;
+                !v.is_multiple_of(3)
+            };
+            let mut want = items.clone();
+            want.retain_mut(keep);
+            let log = std::cell::RefCell::new(Vec::new());
+            let mut got: Vec<(u32, u32)> = items.iter().copied().enumerate().map(|(k, v)| (k as u32, v)).collect();
+            retain_ahead(
+                &mut got,
+                |&(k, _)| log.borrow_mut().push(('a', k)),
+                |(k, v)| {
+                    log.borrow_mut().push(('k', *k));
+                    keep(v)
+                },
+            );
+            assert_eq!(got.iter().map(|p| p.1).collect::<Vec<_>>(), want, "n = {n}");
+            let log = log.into_inner();
+            for k in 0..n {
+                let at = |c| log.iter().position(|&e| e == (c, k));
+                assert_eq!(log.iter().filter(|&&e| e == ('a', k)).count(), 1, "n = {n}: item {k} asked for once");
+                assert!(at('a') < at('k'), "n = {n}: item {k} asked for before it is tested");
+                if k >= PREFETCH_AHEAD as u32 {
+                    let early = at('k').zip(log.iter().position(|&e| e == ('k', k - PREFETCH_AHEAD as u32)));
+                    assert!(
+                        early.is_some_and(|(_, before)| at('a').unwrap() < before),
+                        "n = {n}: item {k} asked for ahead"
+                    );
+                }
+            }
+        }
     }
 }
