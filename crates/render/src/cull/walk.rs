@@ -312,7 +312,7 @@ impl Clusters {
         let boxes = &self.item_boxes;
         let backface = f.opts.backface_culling;
         // (key, cluster): the key is set for the clusters kept.
-        let mut keyed: Vec<(u32, u32)> = two.last_visible.drain(..).map(|i| (0, i)).collect();
+        let mut first: Vec<(u32, u32)> = two.last_visible.drain(..).map(|i| (0, i)).collect();
         let ahead = |&(_, i): &(u32, u32)| {
             if let (Some(b), Some(d)) = (boxes.get(i as usize), two.drawn_in.get(i as usize)) {
                 prefetch(b);
@@ -322,7 +322,7 @@ impl Clusters {
                 }
             }
         };
-        retain_ahead(&mut keyed, ahead, |(key, i)| {
+        retain_ahead(&mut first, ahead, |(key, i)| {
             let Some(b) = boxes.get(*i as usize) else { return false };
             // Not counted here when facing away: the walk meets them again and counts them once.
             if frustum.classify(b) == Containment::Outside || backface && self.faces_away(*i, eye) {
@@ -337,16 +337,15 @@ impl Clusters {
             *key = b.distance_squared(eye).to_bits();
             true
         });
-        keyed.sort_unstable();
-        let first: Vec<u32> = keyed.iter().map(|&(_, i)| i).collect();
-        for &i in &first {
+        first.sort_unstable();
+        for &(_, i) in &first {
             two.drawn_in[i as usize] = frame;
         }
         f.cs.ms_cull += ms_since(t);
         let mut result = Ok(());
         if !first.is_empty() {
             let t = Instant::now();
-            result = self.draw(s, &first, |&i| i, f);
+            result = self.draw(s, &first, |&(_, i)| i, f);
             f.cs.ms_draw += ms_since(t);
             f.cs.batches += 1;
         }
@@ -363,11 +362,11 @@ impl Clusters {
         let pyramid = s.pyramid();
         let projector = self.projector(f.camera, pyramid.width(), pyramid.height());
         let q = OcclusionQueries::with_projector(projector, pyramid);
-        let boxes: Vec<Aabb> = first.iter().map(|&i| self.item_boxes[i as usize]).collect();
+        let boxes: Vec<Aabb> = first.iter().map(|&(_, i)| self.item_boxes[i as usize]).collect();
         let mut verdicts = Vec::new();
         q.test_batch(&boxes, &mut verdicts);
         let visible = |v: &&BoxVisibility| **v == BoxVisibility::Visible;
-        two.last_visible.extend(first.iter().zip(&verdicts).filter(|(_, v)| visible(v)).map(|(&i, _)| i));
+        two.last_visible.extend(first.iter().zip(&verdicts).filter(|(_, v)| visible(v)).map(|(&(_, i), _)| i));
         f.cs.occlusion_tests += first.len() as u64;
         f.cs.occluded_boxes += verdicts.iter().filter(|v| !visible(v)).count() as u64;
         f.cs.ms_cull += ms_since(t);
