@@ -313,6 +313,8 @@ impl Clusters {
         let backface = f.opts.backface_culling;
         // (key, cluster): the key is set for the clusters kept.
         let mut first: Vec<(u32, u32)> = two.last_visible.drain(..).map(|i| (0, i)).collect();
+        // Each cluster's box and cone, which the test below reads, and its frame number,
+        // which the marking after the sort writes.
         let ahead = |&(_, i): &(u32, u32)| {
             if let (Some(b), Some(d)) = (boxes.get(i as usize), two.drawn_in.get(i as usize)) {
                 prefetch(b);
@@ -378,8 +380,9 @@ impl Clusters {
 }
 
 /// `items.retain_mut(keep)` over items whose data lies scattered in memory: `ahead(item)`,
-/// which asks for what `keep` will read of an item, runs [`PREFETCH_AHEAD`] items before
-/// `keep`, so that the waits on memory overlap instead of following one another. In a big
+/// which asks for what `keep` (or the caller, soon after) will read of an item, runs
+/// [`PREFETCH_AHEAD`] items before `keep`, so that the waits on memory overlap instead of
+/// following one another. In a big
 /// scene a frame's few thousand clusters each have their box, cone and frame number in
 /// arrays of hundreds of megabytes.
 fn retain_ahead<T: Copy>(items: &mut Vec<T>, ahead: impl Fn(&T), mut keep: impl FnMut(&mut T) -> bool) {
