@@ -188,8 +188,16 @@ fn raycast_intersecting_triangles() {
 /// write them: the ray caster stores each pair as a quad with the second triangle turned,
 /// and still shades with the mesh's vertex order (Gouraud and per-pixel colors agree with
 /// the rasterizer's), and a hit's barycentric weights are those of the mesh's vertices.
+/// The same with the hill's triangles shuffled, so that no two halves of a square are
+/// neighbours in the mesh: they pair across their shared edge all the same.
 #[test]
 fn raycast_turned_quads_shade_in_mesh_order() {
+    for shuffled in [false, true] {
+        turned_quads_shade_in_mesh_order(shuffled);
+    }
+}
+
+fn turned_quads_shade_in_mesh_order(shuffled: bool) {
     const N: u32 = 24;
     let height = |x: f32, z: f32| (x * 0.7).sin() * (z * 0.5).cos();
     let (mut positions, mut normals, mut indices) = (Vec::new(), Vec::new(), Vec::new());
@@ -207,6 +215,16 @@ fn raycast_turned_quads_shade_in_mesh_order() {
             let (a, b, c, d) = (v(i, j), v(i, j + 1), v(i + 1, j + 1), v(i + 1, j));
             indices.extend_from_slice(&[a, b, c, c, d, a]);
         }
+    }
+    if shuffled {
+        // Triangle t goes to place 7t + 3 (mod 2N², which 7 does not divide).
+        let n = indices.len() / 3;
+        let mut moved = vec![0; indices.len()];
+        for t in 0..n {
+            let to = (7 * t + 3) % n;
+            moved[3 * to..3 * to + 3].copy_from_slice(&indices[3 * t..3 * t + 3]);
+        }
+        indices = moved;
     }
     let mut scene = Scene::new();
     let m = scene.add_mesh(Mesh::new("hill", positions, Some(normals), None, indices).unwrap());
@@ -227,10 +245,13 @@ fn raycast_turned_quads_shade_in_mesh_order() {
     for mode in [sightline_render::ShadingMode::Gouraud, sightline_render::ShadingMode::PerPixel] {
         let mut opts = RenderOptions::default();
         opts.shading.mode = mode;
-        check(&format!("turned quads, {mode:?}"), &scene, &cam, &opts);
+        check(&format!("turned quads (shuffled: {shuffled}), {mode:?}"), &scene, &cam, &opts);
     }
     let caster = RayCaster::build(&scene).unwrap();
     let mesh = scene.mesh(m).unwrap();
+    let blas = sightline_spatial::bvh::wide::WideBlas::from_mesh(mesh);
+    let sightline_spatial::bvh::wide::BlasPrims::Quads(quads) = blas.prims() else { panic!("the hill pairs up") };
+    assert!(quads.iter().all(|q| q.is_pair()), "shuffled: {shuffled}");
     let mut turned = 0;
     for k in 0..40 {
         let target = Vec3::new(k as f32 * 0.27 - 5.0, 0.0, (k as f32 * 0.61).sin() * 4.0);
@@ -243,7 +264,9 @@ fn raycast_turned_quads_shade_in_mesh_order() {
         let at = p0 + (p1 - p0) * b.x + (p2 - p0) * b.y;
         let p = origin + dir * hit.t;
         assert!(at.distance(p) < 1e-4, "ray {k}: the weights give {at}, the hit is at {p}");
-        turned += triangle % 2;
+        // The second triangle of each square, `(c, d, a)` with c = a + N + 2, is turned.
+        let t = &mesh.indices()[3 * triangle as usize..][..3];
+        turned += (t[0] == t[2] + N + 2) as u32;
     }
     assert!(turned > 0, "some rays must hit the turned halves");
 }

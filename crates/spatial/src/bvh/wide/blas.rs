@@ -16,7 +16,12 @@
 //! the two triangles in their stored order compute, and [`WideBlas::mesh_weights`]
 //! gives a hit's weights back in the mesh's order.
 //!
-//! Two neighbours are paired only when the pair's box is no larger (by surface area) than
+//! Triangles that share an edge but not a place in the mesh pair too: meshes reordered for
+//! the vertex cache, or triangulated in another order, would otherwise keep their triangles
+//! apart. So after each triangle has tried the next one, the triangles left meet across
+//! their edges, matched by sorting ([`pair_up`]).
+//!
+//! Two triangles are paired only when the pair's box is no larger (by surface area) than
 //! their two boxes together: a pair folded over its diagonal would make the tree worse.
 //! A triangle without a partner is a record of its own, whose second triangle is absent.
 //! A BVH over quads has one quad per leaf. A mesh of which fewer than half the triangles
@@ -28,10 +33,12 @@
 
 use glam::{Affine3A, Vec3, Vec3A};
 use obvhs::aabb::Aabb as ObAabb;
+use rayon::iter::Either;
 use rayon::prelude::*;
 use sightline_scene::{Aabb, Mesh};
 
 use super::{WideBuildParams, WideBvh};
+use crate::prefetch_all;
 
 /// [`BlasQuad::index`] of a quad's absent second triangle.
 pub const NO_TRIANGLE: u32 = u32::MAX;
@@ -96,7 +103,7 @@ pub struct WideBlas {
     /// The primitives, in leaf order.
     prims: BlasPrims,
     /// The tree over the primitives; `bvh.order()[k]` is the primitive stored in slot `k`
-    /// (quads numbered in the order the pairing made them, which is mesh order).
+    /// (quads numbered in order of their first triangle's mesh index).
     bvh: WideBvh,
     /// Triangles stored.
     triangles: usize,
@@ -123,15 +130,37 @@ fn turned(t: &[Vec3; 3], k: u8) -> [Vec3; 3] {
     [t[k % 3], t[(k + 1) % 3], t[(k + 2) % 3]]
 }
 
+/// How tightly triangles `a` and `b` fill the box of their pair: its surface area over the
+/// sum of their own boxes' (1 at most for a pair that makes the tree no worse; 0.5 for the
+/// two halves of a square, 1 for two neighbours across a square's side). Infinite for
+/// non-finite corners, 0 for two points.
+fn pair_fit(a: &[Vec3; 3], b: &[Vec3; 3]) -> f32 {
+    if !a.iter().chain(b).all(|c| c.is_finite()) {
+        return f32::INFINITY;
+    }
+    let whole = half_area(&box_of(&[a[0], a[1], a[2], b[0], b[1], b[2]]));
+    let parts = half_area(&box_of(a)) + half_area(&box_of(b));
+    if parts > 0.0 {
+        whole / parts
+    } else if whole > 0.0 {
+        f32::INFINITY
+    } else {
+        0.0
+    }
+}
+
 /// Does triangle `b` complete triangle `a` to a quad? The turns of `a` and `b` that make
 /// them `(p, q, r)` and `(p, r, s)`, the quad `(p, q, r, s)` (no turns when they already
 /// are): `b` runs one of `a`'s edges the other way, so both face the same way. `None` when
 /// they share no such edge, when the pair's box is larger (by surface area) than the two
-/// boxes together, or for non-finite corners.
+/// boxes together ([`pair_fit`] above 1), or for non-finite corners.
 fn completes(a: &[Vec3; 3], b: &[Vec3; 3]) -> Option<[u8; 2]> {
-    let whole = box_of(&[a[0], a[1], a[2], b[0], b[1], b[2]]);
-    let finite = a.iter().chain(b).all(|c| c.is_finite());
-    if !finite || half_area(&whole) > half_area(&box_of(a)) + half_area(&box_of(b)) {
+    completes_within(a, b, pair_fit(a, b))
+}
+
+/// [`completes`] with the pair's [`pair_fit`] known.
+fn completes_within(a: &[Vec3; 3], b: &[Vec3; 3], fit: f32) -> Option<[u8; 2]> {
+    if fit > 1.0 {
         return None;
     }
     (0..9u8).map(|k| [k % 3, k / 3]).find(|&[ka, kb]| {
@@ -144,47 +173,171 @@ fn completes(a: &[Vec3; 3], b: &[Vec3; 3]) -> Option<[u8; 2]> {
 /// turns.
 type Pairing = ([u32; 2], [u8; 2]);
 
-/// Pairs each triangle with the next one when it completes it to a quad (greedily, in
-/// order).
-fn pair_up(count: usize, corners: &(impl Fn(usize) -> [Vec3; 3] + Sync)) -> Vec<Pairing> {
+/// Up to this many candidates an edge gives [`pair_up`] all its pairs of triangles that
+/// run it opposite ways; an edge crowded with more (coincident triangles) gives only its
+/// `k`-th triangle one way with its `k`-th the other way, so that it costs no quadratic
+/// search.
+const EDGE_CANDIDATES: usize = 16;
+
+/// Candidates ahead of the one [`pair_up`] tests whose corners it asks for.
+const CORNERS_AHEAD: usize = 16;
+
+/// Pairs triangles into quads, in two greedy passes.
+///
+/// 1. Each triangle with the next one when it completes it: the fan- or strip-made meshes
+///    of builders and exporters pair this way, their records in mesh order.
+/// 2. The triangles left with each other across a shared edge, whatever their places in the
+///    mesh (meshes reordered for the vertex cache, or triangulated in some other order):
+///    their edges, keyed by a hash of the two corners' bits taken in a fixed order and
+///    marked by the way they run, are sorted so that the triangles on one edge lie
+///    together; two that run it opposite ways make a candidate (see [`EDGE_CANDIDATES`]),
+///    tested by [`completes`] in parallel, and the candidates that complete are taken
+///    tightest first ([`pair_fit`]; ties in order of their mesh indices) while both
+///    triangles are still free. Without that order a facade's triangles would pair across
+///    the sides of its cells about as often as across their diagonals, into quads whose
+///    boxes are two cells wide: on the street path of a city shuffled so, rays were about
+///    5% slower than with no pairs at all.
+///
+/// Records come in order of their first triangle's mesh index. Linear but for the sorts.
+fn pair_up(tris: &[[Vec3; 3]]) -> Vec<Pairing> {
+    let count = tris.len();
     let next: Vec<Option<[u8; 2]>> = (0..count)
         .into_par_iter()
-        .map(|i| if i + 1 < count { completes(&corners(i), &corners(i + 1)) } else { None })
+        .map(|i| if i + 1 < count { completes(&tris[i], &tris[i + 1]) } else { None })
         .collect();
     let mut out = Vec::with_capacity(count / 2 + 1);
+    let mut lone = Vec::new();
     let mut i = 0;
     while i < count {
         if let Some(turns) = next[i] {
             out.push(([i as u32, i as u32 + 1], turns));
             i += 2;
         } else {
-            out.push(([i as u32, NO_TRIANGLE], [0; 2]));
+            lone.push(i as u32);
             i += 1;
         }
     }
+    // (fit, triangles, turns) of the candidates that complete, tightest first. The
+    // candidates come in the order of their edges' keys, so their triangles lie anywhere:
+    // each asks ahead for the corners it will read.
+    let candidates = across_edges(tris, &lone);
+    let mut fits: Vec<(u32, [u32; 2], [u8; 2])> = candidates
+        .par_chunks(4096)
+        .flat_map_iter(|chunk| {
+            chunk.iter().enumerate().filter_map(|(k, &[a, b])| {
+                if let Some(&[a, b]) = chunk.get(k + CORNERS_AHEAD) {
+                    prefetch_all(std::slice::from_ref(&tris[a as usize]));
+                    prefetch_all(std::slice::from_ref(&tris[b as usize]));
+                }
+                let (ta, tb) = (&tris[a as usize], &tris[b as usize]);
+                let fit = pair_fit(ta, tb);
+                // A fit is ≥ 0 here, so its bits order like it.
+                completes_within(ta, tb, fit).map(|turns| (fit.to_bits(), [a, b], turns))
+            })
+        })
+        .collect();
+    fits.par_sort_unstable();
+    let mut paired = vec![false; if fits.is_empty() { 0 } else { count }];
+    for (_, [a, b], turns) in fits {
+        if !paired[a as usize] && !paired[b as usize] {
+            paired[a as usize] = true;
+            paired[b as usize] = true;
+            out.push(([a, b], turns));
+        }
+    }
+    let unpaired = |i: &&u32| paired.get(**i as usize) != Some(&true);
+    out.extend(lone.iter().filter(unpaired).map(|&i| ([i, NO_TRIANGLE], [0; 2])));
+    out.par_sort_unstable_by_key(|r| r.0[0]);
     out
+}
+
+/// The pairs `[a, b]` (`a < b`; possibly repeated, for triangles that share two edges) of
+/// triangles `lone` (of `tris`) that run a shared edge opposite ways, as [`pair_up`] finds
+/// them. Empty when a triangle's index needs more than 31 bits (a mesh of 2^31 triangles
+/// would not fit in memory anyway).
+fn across_edges(tris: &[[Vec3; 3]], lone: &[u32]) -> Vec<[u32; 2]> {
+    const TRIANGLE: u64 = (1 << 31) - 1;
+    if lone.last().is_some_and(|&i| i as u64 > TRIANGLE) {
+        return Vec::new();
+    }
+    // Each edge as one word, sorted as fast as a word sorts: the key in the high 32 bits,
+    // then whether the edge runs forward, then the triangle.
+    let mut edges: Vec<u64> = lone
+        .par_iter()
+        .flat_map_iter(|&i| {
+            let c = tris[i as usize];
+            (0..3).map(move |k| {
+                let (key, forward) = edge_key(c[k], c[(k + 1) % 3]);
+                key << 32 | (forward as u64) << 31 | i as u64
+            })
+        })
+        .collect();
+    edges.par_sort_unstable();
+    let pair = |a: &u64, b: &u64| {
+        let (a, b) = ((a & TRIANGLE) as u32, (b & TRIANGLE) as u32);
+        (a != b).then(|| [a.min(b), a.max(b)])
+    };
+    edges
+        .par_chunk_by(|a, b| a >> 32 == b >> 32)
+        .flat_map_iter(|run| {
+            let (back, forth) = run.split_at(run.partition_point(|e| e >> 31 & 1 == 0));
+            let crowded = back.len() * forth.len() > EDGE_CANDIDATES;
+            let pairs = if crowded {
+                Either::Left(back.iter().zip(forth))
+            } else {
+                Either::Right(back.iter().flat_map(move |a| forth.iter().map(move |b| (a, b))))
+            };
+            pairs.filter_map(move |(a, b)| pair(a, b))
+        })
+        .collect()
+}
+
+/// A 32-bit hash of the edge between corners `p` and `q`, the same either way round, and
+/// whether it runs from the smaller corner (by bits) to the larger. `+ 0.0` makes −0 and +0
+/// one corner. Equal edges get equal keys; [`completes`] checks the corners themselves, so
+/// edges that share a key by chance (a few hundred among the three million edges of a
+/// shuffled 10^6-triangle mesh) only add candidates that fail.
+fn edge_key(p: Vec3, q: Vec3) -> (u64, bool) {
+    let bits = |v: Vec3| (v + Vec3::ZERO).to_array().map(f32::to_bits);
+    let (p, q) = (bits(p), bits(q));
+    let forward = p <= q;
+    let (lo, hi) = if forward { (p, q) } else { (q, p) };
+    // FxHash's step (rustc's hasher) over the six words, then the MurmurHash3 finalizer's
+    // mix of the high bits down (Stafford's variant 13).
+    let mut h = 0u64;
+    for w in lo.into_iter().chain(hi) {
+        h = (h.rotate_left(5) ^ w as u64).wrapping_mul(0x517c_c1b7_2722_0a95);
+    }
+    h = (h ^ (h >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
+    h = (h ^ (h >> 27)).wrapping_mul(0x94d0_49bb_1331_11eb);
+    ((h ^ (h >> 31)) >> 32, forward)
 }
 
 impl WideBlas {
     /// Builds over `count` triangles whose corners `corners(i)` gives, as quads when at
-    /// least half of them pair up with their neighbour, else as lone triangles (corners
-    /// read for the pairing, the boxes and the copy in leaf order, each in parallel).
+    /// least half of them pair up (see the module's header), else as lone triangles (corners
+    /// read once, in parallel, for the pairing, the boxes and the copy in leaf order).
     pub fn build(count: usize, corners: impl Fn(usize) -> [Vec3; 3] + Sync) -> WideBlas {
-        let records = pair_up(count, &corners);
+        // Each triangle's corners read once: in a mesh whose triangles are not stored near
+        // their neighbours, each read misses the cache four times (an index, then three
+        // positions), and the pairing, the boxes and the copy in leaf order each read them.
+        let tris: Vec<[Vec3; 3]> = (0..count).into_par_iter().map(&corners).collect();
+        let records = pair_up(&tris);
         // Each pair saves a record.
         if 4 * (count - records.len()) < count {
-            let bvh = WideBvh::build_fn(count, WideBuildParams::BLAS, |i| box_of(&corners(i)));
-            let tris =
-                bvh.order().par_iter().map(|&i| BlasTriangle { corners: corners(i as usize), index: i }).collect();
-            return WideBlas { prims: BlasPrims::Triangles(tris), bvh, triangles: count, turned: false };
+            let bvh = WideBvh::build_fn(count, WideBuildParams::BLAS, |i| box_of(&tris[i]));
+            let lone = bvh.order().par_iter().map(|&i| BlasTriangle { corners: tris[i as usize], index: i }).collect();
+            return WideBlas { prims: BlasPrims::Triangles(lone), bvh, triangles: count, turned: false };
         }
-        let quad = |(index, turns): Pairing| {
-            let a = turned(&corners(index[0] as usize), turns[0]);
-            let d = if index[1] == NO_TRIANGLE { a[2] } else { turned(&corners(index[1] as usize), turns[1])[2] };
+        let quad = |&(index, turns): &Pairing| {
+            let a = turned(&tris[index[0] as usize], turns[0]);
+            let d = if index[1] == NO_TRIANGLE { a[2] } else { turned(&tris[index[1] as usize], turns[1])[2] };
             BlasQuad { corners: [a[0], a[1], a[2], d], index, turns }
         };
-        let bvh = WideBvh::build_fn(records.len(), WideBuildParams::BLAS_QUADS, |i| box_of(&quad(records[i]).corners));
-        let quads = bvh.order().par_iter().map(|&i| quad(records[i as usize])).collect();
+        // Made once, in record order: a pair found across the mesh reads two far places.
+        let made: Vec<BlasQuad> = records.par_iter().map(quad).collect();
+        let bvh = WideBvh::build_fn(made.len(), WideBuildParams::BLAS_QUADS, |i| box_of(&made[i].corners));
+        let quads = bvh.order().par_iter().map(|&i| made[i as usize]).collect();
         let turned = records.iter().any(|(_, turns)| *turns != [0; 2]);
         WideBlas { prims: BlasPrims::Quads(quads), bvh, triangles: count, turned }
     }
@@ -370,6 +523,75 @@ mod tests {
         assert!(matches!(WideBlas::build(4, some).prims(), BlasPrims::Quads(q) if q.len() == 3));
         assert!(matches!(WideBlas::build(5, some).prims(), BlasPrims::Triangles(_)));
         assert_all_triangles_once(&WideBlas::build(4, some), 4, some);
+    }
+
+    /// Triangle `i` of a strip of `n / 2` squares ([`strip`]) in the order of a fixed
+    /// shuffle, and the square each triangle belongs to.
+    fn shuffled_strip(n: usize) -> (impl Fn(usize) -> [Vec3; 3], impl Fn(usize) -> usize) {
+        // i ↦ 7i + 3 mod n is a permutation when n is prime to 7.
+        assert!(!n.is_multiple_of(7));
+        let source = move |i: usize| (7 * i + 3) % n;
+        (move |i| strip(source(i)), move |i| source(i) / 2)
+    }
+
+    /// Triangles that share an edge pair up wherever the mesh puts them, each with its
+    /// square's other half (the tightest partner: one across a square's side would make a
+    /// box two squares wide), the pairs in order of their first triangle.
+    #[test]
+    fn triangles_apart_in_the_mesh_pair_across_their_shared_edge() {
+        let n = 60;
+        let (tri, square) = shuffled_strip(n);
+        // No two neighbours in the mesh share an edge.
+        assert!((0..n - 1).all(|i| completes(&tri(i), &tri(i + 1)).is_none()));
+        let blas = WideBlas::build(n, &tri);
+        let BlasPrims::Quads(quads) = blas.prims() else { panic!("every triangle has its partner") };
+        assert_eq!(quads.len(), n / 2);
+        blas.bvh().validate(n / 2).unwrap();
+        for q in quads {
+            assert!(q.is_pair());
+            assert_eq!(square(q.index[0] as usize), square(q.index[1] as usize), "the two halves of one square");
+        }
+        // Record r (stored in the slot whose `order` is r) has the r-th smallest first index.
+        let mut first = vec![0; n / 2];
+        for (q, &r) in quads.iter().zip(blas.bvh().order()) {
+            first[r as usize] = q.index[0];
+        }
+        assert!(first.windows(2).all(|w| w[0] < w[1]), "{first:?}");
+        assert_all_triangles_once(&blas, n, &tri);
+        let at = |c: [Vec3; 3], w: Vec3| c[0] * w.x + c[1] * w.y + c[2] * w.z;
+        for prim in 0..n as u32 {
+            let (stored, i) = blas.triangle(prim).unwrap();
+            let w = Vec3::new(0.25, 0.5, 0.25);
+            assert_eq!(at(stored, w), at(tri(i as usize), blas.mesh_weights(prim, w)), "prim {prim}");
+        }
+    }
+
+    /// An edge with two triangles running it one way and one the other (a non-manifold
+    /// edge) tries each pair: the first one would make a kite too large to pair.
+    #[test]
+    fn a_non_manifold_edge_tries_every_partner() {
+        let (a, c) = (Vec3::ZERO, Vec3::new(1.0, 1.0, 0.0));
+        let long = [a, Vec3::new(10.0, 0.0, 0.0), c];
+        let across = [a, c, Vec3::new(0.0, 10.0, 0.0)];
+        let flat = [a, c, Vec3::new(0.5, 1.0, 0.0)];
+        assert!(completes(&long, &across).is_none() && completes(&long, &flat).is_some());
+        let mesh = [long, across, flat];
+        let records = pair_up(&mesh);
+        assert_eq!(records.iter().map(|r| r.0).collect::<Vec<_>>(), [[0, 2], [1, NO_TRIANGLE]]);
+    }
+
+    /// The triangles of many coincident copies of a square (thousands on each edge) still
+    /// pair up, two by two, without a search over all pairs; the records come in order of
+    /// their first triangle.
+    #[test]
+    fn crowded_edges_still_pair_in_linear_time() {
+        let n = 20_000;
+        let copies = |i: usize| if i < n / 2 { strip(0) } else { strip(1) };
+        let records = pair_up(&(0..n).map(copies).collect::<Vec<_>>());
+        // Every triangle runs the diagonal: one half's copies one way, the other's the other.
+        assert!(records.windows(2).all(|w| w[0].0[0] < w[1].0[0]));
+        assert_eq!(records.len(), n / 2, "every copy of one half pairs with a copy of the other");
+        assert!(records.iter().all(|r| r.0[1] != NO_TRIANGLE && (r.0[0] < n as u32 / 2) != (r.0[1] < n as u32 / 2)));
     }
 
     #[test]
