@@ -6,9 +6,14 @@
 //!   building mesh, shared by its instances, plus the TLAS).
 //! * `raycast_build/flat`: the same triangles flattened into one world-space mesh (what a
 //!   ray tracer that reads the exported OBJ, such as Embree, builds).
+//! * `raycast_build/flat_shuffled`: the flattened mesh with its triangles in a scrambled
+//!   order, so that no two halves of a square are neighbours in the mesh (as in a mesh
+//!   reordered for the vertex cache): its triangles pair into quads across shared edges.
 //! * `raycast_city_1280x720/<frame>/<ids|shaded>/<threads>t`: one frame; the throughput
 //!   line (Melem/s) is million primary rays per second. `ids` writes IDs and depth only (as
 //!   the Embree reference does); `shaded` adds flat shading.
+//! * `raycast_mesh_order_1280x720/<flat|flat_shuffled>/<frame>`: IDs and depth of the two
+//!   one-mesh scenes on two threads: what the order of a mesh's triangles costs.
 
 #![forbid(unsafe_code)]
 
@@ -23,8 +28,9 @@ use sightline_scene::{Camera, Mesh, NodeDesc, Scene};
 const W: u32 = 1280;
 const H: u32 = 720;
 
-/// The scene's triangles in world space, as one mesh.
-fn flattened(scene: &Scene) -> Scene {
+/// The scene's triangles in world space, as one mesh; `scrambled`: triangle t moved to place
+/// (p·t) mod n for a large prime p, so that neighbours in the mesh lie far apart.
+fn flattened(scene: &Scene, scrambled: bool) -> Scene {
     let mut positions: Vec<Vec3> = Vec::new();
     for inst in scene.instances() {
         let Some(m) = scene.mesh(inst.mesh) else { continue };
@@ -32,7 +38,16 @@ fn flattened(scene: &Scene) -> Scene {
             positions.extend(m.triangle_positions(t).map(|p| inst.world_from_local.transform_point3(p)));
         }
     }
-    let indices = (0..positions.len() as u32).collect();
+    let n = positions.len() as u64 / 3;
+    const P: u64 = 1_000_003;
+    assert!(!n.is_multiple_of(P), "the stride is a prime that does not divide the triangle count");
+    let mut indices = vec![0u32; positions.len()];
+    for t in 0..n {
+        let to = if scrambled { P * t % n } else { t } as usize;
+        for k in 0..3 {
+            indices[3 * to + k] = (3 * t) as u32 + k as u32;
+        }
+    }
     let mut flat = Scene::new();
     let mesh = flat.add_mesh(Mesh::new("flat", positions, None, None, indices).expect("mesh"));
     flat.add_node(None, NodeDesc::new("flat").mesh(mesh)).expect("node");
@@ -43,7 +58,8 @@ fn flattened(scene: &Scene) -> Scene {
 fn bench(c: &mut Criterion) {
     let city = city(&CityParams::default()).expect("city");
     let scene = &city.scene;
-    let flat = flattened(scene);
+    let flat = flattened(scene, false);
+    let shuffled = flattened(scene, true);
     let aspect = W as f32 / H as f32;
     let cam = |k: sightline_scene::path::CameraKey| -> Camera { k.camera(aspect).expect("camera") };
     let frames =
@@ -53,7 +69,7 @@ fn bench(c: &mut Criterion) {
     group.sample_size(10).warm_up_time(Duration::from_millis(300)).measurement_time(Duration::from_secs(2));
     for threads in [1usize, 2] {
         let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().expect("thread pool");
-        for (name, s) in [("city", scene), ("flat", &flat)] {
+        for (name, s) in [("city", scene), ("flat", &flat), ("flat_shuffled", &shuffled)] {
             pool.install(|| {
                 let rc = RayCaster::build(s).expect("build");
                 eprintln!(
@@ -98,6 +114,24 @@ fn bench(c: &mut Criterion) {
                     pool.install(|| b.iter(|| caster.render(scene, camera, &mut fb, &opts).expect("render").hits))
                 });
             }
+        }
+    }
+    group.finish();
+
+    let mut group = c.benchmark_group("raycast_mesh_order_1280x720");
+    group
+        .sample_size(10)
+        .warm_up_time(Duration::from_millis(500))
+        .measurement_time(Duration::from_secs(2))
+        .throughput(Throughput::Elements(W as u64 * H as u64));
+    let pool = rayon::ThreadPoolBuilder::new().num_threads(2).build().expect("thread pool");
+    let opts = RaycastOptions::ids_only();
+    for (name, s) in [("flat", &flat), ("flat_shuffled", &shuffled)] {
+        let caster = pool.install(|| RayCaster::build(s).expect("build"));
+        for (frame, camera) in &frames {
+            group.bench_function(format!("{name}/{frame}"), |b| {
+                pool.install(|| b.iter(|| caster.render(s, camera, &mut fb, &opts).expect("render").hits))
+            });
         }
     }
     group.finish();
