@@ -452,6 +452,11 @@ mod tests {
     }
 
     /// Every triangle of `mesh` comes back once from the slots of `blas`, with its corners.
+    /// The point of weights `w` on triangle `c`.
+    fn at(c: [Vec3; 3], w: Vec3) -> Vec3 {
+        c[0] * w.x + c[1] * w.y + c[2] * w.z
+    }
+
     fn assert_all_triangles_once(blas: &WideBlas, count: usize, mesh: impl Fn(usize) -> [Vec3; 3]) {
         let prims = match blas.prims() {
             BlasPrims::Quads(q) => 2 * q.len(),
@@ -462,6 +467,9 @@ mod tests {
             if let Some((corners, i)) = blas.triangle(prim) {
                 assert_eq!(corners, turned(&mesh(i as usize), blas.turns(prim)));
                 assert!(!std::mem::replace(&mut seen[i as usize], true), "triangle {i} twice");
+                // A hit's weights, given back in mesh order, name the same point.
+                let w = Vec3::new(0.25, 0.5, 0.25);
+                assert_eq!(at(corners, w), at(mesh(i as usize), blas.mesh_weights(prim, w)), "prim {prim}");
             }
         }
         assert!(seen.iter().all(|&s| s));
@@ -497,13 +505,10 @@ mod tests {
         assert_eq!(quads.len(), 20);
         assert!(quads.iter().all(|q| q.turns == [0, 2]));
         assert_all_triangles_once(&blas, 40, exported);
-        let at = |c: [Vec3; 3], w: Vec3| c[0] * w.x + c[1] * w.y + c[2] * w.z;
         for prim in 0..40 {
-            let (stored, i) = blas.triangle(prim).unwrap();
+            let (_, i) = blas.triangle(prim).unwrap();
             let w = Vec3::new(0.25, 0.5, 0.25);
-            let m = blas.mesh_weights(prim, w);
-            assert_eq!(at(stored, w), at(exported(i as usize), m), "prim {prim}: {m}");
-            assert_eq!(m == w, i.is_multiple_of(2), "only the turned halves change weights");
+            assert_eq!(blas.mesh_weights(prim, w) == w, i.is_multiple_of(2), "only the turned halves change weights");
         }
     }
 
@@ -558,12 +563,6 @@ mod tests {
         }
         assert!(first.windows(2).all(|w| w[0] < w[1]), "{first:?}");
         assert_all_triangles_once(&blas, n, &tri);
-        let at = |c: [Vec3; 3], w: Vec3| c[0] * w.x + c[1] * w.y + c[2] * w.z;
-        for prim in 0..n as u32 {
-            let (stored, i) = blas.triangle(prim).unwrap();
-            let w = Vec3::new(0.25, 0.5, 0.25);
-            assert_eq!(at(stored, w), at(tri(i as usize), blas.mesh_weights(prim, w)), "prim {prim}");
-        }
     }
 
     /// An edge with two triangles running it one way and one the other (a non-manifold
@@ -586,8 +585,11 @@ mod tests {
     #[test]
     fn crowded_edges_still_pair_in_linear_time() {
         let n = 20_000;
-        let copies = |i: usize| if i < n / 2 { strip(0) } else { strip(1) };
-        let records = pair_up(&(0..n).map(copies).collect::<Vec<_>>());
+        let copies: Vec<[Vec3; 3]> = (0..n).map(|i| if i < n / 2 { strip(0) } else { strip(1) }).collect();
+        // One candidate per copy of the diagonal, not one per pair of copies.
+        let all: Vec<u32> = (0..n as u32).collect();
+        assert_eq!(across_edges(&copies, &all).len(), n / 2);
+        let records = pair_up(&copies);
         // Every triangle runs the diagonal: one half's copies one way, the other's the other.
         assert!(records.windows(2).all(|w| w[0].0[0] < w[1].0[0]));
         assert_eq!(records.len(), n / 2, "every copy of one half pairs with a copy of the other");
