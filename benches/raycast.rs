@@ -19,7 +19,8 @@
 
 use std::time::Duration;
 
-use criterion::{criterion_group, criterion_main, Criterion, Throughput};
+use criterion::measurement::WallTime;
+use criterion::{criterion_group, criterion_main, BenchmarkGroup, Criterion, Throughput};
 use glam::Vec3;
 use sightline_render::{Framebuffer, RayCaster, RaycastOptions};
 use sightline_scene::builders::{city, CityParams};
@@ -55,6 +56,17 @@ fn flattened(scene: &Scene, scrambled: bool) -> Scene {
     flat
 }
 
+/// A group of whole frames, its throughput in primary rays.
+fn frame_group<'a>(c: &'a mut Criterion, name: &str) -> BenchmarkGroup<'a, WallTime> {
+    let mut group = c.benchmark_group(name);
+    group
+        .sample_size(10)
+        .warm_up_time(Duration::from_millis(500))
+        .measurement_time(Duration::from_secs(2))
+        .throughput(Throughput::Elements(W as u64 * H as u64));
+    group
+}
+
 fn bench(c: &mut Criterion) {
     let city = city(&CityParams::default()).expect("city");
     let scene = &city.scene;
@@ -88,12 +100,7 @@ fn bench(c: &mut Criterion) {
     group.finish();
 
     let caster = RayCaster::build(scene).expect("build");
-    let mut group = c.benchmark_group("raycast_city_1280x720");
-    group
-        .sample_size(10)
-        .warm_up_time(Duration::from_millis(500))
-        .measurement_time(Duration::from_secs(2))
-        .throughput(Throughput::Elements(W as u64 * H as u64));
+    let mut group = frame_group(c, "raycast_city_1280x720");
     let mut fb = Framebuffer::new(W, H).expect("framebuffer");
     for threads in [1usize, 2] {
         let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().expect("thread pool");
@@ -118,12 +125,7 @@ fn bench(c: &mut Criterion) {
     }
     group.finish();
 
-    let mut group = c.benchmark_group("raycast_mesh_order_1280x720");
-    group
-        .sample_size(10)
-        .warm_up_time(Duration::from_millis(500))
-        .measurement_time(Duration::from_secs(2))
-        .throughput(Throughput::Elements(W as u64 * H as u64));
+    let mut group = frame_group(c, "raycast_mesh_order_1280x720");
     let pool = rayon::ThreadPoolBuilder::new().num_threads(2).build().expect("thread pool");
     let opts = RaycastOptions::ids_only();
     for (name, s) in [("flat", &flat), ("flat_shuffled", &shuffled)] {
