@@ -133,7 +133,8 @@ fn turned(t: &[Vec3; 3], k: u8) -> [Vec3; 3] {
 /// How tightly triangles `a` and `b` fill the box of their pair: its surface area over the
 /// sum of their own boxes' (1 at most for a pair that makes the tree no worse; 0.5 for the
 /// two halves of a square, 1 for two neighbours across a square's side). Infinite for
-/// non-finite corners, 0 for two points.
+/// non-finite corners; 0 when neither the pair's box nor its triangles' boxes have area
+/// (points, or segments along an axis).
 fn pair_fit(a: &[Vec3; 3], b: &[Vec3; 3]) -> f32 {
     if !a.iter().chain(b).all(|c| c.is_finite()) {
         return f32::INFINITY;
@@ -257,6 +258,7 @@ fn pair_up(tris: &[[Vec3; 3]]) -> Vec<Pairing> {
 /// would not fit in memory anyway).
 fn across_edges(tris: &[[Vec3; 3]], lone: &[u32]) -> Vec<[u32; 2]> {
     const TRIANGLE: u64 = (1 << 31) - 1;
+    // `lone` is ascending: its last index is its largest.
     if lone.last().is_some_and(|&i| i as u64 > TRIANGLE) {
         return Vec::new();
     }
