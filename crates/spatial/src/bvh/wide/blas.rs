@@ -19,7 +19,8 @@
 //! Triangles that share an edge but not a place in the mesh pair too: meshes reordered for
 //! the vertex cache, or triangulated in another order, would otherwise keep their triangles
 //! apart. So after each triangle has tried the next one, the triangles left meet across
-//! their edges, matched by sorting ([`pair_up`]).
+//! their edges, matched by sorting, the tightest pairs first ([`pair_up`]); a neighbour in
+//! the mesh that would make a loose pair waits for that second pass too.
 //!
 //! Two triangles are paired only when the pair's box is no larger (by surface area) than
 //! their two boxes together: a pair folded over its diagonal would make the tree worse.
@@ -152,22 +153,20 @@ fn pair_fit(a: &[Vec3; 3], b: &[Vec3; 3]) -> f32 {
 
 /// Does triangle `b` complete triangle `a` to a quad? The turns of `a` and `b` that make
 /// them `(p, q, r)` and `(p, r, s)`, the quad `(p, q, r, s)` (no turns when they already
-/// are): `b` runs one of `a`'s edges the other way, so both face the same way. `None` when
-/// they share no such edge, when the pair's box is larger (by surface area) than the two
-/// boxes together ([`pair_fit`] above 1), or for non-finite corners.
-fn completes(a: &[Vec3; 3], b: &[Vec3; 3]) -> Option<[u8; 2]> {
-    completes_within(a, b, pair_fit(a, b))
-}
-
-/// [`completes`] with the pair's [`pair_fit`] known.
-fn completes_within(a: &[Vec3; 3], b: &[Vec3; 3], fit: f32) -> Option<[u8; 2]> {
+/// are), and the pair's [`pair_fit`]: `b` runs one of `a`'s edges the other way, so both
+/// face the same way. `None` when they share no such edge, when the pair's box is larger
+/// (by surface area) than the two boxes together (a fit above 1), or for non-finite
+/// corners.
+fn completes(a: &[Vec3; 3], b: &[Vec3; 3]) -> Option<([u8; 2], f32)> {
+    let fit = pair_fit(a, b);
     if fit > 1.0 {
         return None;
     }
-    (0..9u8).map(|k| [k % 3, k / 3]).find(|&[ka, kb]| {
+    let turns = (0..9u8).map(|k| [k % 3, k / 3]).find(|&[ka, kb]| {
         let (a, b) = (turned(a, ka), turned(b, kb));
         b[0] == a[0] && b[1] == a[2]
-    })
+    })?;
+    Some((turns, fit))
 }
 
 /// One record before it is stored: the mesh indices of its one or two triangles and their
@@ -183,10 +182,17 @@ const EDGE_CANDIDATES: usize = 16;
 /// Candidates ahead of the one [`pair_up`] tests whose corners it asks for.
 const CORNERS_AHEAD: usize = 16;
 
+/// The loosest [`pair_fit`] at which [`pair_up`] takes a triangle's next one as its partner
+/// at once: halfway between the halves of a square (0.5) and two neighbours across a
+/// square's side (1). A looser neighbour waits for the second pass, where a tighter partner
+/// across another edge can claim either triangle.
+const SURE_FIT: f32 = 0.75;
+
 /// Pairs triangles into quads, in two greedy passes.
 ///
-/// 1. Each triangle with the next one when it completes it: the fan- or strip-made meshes
-///    of builders and exporters pair this way, their records in mesh order.
+/// 1. Each triangle with the next one when it completes it tightly (see [`SURE_FIT`]): the
+///    fan- or strip-made meshes of builders and exporters pair this way, their records in
+///    mesh order.
 /// 2. The triangles left with each other across a shared edge, whatever their places in the
 ///    mesh (meshes reordered for the vertex cache, or triangulated in some other order):
 ///    their edges, keyed by a hash of the two corners' bits taken in a fixed order and
@@ -204,7 +210,10 @@ fn pair_up(tris: &[[Vec3; 3]]) -> Vec<Pairing> {
     let count = tris.len();
     let next: Vec<Option<[u8; 2]>> = (0..count)
         .into_par_iter()
-        .map(|i| if i + 1 < count { completes(&tris[i], &tris[i + 1]) } else { None })
+        .map(|i| {
+            let (turns, fit) = completes(&tris[i], tris.get(i + 1)?)?;
+            (fit <= SURE_FIT).then_some(turns)
+        })
         .collect();
     let mut out = Vec::with_capacity(count / 2 + 1);
     let mut lone = Vec::new();
@@ -230,10 +239,8 @@ fn pair_up(tris: &[[Vec3; 3]]) -> Vec<Pairing> {
                     prefetch_all(std::slice::from_ref(&tris[a as usize]));
                     prefetch_all(std::slice::from_ref(&tris[b as usize]));
                 }
-                let (ta, tb) = (&tris[a as usize], &tris[b as usize]);
-                let fit = pair_fit(ta, tb);
-                // A fit is ≥ 0 here, so its bits order like it.
-                completes_within(ta, tb, fit).map(|turns| (fit.to_bits(), [a, b], turns))
+                // A fit is ≥ 0, so its bits order like it.
+                completes(&tris[a as usize], &tris[b as usize]).map(|(turns, fit)| (fit.to_bits(), [a, b], turns))
             })
         })
         .collect();
@@ -431,6 +438,11 @@ impl WideBlas {
 mod tests {
     use super::*;
 
+    /// The turns with which `b` completes `a` ([`completes`]).
+    fn turns_to_pair(a: &[Vec3; 3], b: &[Vec3; 3]) -> Option<[u8; 2]> {
+        completes(a, b).map(|(turns, _)| turns)
+    }
+
     /// Triangle `i` of a strip of unit squares along x, each split `(a, b, c)`, `(a, c, d)`.
     fn strip(i: usize) -> [Vec3; 3] {
         let o = Vec3::new((i / 2) as f32, 0.0, 0.0);
@@ -549,7 +561,7 @@ mod tests {
         let n = 60;
         let (tri, square) = shuffled_strip(n);
         // No two neighbours in the mesh share an edge.
-        assert!((0..n - 1).all(|i| completes(&tri(i), &tri(i + 1)).is_none()));
+        assert!((0..n - 1).all(|i| turns_to_pair(&tri(i), &tri(i + 1)).is_none()));
         let blas = WideBlas::build(n, &tri);
         let BlasPrims::Quads(quads) = blas.prims() else { panic!("every triangle has its partner") };
         assert_eq!(quads.len(), n / 2);
@@ -567,6 +579,36 @@ mod tests {
         assert_all_triangles_once(&blas, n, &tri);
     }
 
+    /// Neighbours in the mesh that meet across a square's side (a loose pair, its box two
+    /// squares wide) do not pair at once: each square's halves, the tighter partners, pair
+    /// instead, whether they are neighbours in the mesh or not.
+    #[test]
+    fn a_loose_neighbour_gives_way_to_a_tighter_partner() {
+        // Squares 0..n, stored as square i's first half then square i + 1's second half,
+        // which share the side x = i + 1; square 0's second half comes last.
+        let n = 20;
+        let source = move |i: usize| {
+            if i + 1 == 2 * n {
+                1
+            } else if i.is_multiple_of(2) {
+                i
+            } else {
+                i + 2
+            }
+        };
+        let tri = move |i: usize| strip(source(i));
+        assert_eq!(pair_fit(&tri(0), &tri(1)), 1.0);
+        assert!(turns_to_pair(&tri(0), &tri(1)).is_some(), "a neighbour that would complete a quad");
+        let blas = WideBlas::build(2 * n, tri);
+        let BlasPrims::Quads(quads) = blas.prims() else { panic!("every triangle has a partner") };
+        assert_eq!(quads.len(), n);
+        for q in quads {
+            assert!(q.is_pair());
+            assert_eq!(source(q.index[0] as usize) / 2, source(q.index[1] as usize) / 2, "{q:?}");
+        }
+        assert_all_triangles_once(&blas, 2 * n, tri);
+    }
+
     /// An edge with two triangles running it one way and one the other (a non-manifold
     /// edge) tries each pair: the first one would make a kite too large to pair.
     #[test]
@@ -575,7 +617,7 @@ mod tests {
         let long = [a, Vec3::new(10.0, 0.0, 0.0), c];
         let across = [a, c, Vec3::new(0.0, 10.0, 0.0)];
         let flat = [a, c, Vec3::new(0.5, 1.0, 0.0)];
-        assert!(completes(&long, &across).is_none() && completes(&long, &flat).is_some());
+        assert!(turns_to_pair(&long, &across).is_none() && turns_to_pair(&long, &flat).is_some());
         let mesh = [long, across, flat];
         let records = pair_up(&mesh);
         assert_eq!(records.iter().map(|r| r.0).collect::<Vec<_>>(), [[0, 2], [1, NO_TRIANGLE]]);
@@ -602,26 +644,26 @@ mod tests {
     fn only_neighbours_that_make_a_flat_enough_quad_pair_up() {
         let [a, b, c] = strip(0);
         let d = strip(1)[2];
-        assert_eq!(completes(&[a, b, c], &[a, c, d]), Some([0, 0]));
+        assert_eq!(turns_to_pair(&[a, b, c], &[a, c, d]), Some([0, 0]));
         // Other rotations and the other order pair too, turned to the same pattern: the
         // `(0, 1, 2), (2, 3, 0)` of many exporters, and the second triangle first.
-        assert_eq!(completes(&[a, b, c], &[c, d, a]), Some([0, 2]));
-        assert_eq!(completes(&[b, c, a], &[d, a, c]), Some([2, 1]));
-        assert_eq!(completes(&[a, c, d], &[a, b, c]), Some([1, 2]));
+        assert_eq!(turns_to_pair(&[a, b, c], &[c, d, a]), Some([0, 2]));
+        assert_eq!(turns_to_pair(&[b, c, a], &[d, a, c]), Some([2, 1]));
+        assert_eq!(turns_to_pair(&[a, c, d], &[a, b, c]), Some([1, 2]));
         // Neighbours that face opposite ways (the shared edge run the same way) do not.
-        assert_eq!(completes(&[a, b, c], &[a, d, c]), None);
-        assert_eq!(completes(&[a, b, c], &[c, a, d]), None);
+        assert_eq!(turns_to_pair(&[a, b, c], &[a, d, c]), None);
+        assert_eq!(turns_to_pair(&[a, b, c], &[c, a, d]), None);
         // Nor do triangles that share a corner only.
-        assert_eq!(completes(&[a, b, c], &[c, Vec3::new(2.0, 1.0, 0.0), Vec3::new(2.0, 2.0, 0.0)]), None);
+        assert_eq!(turns_to_pair(&[a, b, c], &[c, Vec3::new(2.0, 1.0, 0.0), Vec3::new(2.0, 2.0, 0.0)]), None);
         // A long kite whose halves stick out along x and y: the pair's box (10 × 10) is far
         // larger than the halves' (10 × 1 and 1 × 10).
-        assert_eq!(completes(&[a, Vec3::new(10.0, 0.0, 0.0), c], &[a, c, Vec3::new(0.0, 10.0, 0.0)]), None);
+        assert_eq!(turns_to_pair(&[a, Vec3::new(10.0, 0.0, 0.0), c], &[a, c, Vec3::new(0.0, 10.0, 0.0)]), None);
         // A folded pair that stays compact (a box's corner) still pairs.
-        assert_eq!(completes(&[a, b, c], &[a, c, Vec3::new(1.0, 1.0, 1.0)]), Some([0, 0]));
+        assert_eq!(turns_to_pair(&[a, b, c], &[a, c, Vec3::new(1.0, 1.0, 1.0)]), Some([0, 0]));
         // Non-finite corners never pair, even with a shared edge.
         let nan = Vec3::splat(f32::NAN);
-        assert_eq!(completes(&[nan, b, c], &[nan, c, d]), None);
-        assert_eq!(completes(&[a, b, c], &[a, c, nan]), None);
-        assert_eq!(completes(&[a, b, c], &[a, c, Vec3::INFINITY]), None);
+        assert_eq!(turns_to_pair(&[nan, b, c], &[nan, c, d]), None);
+        assert_eq!(turns_to_pair(&[a, b, c], &[a, c, nan]), None);
+        assert_eq!(turns_to_pair(&[a, b, c], &[a, c, Vec3::INFINITY]), None);
     }
 }
