@@ -195,8 +195,8 @@ const SURE_FIT: f32 = 0.75;
 ///    mesh order.
 /// 2. The triangles left with each other across a shared edge, whatever their places in the
 ///    mesh (meshes reordered for the vertex cache, or triangulated in some other order):
-///    their edges, keyed by a hash of the two corners' bits taken in a fixed order and
-///    marked by the way they run, are sorted so that the triangles on one edge lie
+///    their edges, keyed by a hash of the two corners' bits and marked by the way they
+///    run ([`corner_hash`]), are sorted so that the triangles on one edge lie
 ///    together; two that run it opposite ways make a candidate (see [`EDGE_CANDIDATES`]),
 ///    tested by [`completes`] in parallel, and the candidates that complete are taken
 ///    tightest first ([`pair_fit`]; ties in order of their mesh indices) while both
@@ -271,16 +271,14 @@ fn across_edges(tris: &[[Vec3; 3]], lone: &[u32]) -> Vec<[u32; 2]> {
     }
     // Each edge as one word, sorted as fast as a word sorts: the key in the high 32 bits,
     // then whether the edge runs forward, then the triangle.
-    let mut edges: Vec<u64> = lone
-        .par_iter()
-        .flat_map_iter(|&i| {
-            let c = tris[i as usize];
-            (0..3).map(move |k| {
-                let (key, forward) = edge_key(c[k], c[(k + 1) % 3]);
-                key << 32 | (forward as u64) << 31 | i as u64
-            })
-        })
-        .collect();
+    let mut edges = vec![0u64; 3 * lone.len()];
+    edges.par_chunks_mut(3).zip(lone).for_each(|(words, &i)| {
+        let h = tris[i as usize].map(corner_hash);
+        for (k, word) in words.iter_mut().enumerate() {
+            let (p, q) = (h[k], h[(k + 1) % 3]);
+            *word = (p ^ q) >> 32 << 32 | ((p < q) as u64) << 31 | i as u64;
+        }
+    });
     edges.par_sort_unstable();
     let pair = |a: &u64, b: &u64| {
         let (a, b) = ((a & TRIANGLE) as u32, (b & TRIANGLE) as u32);
@@ -301,25 +299,23 @@ fn across_edges(tris: &[[Vec3; 3]], lone: &[u32]) -> Vec<[u32; 2]> {
         .collect()
 }
 
-/// A 32-bit hash of the edge between corners `p` and `q`, the same either way round, and
-/// whether it runs from the smaller corner (by bits) to the larger. `+ 0.0` makes −0 and +0
-/// one corner. Equal edges get equal keys; [`completes`] checks the corners themselves, so
-/// edges that share a key by chance (a few hundred among the three million edges of a
-/// shuffled 10^6-triangle mesh) only add candidates that fail.
-fn edge_key(p: Vec3, q: Vec3) -> (u64, bool) {
-    let bits = |v: Vec3| (v + Vec3::ZERO).to_array().map(f32::to_bits);
-    let (p, q) = (bits(p), bits(q));
-    let forward = p <= q;
-    let (lo, hi) = if forward { (p, q) } else { (q, p) };
-    // FxHash's step (rustc's hasher) over the six words, then the MurmurHash3 finalizer's
+/// A 64-bit hash of a corner's bits (`+ 0.0` makes −0 and +0 one corner). [`across_edges`]
+/// keys the edge between corners `p` and `q` by the high half of `hash(p) ^ hash(q)`, the
+/// same either way round, and says it runs forward when `hash(p) < hash(q)`. Equal edges
+/// get equal keys; [`completes`] checks the corners themselves, so edges that share a key
+/// by chance (a few hundred among the three million edges of a shuffled 10^6-triangle mesh)
+/// only add candidates that fail, and a degenerate edge (one corner twice) runs backward
+/// in every triangle, so it pairs none.
+fn corner_hash(p: Vec3) -> u64 {
+    // FxHash's step (rustc's hasher) over the three words, then the MurmurHash3 finalizer's
     // mix of the high bits down (Stafford's variant 13).
     let mut h = 0u64;
-    for w in lo.into_iter().chain(hi) {
+    for w in (p + Vec3::ZERO).to_array().map(f32::to_bits) {
         h = (h.rotate_left(5) ^ w as u64).wrapping_mul(0x517c_c1b7_2722_0a95);
     }
     h = (h ^ (h >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
     h = (h ^ (h >> 27)).wrapping_mul(0x94d0_49bb_1331_11eb);
-    ((h ^ (h >> 31)) >> 32, forward)
+    h ^ (h >> 31)
 }
 
 impl WideBlas {
@@ -607,6 +603,18 @@ mod tests {
             assert_eq!(source(q.index[0] as usize) / 2, source(q.index[1] as usize) / 2, "{q:?}");
         }
         assert_all_triangles_once(&blas, 2 * n, tri);
+    }
+
+    /// A corner written −0 in one triangle and +0 in another is one corner: the edges
+    /// through it meet.
+    #[test]
+    fn minus_zero_corners_meet_across_the_mesh() {
+        let negated = strip(1).map(|c| if c == Vec3::ZERO { -Vec3::ZERO } else { c });
+        assert!(negated[0].x.is_sign_negative());
+        // The two halves of square 0 apart in the mesh, square 1's first half between.
+        let mesh = [strip(0), strip(2), negated];
+        let records = pair_up(&mesh);
+        assert_eq!(records.iter().map(|r| r.0).collect::<Vec<_>>(), [[0, 2], [1, NO_TRIANGLE]]);
     }
 
     /// An edge with two triangles running it one way and one the other (a non-manifold
