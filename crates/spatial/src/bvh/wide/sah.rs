@@ -15,7 +15,8 @@
 //! (`area·count` summed over both against the set's `area·(count − traversal cost)`): a
 //! quad's two triangles stay together, two facing walls do not.
 //! Because partitioning is in place, a leaf is a run of the primitive array: the final
-//! array *is* the leaf order.
+//! array *is* the leaf order. Under one primitive per leaf (a BLAS of quads) most splits
+//! are of two primitives; those skip the bins and split the way the bins would.
 //!
 //! Bounded work on any input: when the bins cannot separate a set (all centroids in one
 //! bin, e.g. coincident triangles) or a path grows deeper than [`MAX_SAH_DEPTH`] binary
@@ -383,6 +384,24 @@ fn split(
     leaf_cost: Option<f32>,
     scratch: &mut Bins,
 ) -> Option<(Set, Set)> {
+    // Two primitives that must be split are most of the splits under a tree of one
+    // primitive per leaf (a BLAS of quads).
+    if set.len() == 2 && leaf_cost.is_none() && set.depth < MAX_SAH_DEPTH {
+        if let Some(sides) = split_two(prims, ids, set) {
+            return Some(sides);
+        }
+    }
+    split_binned(prims, ids, set, leaf_cost, scratch)
+}
+
+/// [`split`] by the bins.
+fn split_binned(
+    prims: &mut [Prim],
+    ids: &mut [u32],
+    set: &Set,
+    leaf_cost: Option<f32>,
+    scratch: &mut Bins,
+) -> Option<(Set, Set)> {
     let range = &prims[set.start..set.end];
     let map = Mapping::new(&set.centroids, set.len());
     let best = if set.depth >= MAX_SAH_DEPTH {
@@ -407,11 +426,31 @@ fn split(
     if leaf_cost.is_some_and(|c| cost >= c) {
         return None;
     }
-    // Partition in place (Hoare), collecting each side's centroid box on the way. The
-    // test is the binning's own, so the sides match the bins the boxes came from.
-    let left_of = |p: &Prim| map.bin(p.centroid2(), axis) < boundary;
+    // The test is the binning's own, so the sides match the bins the boxes came from; one
+    // copy of the partition per axis, as a run-time axis costs a jump table per primitive.
+    let run = (set.start, set.end);
+    let (mid, lc, rc) = match axis {
+        0 => partition(prims, ids, run, |p| map.bin(p.centroid2(), 0) < boundary),
+        1 => partition(prims, ids, run, |p| map.bin(p.centroid2(), 1) < boundary),
+        _ => partition(prims, ids, run, |p| map.bin(p.centroid2(), 2) < boundary),
+    };
+    Some((
+        Set { start: set.start, end: mid, bounds: left_box, centroids: lc, depth: set.depth + 1 },
+        Set { start: mid, end: set.end, bounds: right_box, centroids: rc, depth: set.depth + 1 },
+    ))
+}
+
+/// Partitions `prims[start..end]` (and `ids` alike) in place (Hoare) into those `left_of`
+/// and the rest; returns where the rest begin and each side's box of doubled centroids.
+#[inline(always)]
+fn partition(
+    prims: &mut [Prim],
+    ids: &mut [u32],
+    (start, end): (usize, usize),
+    left_of: impl Fn(&Prim) -> bool,
+) -> (usize, Bounds, Bounds) {
     let (mut lc, mut rc) = (Bounds::EMPTY, Bounds::EMPTY);
-    let (mut i, mut j) = (set.start, set.end);
+    let (mut i, mut j) = (start, end);
     loop {
         while i < j && left_of(&prims[i]) {
             let c = prims[i].centroid2();
@@ -429,10 +468,32 @@ fn split(
         prims.swap(i, j - 1);
         ids.swap(i, j - 1);
     }
-    Some((
-        Set { start: set.start, end: i, bounds: left_box, centroids: lc, depth: set.depth + 1 },
-        Set { start: i, end: set.end, bounds: right_box, centroids: rc, depth: set.depth + 1 },
-    ))
+    (i, lc, rc)
+}
+
+/// [`split`] of a set of two primitives that must be split (larger than a leaf, and
+/// not yet `MAX_SAH_DEPTH` splits deep), without the bins, as the bins would split it:
+/// every axis on which their centroids differ gives the same cost (the sum of their two
+/// areas), so the first such axis wins and the one with the smaller centroid on it goes
+/// left. `None` (the bins' answer is needed) when an area is not finite.
+fn split_two(prims: &mut [Prim], ids: &mut [u32], set: &Set) -> Option<(Set, Set)> {
+    let (a, b) = (set.start, set.start + 1);
+    if !(prims[a].half_area().is_finite() && prims[b].half_area().is_finite()) {
+        return None;
+    }
+    let extent = set.centroids.hi - set.centroids.lo;
+    let Some(axis) = (0..3).find(|&k| extent[k] > 0.0 && extent[k].is_finite()) else {
+        return Some(split_middle(prims, set));
+    };
+    if prims[a].centroid2()[axis] > prims[b].centroid2()[axis] {
+        prims.swap(a, b);
+        ids.swap(a, b);
+    }
+    let one = |i: usize| {
+        let c = prims[i].centroid2();
+        Set { start: i, end: i + 1, bounds: prims[i], centroids: Bounds { lo: c, hi: c }, depth: set.depth + 1 }
+    };
+    Some((one(a), one(b)))
 }
 
 /// Cuts `set` in the middle of its range, recomputing both sides' boxes.
@@ -464,6 +525,46 @@ mod tests {
                 ObAabb::new(p, p + 0.5)
             })
             .collect()
+    }
+
+    /// [`split_two`] gives, bit for bit, what the bins give, on pairs of boxes drawn from
+    /// a few coordinates (so that centroids often tie on some axes, or on all, or overflow)
+    /// and sizes (flat, and too large for a finite area).
+    #[test]
+    fn two_primitives_split_as_the_bins_split_them() {
+        let mut h = 7u64;
+        let mut pick = |values: &[f32]| {
+            h = h.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+            values[(h >> 33) as usize % values.len()]
+        };
+        let key = |s: &Set| {
+            let v = [s.bounds.lo, s.bounds.hi, s.centroids.lo, s.centroids.hi];
+            (s.start, s.end, s.depth, v.map(|v| v.to_array().map(f32::to_bits)))
+        };
+        let (mut fast, mut tied, mut infinite) = (0, 0, 0);
+        for _ in 0..5000 {
+            let mut prim = || {
+                let lo = Vec4::new(pick(&[0.0, 1.0, 2.0, -3e38]), pick(&[0.0, 1.0, 2.0]), pick(&[0.0, 1.0, 2.0]), 0.0);
+                let size = Vec4::new(pick(&[0.0, 1.0, 1e30]), pick(&[0.0, 1.0, 1e30]), pick(&[0.0, 2.0]), 0.0);
+                // Sometimes wider than the largest float (a NaN area when flat).
+                let far = Vec4::new(pick(&[0.0, 3e38]), 0.0, 0.0, 0.0);
+                Prim { lo, hi: (lo + size).max(far) }
+            };
+            let prims = [prim(), prim()];
+            let (bounds, centroids) = Bounds::of(&prims);
+            let set = Set { start: 0, end: 2, bounds, centroids, depth: 3 };
+            let (mut p, mut i) = (prims.to_vec(), vec![0u32, 1]);
+            let Some((l, r)) = split_two(&mut p, &mut i, &set) else {
+                infinite += 1;
+                continue;
+            };
+            let (mut bp, mut bi) = (prims.to_vec(), vec![0u32, 1]);
+            let (bl, br) = split_binned(&mut bp, &mut bi, &set, None, &mut Bins::new()).unwrap();
+            assert_eq!((key(&l), key(&r), &i), (key(&bl), key(&br), &bi));
+            fast += 1;
+            tied += (centroids.lo == centroids.hi) as usize;
+        }
+        assert!(fast > 1000 && tied > 10 && infinite > 1000, "{fast} {tied} {infinite}");
     }
 
     #[test]
