@@ -25,12 +25,14 @@
 //! to moved primitives (`refit`), which the instance level uses when instances move.
 
 mod blas;
+mod pairing;
 mod refit;
 mod sah;
 mod split;
 mod tlas;
 
-pub use blas::{BlasPrims, BlasQuad, BlasTriangle, WideBlas, NO_TRIANGLE};
+pub use blas::{BlasPrims, BlasQuad, BlasTriangle, WideBlas};
+pub use pairing::NO_TRIANGLE;
 pub use tlas::{invertible, InstanceRecord, WideTlas};
 
 use obvhs::aabb::Aabb as ObAabb;
