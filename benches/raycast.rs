@@ -85,9 +85,10 @@ fn bench(c: &mut Criterion) {
             pool.install(|| {
                 let rc = RayCaster::build(s).expect("build");
                 eprintln!(
-                    "{name}/{threads}t: {} BLASes, {} stored triangles, {} instances, {:.1} ms",
+                    "{name}/{threads}t: {} BLASes, {} stored triangles ({} paired), {} instances, {:.1} ms",
                     rc.blas_count(),
                     rc.stored_triangles(),
+                    rc.paired_triangles(),
                     rc.instance_count(),
                     rc.build_ms()
                 );

@@ -205,13 +205,15 @@ fn draw(
     };
     let st = caster.render(scene, camera, fb, ro)?;
     println!("BVH build        {:>10.1} ms", caster.build_ms());
+    println!("paired into quads{:>10} of {} triangles", caster.paired_triangles(), caster.stored_triangles());
     println!("primary rays     {:>10}", st.primary_rays);
     println!("shadow rays      {:>10}", st.shadow_rays);
     println!("hits             {:>10}", st.hits);
     println!("frame            {:>10.2} ms", st.ms_total);
     println!("Mrays/s          {:>10.2}", st.primary_rays as f64 / st.ms_total / 1e3);
     Ok(serde_json::json!({
-        "build_ms": caster.build_ms(), "primary_rays": st.primary_rays, "shadow_rays": st.shadow_rays,
+        "build_ms": caster.build_ms(), "stored_triangles": caster.stored_triangles(),
+        "paired_triangles": caster.paired_triangles(), "primary_rays": st.primary_rays, "shadow_rays": st.shadow_rays,
         "hits": st.hits, "ms_total": st.ms_total,
     }))
 }

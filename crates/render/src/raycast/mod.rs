@@ -378,6 +378,13 @@ impl RayCaster {
         self.blases.iter().map(|b| b.triangle_count()).sum()
     }
 
+    /// Stored triangles paired into quads with a partner (see
+    /// [`WideBlas::paired_triangles`]): a mesh whose triangles do not pair is cast as lone
+    /// triangles, more slowly.
+    pub fn paired_triangles(&self) -> usize {
+        self.blases.iter().map(|b| b.paired_triangles()).sum()
+    }
+
     /// How long [`RayCaster::build`] took, in milliseconds.
     pub fn build_ms(&self) -> f64 {
         self.build_ms

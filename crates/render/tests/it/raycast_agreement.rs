@@ -248,6 +248,7 @@ fn turned_quads_shade_in_mesh_order(shuffled: bool) {
         check(&format!("turned quads (shuffled: {shuffled}), {mode:?}"), &scene, &cam, &opts);
     }
     let caster = RayCaster::build(&scene).unwrap();
+    assert_eq!(caster.paired_triangles(), (2 * N * N) as usize, "shuffled: {shuffled}");
     let mesh = scene.mesh(m).unwrap();
     let blas = sightline_spatial::bvh::wide::WideBlas::from_mesh(mesh);
     let sightline_spatial::bvh::wide::BlasPrims::Quads(quads) = blas.prims() else { panic!("the hill pairs up") };

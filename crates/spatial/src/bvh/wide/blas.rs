@@ -197,6 +197,15 @@ impl WideBlas {
         self.triangles
     }
 
+    /// Number of stored triangles that share a quad record with a partner (the rest are
+    /// records of their own): how well the mesh paired up.
+    pub fn paired_triangles(&self) -> usize {
+        match &self.prims {
+            BlasPrims::Quads(quads) => 2 * quads.iter().filter(|q| q.is_pair()).count(),
+            BlasPrims::Triangles(_) => 0,
+        }
+    }
+
     /// The tree over the quads.
     #[inline]
     pub fn bvh(&self) -> &WideBvh {
@@ -266,6 +275,7 @@ mod tests {
             assert_eq!(blas.triangle(2 * k as u32 + 1).is_some(), q.is_pair());
         }
         assert_all_triangles_once(&blas, 51, strip);
+        assert_eq!(blas.paired_triangles(), 50);
         assert_eq!(std::mem::size_of::<BlasQuad>(), 64);
         assert_eq!(blas.bounds(), Aabb::new(Vec3::ZERO, Vec3::new(26.0, 1.0, 0.0)));
         assert_eq!(WideBlas::empty().triangle_count(), 0);
@@ -299,9 +309,11 @@ mod tests {
             assert_eq!(t.index, blas.bvh().order()[k]);
         }
         assert_all_triangles_once(&blas, 40, mirrored);
+        assert_eq!(blas.paired_triangles(), 0);
         // A quarter of the triangles in pairs is enough for quads (one pair among four).
         let some = |i: usize| if i < 2 { strip(i) } else { mirrored(i + 2) };
         assert!(matches!(WideBlas::build(4, some).prims(), BlasPrims::Quads(q) if q.len() == 3));
+        assert_eq!(WideBlas::build(4, some).paired_triangles(), 2);
         assert!(matches!(WideBlas::build(5, some).prims(), BlasPrims::Triangles(_)));
         assert_all_triangles_once(&WideBlas::build(4, some), 4, some);
     }
