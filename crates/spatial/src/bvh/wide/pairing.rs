@@ -283,6 +283,25 @@ pub(super) mod tests {
         assert!(records.iter().all(|r| r.0[1] != NO_TRIANGLE && (r.0[0] < n as u32 / 2) != (r.0[1] < n as u32 / 2)));
     }
 
+    /// The records do not depend on the thread count, on a mesh where both passes and the
+    /// crowded-edge rule all pair: a strip of squares scrambled so that neighbours in the
+    /// mesh seldom share an edge, then with its triangles in runs of a thousand coincident
+    /// copies.
+    #[test]
+    fn records_are_the_same_for_any_thread_count() {
+        let n = 30_000;
+        let mut mesh: Vec<[Vec3; 3]> = (0..n).map(|i| strip(7 * i % n)).collect();
+        mesh.extend((0..4000).map(|i| strip(i / 1000 % 4)));
+        let on = |threads: usize| {
+            let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap();
+            pool.install(|| pair_up(&mesh))
+        };
+        let one = on(1);
+        assert_eq!(one, on(2));
+        assert_eq!(one, on(3));
+        assert_eq!(one.len() * 2, mesh.len(), "every triangle pairs");
+    }
+
     /// A corner written −0 in one triangle and +0 in another is one corner: the edges
     /// through it meet.
     #[test]
