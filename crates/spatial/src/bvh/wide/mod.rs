@@ -24,6 +24,7 @@
 //! rule for unbounded boxes: every box it is built from must be finite. It can be refitted
 //! to moved primitives (`refit`), which the instance level uses when instances move.
 
+mod binning;
 mod blas;
 mod pairing;
 mod refit;
