@@ -13,7 +13,10 @@
 //!   line (Melem/s) is million primary rays per second. `ids` writes IDs and depth only (as
 //!   the Embree reference does); `shaded` adds flat shading.
 //! * `raycast_mesh_order_1280x720/<flat|flat_shuffled>/<frame>`: IDs and depth of the two
-//!   one-mesh scenes on two threads: what the order of a mesh's triangles costs.
+//!   one-mesh scenes on two threads: what the order of a mesh's triangles costs. Criterion
+//!   runs the two one after the other, so on a noisy machine a gap between them can be the
+//!   machine's: one measured 6–18% on the street frame, where frames of the two meshes
+//!   taken in turns in one process differed by under 1%.
 
 #![forbid(unsafe_code)]
 

@@ -222,7 +222,6 @@ impl WideBlas {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::bvh::wide::pairing::pair_fit;
     use crate::bvh::wide::pairing::tests::{strip, turns_to_pair};
 
     /// Triangle `i` of [`strip`], with each square's second triangle's corners taken in
@@ -351,35 +350,5 @@ mod tests {
         }
         assert!(first.windows(2).all(|w| w[0] < w[1]), "{first:?}");
         assert_all_triangles_once(&blas, n, &tri);
-    }
-
-    /// Neighbours in the mesh that meet across a square's side (a loose pair, its box two
-    /// squares wide) do not pair at once: each square's halves, the tighter partners, pair
-    /// instead, whether they are neighbours in the mesh or not.
-    #[test]
-    fn a_loose_neighbour_gives_way_to_a_tighter_partner() {
-        // Squares 0..n, stored as square i's first half then square i + 1's second half,
-        // which share the side x = i + 1; square 0's second half comes last.
-        let n = 20;
-        let source = move |i: usize| {
-            if i + 1 == 2 * n {
-                1
-            } else if i.is_multiple_of(2) {
-                i
-            } else {
-                i + 2
-            }
-        };
-        let tri = move |i: usize| strip(source(i));
-        assert_eq!(pair_fit(&tri(0), &tri(1)), 1.0);
-        assert!(turns_to_pair(&tri(0), &tri(1)).is_some(), "a neighbour that would complete a quad");
-        let blas = WideBlas::build(2 * n, tri);
-        let BlasPrims::Quads(quads) = blas.prims() else { panic!("every triangle has a partner") };
-        assert_eq!(quads.len(), n);
-        for q in quads {
-            assert!(q.is_pair());
-            assert_eq!(source(q.index[0] as usize) / 2, source(q.index[1] as usize) / 2, "{q:?}");
-        }
-        assert_all_triangles_once(&blas, 2 * n, tri);
     }
 }

@@ -50,7 +50,7 @@ pub(super) fn turned(t: &[Vec3; 3], k: u8) -> [Vec3; 3] {
 /// two halves of a square, 1 for two neighbours across a square's side). Infinite for
 /// non-finite corners; 0 when neither the pair's box nor its triangles' boxes have area
 /// (points, or segments along an axis).
-pub(super) fn pair_fit(a: &[Vec3; 3], b: &[Vec3; 3]) -> f32 {
+fn pair_fit(a: &[Vec3; 3], b: &[Vec3; 3]) -> f32 {
     if !a.iter().chain(b).all(|c| c.is_finite()) {
         return f32::INFINITY;
     }
@@ -281,6 +281,34 @@ pub(super) mod tests {
         assert!(records.windows(2).all(|w| w[0].0[0] < w[1].0[0]));
         assert_eq!(records.len(), n / 2, "every copy of one half pairs with a copy of the other");
         assert!(records.iter().all(|r| r.0[1] != NO_TRIANGLE && (r.0[0] < n as u32 / 2) != (r.0[1] < n as u32 / 2)));
+    }
+
+    /// Neighbours in the mesh that meet across a square's side (a loose pair, its box two
+    /// squares wide) do not pair at once: each square's halves, the tighter partners, pair
+    /// instead, whether they are neighbours in the mesh or not.
+    #[test]
+    fn a_loose_neighbour_gives_way_to_a_tighter_partner() {
+        // Squares 0..n, stored as square i's first half then square i + 1's second half,
+        // which share the side x = i + 1; square 0's second half comes last.
+        let n = 20;
+        let source = |i: usize| {
+            if i + 1 == 2 * n {
+                1
+            } else if i.is_multiple_of(2) {
+                i
+            } else {
+                i + 2
+            }
+        };
+        let mesh: Vec<[Vec3; 3]> = (0..2 * n).map(|i| strip(source(i))).collect();
+        assert_eq!(pair_fit(&mesh[0], &mesh[1]), 1.0);
+        assert!(completes(&mesh[0], &mesh[1]).is_some(), "a neighbour that would complete a quad");
+        let records = pair_up(&mesh);
+        assert_eq!(records.len(), n);
+        for ([a, b], _) in records {
+            assert_ne!(b, NO_TRIANGLE);
+            assert_eq!(source(a as usize) / 2, source(b as usize) / 2, "{a} and {b}");
+        }
     }
 
     /// The records do not depend on the thread count, on a mesh where both passes and the
