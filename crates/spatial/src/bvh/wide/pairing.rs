@@ -109,15 +109,7 @@ const SURE_FIT: f32 = 0.75;
 ///    mesh order.
 /// 2. The triangles left with each other across a shared edge, whatever their places in the
 ///    mesh (meshes reordered for the vertex cache, or triangulated in some other order):
-///    their edges, keyed by a hash of the two corners' bits and marked by the way they
-///    run ([`corner_hash`]), are sorted so that the triangles on one edge lie
-///    together; two that run it opposite ways make a candidate (see [`EDGE_CANDIDATES`]),
-///    tested by [`completes`] in parallel, and the candidates that complete are taken
-///    tightest first ([`pair_fit`]; ties in order of their mesh indices) while both
-///    triangles are still free. Without that order a facade's triangles would pair across
-///    the sides of its cells about as often as across their diagonals, into quads whose
-///    boxes are two cells wide: on the street path of a city shuffled so, rays were about
-///    5% slower than with no pairs at all.
+///    see [`mates_across_edges`].
 ///
 /// Records come in order of their first triangle's mesh index. Linear but for the sorts.
 pub(super) fn pair_up(tris: &[[Vec3; 3]]) -> Vec<Pairing> {
@@ -129,23 +121,56 @@ pub(super) fn pair_up(tris: &[[Vec3; 3]]) -> Vec<Pairing> {
             (fit <= SURE_FIT).then_some(turns)
         })
         .collect();
+    // Pass 1's records: each one's first triangle, and its turns when the next one pairs.
+    let next = &next;
+    let firsts = || {
+        let mut i = 0;
+        std::iter::from_fn(move || {
+            let first = (i < count).then_some(i)?;
+            i += if next[first].is_some() { 2 } else { 1 };
+            Some((first as u32, next[first]))
+        })
+    };
+    let lone: Vec<u32> = firsts().filter(|(_, pair)| pair.is_none()).map(|(i, _)| i).collect();
+    let mates = mates_across_edges(tris, &lone);
     let mut out = Vec::with_capacity(count / 2 + 1);
-    let mut lone = Vec::new();
-    let mut i = 0;
-    while i < count {
-        if let Some(turns) = next[i] {
-            out.push(([i as u32, i as u32 + 1], turns));
-            i += 2;
-        } else {
-            lone.push(i as u32);
-            i += 1;
+    for (i, pair) in firsts() {
+        match (pair, mates.get(i as usize).copied().unwrap_or(Mate::Free)) {
+            (Some(turns), _) => out.push(([i, i + 1], turns)),
+            (None, Mate::Free) => out.push(([i, NO_TRIANGLE], [0; 2])),
+            (None, Mate::First(b, turns)) => out.push(([i, b], turns)),
+            (None, Mate::Second) => {}
         }
     }
-    // (fit, triangles, turns) of the candidates that complete, tightest first. The
-    // candidates come in the order of their edges' keys, so their triangles lie anywhere:
-    // each asks ahead for the corners it will read.
-    let candidates = across_edges(tris, &lone);
-    let mut fits: Vec<(u32, [u32; 2], [u8; 2])> = candidates
+    out
+}
+
+/// A triangle's partner across an edge ([`mates_across_edges`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Mate {
+    /// None: the triangle stays alone.
+    Free,
+    /// The first of a record with the triangle given, and their turns.
+    First(u32, [u8; 2]),
+    /// The second triangle of another's record.
+    Second,
+}
+
+/// Pass 2 of [`pair_up`]: partners for the triangles `lone` (of `tris`) across shared
+/// edges, each triangle's [`Mate`] (empty when none pairs). Their edges, keyed by a hash of
+/// the two corners' bits and marked by the way they run ([`corner_hash`]), are sorted so
+/// that the triangles on one edge lie together; two that run it opposite ways make a
+/// candidate (see [`EDGE_CANDIDATES`]), tested by [`completes`] in parallel, and the
+/// candidates that complete are taken tightest first ([`pair_fit`]; ties in the order the
+/// edges' keys sort) while both triangles are still free. Without that order a facade's
+/// triangles would pair across the sides of its cells about as often as across their
+/// diagonals, into quads whose boxes are two cells wide: on the street path of a city
+/// shuffled so, rays were about 5% slower than with no pairs at all.
+fn mates_across_edges(tris: &[[Vec3; 3]], lone: &[u32]) -> Vec<Mate> {
+    // (fit, triangles, turns) of the candidates that complete. The candidates come in the
+    // order of their edges' keys, so their triangles lie anywhere: each asks ahead for the
+    // corners it will read.
+    let mut fits: Vec<(f32, [u32; 2], [u8; 2])> = across_edges(tris, lone)
         .par_chunks(4096)
         .flat_map_iter(|chunk| {
             chunk.iter().enumerate().filter_map(|(k, &[a, b])| {
@@ -153,24 +178,27 @@ pub(super) fn pair_up(tris: &[[Vec3; 3]]) -> Vec<Pairing> {
                     prefetch_all(std::slice::from_ref(&tris[a as usize]));
                     prefetch_all(std::slice::from_ref(&tris[b as usize]));
                 }
-                // A fit is ≥ 0, so its bits order like it.
-                completes(&tris[a as usize], &tris[b as usize]).map(|(turns, fit)| (fit.to_bits(), [a, b], turns))
+                completes(&tris[a as usize], &tris[b as usize]).map(|(turns, fit)| (fit, [a, b], turns))
             })
         })
         .collect();
-    fits.par_sort_unstable();
-    let mut paired = vec![false; if fits.is_empty() { 0 } else { count }];
+    if fits.is_empty() {
+        return Vec::new();
+    }
+    // By the fit alone, keeping the candidates' order among equal fits (most fits are 0.5,
+    // the halves of a square, or 1, across its sides). On the 1.3 million candidates of a
+    // shuffled city this serial stable sort took 13–23 ms, where a parallel sort of the
+    // whole tuples, to order ties by mesh index, took 49 ms. A fit is ≥ 0, so its bits
+    // order like it.
+    fits.sort_by_key(|&(fit, ..)| fit.to_bits());
+    let mut mates = vec![Mate::Free; tris.len()];
     for (_, [a, b], turns) in fits {
-        if !paired[a as usize] && !paired[b as usize] {
-            paired[a as usize] = true;
-            paired[b as usize] = true;
-            out.push(([a, b], turns));
+        if mates[a as usize] == Mate::Free && mates[b as usize] == Mate::Free {
+            mates[a as usize] = Mate::First(b, turns);
+            mates[b as usize] = Mate::Second;
         }
     }
-    let unpaired = |i: &&u32| paired.get(**i as usize) != Some(&true);
-    out.extend(lone.iter().filter(unpaired).map(|&i| ([i, NO_TRIANGLE], [0; 2])));
-    out.par_sort_unstable_by_key(|r| r.0[0]);
-    out
+    mates
 }
 
 /// The pairs `[a, b]` (`a < b`; possibly repeated, for triangles that share two edges) of
