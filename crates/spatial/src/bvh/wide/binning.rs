@@ -345,7 +345,8 @@ mod tests {
 
     /// [`split_two`] gives, bit for bit, what the bins give, on pairs of boxes drawn from
     /// a few coordinates (so that centroids often tie on some axes, or on all, or overflow)
-    /// and sizes (flat, and too large for a finite area).
+    /// and sizes (flat, and too large for a finite area); and [`split`] gives what the bins
+    /// give a pair at [`MAX_SAH_DEPTH`] (the middle cut).
     #[test]
     fn two_primitives_split_as_the_bins_split_them() {
         let mut h = 7u64;
@@ -368,6 +369,13 @@ mod tests {
             };
             let prims = [prim(), prim()];
             let (bounds, centroids) = Bounds::of(&prims);
+            // As deep as the SAH goes, `split` must leave the pair to the bins' middle cut.
+            let deep = Set { start: 0, end: 2, bounds, centroids, depth: MAX_SAH_DEPTH };
+            let (mut dp, mut di) = (prims.to_vec(), vec![0u32, 1]);
+            let (dl, dr) = split(&mut dp, &mut di, &deep, None, &mut Bins::new()).unwrap();
+            let (mut mp, mut mi) = (prims.to_vec(), vec![0u32, 1]);
+            let (ml, mr) = split_binned(&mut mp, &mut mi, &deep, None, &mut Bins::new()).unwrap();
+            assert_eq!((key(&dl), key(&dr), &di), (key(&ml), key(&mr), &mi));
             let set = Set { start: 0, end: 2, bounds, centroids, depth: 3 };
             let (mut p, mut i) = (prims.to_vec(), vec![0u32, 1]);
             let Some((l, r)) = split_two(&mut p, &mut i, &set) else {
