@@ -13,7 +13,10 @@
 //!
 //! `cargo run --release --example boxfield [-- --threads N]` (`-j N` alike; default one
 //! thread, the benchmark as stated; `--threads 2` shows how the passes scale, and the
-//! queries then run in parallel, `test_batch`).
+//! queries then run in parallel, `test_batch`). With `--scaling`, the occluder passes of
+//! both layouts run on one thread and on N (at least two) in turn, pass by pass in one
+//! process, so that the speed-up is read from interleaved runs rather than from two
+//! processes that a noisy machine may run at different speeds.
 
 #![forbid(unsafe_code)]
 
@@ -37,6 +40,10 @@ struct Args {
     /// queries then run in parallel)
     #[arg(short = 'j', long, default_value_t = 1, value_parser = clap::value_parser!(u16).range(1..=256))]
     threads: u16,
+    /// Time the occluder passes on one thread and on --threads (at least two) in turn, pass
+    /// by pass, and print each one's speed-up instead of the benchmark
+    #[arg(long)]
+    scaling: bool,
 }
 
 /// The box queries: on one thread the serial form (the benchmark as stated), on more the
@@ -49,11 +56,51 @@ fn test(q: &OccluderPass, boxes: &[Aabb], out: &mut Vec<BoxVisibility>, threads:
     }
 }
 
+/// `--scaling`: every occluder pass of both layouts (all occluders, and hidden ones
+/// skipped) on one thread and on `threads`, alternated pass by pass, with the medians'
+/// ratio.
+fn scaling(bf: &Boxfield, threads: usize) {
+    let one_mesh = boxfield(&BoxfieldParams { layout: BoxfieldLayout::OneMesh, ..Default::default() })
+        .expect("the one-mesh boxfield is valid");
+    let pools = [1, threads].map(|n| rayon::ThreadPoolBuilder::new().num_threads(n).build().expect("thread pool"));
+    let opts = RenderOptions::ids_only();
+    println!("occluder passes, 1 thread against {threads}, alternated pass by pass (medians of {ROUNDS}):");
+    for (layout, scene) in [("instanced", &bf.scene), ("one mesh", &one_mesh)] {
+        // Each pool's culler is built in it, as a program on that many threads would.
+        let mut cullers = [0, 1].map(|k| pools[k].install(|| Culler::new(scene)));
+        let mut fb = Framebuffer::new(SIZE.0, SIZE.1).expect("framebuffer");
+        for skip_hidden in [false, true] {
+            let mut times = [Vec::new(), Vec::new()];
+            for _ in 0..ROUNDS {
+                for (k, pool) in pools.iter().enumerate() {
+                    pool.install(|| {
+                        let t = Instant::now();
+                        let (_, _, pass) =
+                            cullers[k].occluder_pass_with(&bf.camera, &mut fb, &opts, skip_hidden).expect("occluders");
+                        times[k].push(t.elapsed().as_secs_f64() * 1e3);
+                        pass.finish();
+                    });
+                }
+            }
+            let [one, many] = times.map(median);
+            let which = if skip_hidden { "hidden occluders skipped" } else { "every occluder" };
+            println!("  {layout}, {which}: {one:.2} ms against {many:.2} ms ({:.2}x)", one / many);
+        }
+    }
+}
+
+/// Passes per pool in `--scaling`.
+const ROUNDS: usize = 25;
+
 fn main() {
-    let threads = usize::from(<Args as clap::Parser>::parse().threads);
+    let args = <Args as clap::Parser>::parse();
+    let threads = usize::from(args.threads);
     let th = if threads == 1 { "1 thread".to_string() } else { format!("{threads} threads") };
     let bf = Boxfield::new(QUERIES);
     println!("boxfield: {} triangles, {} queries, {}x{}", bf.scene.stats().triangles, bf.queries.len(), SIZE.0, SIZE.1);
+    if args.scaling {
+        return scaling(&bf, threads.max(2));
+    }
     let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().expect("thread pool");
     pool.install(|| {
         let mut culler = Culler::new(&bf.scene);
