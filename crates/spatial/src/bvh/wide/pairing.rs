@@ -21,22 +21,17 @@ use glam::{Vec3, Vec3A};
 use obvhs::aabb::Aabb as ObAabb;
 use rayon::iter::Either;
 use rayon::prelude::*;
+use sightline_scene::Aabb;
 
 use crate::prefetch_all;
 
 /// [`super::BlasQuad::index`] of a quad's absent second triangle.
 pub const NO_TRIANGLE: u32 = u32::MAX;
 
-/// The box of some corners.
+/// The box of some corners, as the wide BVH's builder takes it.
 pub(super) fn box_of(c: &[Vec3]) -> ObAabb {
-    let (lo, hi) = c.iter().fold((Vec3::INFINITY, Vec3::NEG_INFINITY), |(lo, hi), &p| (lo.min(p), hi.max(p)));
-    ObAabb::new(Vec3A::from(lo), Vec3A::from(hi))
-}
-
-/// Half the surface area of a box (what SAH weighs).
-fn half_area(b: &ObAabb) -> f32 {
-    let d = b.max - b.min;
-    d.x * d.y + d.y * d.z + d.z * d.x
+    let b = Aabb::from_points(c);
+    ObAabb::new(Vec3A::from(b.min), Vec3A::from(b.max))
 }
 
 /// Triangle `t` turned by `k` corners: corner `i` is `t[(i + k) % 3]`.
@@ -54,8 +49,9 @@ fn pair_fit(a: &[Vec3; 3], b: &[Vec3; 3]) -> f32 {
     if !a.iter().chain(b).all(|c| c.is_finite()) {
         return f32::INFINITY;
     }
-    let whole = half_area(&box_of(&[a[0], a[1], a[2], b[0], b[1], b[2]]));
-    let parts = half_area(&box_of(a)) + half_area(&box_of(b));
+    let area = |c: &[Vec3]| Aabb::from_points(c).half_area();
+    let whole = area(&[a[0], a[1], a[2], b[0], b[1], b[2]]);
+    let parts = area(a) + area(b);
     if parts > 0.0 {
         whole / parts
     } else if whole > 0.0 {
