@@ -26,7 +26,8 @@
 //!   front to back in the same batches (a resumable `OctreeCursor`), skipping a whole
 //!   octant when its loose cube is occluded.
 //!
-//! The walks live in `walk.rs`; each draws through one frame [`Session`] of the renderer.
+//! The walks live in `walk.rs`; each draws through one frame [`Session`] of the renderer. The
+//! occluder pass on its own (draw the occluders, then ask about boxes) is in `occluder.rs`.
 //!
 //! Exactness. A box is skipped only when its nearest possible window depth is farther than
 //! the farthest depth stored over every pixel it can touch, so none of its fragments could
@@ -39,6 +40,7 @@
 pub mod cone;
 pub mod meshlets;
 mod moves;
+mod occluder;
 pub mod order;
 pub mod query;
 mod ranges;
@@ -50,10 +52,11 @@ use std::time::Instant;
 
 use serde::{Deserialize, Serialize};
 use sightline_scene::{Aabb, Camera, Instance, Scene, SceneStamp};
-use sightline_spatial::{BoxProjector, ClusteredScene, Frustum, FrustumCount, LooseOctree, Visible};
+use sightline_spatial::{ClusteredScene, Frustum, FrustumCount, LooseOctree, Visible};
 
 pub use crate::hzb::{DepthPyramid, Level, Rect, TilePyramid};
 pub use meshlets::{Meshlets, SceneMeshlets};
+pub use occluder::OccluderPass;
 pub use order::DrawOrder;
 pub use query::{BoxVisibility, OcclusionQueries};
 pub use update::SyncOutcome;
@@ -191,7 +194,7 @@ struct Clusters {
     cone_can_cull: Vec<u64>,
     /// The largest reach of an instance's vertex transform (world units, per axis; see
     /// `update::instance_reach`): the box projector's margins for the rasterizer's rounding
-    /// grow with it ([`BoxProjector::for_camera`]). Only grows as instances move.
+    /// grow with it ([`BoxProjector::for_camera`](sightline_spatial::BoxProjector::for_camera)). Only grows as instances move.
     reach: f32,
     octree: LooseOctree,
     /// Clusters that moved since the octree was last brought up to date.
@@ -322,7 +325,7 @@ impl Culler {
 
     /// The largest `Σ_j |B_kj|·|v_j|` over the instances (`B` an instance's linear part, `v`
     /// its mesh's local box corners), per world axis: the `reach` its box tests project with
-    /// ([`BoxProjector::for_camera`]).
+    /// ([`BoxProjector::for_camera`](sightline_spatial::BoxProjector::for_camera)).
     pub fn reach(&self) -> f32 {
         self.c.reach
     }
@@ -492,110 +495,6 @@ impl Culler {
         let sources = self.c.sources(items, |&i| i, &mut CullStats::default());
         // Meshlet indices point into their own positions by construction.
         session.draw_sources_checked(&sources, camera, false)
-    }
-
-    /// Draws every cluster in the view frustum as occluders (depth and IDs; back faces as
-    /// `opts` says) into a frame session, and returns it as an [`OccluderPass`] that
-    /// answers box queries against the resulting pyramid. The pass draws into `fb` (its
-    /// depth and IDs, and depth-test counts when `fb` counts them), which stays borrowed
-    /// while the pass lives; [`OccluderPass::finish`] writes the pixels no occluder reached
-    /// as cleared. Dropped without `finish`, those pixels keep what `fb` held before.
-    pub fn occluder_pass<'c>(
-        &'c mut self,
-        camera: &Camera,
-        fb: &'c mut Framebuffer,
-        opts: &RenderOptions,
-    ) -> Result<(CullStats, FrameStats, OccluderPass<'c>)> {
-        self.occluder_pass_with(camera, fb, opts, false)
-    }
-
-    /// [`Culler::occluder_pass`]; with `skip_hidden`, occluders are themselves tested against
-    /// the pyramid as it fills (BVH nodes and clusters, as in [`Method::HzbOnePass`]) and the
-    /// hidden ones skipped. Hidden occluders cannot change a depth, so the z-buffer, IDs and
-    /// pyramid are the same bit for bit, for far less work in deep scenes.
-    pub fn occluder_pass_with<'c>(
-        &'c mut self,
-        camera: &Camera,
-        fb: &'c mut Framebuffer,
-        opts: &RenderOptions,
-        skip_hidden: bool,
-    ) -> Result<(CullStats, FrameStats, OccluderPass<'c>)> {
-        let t0 = Instant::now();
-        let cs = CullStats { clusters: self.c.clustered.item_count() as u64, ..Default::default() };
-        let frustum = Frustum::from_camera(camera);
-        let batching = self.batching(skip_hidden);
-        let projector = self.c.projector(camera, fb.width(), fb.height());
-        let c = &self.c;
-        let mut session = self.renderer.begin(fb, opts);
-        // Front to back in growing batches, so that the coarse depth test of the rasterizer
-        // rejects whole triangles hidden behind earlier ones.
-        let mut f = Frame { camera, opts, cs, fs: FrameStats::default() };
-        if skip_hidden {
-            // The tested walk does not list every cluster in the frustum: the other worker
-            // counts them during its serial steps.
-            let mut count = FrustumCount::new(c.clustered.bvh(), &frustum);
-            let walk = Walk { first_batch: batching.first, skip: None };
-            let (r, ()) = join_helping(
-                || c.hzb_walk(&mut session, &mut f, &frustum, Source::Bvh, walk, batching),
-                |poll| {
-                    count.run(c.clustered.bvh(), poll);
-                },
-            );
-            r?;
-            f.cs.set_in_frustum(count.finish(c.clustered.bvh()));
-        } else {
-            // The walk without tests lists (and counts) every cluster in the frustum.
-            c.draw_front_to_back(&mut session, &mut f, &frustum, batching)?;
-        }
-        let Frame { mut cs, fs, .. } = f;
-        // The walk's split into culling and drawing is not reported for the pass.
-        cs.ms_cull = 0.0;
-        cs.ms_draw = ms_since(t0);
-        cs.ms_total = cs.ms_draw;
-        cs.culled_by_occlusion = cs.clusters_in_frustum.saturating_sub(cs.clusters_drawn + cs.culled_by_backface);
-        Ok((cs, fs, OccluderPass { session, projector }))
-    }
-}
-
-/// The occluders of one frame drawn into an open frame session, and box queries against
-/// their z-pyramid (see [`Culler::occluder_pass`]).
-#[derive(Debug)]
-pub struct OccluderPass<'c> {
-    session: Session<'c>,
-    projector: BoxProjector,
-}
-
-impl OccluderPass<'_> {
-    /// Queries against the pyramid of the occluders.
-    pub fn queries(&self) -> OcclusionQueries<'_> {
-        OcclusionQueries::with_projector(self.projector, self.session.pyramid())
-    }
-
-    /// The pyramid of the occluders.
-    pub fn pyramid(&self) -> TilePyramid<'_> {
-        self.session.pyramid()
-    }
-
-    /// [`OcclusionQueries::test`].
-    pub fn test(&self, b: &Aabb) -> BoxVisibility {
-        self.queries().test(b)
-    }
-
-    /// [`OcclusionQueries::test_many`].
-    pub fn test_many(&self, boxes: &[Aabb], out: &mut Vec<BoxVisibility>) {
-        self.queries().test_many(boxes, out)
-    }
-
-    /// [`OcclusionQueries::test_batch`].
-    pub fn test_batch(&self, boxes: &[Aabb], out: &mut Vec<BoxVisibility>) {
-        self.queries().test_batch(boxes, out)
-    }
-
-    /// Ends the pass: the framebuffer holds the occluders' depth and IDs (and depth-test
-    /// counts when it counts them; its colors are left as they were). Returns the pixels
-    /// covered.
-    pub fn finish(self) -> u64 {
-        self.session.finish()
     }
 }
 

@@ -54,7 +54,9 @@ use sightline_scene::{Aabb, Camera};
 
 use crate::simd::SimdLevel;
 use crate::{AabbExt, BoxKind};
+use batch::{Batch, BATCH};
 
+mod batch;
 #[cfg(target_arch = "x86_64")]
 mod lanes;
 #[cfg(target_arch = "x86_64")]
@@ -320,14 +322,6 @@ impl BoxProjector {
         }
     }
 
-    /// Answers up to [`BATCH`] boxes into lanes `0..chunk.len()` of `out`, one by one.
-    #[inline]
-    fn chunk_portable(&self, chunk: &[Aabb], out: &mut Batch) {
-        for (k, b) in chunk.iter().enumerate() {
-            out.set(k, self.classify_portable(b));
-        }
-    }
-
     /// [`BoxProjector::classify`] in plain scalar code: the reference the SIMD path is tested
     /// against, and the path on CPUs (and targets) without AVX2.
     ///
@@ -563,67 +557,6 @@ impl BoxProjector {
             (x0, y0, x1, y1, z0, mz)
         };
         self.rect(x0, y0, x1, y1, z0, mz)
-    }
-}
-
-/// Boxes answered per call of the AVX2 path (four batches of eight lanes), so that the call
-/// costs little per box.
-const BATCH: usize = 32;
-
-/// The answers of up to [`BATCH`] boxes, lane k for box k (filled eight lanes at a time by
-/// `Lanes::classify8`).
-#[derive(Debug)]
-#[repr(C, align(32))]
-struct Batch {
-    /// [`Batch::RECT`], [`Batch::OUTSIDE`] or [`Batch::CROSSES`].
-    kind: [i32; BATCH],
-    x0: [i32; BATCH],
-    y0: [i32; BATCH],
-    x1: [i32; BATCH],
-    y1: [i32; BATCH],
-    depth: [f32; BATCH],
-}
-
-impl Default for Batch {
-    fn default() -> Batch {
-        Batch { kind: [0; BATCH], x0: [0; BATCH], y0: [0; BATCH], x1: [0; BATCH], y1: [0; BATCH], depth: [0.0; BATCH] }
-    }
-}
-
-impl Batch {
-    const RECT: i32 = 0;
-    const OUTSIDE: i32 = 1;
-    const CROSSES: i32 = 2;
-
-    /// Lane `k` as a [`BoxImage`].
-    #[inline(always)]
-    fn image(&self, k: usize) -> BoxImage {
-        match self.kind[k] {
-            Batch::RECT => BoxImage::Rect(ScreenRect {
-                x0: self.x0[k] as u32,
-                y0: self.y0[k] as u32,
-                x1: self.x1[k] as u32,
-                y1: self.y1[k] as u32,
-                depth: self.depth[k],
-                crosses_near: false,
-            }),
-            Batch::OUTSIDE => BoxImage::Outside,
-            _ => BoxImage::CrossesNear,
-        }
-    }
-
-    /// Stores `image` in lane `k`.
-    #[inline]
-    fn set(&mut self, k: usize, image: BoxImage) {
-        self.kind[k] = match image {
-            BoxImage::Rect(r) => {
-                (self.x0[k], self.y0[k], self.x1[k], self.y1[k]) = (r.x0 as i32, r.y0 as i32, r.x1 as i32, r.y1 as i32);
-                self.depth[k] = r.depth;
-                Batch::RECT
-            }
-            BoxImage::Outside => Batch::OUTSIDE,
-            BoxImage::CrossesNear => Batch::CROSSES,
-        }
     }
 }
 
