@@ -354,6 +354,62 @@ pub(super) mod tests {
         assert_eq!(one.len() * 2, mesh.len(), "every triangle pairs");
     }
 
+    /// Among candidates of equal fit, the one whose edge key sorts first is taken. Each
+    /// square here is cut into four triangles through its center, and each triangle fits
+    /// each of its two neighbours exactly as well (fit 1; the squares lie apart, on whole
+    /// coordinates, so every fit is exact). So a square's first edge in key order decides
+    /// which of its two pairings it gets, whatever the triangles' places in the mesh
+    /// (shuffled here) and their turns. (A sort that keeps ties in mesh order, reverses
+    /// them, or does not keep their order fails it.)
+    #[test]
+    fn equal_fits_go_in_the_order_of_their_edges_keys() {
+        let mut rng = sightline_scene::rng::Rng::new(5);
+        let squares = 200;
+        let mut mesh = Vec::new();
+        let mut expected = Vec::new();
+        for s in 0..squares {
+            let o = Vec3::new(4.0 * s as f32, rng.below(1000) as f32, rng.below(1000) as f32);
+            let p = [o, o + 2.0 * Vec3::X, o + Vec3::new(2.0, 2.0, 0.0), o + 2.0 * Vec3::Y];
+            let c = o + Vec3::new(1.0, 1.0, 0.0);
+            // Triangle k is (c, p[k], p[k + 1]); it shares the edge c p[k + 1] with triangle
+            // k + 1, which runs it the other way.
+            let tris: Vec<[Vec3; 3]> = (0..4).map(|k| turned(&[c, p[k], p[(k + 1) % 4]], rng.below(3) as u8)).collect();
+            assert_eq!(pair_fit(&tris[0], &tris[1]), 1.0);
+            let key = |k: usize| (corner_hash(c) ^ corner_hash(p[k])) >> 32;
+            let first = (0..4).min_by_key(|&k| key(k)).unwrap();
+            // Edge c p[first] joins triangles first − 1 and first; the other two pair after.
+            let base = 6 * s;
+            expected.push([base + (first + 3) % 4, base + first]);
+            expected.push([base + (first + 1) % 4, base + (first + 2) % 4]);
+            mesh.extend(tris);
+            // And a square cut in two beside it, whose halves fit better (0.5): so that the
+            // sort by fit has work to do, its candidate among the others in key order.
+            let q = o + Vec3::new(0.0, 3.0, 0.0);
+            let (a, b, c, d) = (q, q + Vec3::X, q + Vec3::new(1.0, 1.0, 0.0), q + Vec3::Y);
+            mesh.extend([[a, b, c], [a, c, d]]);
+            expected.push([base + 4, base + 5]);
+        }
+        // Shuffle the mesh: `place[i]` is where triangle i goes.
+        let mut place: Vec<usize> = (0..mesh.len()).collect();
+        for i in (1..place.len()).rev() {
+            place.swap(i, rng.below(i as u32 + 1) as usize);
+        }
+        let mut shuffled = mesh.clone();
+        for (i, &at) in place.iter().enumerate() {
+            shuffled[at] = mesh[i];
+        }
+        let mut want: Vec<[u32; 2]> = expected
+            .iter()
+            .map(|&[a, b]| {
+                let (a, b) = (place[a] as u32, place[b] as u32);
+                [a.min(b), a.max(b)]
+            })
+            .collect();
+        want.sort_unstable();
+        let got: Vec<[u32; 2]> = pair_up(&shuffled).into_iter().map(|r| r.0).collect();
+        assert_eq!(got, want);
+    }
+
     /// A corner written −0 in one triangle and +0 in another is one corner: the edges
     /// through it meet.
     #[test]
