@@ -69,12 +69,12 @@
 
 use glam::{Vec3, Vec3A};
 
-mod quad;
-pub(crate) use quad::{intersect_quad_general, intersect_quad_shared};
-
 use super::packet::{Hits, Rays, CHUNK, MIXED, NO_GID};
 use super::shear::AXES;
 use super::{mn, mx};
+
+mod quad;
+pub(crate) use quad::{intersect_quad_general, intersect_quad_shared};
 
 /// A triangle's vertices relative to a ray origin: `[v0 − o, v1 − o, v2 − o]`.
 pub(crate) type Rel = [[f32; 3]; 3];
