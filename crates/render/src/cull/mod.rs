@@ -13,15 +13,15 @@
 //!   against the pyramid of what is already drawn; a batch is drawn, the pyramid refreshed over
 //!   the drawn rectangles, and the walk resumes. Batches start small (the nearest occluders go
 //!   in first) and double.
-//! * [`Method::Hzb`]: the same walk in the two-pass form GPU engines use to exploit
-//!   temporal coherence: last frame's visible clusters (still in the frustum) are drawn
-//!   first, in one batch, front to back, as occluders; the walk then tests everything else against that
-//!   pyramid, in big batches; at the end last frame's clusters are tested again, and those
-//!   still visible join this frame's newly drawn ones as the next frame's set. Without a
-//!   last frame (or after a cut) it is the one-pass walk. On the street path it needs two
-//!   draw batches instead of six, and the two forms take about the same time; from above,
-//!   where little is hidden, it was faster (19.8 against 22.3 ms per aerial frame in one
-//!   verified walk), so it is `hzb`.
+//! * [`Method::Hzb`]: the same walk in the two-pass form GPU engines use to exploit temporal
+//!   coherence: last frame's visible clusters (still in the frustum) are drawn first, in one batch,
+//!   front to back, as occluders; the walk then tests everything else against that pyramid, in big
+//!   batches; at the end last frame's clusters are tested again, and those still visible join this
+//!   frame's newly drawn ones as the next frame's set. When none of last frame's set is left in
+//!   view (the first frame, or after a cut) it is the one-pass walk. On the street path it needs
+//!   two draw batches instead of six, and the two forms take about the same time; from above, where
+//!   little is hidden, it was faster (19.8 against 22.3 ms per aerial frame in one verified walk),
+//!   so it is `hzb`.
 //! * [`Method::OctreeHzb`]: Greene's original: a loose octree over the same clusters, walked
 //!   front to back in the same batches (a resumable `OctreeCursor`), skipping a whole
 //!   octant when its loose cube is occluded.
@@ -199,7 +199,8 @@ struct Clusters {
     octree: LooseOctree,
     /// Clusters that moved since the octree was last brought up to date.
     octree_pending: Vec<u32>,
-    /// More clusters moved than there are: rebuild the octree instead of moving entries.
+    /// The octree is built anew at its next use instead of moving entries: it was never
+    /// built, or more clusters moved than there are.
     octree_rebuild: bool,
     /// Scratch of `move_nodes`: the moved (instance, node) pairs, and the moved clusters.
     moves: Vec<(u32, sightline_scene::NodeId)>,

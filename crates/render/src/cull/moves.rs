@@ -150,7 +150,8 @@ impl Clusters {
 }
 
 /// Instance indices where the ranges of [`Clusters::move_nodes`] start, after the first
-/// (which starts at 0): quantiles of the moved instances, one range per thread.
+/// (which starts at 0): quantiles of the moved instances, at most one range per thread and
+/// one per `PARALLEL_MOVES / 2` moves.
 fn split_points(moves: &[(u32, NodeId)]) -> Vec<u32> {
     let ranges = rayon::current_num_threads().min(moves.len() / (PARALLEL_MOVES / 2)).max(1);
     if ranges == 1 {

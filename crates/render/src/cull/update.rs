@@ -190,8 +190,8 @@ pub enum SyncOutcome {
     Unchanged,
     /// Only materials changed (shading reads them; nothing spatial moved).
     Restyled,
-    /// Instances moved: their boxes, cones and octree entries followed, and the cluster BVH
-    /// was refitted or rebuilt (or is being rebuilt in the background, see [`RefitOutcome`]).
+    /// Instances moved: their boxes and cones followed, their octree entries were queued (they
+    /// move when the octree walk next runs), and the cluster BVH was refitted or rebuilt (or is being rebuilt in the background, see [`RefitOutcome`]).
     Moved {
         /// How many instances moved.
         instances: usize,

@@ -53,7 +53,8 @@ pub(super) struct TwoPass {
     last_visible: Vec<u32>,
     /// Per cluster, the number of the frame that last drew it.
     drawn_in: Vec<u32>,
-    /// Frames drawn with it so far (never 0 once started).
+    /// The current frame's number, matched against `drawn_in` (it restarts at 1 when it
+    /// wraps or the cluster count changes; never 0 once started).
     frame: u32,
 }
 

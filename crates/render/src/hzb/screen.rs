@@ -1,7 +1,8 @@
 //! [`DepthPyramid`]: Greene's z-pyramid over a whole-screen depth buffer.
 //!
-//! Queries pick the level where the rectangle touches at most 4 × 4 texels (a finer level
-//! than Greene's 2 × 2, which rejects more for a few more reads). After drawing, only the
+//! Queries pick the finest level where the rectangle spans at most 4 texel widths per axis
+//! (`span >> level ≤ 3`, so up to 5 × 5 texels are read: a finer level than Greene's 2 × 2,
+//! which rejects more for a few more reads). After drawing, only the
 //! rectangle that changed is propagated up ([`DepthPyramid::update`]).
 
 use super::{Level, Rect};
@@ -105,7 +106,7 @@ impl DepthPyramid {
             return nearest > 1.0;
         }
         let span = (r.x1 - r.x0).max(r.y1 - r.y0) + 1;
-        // Finest level at which the rectangle touches at most 4 × 4 texels.
+        // Finest level at which the rectangle spans at most 4 texel widths per axis.
         let mut level = 0usize;
         while (span >> level) > 3 && level + 1 < self.level_count() {
             level += 1;

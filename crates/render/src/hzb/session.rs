@@ -5,7 +5,8 @@
 //! A query first makes Greene's 2 × 2 test on the small grid of levels ≥ 6 over the tiles: a
 //! coarser texel is the max of the finer ones below it, so when that test says occluded the
 //! finer one would too, and it settles nearly every query of a dense scene with four reads.
-//! Otherwise it reads the level where the rectangle spans at most 4 × 4 texels, as
+//! Otherwise it reads the level where the rectangle spans at most 4 texel widths per axis
+//! (up to 5 × 5 texels), as
 //! [`DepthPyramid`](super::DepthPyramid) does, and descends into each texel that does not
 //! occlude, down two more levels, keeping only the children the rectangle touches (Greene,
 //! Kass & Miller 1993 descend the pyramid the same way where a coarse texel cannot decide).
@@ -65,8 +66,9 @@ impl<'a> TilePyramid<'a> {
         5 + self.upper.len() as u32
     }
 
-    /// The max depth of texel (x, y) of `level` (1 ..= [`TilePyramid::top`]). Levels below 6
-    /// live in the tiles: texel (x, y) is in tile (x, y) >> (6 − level), at the position
+    /// The max depth of texel (x, y) of `level` (0 ..= [`TilePyramid::top`]). Level 0 is the
+    /// framebuffer's depth ([`TilePyramid::pixel`]), levels 6 and up lie over the tile grid,
+    /// and levels 1–5 live in the tiles: texel (x, y) is in tile (x, y) >> (6 − level), at the position
     /// given by the low bits; a tile not drawn into this session is still clear (1.0).
     #[inline(always)]
     fn texel(&self, level: u32, x: u32, y: u32) -> f32 {

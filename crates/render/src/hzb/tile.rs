@@ -139,7 +139,8 @@ impl TileLevels {
         t.plane_min(rect) > max + self.tie_margin
     }
 
-    /// Brings the level-3 texel of one 8×8 block (`corner` in tile pixels) up to date from
+    /// Brings the level-3 texel of one 8×8 block (`[bx, by]`: any of its pixels, in tile
+    /// pixels) up to date from
     /// the tile's depth keys right after a triangle wrote into it, and marks the block stale
     /// for levels 1–2.
     #[inline(always)]

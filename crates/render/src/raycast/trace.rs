@@ -26,7 +26,8 @@ pub(crate) struct Scratch {
 }
 
 impl Scratch {
-    /// Scratch with stacks sized for trees of the given depths.
+    /// Scratch with stacks allocated for trees of the given depths (`depth + 4` entries;
+    /// they grow as needed).
     pub fn new(tlas_depth: usize, blas_depth: usize) -> Self {
         Self {
             local: Rays::new(),

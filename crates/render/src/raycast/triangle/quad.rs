@@ -102,8 +102,8 @@ fn quad_lanes<const ANY: bool>(fetch: impl Fn(usize) -> Rel4, rays: &Rays, hits:
     m
 }
 
-/// [`intersect_shared`](super::intersect_shared) for the two triangles of a prepared quad (`jobs[1].bits` = 0 when
-/// the quad holds only its first).
+/// [`intersect_shared`](super::intersect_shared) for the two triangles of a prepared quad
+/// (a pair: the record of a lone triangle goes to the triangle kernels).
 #[inline(always)]
 pub(crate) fn intersect_quad_shared<const ANY: bool>(
     s: &Shared<4>,

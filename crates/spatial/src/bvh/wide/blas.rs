@@ -9,8 +9,8 @@
 //! aligned to 64 bytes, against 80 bytes for two triangle records), and a ray test
 //! shears the shared corners and computes the shared edge once for both triangles. Each
 //! triangle keeps its own corners in its own order, turned (a rotation keeps its facing
-//! and its edges, so the watertight test stays watertight) so that the diagonal runs from
-//! its third corner to its first; a test of the pair computes, bit for bit, what tests of
+//! and its edges, so the watertight test stays watertight) so that the two make
+//! `(p, q, r)` and `(p, r, s)`, sharing the diagonal `p r`; a test of the pair computes, bit for bit, what tests of
 //! the two triangles in their stored order compute, and [`WideBlas::mesh_weights`]
 //! gives a hit's weights back in the mesh's order.
 //!
@@ -206,7 +206,7 @@ impl WideBlas {
         }
     }
 
-    /// The tree over the quads.
+    /// The tree over the primitives (quads, or lone triangles).
     #[inline]
     pub fn bvh(&self) -> &WideBvh {
         &self.bvh
@@ -235,12 +235,12 @@ mod tests {
         }
     }
 
-    /// Every triangle of `mesh` comes back once from the slots of `blas`, with its corners.
     /// The point of weights `w` on triangle `c`.
     fn at(c: [Vec3; 3], w: Vec3) -> Vec3 {
         c[0] * w.x + c[1] * w.y + c[2] * w.z
     }
 
+    /// Every triangle of `mesh` comes back once from the slots of `blas`, with its corners.
     fn assert_all_triangles_once(blas: &WideBlas, count: usize, mesh: impl Fn(usize) -> [Vec3; 3]) {
         let prims = match blas.prims() {
             BlasPrims::Quads(q) => 2 * q.len(),
@@ -309,7 +309,8 @@ mod tests {
         }
         assert_all_triangles_once(&blas, 40, mirrored);
         assert_eq!(blas.paired_triangles(), 0);
-        // A quarter of the triangles in pairs is enough for quads (one pair among four).
+        // Half the triangles in pairs is enough for quads (one pair among four); two of five
+        // is not.
         let some = |i: usize| if i < 2 { strip(i) } else { mirrored(i + 2) };
         assert!(matches!(WideBlas::build(4, some).prims(), BlasPrims::Quads(q) if q.len() == 3));
         assert_eq!(WideBlas::build(4, some).paired_triangles(), 2);

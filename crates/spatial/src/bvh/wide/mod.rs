@@ -148,8 +148,9 @@ fn shift_link(link: u32, count: u32, node_base: u32, prim_base: u32) -> u32 {
     }
 }
 
-/// Which builder runs and how hard it works. The two settings are the ones the ray
-/// caster's levels use.
+/// Which builder runs and how hard it works. The public settings
+/// ([`WideBuildParams::BLAS`], [`WideBuildParams::BLAS_QUADS`], [`WideBuildParams::TLAS`])
+/// are the ones the ray caster's levels use.
 #[derive(Debug, Clone, Copy)]
 pub struct WideBuildParams {
     /// Largest leaf.
@@ -228,7 +229,8 @@ impl WideBvh {
         &self.root
     }
 
-    /// The inner nodes, depth first (a subtree's nodes are contiguous).
+    /// The inner nodes, the root's first; a node's inner children come after it (what
+    /// [`WideBvh::refit`] relies on).
     #[inline]
     pub fn nodes(&self) -> &[WideNode] {
         &self.nodes
@@ -280,8 +282,9 @@ impl WideBvh {
         Self::from_bvh2(&bvh2)
     }
 
-    /// Collapses an obvhs BVH2 to four children per node (depth first, so a subtree's
-    /// nodes are contiguous).
+    /// Collapses an obvhs BVH2 to four children per node. A node's inner children are
+    /// placed together when the node is filled, after it; their subtrees follow, first
+    /// child first.
     fn from_bvh2(b: &Bvh2) -> WideBvh {
         let mut nodes: Vec<WideNode> = Vec::with_capacity(b.nodes.len() / 3 + 1);
         let mut order = Vec::with_capacity(b.primitive_indices.len());

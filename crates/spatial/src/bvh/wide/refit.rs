@@ -2,7 +2,7 @@
 //! refitted tree has degraded enough to rebuild (Wald, Boulos & Shirley 2007, "Ray tracing
 //! deformable scenes using dynamic bounding volume hierarchies").
 //!
-//! Inner nodes are laid out depth first, so a node's inner children always have larger
+//! Inner nodes are laid out parents first, so a node's inner children always have larger
 //! indices than the node: one sweep from the last node to the first sees every child
 //! before its parent. The sweep keeps each node's union for its parent to read, and sums
 //! the surface-area cost as it goes, so deciding whether to rebuild costs no second pass.

@@ -15,8 +15,8 @@ use rayon::prelude::*;
 
 use super::{Ploc, WideBuildParams, WideBvh, WideChild, WideNode, WIDTH};
 
-/// Smallest input built in parallel runs; below it one serial build is fast enough (and
-/// small trees, such as the instanced city's building meshes, keep their serial shape).
+/// Smallest input built in parallel runs (PLOC builds: the TLAS); below it one serial build
+/// is fast enough, and small instance trees keep their serial shape.
 pub(crate) const SPLIT_MIN: usize = 1 << 17;
 
 /// Builds over `boxes` as [`WIDTH`] Morton runs in parallel by PLOC (settings `ploc`),
