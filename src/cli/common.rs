@@ -149,13 +149,24 @@ pub const MAX_FRAMES: usize = 1_000_000;
 /// thread costs a stack and a share of every frame's synchronization).
 pub const MAX_THREADS: usize = 256;
 
-/// Parses `--frames`: a whole number from 0 to [`MAX_FRAMES`].
+/// Parses `--frames`: a whole number from 1 to [`MAX_FRAMES`].
 pub fn frames_arg(s: &str) -> std::result::Result<usize, String> {
     let n: u128 = s.trim().parse().map_err(|_| format!("`{s}` is not a whole number of frames"))?;
+    if n == 0 {
+        return Err("give at least 1 frame".into());
+    }
     if n > MAX_FRAMES as u128 {
         return Err(format!("{n} frames is more than the {MAX_FRAMES} a command renders"));
     }
     Ok(n as usize)
+}
+
+/// Parses a percentage in [0, 100] (`--min-agreement`).
+pub fn percent_arg(s: &str) -> std::result::Result<f64, String> {
+    match s.parse::<f64>() {
+        Ok(p) if (0.0..=100.0).contains(&p) => Ok(p),
+        _ => Err(format!("'{s}' is not a percentage between 0 and 100")),
+    }
 }
 
 /// Parses `--threads`: a whole number from 1 to [`MAX_THREADS`].
@@ -240,10 +251,10 @@ pub struct CameraArgs {
     #[arg(long, default_value_t = 0)]
     pub frame: usize,
     /// Eye position x,y,z (with --target)
-    #[arg(long, value_parser = parse_vec3, allow_hyphen_values = true)]
+    #[arg(long, value_parser = parse_vec3, allow_hyphen_values = true, requires = "target")]
     pub eye: Option<Vec3>,
     /// Point looked at x,y,z (with --eye)
-    #[arg(long, value_parser = parse_vec3, allow_hyphen_values = true)]
+    #[arg(long, value_parser = parse_vec3, allow_hyphen_values = true, requires = "eye")]
     pub target: Option<Vec3>,
     /// Up direction x,y,z (with --eye; default 0,1,0)
     #[arg(long, value_parser = parse_vec3, allow_hyphen_values = true, requires = "eye")]
@@ -400,7 +411,7 @@ mod tests {
     #[test]
     fn frame_and_thread_counts_are_checked_before_any_work() {
         assert_eq!(frames_arg("120"), Ok(120));
-        assert_eq!(frames_arg("0"), Ok(0));
+        assert!(frames_arg("0").unwrap_err().contains("at least 1"));
         assert!(frames_arg("18446744073709551615").unwrap_err().contains("more than"));
         assert!(frames_arg("3000000000").unwrap_err().contains("more than"));
         assert!(frames_arg("99999999999999999999999999999999999999999").unwrap_err().contains("not a whole number"));

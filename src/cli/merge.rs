@@ -31,7 +31,7 @@ pub struct MergeArgs {
     pub json: Option<PathBuf>,
     /// The least share of pixels (percent) on which ray casting must have agreed with the
     /// rasterizer on every verified frame, as `walk --min-agreement`
-    #[arg(long, value_name = "PERCENT", default_value_t = 99.5)]
+    #[arg(long, value_name = "PERCENT", default_value_t = 99.5, value_parser = super::common::percent_arg)]
     pub min_agreement: f64,
 }
 

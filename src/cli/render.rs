@@ -49,8 +49,8 @@ pub struct RenderArgs {
     /// Worker threads, 1 to 256 (default: all cores)
     #[arg(short = 'j', long, value_parser = super::common::threads_arg)]
     pub threads: Option<usize>,
-    /// Output folder for color.png (supersampled as --aa says), depth.png, ids.png,
-    /// complexity.png
+    /// Output folder for color.png (supersampled as --aa says), depth.png, ids.png, and
+    /// complexity.png (depth tests per pixel; rasterizer only)
     #[arg(short, long, value_name = "DIR")]
     pub out: Option<PathBuf>,
     /// Raw triangle-ID buffer as .npy (uint32, H×W, row 0 = top, 0 = background)

@@ -55,7 +55,7 @@ pub struct WalkArgs {
     pub animate: bool,
     /// With --verify: the least share of pixels (percent) on which ray casting must give the
     /// rasterizer's triangle ID on every frame; a frame below it fails the run
-    #[arg(long, value_name = "PERCENT", default_value_t = 99.5, value_parser = percent_arg)]
+    #[arg(long, value_name = "PERCENT", default_value_t = 99.5, value_parser = common::percent_arg)]
     pub min_agreement: f64,
     /// Image size
     #[arg(long, default_value = "1280x720")]
@@ -206,14 +206,6 @@ fn agreement_shortfall(records: &[FrameRecord], min_percent: f64) -> Option<Stri
         short.len(),
         records.iter().filter(|r| r.agreement.is_some()).count()
     ))
-}
-
-/// A percentage in [0, 100].
-fn percent_arg(s: &str) -> std::result::Result<f64, String> {
-    match s.parse::<f64>() {
-        Ok(p) if (0.0..=100.0).contains(&p) => Ok(p),
-        _ => Err(format!("'{s}' is not a percentage between 0 and 100")),
-    }
 }
 
 #[allow(clippy::too_many_arguments)]
@@ -420,6 +412,10 @@ mod tests {
         assert!(why.contains("98.00%") && why.contains("frame 2") && why.contains("2 of 3"), "{why}");
         assert!(agreement_shortfall(&rs[1..], 98.0).is_none());
         assert!(agreement_shortfall(&[record(0, "raycast", None)], 100.0).is_none(), "no comparison, no failure");
-        assert!(percent_arg("99.5").is_ok() && percent_arg("100.1").is_err() && percent_arg("x").is_err());
+        assert!(
+            common::percent_arg("99.5").is_ok()
+                && common::percent_arg("100.1").is_err()
+                && common::percent_arg("x").is_err()
+        );
     }
 }

@@ -15,11 +15,13 @@ fn huge_frame_and_thread_counts_are_usage_errors() {
     let dir = std::env::temp_dir().join(format!("sightline-cli-{}", std::process::id()));
     let out = dir.join("path.json");
     let out = out.to_str().expect("a UTF-8 temp path");
-    let cases: [&[&str]; 7] = [
+    let cases: [&[&str]; 9] = [
         &["path", "--frames", "18446744073709551615", "--out", out],
         &["path", "--frames", "100000000", "--out", out],
+        &["path", "--frames", "0", "--out", out],
         &["walk", "--frames", "18446744073709551615"],
         &["walk", "--frames", "3000000000"],
+        &["bench", "--frames", "0"],
         &["walk", "--threads", "10000"],
         &["render", "--threads", "0"],
         &["bench", "--threads", "100000"],
@@ -29,9 +31,34 @@ fn huge_frame_and_thread_counts_are_usage_errors() {
         assert_eq!(code, Some(2), "{args:?}: {err}");
         let flag = if args.contains(&"--threads") { "--threads" } else { "--frames" };
         assert!(err.contains(flag), "{args:?}: the error names {flag}: {err}");
+        assert_eq!(err.lines().count(), 1, "{args:?}: one line: {err}");
         assert!(!err.contains("panicked"), "{args:?}: {err}");
     }
     assert!(!dir.join("path.json").exists(), "nothing was written");
+}
+
+/// Whatever clap refuses is one line naming the flag, with exit code 2, as the program's own
+/// usage errors are: an unknown flag, a missing argument, a flag without its partner, a
+/// percentage out of range.
+#[test]
+fn usage_errors_are_one_line_naming_the_flag() {
+    let cases: [(&[&str], &str); 5] = [
+        (&["walk", "--no-such-flag"], "--no-such-flag"),
+        (&["path"], "--out"),
+        (&["render", "--eye", "1,2,3"], "--target"),
+        (&["render", "--target", "0,0,0"], "--eye"),
+        (&["merge", "--min-agreement", "150", "--out", "x", "y"], "--min-agreement"),
+    ];
+    for (args, flag) in cases {
+        let (code, err) = run(args);
+        assert_eq!(code, Some(2), "{args:?}: {err}");
+        assert!(err.starts_with("error: ") && err.contains(flag), "{args:?}: names {flag}: {err}");
+        assert_eq!(err.lines().count(), 1, "{args:?}: one line: {err}");
+    }
+    // Help still prints in full, to stdout, with success.
+    let out = Command::new(env!("CARGO_BIN_EXE_sightline")).args(["walk", "--help"]).output().unwrap();
+    assert_eq!(out.status.code(), Some(0));
+    assert!(String::from_utf8_lossy(&out.stdout).contains("--frames"));
 }
 
 /// Output that cannot be written is found before any frame is rendered, and `bench` never
@@ -50,7 +77,9 @@ fn unwritable_output_fails_first_and_bench_never_reprints_an_old_table() {
     std::fs::create_dir_all(&dir).unwrap();
     std::fs::write(dir.join("bench.json"), r#"{"scene":"old","methods":[{"method":"brute","median_ms":1.0}]}"#)
         .unwrap();
-    let (code, err) = run(&["bench", "--frames", "0", "--size", "64x36", "--out", dir.to_str().unwrap()]);
+    let missing = dir.join("no-such-path.json");
+    let (code, err) =
+        run(&["bench", "--path", missing.to_str().unwrap(), "--size", "64x36", "--out", dir.to_str().unwrap()]);
     assert_eq!(code, Some(1), "{err}");
     assert!(!dir.join("bench.md").exists(), "no table from the old summary");
     let _ = std::fs::remove_dir_all(&dir);
