@@ -30,8 +30,8 @@ pub const NEAR: u8 = 16;
 pub const FAR: u8 = 32;
 /// The six frustum bits.
 pub const VIEW_BITS: u8 = 63;
-/// Not a frustum plane: the vertex lies outside the guard band (or has `w ≤ 0`), so the
-/// triangle must be clipped before rasterization.
+/// Not a frustum plane: the vertex lies outside the guard band, beyond the near or far
+/// plane, or has `w ≤ 0`, so the triangle must be clipped before rasterization.
 pub const GUARD: u8 = 64;
 /// Not a frustum plane: a coordinate is NaN or infinite; such triangles are dropped.
 pub const BAD: u8 = 128;

@@ -186,9 +186,9 @@ impl Renderer {
         Ok(stats)
     }
 
-    /// Draws `items` into the depth and ID planes of `fb` (depth test LESS), in order,
-    /// without clearing and without shading. Counters cover this call only
-    /// (`covered_pixels` is left 0 unless the draw began a fresh frame).
+    /// Draws `items` into the depth and ID planes of `fb` (depth test LESS, exact ties to the
+    /// smaller ID), in order, without clearing and without shading. Counters cover this call
+    /// only (`covered_pixels` stays 0: only a fresh frame, [`Renderer::render`], counts them).
     pub fn draw(
         &mut self,
         scene: &Scene,
@@ -326,7 +326,7 @@ impl Renderer {
         &self.levels
     }
 
-    /// Prepares the tiles and pyramid of a session on a `fb`-sized target (see
+    /// Prepares the tiles and pyramid of a session on a `width × height` target (see
     /// [`Renderer::begin`]).
     pub(crate) fn start_session(&mut self, width: u32, height: u32) {
         let grid = Grid::new(width, height);

@@ -64,8 +64,9 @@ impl Viewport {
     }
 
     /// Divide and viewport transform of a vertex inside the guard band (w > 0): snapped
-    /// window x, y (fixed point, y down) and window z. `None` when the result is not finite
-    /// or leaves the guard band (only possible for input that bypassed the outcodes).
+    /// window x, y (fixed point, y down) and window z. `None` when the window position
+    /// exceeds `PROJECT_LIMIT` (a margin beyond the guard band) or a result is not finite;
+    /// callers treat that vertex as outside the guard band.
     #[inline]
     pub fn project(&self, c: glam::Vec4) -> Option<SnappedVertex> {
         // Same operation order as llvmpipe's draw module: x · (1/w) · scale + translate.

@@ -7,15 +7,16 @@
 //!
 //! * **The asset's folder.** A referenced path is resolved against the folder of the scene file
 //!   and then canonicalized (`..`, `.` and symbolic links followed). It must lie inside that
-//!   folder, or inside one of [`LoadOptions::allowed_roots`]; an absolute path, a `../` that
-//!   climbs out, or a link that points out is refused, naming the reference and where it leads.
+//!   folder, or inside one of [`LoadOptions::allowed_roots`]; a path that leads outside them
+//!   (absolute, a `../` that climbs out, or a link that points out) is refused, naming the
+//!   reference and where it leads.
 //! * **Regular files only.** A file's metadata is checked before it is opened (which does not
 //!   open it, so a FIFO cannot block the load); directories, FIFOs, sockets and devices such as
 //!   `/dev/zero` are refused. On Unix the file is then opened non-blocking and checked again,
 //!   so one swapped for a FIFO in between cannot block either.
 //! * **Bounded reads.** A read never takes more bytes than the metadata reported (and no more
 //!   than its caller needs, e.g. a glTF buffer's `byteLength`). Each file is read once per
-//!   load, however often it is named.
+//!   load however often it is named, unless a later reference needs more of it than was read.
 //! * **A total.** The bytes one load may read, the scene file included, are capped by
 //!   [`LoadOptions::max_total_bytes`]; by default the cap is
 //!   [`DEFAULT_BUDGET_FACTOR`] × the sizes of the distinct files involved +

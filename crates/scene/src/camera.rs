@@ -202,8 +202,8 @@ impl Camera {
 
     /// The world-space ray through a point given in NDC (x, y in [−1, 1], y up): origin on the
     /// eye for perspective projections, on the near plane for parallel ones; direction not
-    /// normalized, scaled so that t = 1 reaches the near plane's distance along the gaze for
-    /// perspective cameras.
+    /// normalized, scaled so that t = 1 is one unit along the gaze (view depth 1) for
+    /// perspective cameras, which reach the near plane at t = near.
     pub fn ray_through_ndc(&self, ndc: Vec2) -> (Vec3, Vec3) {
         let v = &self.view;
         let (u, vv, w) = (v.u.as_dvec3(), v.v.as_dvec3(), v.w.as_dvec3());

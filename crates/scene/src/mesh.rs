@@ -25,9 +25,10 @@ pub struct Mesh {
 impl Mesh {
     /// Builds and validates a mesh.
     ///
-    /// Errors when an index is out of range, a position is NaN or infinite, the index count is
-    /// not a multiple of 3, or normals/UVs do not have one entry per position. Degenerate
-    /// (zero-area) triangles are allowed and counted in [`Mesh::degenerate_triangles`].
+    /// Errors when an index is out of range, a position, normal or UV is NaN or infinite, the
+    /// index count is not a multiple of 3, or normals/UVs do not have one entry per position.
+    /// Degenerate (zero-area) triangles are allowed and counted in
+    /// [`Mesh::degenerate_triangles`].
     pub fn new(
         name: impl Into<String>,
         positions: Vec<Vec3>,

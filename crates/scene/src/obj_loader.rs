@@ -13,7 +13,8 @@
 //! * `.mtl` (the Wavefront MTL format): `Kd` becomes the base color, `d` (or `1 − Tr`) its
 //!   alpha, blended ([`AlphaMode::Blend`]) when below 1, `map_Kd`
 //!   the base color texture (PNG/JPEG). A missing or unreadable `.mtl` or a missing texture
-//!   is a warning in [`Scene::warnings`]; the geometry loads with the default material.
+//!   is a warning in [`Scene::warnings`]: without its `.mtl` the geometry loads with the
+//!   default material, without its texture a material keeps its `Kd` color.
 //! * `mtllib` and `map_Kd` files are found relative to the OBJ file's folder and read under
 //!   the rules of [`crate::assets`]: inside that folder (or an allowed root), regular files
 //!   only, each read once, within a total. A library named twice is read (and merged) once.

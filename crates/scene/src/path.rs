@@ -92,8 +92,8 @@ impl Polyline {
     fn length(&self) -> f32 {
         self.0.windows(2).map(|w| w[0].distance(w[1])).sum()
     }
-    /// The point at arc length `s` (clamped to the ends; beyond the end it continues along
-    /// the last segment).
+    /// The point at arc length `s`; outside `[0, length]` it continues along the first or
+    /// last segment.
     fn at(&self, mut s: f32) -> Vec3 {
         for w in self.0.windows(2) {
             let l = w[0].distance(w[1]);
@@ -183,7 +183,7 @@ impl CityLayout {
     }
 
     /// A flight above the roofs: a circle around the city center at 1.5× the tallest
-    /// building, looking ahead and down.
+    /// building plus 20 units, looking ahead and down.
     pub fn aerial_path(&self, frames: usize) -> Vec<CameraKey> {
         aerial(&self.bounds(), self.max_height * 1.5 + 20.0, frames)
     }

@@ -109,7 +109,7 @@ impl Transform {
     }
 }
 
-/// Checks a matrix given by a caller or a file: finite entries and an affine last row.
+/// Checks a matrix given by a caller or a file: every entry finite.
 pub fn validate_affine(m: &Affine3A, what: &str) -> Result<()> {
     if !m.is_finite() {
         return Err(Error::InvalidTransform { what: what.into(), why: "matrix has NaN or infinite entries".into() });

@@ -24,7 +24,8 @@ pub fn prefetch<T>(v: &T) {
     prefetch_address(v as *const T as *const i8);
 }
 
-/// [`prefetch`] for every cache line of `items` (none for an empty slice): a record that
+/// [`prefetch`] for every cache line of `items` (at most one, harmless, for an empty slice):
+/// a record that
 /// spans lines, or a short run of records read together.
 #[inline(always)]
 pub fn prefetch_all<T>(items: &[T]) {

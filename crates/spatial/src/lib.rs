@@ -6,16 +6,17 @@
 //! * Primitives: [`Aabb`] (re-exported from the scene crate, with [`AabbExt`]), [`Sphere`],
 //!   [`Plane`], [`Ray`], [`Frustum`] (six planes from any `clip_from_world`), and
 //!   [`project_box`] (screen rectangle + nearest window depth, for HZB tests).
-//! * [`Bvh`]: a flat binary BVH built with `obvhs` (PLOC), with frustum culling (plane masking,
+//! * [`Bvh`]: a flat binary BVH built by our PLOC and refined with `obvhs`'s reinsertion and
+//!   leaf collapsing, with frustum culling (plane masking,
 //!   plane coherency), front-to-back traversal with a per-node visibility callback, a
 //!   resumable [`FrontToBackCursor`] for batched occlusion culling, and refit.
 //! * [`InstanceBvh`] (BVH over instances, refit + rebuild policy), [`TriangleBvh`] (BVH over
-//!   one mesh's triangles, single-ray casting), [`MeshClusters`] (64–256-triangle clusters
+//!   one mesh's triangles, single-ray casting), [`MeshClusters`] (clusters of at most 128 triangles
 //!   with a triangle permutation) and [`ClusteredScene`] (one BVH over every (instance,
 //!   cluster) world box).
-//! * [`bvh::wide`]: the ray caster's two-level structure, 4-wide BVHs collapsed from the
-//!   binary ones ([`bvh::wide::WideBlas`] per mesh, [`bvh::wide::WideTlas`] over placed
-//!   instances), laid out for SIMD packet traversal.
+//! * [`bvh::wide`]: the ray caster's two-level structure of 4-wide BVHs
+//!   ([`bvh::wide::WideBlas`] per mesh, built by binned SAH; [`bvh::wide::WideTlas`] over
+//!   placed instances, collapsed from a binary PLOC tree), laid out for SIMD packet traversal.
 //! * [`LooseOctree`] over instances (Ulrich 2000) and the occupancy octree string
 //!   ([`occupancy_string`]).
 //! * [`BspTree`] (autopartition, Fuchs, Kedem & Naylor 1980) with painter's order.

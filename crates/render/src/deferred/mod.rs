@@ -99,8 +99,8 @@ pub(crate) fn ndc_y(y: usize, sy: f32) -> f32 {
 }
 
 /// Writes every color of `fb`: pixels with ID 0 get the sky's color for their row when
-/// `opts` has a sky ([`crate::sky`]), else `background`, as do IDs that no instance claims
-/// and every pixel in mode `None`; the others are shaded. So the color plane needs no
+/// `opts` has a sky ([`crate::sky`]), else `background`; IDs that no instance claims, and
+/// every pixel in mode `None`, get `background`; the others are shaded. So the color plane needs no
 /// clearing before a frame.
 pub fn shade_pass(
     scene: &Scene,
@@ -147,7 +147,7 @@ struct ShadeFrame<'a> {
 }
 
 /// One worker's caches of prepared instances and triangles (see [`ShadeFrame::row`]);
-/// empty, and allocation-free, until it first shades a triangle.
+/// empty, and allocation-free, until it shades its first row (in any mode but `None`).
 ///
 /// The triangle cache is direct-mapped ([`slot`]) and kept in flat arrays, so that eight
 /// pixels (sixteen with AVX-512) find their slots with two gathers: `pairs[s] = [key, color]`, where `key` is

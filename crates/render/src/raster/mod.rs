@@ -52,7 +52,8 @@ pub(crate) struct TriRaster {
     pub written: u32,
 }
 
-/// Rasterizes one triangle into `tile` (depth test LESS; IDs written with depth), with the
+/// Rasterizes one triangle into `tile` (depth test LESS, exact ties to the smaller ID; IDs
+/// written with depth), with the
 /// block kernel `K`; `lv` holds the tile's pyramid levels (read and refreshed when
 /// `lv.coarse`).
 ///
@@ -403,8 +404,9 @@ fn binned_span(tile: &TileBuf, index: usize, chunks: &[Chunk]) -> Span {
 }
 
 /// Rasterizes the tile's binned triangles, chunk after chunk, in submission order.
-/// With `COARSE` (frame sessions, on a tile drawn into before), 8×8 blocks behind the
-/// tile's pyramid are skipped; whole triangles behind it were left out at binning.
+/// With `COARSE` (frame sessions), 8×8 blocks behind the tile's pyramid are skipped (on a
+/// tile's first use in the session only blocks refreshed in this batch can hide anything);
+/// whole triangles behind it were left out at binning.
 ///
 /// # Safety
 /// The CPU must support `K`'s instruction set.

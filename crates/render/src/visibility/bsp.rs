@@ -105,7 +105,7 @@ impl BspRenderer {
             BspMode::FrontToBack => BspOrder::FrontToBack,
         };
         let visited = self.tree.visit(viewpoint(camera), order, |range| {
-            // A node's triangles are coplanar and listed by source (see `BspRenderer::new`);
+            // A node's triangles are coplanar and listed by source (`BspTree` lists them so);
             // where copies tie, the z-buffer keeps the smaller ID, so the smaller is drawn
             // last when overwriting and first when each pixel is written once.
             let back_to_front = mode == BspMode::BackToFront;

@@ -23,9 +23,10 @@
 //!   its limit with [`Error::TooLarge`] instead of running for an hour.
 //!
 //! The methods here: [`painter`] (depth sort with the Newell–Newell–Sancha tests, and the
-//! plain centroid sort beside it) and [`bsp`] (the autopartition walked back to front, or
-//! front to back with a coverage mask). They scan-convert through `scan`, which hands out
-//! the rasterizer's own pixels for a triangle or a piece of one.
+//! plain centroid sort beside it), [`bsp`] (the autopartition walked back to front, or
+//! front to back with a coverage mask) and [`warnock`] (area subdivision). The first two
+//! scan-convert through `scan`, which hands out the rasterizer's own pixels for a triangle
+//! or a piece of one; Warnock's decides windows from the set-up triangles' edge functions.
 
 pub mod bsp;
 pub mod painter;

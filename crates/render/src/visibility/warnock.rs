@@ -106,7 +106,8 @@ impl Default for Options {
 /// the engine does by default: writes `fb.ids` and `fb.depth` (every pixel), not the colour
 /// (see [`crate::shade_pass`]).
 ///
-/// Counters: `polygons` (set-up triangles after clipping and culling), `windows` and
+/// Counters: `triangles`, `clipped` and `backface_culled` (the geometry stage), `polygons`
+/// (set-up triangles after clipping and culling), `windows` and
 /// `windows_level_k` (windows visited, in all and per level of the quadtree, level 0 being the
 /// whole screen), `polygons_tested` (window–polygon relation tests) and how many came out
 /// `surrounding`, `intersecting`, `contained` and `disjoint`, and how each window was decided:

@@ -105,8 +105,9 @@ impl Scene {
     /// component). Returns the number of node transforms set. Call
     /// [`Scene::update_transforms`] before drawing.
     ///
-    /// Errors as [`Animation::apply`]; every animation is applied before the first error is
-    /// returned.
+    /// Errors as [`Animation::apply`] (channels aimed at nodes removed with
+    /// [`Scene::remove_node`] are dropped first, not reported); every animation is applied
+    /// before the first error is returned.
     pub fn animate(&mut self, t: f32) -> Result<usize> {
         if std::mem::take(&mut self.dead_channels) {
             self.drop_dead_animation_channels();

@@ -2,8 +2,10 @@
 //!
 //! 83,334 axis-aligned boxes (12 triangles each: 1,000,008 triangles), x and z uniform in
 //! [−100, 100], resting on y = 0, half extents in x and z uniform in [0.1, 0.5], height
-//! uniform in [0.5, 3.0]. Every box is an instance of one unit cube (scaled and moved), so
-//! the vertex data is 8 corners' worth, whatever the count.
+//! uniform in [0.5, 3.0]. In the default layout ([`BoxfieldLayout::Instanced`]) every box is
+//! an instance of one unit cube (scaled and moved), so the vertex data is one cube's 24
+//! vertices whatever the count; [`BoxfieldLayout::OneMesh`] stores every box in one
+//! world-space mesh.
 
 use glam::Vec3;
 

@@ -32,7 +32,7 @@ const LIT_SHARE: f32 = 0.2;
 pub struct CityParams {
     /// Blocks per side (blocks² blocks, 4 buildings each).
     pub blocks: u32,
-    /// Facade subdivision: window cells per unit of length (≈ 0.5 gives 2 × 2 m windows).
+    /// Facade subdivision: grid cells per unit of length across a facade (0.7× that up it).
     pub subdivision: f32,
     /// Number of distinct building shapes (meshes).
     pub prototypes: u32,

@@ -18,7 +18,7 @@
 //! point, one lap apart, so the animation loops seamlessly ([`Wrap::Loop`]).
 //!
 //! Clearance (checked by the tests): lanes are 3 units from the center line and vehicles at
-//! most 2.5 wide, so they stay inside the 12-wide street; on a chamfer a vehicle of half-length
+//! most about 2.7 wide (wheels and the ±3% size spread included), so they stay inside the 12-wide street; on a chamfer a vehicle of half-length
 //! at most 5 stays inside the intersection's cross of streets; buildings keep 1 unit back from
 //! the street. Vehicles on the same lane at different speeds may pass through one another:
 //! this is a visibility benchmark, not a traffic simulation (each vehicle's height and width

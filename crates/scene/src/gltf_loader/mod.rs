@@ -17,7 +17,8 @@
 //!   types as `KHR_mesh_quantization` allows), indices of u8/u16/u32 or none, sparse accessors.
 //! * Materials: `pbrMetallicRoughness.baseColorFactor` and `baseColorTexture` (PNG or JPEG,
 //!   decoded to RGBA8 with the `image` crate), `alphaMode` (`OPAQUE`, `MASK`, `BLEND`) and
-//!   `alphaCutoff` (default 0.5) as [`AlphaMode`].
+//!   `alphaCutoff` (default 0.5) as [`AlphaMode`], `emissiveFactor` as
+//!   [`Material::emissive`].
 //! * Perspective and orthographic cameras, as [`SceneCamera`]s on their nodes.
 //!
 //! * Animations of node translation, rotation and scale (STEP, LINEAR, CUBICSPLINE), as

@@ -4,10 +4,12 @@
 //! meshlet / cluster culling (e.g. Karis et al., "Nanite", SIGGRAPH 2021 course; Wihlidal,
 //! "Optimizing the Graphics Pipeline with Compute", GDC 2016).
 //!
-//! Construction: a top-down median split (as in a kd-tree build): the triangles' box centers
-//! are split at the median of the longest axis of their bounds, recursively (in parallel with
-//! rayon), until a part has at most `CLUSTER_MAX` triangles, so clusters hold 64–128
-//! triangles (fewer only for small meshes) and are compact cells. A PLOC BVH's subtrees were
+//! Construction: a top-down split (as in a kd-tree build), recursively (in parallel with
+//! rayon) until a part has at most `CLUSTER_MAX` triangles: each part is cut across the
+//! longest axis of its triangles' box centers, at an empty stretch that no triangle box
+//! crosses when one leaves a quarter to three quarters of them on each side, else at the
+//! median. So clusters hold at most 128 triangles, most of them 64 or more, and are compact
+//! cells. A PLOC BVH's subtrees were
 //! tried first and rejected: on regular grids (subdivided faces, scanned surfaces) PLOC merges
 //! into long strips, since the SAH cannot tell a strip from a square on flat geometry, and
 //! strips spanning a whole facade cull badly. A cluster is a range of the stored triangle
@@ -21,8 +23,8 @@ use glam::Vec3;
 use super::triangles::triangle_boxes;
 use crate::{AabbExt, BoxKind};
 
-/// Smallest cluster size aimed for (smaller clusters occur only where a mesh has fewer
-/// triangles or no mergeable neighbour).
+/// Cluster size aimed for at least (cuts at empty stretches, and small groups of one
+/// facing, can give smaller clusters).
 pub const CLUSTER_MIN: usize = 64;
 /// Largest cluster size.
 pub const CLUSTER_MAX: usize = 128;
@@ -201,9 +203,11 @@ fn gap_split(boxes: &[Aabb], perm: &mut [u32], axis: usize, a0: f32, a1: f32) ->
     Some(i)
 }
 
-/// Splits `perm` (item ids, whose centers are `centers[id]`) at the median of the longest
-/// axis until parts have at most `CLUSTER_MAX` items; returns `(first, count)` ranges (offset
-/// by `base`) in order. Recursion depth is log2(n / CLUSTER_MAX).
+/// Splits `perm` (item ids, whose centers are `centers[id]`) across the longest axis, at an
+/// empty stretch ([`gap_split`]) or else the median, until parts have at most `CLUSTER_MAX`
+/// items; returns `(first, count)` ranges (offset by `base`) in order. Each cut leaves at
+/// most three quarters on a side, so the recursion is at most log_{4/3}(n / CLUSTER_MAX)
+/// deep.
 fn median_split(boxes: &[Aabb], centers: &[Vec3], perm: &mut [u32], base: u32) -> Vec<(u32, u32)> {
     let n = perm.len();
     if n == 0 {

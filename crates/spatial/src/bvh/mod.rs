@@ -10,7 +10,8 @@
 //! Volume Hierarchy Construction" (PLOC, IEEE TVCG 2018), in our own version whose build
 //! time stays O(n log n) on coincident or evenly spaced boxes (module `ploc`), followed by obvhs's
 //! reinsertion (D. Meister and J. Bittner, "Parallel Reinsertion for Bounding Volume
-//! Hierarchy Optimization", Eurographics 2018) and SAH leaf collapsing, with obvhs's presets.
+//! Hierarchy Optimization", Eurographics 2018) and SAH leaf collapsing (then, with the
+//! medium preset, reinsertion again), with obvhs's presets.
 //!
 //! Layout: nodes are 32 bytes (`min`, `count`, `max`, `index`) in depth-first order of sibling
 //! pairs: the root is node 0, an inner node's children are `index` and `index + 1`, and every

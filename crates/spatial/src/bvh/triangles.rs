@@ -1,5 +1,5 @@
 //! A binary BVH over one mesh's triangles (mesh-local space), for single-ray casting and as
-//! the source of clusters. Built with obvhs's PLOC like every BVH here; the ray caster's
+//! the source of clusters. Built as every binary BVH here ([`Bvh`]); the ray caster's
 //! packet-traced BLAS is the 4-wide [`crate::bvh::wide::WideBlas`].
 
 use glam::Vec3;

@@ -75,8 +75,8 @@ pub struct LooseOctree {
 }
 
 impl LooseOctree {
-    /// An empty octree whose root cell is the cube around `bounds` (a unit cube at the origin
-    /// if `bounds` is empty or not finite), subdivided at most `max_depth` times (capped at 20).
+    /// An empty octree whose root cell is the cube around `bounds` (the cube [−1, 1]³ if
+    /// `bounds` is empty or not finite), subdivided at most `max_depth` times (capped at 20).
     pub fn new(bounds: &Aabb, max_depth: u32) -> LooseOctree {
         let (center, half) = if bounds.kind() == BoxKind::Finite {
             let e = bounds.extent().max_element() * 0.5;

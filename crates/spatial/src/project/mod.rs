@@ -4,9 +4,10 @@
 //!
 //! Window conventions (OpenGL's viewport transform with row 0 at the top):
 //! `x_w = (x_ndc + 1)/2 · W`, `y_w = (1 − y_ndc)/2 · H`, `z_w = (z_ndc + 1)/2`. The eight
-//! corners are projected; when any corner has `w ≤ ε` or lies in front of the near plane
-//! (`z < −w`), the box crosses the near plane (or the eye plane) and the answer is "covers the
-//! whole screen, nearest depth 0". Otherwise the rectangle holds the pixels whose centers
+//! corners are projected; a box whose eight corners all lie beyond one clip plane is outside.
+//! Otherwise, when any corner has `w ≤ ε` or lies in front of the near plane (`z < −w`), the
+//! box crosses the near plane (or the eye plane) and the answer is "covers the whole screen,
+//! nearest depth 0". Otherwise the rectangle holds the pixels whose centers
 //! lie within the pixel-space bounds of the corners grown by a margin, clamped to the
 //! viewport, and the depth is the smallest corner window z less a margin; the margins bound
 //! the f32 rounding of this projection and of the rasterizer's (see [`BoxProjector`]'s
