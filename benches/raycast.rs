@@ -2,11 +2,11 @@
 //! primary rays per second for a street frame (eye at 1.7 m looking along a street) and an
 //! aerial frame, with 1 and 2 threads.
 //!
-//! * `raycast_build/city`: the caster over the instanced city (one BLAS per distinct
+//! * `raycast_build/city/<threads>t`: the caster over the instanced city (one BLAS per distinct
 //!   building mesh, shared by its instances, plus the TLAS).
-//! * `raycast_build/flat`: the same triangles flattened into one world-space mesh (what a
+//! * `raycast_build/flat/<threads>t`: the same triangles flattened into one world-space mesh (what a
 //!   ray tracer that reads the exported OBJ, such as Embree, builds).
-//! * `raycast_build/flat_shuffled`: the flattened mesh with its triangles in a scrambled
+//! * `raycast_build/flat_shuffled/<threads>t`: the flattened mesh with its triangles in a scrambled
 //!   order, so that no two halves of a square are neighbours in the mesh (as in a mesh
 //!   reordered for the vertex cache): its triangles pair into quads across shared edges.
 //! * `raycast_city_1280x720/<frame>/<ids|shaded>/<threads>t`: one frame; the throughput
