@@ -247,8 +247,8 @@ pub struct CameraArgs {
     /// Camera path JSON (see `sightline path`); with --frame
     #[arg(short, long, value_name = "FILE", conflicts_with_all = ["eye", "target"])]
     pub path: Option<PathBuf>,
-    /// Frame of the path to render
-    #[arg(long, default_value_t = 0)]
+    /// Frame of the path to render (with --path)
+    #[arg(long, default_value_t = 0, requires = "path")]
     pub frame: usize,
     /// Eye position x,y,z (with --target)
     #[arg(long, value_parser = parse_vec3, allow_hyphen_values = true, requires = "target")]

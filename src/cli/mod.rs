@@ -123,10 +123,10 @@ impl Cli {
             }
             Command::Render(a)
                 if a.projection != render::ProjectionArg::Perspective
-                    && a.camera.given() =>
+                    && (a.camera.given() || a.camera.near.is_some() || a.camera.far.is_some()) =>
             {
                 Some(format!(
-                    "--projection {:?} frames the whole scene itself: --eye, --path, --fov and --camera go with --projection perspective",
+                    "--projection {:?} frames the whole scene itself: --eye, --path, --fov, --near, --far and --camera go with --projection perspective",
                     a.projection
                 ).to_lowercase())
             }

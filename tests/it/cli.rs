@@ -114,9 +114,12 @@ fn bench_reports_where_the_time_goes() {
 /// Options that would be silently ignored are usage errors instead.
 #[test]
 fn options_that_would_be_ignored_are_usage_errors() {
-    let cases: [(&[&str], &str); 5] = [
+    let cases: [(&[&str], &str); 8] = [
         (&["render", "--fov", "30"], "--eye"),
         (&["render", "--up", "0,0,1"], "--eye"),
+        (&["render", "--frame", "3"], "--path"),
+        (&["render", "--projection", "isometric", "--near", "2"], "--near"),
+        (&["render", "--projection", "orthographic", "--far", "50"], "--far"),
         (&["walk", "--png-every", "5"], "--out"),
         (&["render", "--shadows"], "--method raycast"),
         (&["csg", "--out", "demo.jpg"], ".png"),
