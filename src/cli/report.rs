@@ -286,13 +286,18 @@ pub fn write_report(dir: &Path, report: &WalkReport, records: &[FrameRecord]) ->
     super::chart::line_chart(&dir.join(CHART_PNG), "frame time per frame", "frame", "ms", &series)
 }
 
+/// The largest report file `merge` reads (16 GiB: a million frames of every method).
+const MAX_REPORT_BYTES: u64 = 16 << 30;
+
 /// Reads `frames.json` and `walk.json` back from a walk's output folder.
 pub fn read_report(dir: &Path) -> Result<(WalkReport, Vec<FrameRecord>)> {
     let read = |name: &str| -> Result<String> {
         let p = dir.join(name);
-        std::fs::read_to_string(&p).with_context(|| {
-            format!("{}: cannot read it (is {} the --out folder of a walk?)", p.display(), dir.display())
-        })
+        // A regular file only: a FIFO in a shard folder must not block the merge.
+        let bytes = sightline::scene::assets::read_regular_file(&p, MAX_REPORT_BYTES).map_err(|why| {
+            anyhow::anyhow!("{}: {why} (is {} the --out folder of a walk?)", p.display(), dir.display())
+        })?;
+        String::from_utf8(bytes).with_context(|| format!("{}: not UTF-8 text", p.display()))
     };
     let report: WalkReport =
         serde_json::from_str(&read(WALK_JSON)?).with_context(|| format!("{}", dir.join(WALK_JSON).display()))?;

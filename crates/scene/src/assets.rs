@@ -175,6 +175,20 @@ fn read_at_most(f: std::fs::File, n: u64) -> Result<Vec<u8>, String> {
     Ok(out)
 }
 
+/// Reads a whole file named by a user (a camera path, a report) under the rules the scene
+/// files follow: a regular file only (a FIFO, socket or device is refused and never
+/// blocks the read), no more bytes than its size, and at most `max_bytes`. The error
+/// says what is wrong with the file, for the caller to prefix with its name.
+pub fn read_regular_file(path: &Path, max_bytes: u64) -> Result<Vec<u8>, String> {
+    let meta = std::fs::metadata(path).map_err(|e| io_why("cannot read", &e))?;
+    check_regular(&meta)?;
+    if meta.len() > max_bytes {
+        return Err(format!("is {} bytes, more than the {max_bytes} read of such a file", meta.len()));
+    }
+    let f = open_regular(path).map_err(String::from)?;
+    read_at_most(f, meta.len())
+}
+
 /// Canonical path → (the bytes read of it, the size of the whole file).
 type FileCache = HashMap<PathBuf, (Arc<[u8]>, u64)>;
 

@@ -62,9 +62,14 @@ impl CameraKey {
     }
 }
 
-/// Reads a camera path JSON file.
+/// The largest camera path file read (2 GiB; a million frames of pretty-printed keys take
+/// about 300 MB).
+pub const MAX_PATH_FILE_BYTES: u64 = 2 << 30;
+
+/// Reads a camera path JSON file (a regular file of at most [`MAX_PATH_FILE_BYTES`]: a FIFO
+/// or a device is refused, see [`crate::assets::read_regular_file`]).
 pub fn read_path(path: &Path) -> Result<Vec<CameraKey>> {
-    let bytes = std::fs::read(path).map_err(|e| Error::load(path, e.to_string()))?;
+    let bytes = crate::assets::read_regular_file(path, MAX_PATH_FILE_BYTES).map_err(|e| Error::load(path, e))?;
     parse_path(&bytes, path)
 }
 

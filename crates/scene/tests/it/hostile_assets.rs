@@ -260,6 +260,25 @@ fn fifos_are_refused_without_blocking() {
     }
 }
 
+/// A camera path named by a user goes by the same rules: a FIFO or a device is refused at
+/// once, naming the file, instead of blocking the walk or reading without end.
+#[cfg(unix)]
+#[test]
+fn a_camera_path_must_be_a_regular_file() {
+    use sightline_scene::path::read_path;
+    let dir = tmp_dir("path-fifo");
+    let fifo = dir.join("path.json");
+    if mkfifo(&fifo).is_none() {
+        return;
+    }
+    let e = within_time("camera path FIFO", move || read_path(&fifo)).unwrap_err().to_string();
+    assert_mentions(&e, &["path.json", "not a regular file (a FIFO)"]);
+    if Path::new("/dev/zero").exists() {
+        let e = within_time("camera path /dev/zero", || read_path(Path::new("/dev/zero"))).unwrap_err().to_string();
+        assert_mentions(&e, &["/dev/zero", "not a regular file (a character device)"]);
+    }
+}
+
 #[test]
 fn a_directory_is_not_a_buffer_or_a_scene() {
     let dir = tmp_dir("directory");
