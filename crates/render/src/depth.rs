@@ -116,11 +116,17 @@ impl DepthFormat {
     /// is smaller than one depth step ([`DepthFormat::step_at_far`]), the whole far half of
     /// the view rounds to the far plane and ties with the cleared buffer: a blank or torn
     /// picture (near = 10^-7 with far = 2000 blanks a street view in `f32`). Parallel
-    /// projections store depth linearly and always pass.
+    /// projections store depth linearly and pass.
+    ///
+    /// An invalid projection (near = 0 in perspective, an empty window, near ≥ far,
+    /// parameters that are not finite: [`Projection::validate`](sightline_scene::Projection::validate))
+    /// is refused first: its fields are public, so a camera made by hand may hold one, and a
+    /// frame through it would come out blank.
     pub fn check_resolves(self, projection: &sightline_scene::Projection) -> Result<(), crate::Error> {
+        projection.validate()?;
         let (_, _, _, _, near, far, perspective) = projection.bounds();
-        if !(perspective && near > 0.0 && far > near) {
-            return Ok(()); // other invalid projections are refused by `Projection::validate`
+        if !perspective {
+            return Ok(());
         }
         let ratio = (far as f64 - near as f64) / near as f64;
         if ratio <= self.max_depth_ratio() {

@@ -173,3 +173,43 @@ fn a_failed_render_does_not_spoil_later_batches() {
     assert!(fb.ids.iter().any(|&i| (1..=12).contains(&i)), "the near cube is still there");
     assert_eq!(fb.ids, want.ids);
 }
+
+/// A camera made by hand (its fields are public) with near = 0, an empty window or NaN
+/// planes is refused by every way of drawing a frame, naming what is wrong, instead of a
+/// blank frame and `Ok`.
+#[test]
+fn a_hand_made_invalid_camera_is_an_error_not_a_blank_frame() {
+    use sightline_render::{Culler, Method, RayCaster, RaycastOptions};
+    use sightline_scene::Projection;
+    let scene = one_node_scene("cube", shapes::cube("cube").unwrap());
+    let look = LookAt { eye: Vec3::new(2.0, 1.5, 3.0), fovy: Angle::degrees(50.0), far: 100.0, ..LookAt::default() };
+    let good = Camera::perspective(&look, 1.0).unwrap();
+    let window = |near: f32, far: f32, right: f32| Projection::Perspective {
+        left: -0.05,
+        right,
+        bottom: -0.05,
+        top: 0.05,
+        near,
+        far,
+    };
+    let cases = [
+        (window(0.0, 100.0, 0.05), "near = 0"),
+        (window(0.1, 100.0, -0.05), "empty window"),
+        (window(0.1, f32::NAN, 0.05), "finite"),
+        (window(10.0, 1.0, 0.05), "smaller than far"),
+    ];
+    let opts = RenderOptions::default();
+    for (projection, says) in cases {
+        let camera = Camera { projection, ..good };
+        let mut fb = Framebuffer::new(32, 32).unwrap();
+        let e = render_scene(&scene, &camera, &mut fb, &opts).unwrap_err().to_string();
+        assert!(e.contains(says), "render_scene: {e}");
+        for method in [Method::Frustum, Method::Hzb] {
+            let e = Culler::new(&scene).render(&scene, &camera, method, &mut fb, &opts).unwrap_err().to_string();
+            assert!(e.contains(says), "{method:?}: {e}");
+        }
+        let caster = RayCaster::build(&scene).unwrap();
+        let e = caster.render(&scene, &camera, &mut fb, &RaycastOptions::default()).unwrap_err().to_string();
+        assert!(e.contains(says), "ray casting: {e}");
+    }
+}
