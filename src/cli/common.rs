@@ -25,6 +25,12 @@ impl std::str::FromStr for Size {
     }
 }
 
+impl std::fmt::Display for Size {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(f, "{}x{}", self.width, self.height)
+    }
+}
+
 impl Size {
     pub fn aspect(&self) -> f32 {
         self.width as f32 / self.height as f32
@@ -151,10 +157,15 @@ pub const MAX_THREADS: usize = 256;
 
 /// Parses `--frames`: a whole number from 1 to [`MAX_FRAMES`].
 pub fn frames_arg(s: &str) -> std::result::Result<usize, String> {
-    let n: u128 = s.trim().parse().map_err(|_| format!("`{s}` is not a whole number of frames"))?;
-    if n == 0 {
-        return Err("give at least 1 frame".into());
+    match frame_number_arg(s)? {
+        0 => Err("give at least 1 frame".into()),
+        n => Ok(n),
     }
+}
+
+/// Parses a frame number or count from 0 to [`MAX_FRAMES`] (the ends of `--frame-range`).
+pub fn frame_number_arg(s: &str) -> std::result::Result<usize, String> {
+    let n: u128 = s.trim().parse().map_err(|_| format!("`{s}` is not a whole number of frames"))?;
     if n > MAX_FRAMES as u128 {
         return Err(format!("{n} frames is more than the {MAX_FRAMES} a command renders"));
     }

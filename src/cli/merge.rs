@@ -204,11 +204,18 @@ fn join_gifs(shards: &[Shard], out: &Path, run: &report::RunInfo) -> Result<Opti
         // A shard none of whose frames went into the GIF may hold an empty one.
         if p.exists() {
             gif.append_gif(&p)?;
-        } else if (s.report.frame_range[0]..s.report.frame_range[1]).any(|f| f % run.gif_every == 0) {
+        } else if holds_a_multiple(s.report.frame_range, run.gif_every) {
             bail!("{}: missing; the shard's frames belong in the GIF", p.display());
         }
     }
     Ok(Some(gif.frames))
+}
+
+/// Whether frames `a..b` hold a multiple of `every` (counted, not searched: the range comes
+/// from a file and may be huge).
+fn holds_a_multiple([a, b]: [usize; 2], every: usize) -> bool {
+    let first = a.div_ceil(every.max(1)).saturating_mul(every.max(1));
+    first < b
 }
 
 #[cfg(test)]
@@ -219,5 +226,14 @@ mod tests {
     fn gaps_are_the_frames_no_shard_holds() {
         assert_eq!(gaps(&[[0, 10], [10, 20]], 20), Vec::<[usize; 2]>::new());
         assert_eq!(gaps(&[[5, 10], [12, 20]], 25), vec![[0, 5], [10, 12], [20, 25]]);
+    }
+
+    #[test]
+    fn a_multiple_in_a_range_is_counted_not_searched() {
+        assert!(holds_a_multiple([0, 1], 5) && holds_a_multiple([3, 6], 5));
+        assert!(!holds_a_multiple([1, 5], 5) && !holds_a_multiple([6, 10], 5) && !holds_a_multiple([7, 7], 1));
+        // A range read from a crafted report answers at once.
+        assert!(!holds_a_multiple([1, 1 << 60], usize::MAX / 2));
+        assert!(holds_a_multiple([1, usize::MAX], 1 << 40));
     }
 }

@@ -113,6 +113,19 @@ enum Command {
     },
 }
 
+/// The pictures of `--out` are drawn at `--size` times the `--aa` factor: a usage error when
+/// that is over the largest framebuffer.
+fn too_large_to_supersample(size: common::Size, look: &common::Look) -> Option<String> {
+    let k = look.aa.factor();
+    let side = size.width.max(size.height) as u64 * k as u64;
+    (side > sightline::render::MAX_SIZE as u64).then(|| {
+        format!(
+            "--size {size} with --aa {k}x{k} draws the --out pictures {k} times larger, over the {} pixels a side allows: give a smaller --size or a lower --aa",
+            sightline::render::MAX_SIZE
+        )
+    })
+}
+
 impl Cli {
     /// Options that parse but cannot mean anything together: a usage error (exit 2) before
     /// any work, instead of being ignored.
@@ -130,6 +143,13 @@ impl Cli {
                     a.projection
                 ).to_lowercase())
             }
+            Command::Render(a)
+                if a.projection == render::ProjectionArg::Multiview && (a.size.width < 2 || a.size.height < 2) =>
+            {
+                Some(format!("--size {}: multiview draws four views in a 2×2 grid and needs at least 2x2", a.size))
+            }
+            Command::Render(a) if a.out.is_some() => too_large_to_supersample(a.size, &a.look),
+            Command::Walk(a) if a.out.is_some() => too_large_to_supersample(a.size, &a.look),
             Command::Csg { out, .. } if !out.extension().is_some_and(|e| e.eq_ignore_ascii_case("png")) => {
                 Some(format!("--out {}: csg writes a PNG image; give a .png file", out.display()))
             }

@@ -95,8 +95,8 @@ pub struct WalkArgs {
 fn frame_range_arg(s: &str) -> std::result::Result<std::ops::Range<usize>, String> {
     let bad = || format!("'{s}' is not a frame range A..B (frames A to B-1 of the path, A < B, e.g. 0..60)");
     let (a, b) = s.split_once("..").ok_or_else(bad)?;
-    let a = common::frames_arg(a).map_err(|_| bad())?;
-    let b = common::frames_arg(b).map_err(|_| bad())?;
+    let a = common::frame_number_arg(a).map_err(|_| bad())?;
+    let b = common::frame_number_arg(b).map_err(|_| bad())?;
     if a >= b {
         return Err(bad());
     }

@@ -114,7 +114,10 @@ fn bench_reports_where_the_time_goes() {
 /// Options that would be silently ignored are usage errors instead.
 #[test]
 fn options_that_would_be_ignored_are_usage_errors() {
-    let cases: [(&[&str], &str); 8] = [
+    let cases: [(&[&str], &str); 11] = [
+        (&["render", "--projection", "multiview", "--size", "64x1"], "2x2"),
+        (&["render", "--size", "8192x100", "--out", "never-written"], "--aa"),
+        (&["walk", "--size", "3000x100", "--aa", "4x4", "--out", "never-written"], "--aa"),
         (&["render", "--fov", "30"], "--eye"),
         (&["render", "--up", "0,0,1"], "--eye"),
         (&["render", "--frame", "3"], "--path"),
