@@ -192,10 +192,14 @@ pub fn finish(
 }
 
 /// Why the run fails `--min-agreement` (a percentage), if it does: the worst frame, and how
-/// many frames fell short.
+/// many frames fell short. Only frames judged by agreement count (ray casting's); culled
+/// frames are verified exactly instead.
 fn agreement_shortfall(records: &[FrameRecord], min_percent: f64) -> Option<String> {
-    let short: Vec<&FrameRecord> =
-        records.iter().filter(|r| r.agreement.is_some_and(|x| 100.0 * x < min_percent)).collect();
+    let compared = records.iter().filter(|r| r.verified.is_none() && r.agreement.is_some()).count();
+    let short: Vec<&FrameRecord> = records
+        .iter()
+        .filter(|r| r.verified.is_none() && r.agreement.is_some_and(|x| 100.0 * x < min_percent))
+        .collect();
     let worst = short.iter().min_by(|x, y| x.agreement.unwrap_or(0.0).total_cmp(&y.agreement.unwrap_or(0.0)))?;
     Some(format!(
         "{} gave the rasterizer's triangle IDs on only {:.2}% of the pixels of frame {}, below --min-agreement {}% ({} of {} compared frames fell short)",
@@ -204,7 +208,7 @@ fn agreement_shortfall(records: &[FrameRecord], min_percent: f64) -> Option<Stri
         worst.frame,
         min_percent,
         short.len(),
-        records.iter().filter(|r| r.agreement.is_some()).count()
+        compared
     ))
 }
 
@@ -403,14 +407,15 @@ mod tests {
     #[test]
     fn verify_fails_a_walk_whose_ray_casting_agrees_too_little() {
         let rs = [
-            record(0, "hzb", Some(0.2)), // culled methods are checked exactly, not by agreement
+            // Culled methods are checked exactly, not by agreement.
+            FrameRecord { verified: Some(true), ..record(0, "hzb", Some(0.2)) },
             record(0, "raycast", Some(0.999)),
             record(1, "raycast", Some(0.9949)),
             record(2, "raycast", Some(0.98)),
         ];
-        let why = agreement_shortfall(&rs[1..], 99.5).expect("frames 1 and 2 are below 99.5%");
+        let why = agreement_shortfall(&rs, 99.5).expect("frames 1 and 2 are below 99.5%");
         assert!(why.contains("98.00%") && why.contains("frame 2") && why.contains("2 of 3"), "{why}");
-        assert!(agreement_shortfall(&rs[1..], 98.0).is_none());
+        assert!(agreement_shortfall(&rs, 98.0).is_none());
         assert!(agreement_shortfall(&[record(0, "raycast", None)], 100.0).is_none(), "no comparison, no failure");
         assert!(
             common::percent_arg("99.5").is_ok()

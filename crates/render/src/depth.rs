@@ -377,8 +377,9 @@ mod tests {
         codec_agrees::<Unorm16>();
     }
 
-    /// The refusal rule matches what the buffer does: at the largest accepted ratio a point
-    /// halfway to the far plane still stores below the far plane; well past it, it does not.
+    /// The refusal rule matches what the buffer does: at the largest accepted ratio (to the
+    /// ulp) a point halfway to the far plane still stores below the far plane; 1% past it
+    /// the projection is refused, and well past it the point does store as the far plane.
     #[test]
     fn depth_range_check_matches_what_the_format_stores() {
         use sightline_scene::Projection;
@@ -386,10 +387,19 @@ mod tests {
         for f in [DepthFormat::F32, DepthFormat::Unorm24, DepthFormat::Unorm16] {
             let window_z =
                 |near: f32, d: f32| (far as f64 * (d as f64 - near as f64)) / (d as f64 * (far - near) as f64);
+            let persp = |near: f32| Projection::perspective(sightline_scene::Angle::degrees(60.0), 1.0, near, far);
+            // The nearest plane accepted: (far − near) / near at the largest ratio, to the ulp.
+            let mut edge = (far as f64 / (f.max_depth_ratio() + 1.0)) as f32;
+            while f.check_resolves(&persp(edge).unwrap()).is_err() {
+                edge = edge.next_up();
+            }
+            let ratio = (far as f64 - edge as f64) / edge as f64;
+            assert!(ratio > f.max_depth_ratio() * 0.999_99, "{f:?}: accepted up to the largest ratio");
+            assert!(f.key(window_z(edge, far / 2.0) as f32) < f.key(1.0), "{f:?}: halfway still resolves at the edge");
+            // 1% past the largest ratio is refused.
+            let past = (far as f64 / (f.max_depth_ratio() * 1.01 + 1.0)) as f32;
+            assert!(matches!(f.check_resolves(&persp(past).unwrap()), Err(crate::Error::DepthRange { .. })), "{f:?}");
             let ok_near = (far as f64 / (f.max_depth_ratio() * 0.5)) as f32;
-            let p = Projection::perspective(sightline_scene::Angle::degrees(60.0), 1.0, ok_near, far).unwrap();
-            assert!(f.check_resolves(&p).is_ok(), "{f:?} near {ok_near}");
-            assert!(f.key(window_z(ok_near, far / 2.0) as f32) < f.key(1.0), "{f:?}: halfway still resolves");
             let bad_near = ok_near / 64.0;
             let p = Projection::perspective(sightline_scene::Angle::degrees(60.0), 1.0, bad_near, far).unwrap();
             assert!(matches!(f.check_resolves(&p), Err(crate::Error::DepthRange { .. })), "{f:?} near {bad_near}");

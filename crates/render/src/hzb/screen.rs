@@ -152,8 +152,22 @@ mod tests {
             // Anything nearer than or at the true max is never called occluded.
             assert!(!p.is_occluded(&depth, r, m));
             assert!(!p.is_occluded(&depth, r, m - 1e-3));
-            // Something behind everything is occluded.
-            assert!(p.is_occluded(&depth, r, 1.5) || m >= 1.5);
+            // Something behind everything drawn (every depth is below 1) is occluded.
+            assert!(p.is_occluded(&depth, r, 1.0));
+            // Exactly so: the texels read (at the level where the rectangle spans at most 4
+            // texel widths) hold the max of the pixels they cover, and a box just behind that
+            // max is occluded.
+            let span = (r.x1 - r.x0).max(r.y1 - r.y0) + 1;
+            let level = (0..p.level_count() as u32).find(|&l| span >> l <= 3).unwrap_or(p.level_count() as u32 - 1);
+            let cover = Rect {
+                x0: r.x0 >> level << level,
+                y0: r.y0 >> level << level,
+                x1: (((r.x1 >> level) + 1) << level).min(w) - 1,
+                y1: (((r.y1 >> level) + 1) << level).min(h) - 1,
+            };
+            let mc = brute_max(&depth, w, cover);
+            assert!(!p.is_occluded(&depth, r, mc), "{r:?} at level {level}");
+            assert!(p.is_occluded(&depth, r, mc.next_up()), "{r:?} at level {level}");
         }
         assert_eq!(p.farthest(&depth), brute_max(&depth, w, Rect { x0: 0, y0: 0, x1: w - 1, y1: h - 1 }));
         // Levels: 0 is the depth buffer (not held), then sizes halve rounding up, each texel

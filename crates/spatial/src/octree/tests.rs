@@ -171,7 +171,12 @@ fn bad_boxes_follow_the_rule() {
     )
     .unwrap();
     out.clear();
+    t.cull(&Frustum::from_camera(&away), &mut out);
+    assert_eq!(out.iter().map(|v| v.index).collect::<Vec<_>>(), vec![2], "the unbounded object stays");
+    // Bounded again, it is culled like any box.
+    out.clear();
     t.update(2, Aabb::new(Vec3::ZERO, Vec3::splat(0.1)));
+    t.validate().unwrap();
     t.cull(&Frustum::from_camera(&away), &mut out);
     assert!(out.is_empty());
 }
