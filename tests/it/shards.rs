@@ -105,9 +105,18 @@ fn two_shards_merged_are_the_single_run() {
     }
     assert_eq!(files(&single), files(&merged), "the same files: PNG frames, GIF, chart, counters");
     assert_eq!(gif_frames(&single.join("walk.gif")), gif_frames(&merged.join("walk.gif")));
+    let mut compared = 0;
     for f in files(&merged).iter().filter(|f| f.ends_with(".png")) {
-        image::open(merged.join(f)).unwrap_or_else(|e| panic!("{f}: {e}"));
+        let m = image::open(merged.join(f)).unwrap_or_else(|e| panic!("{f}: {e}"));
+        // The PNG frames are the same pictures, pixel for pixel (the chart plots times, and
+        // the GIF's burned-in times, which differ from run to run).
+        if f.starts_with("frame_") && f != "frame_times.png" {
+            let s = image::open(single.join(f)).unwrap_or_else(|e| panic!("{f}: {e}"));
+            assert!(s.to_rgba8() == m.to_rgba8(), "{f}: the merged frame is the single run's");
+            compared += 1;
+        }
     }
+    assert!(compared >= 2, "at least two PNG frames were compared");
 
     // Overlapping shards, shards of different walks, a shard folder that is no walk's.
     let (code, _, err) = merge(&root.join("x"), &[&a, &a]);

@@ -181,9 +181,20 @@ mod tests {
         assert!(overlap_2d(&a, &shifted(0.9)));
         assert!(!overlap_2d(&a, &shifted(1.0)), "touching is not overlapping");
         assert!(!overlap_2d(&a, &shifted(1.5)));
-        // A triangle beside the quad's corner, inside its bounding box but not the quad.
+        // A triangle beside the quad's corner.
         let t = [DVec3::new(0.6, 0.0, 0.0), DVec3::new(1.0, 0.0, 0.0), DVec3::new(1.0, 0.4, 0.0)];
         assert!(!overlap_2d(&a, &t));
+        // A diamond (the quad turned 45°) and a triangle in the corner of its bounding box:
+        // only the diamond's slanted edge separates them; moved in a little, they overlap.
+        let diamond = [
+            DVec3::new(0.0, -0.5, 0.0),
+            DVec3::new(0.5, 0.0, 0.0),
+            DVec3::new(0.0, 0.5, 0.0),
+            DVec3::new(-0.5, 0.0, 0.0),
+        ];
+        let corner = |c: f64| [DVec3::new(c, c, 0.0), DVec3::new(0.5, c, 0.0), DVec3::new(0.5, 0.5, 0.0)];
+        assert!(!overlap_2d(&diamond, &corner(0.3)) && !overlap_2d(&corner(0.3), &diamond));
+        assert!(overlap_2d(&diamond, &corner(0.2)) && overlap_2d(&corner(0.2), &diamond));
         // Zero-length edges do not separate.
         let d = [DVec3::ZERO, DVec3::ZERO, DVec3::new(0.2, 0.1, 0.0), DVec3::new(0.1, 0.3, 0.0)];
         assert!(overlap_2d(&a, &d));

@@ -115,10 +115,17 @@ fn csg_spans_are_sorted_disjoint_and_reused() {
     let t = classic_demo().compile().unwrap();
     assert_eq!(t.primitive_count(), 5);
     let mut scratch = CsgScratch::default();
+    let (mut total, mut several) = (0, 0);
     for k in 0..200 {
         let a = k as f64 * 0.031;
         let o = glam::DVec3::new(3.0 * a.cos(), 0.7 * (a * 1.7).sin(), 3.0 * a.sin());
-        let spans = t.spans(o, -o + glam::DVec3::new(0.1, 0.2, -0.05), &mut scratch);
+        let d = -o + glam::DVec3::new(0.1, 0.2, -0.05);
+        // Reused scratch answers as a fresh one does.
+        let fresh: Vec<_> = t.spans(o, d, &mut CsgScratch::default()).iter().map(|s| (s.enter.t, s.exit.t)).collect();
+        let spans = t.spans(o, d, &mut scratch);
+        assert_eq!(spans.iter().map(|s| (s.enter.t, s.exit.t)).collect::<Vec<_>>(), fresh, "ray {k}");
+        total += spans.len();
+        several += (spans.len() > 1) as usize;
         for s in spans {
             assert!(s.enter.t <= s.exit.t);
             assert!((s.enter.normal.length() - 1.0).abs() < 1e-9 && (s.exit.normal.length() - 1.0).abs() < 1e-9);
@@ -127,6 +134,9 @@ fn csg_spans_are_sorted_disjoint_and_reused() {
             assert!(w[0].exit.t < w[1].enter.t);
         }
     }
+    // Most rays pass through the solid (178 spans), some of them through its holes (66 with
+    // several spans).
+    assert!(total > 100 && several > 10, "{total} spans, {several} rays with more than one");
 }
 
 #[test]
