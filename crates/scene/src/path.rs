@@ -81,6 +81,11 @@ pub fn parse_path(bytes: &[u8], path: &Path) -> Result<Vec<CameraKey>> {
     if keys.is_empty() {
         return Err(Error::load(path, "camera path has no frames"));
     }
+    // Each key must make a camera (finite, eye apart from target, near > 0, near < far): a
+    // bad key is named here rather than when a walk reaches it.
+    for (k, key) in keys.iter().enumerate() {
+        key.camera(1.0).map_err(|e| Error::load(path, format!("frame {k}: {e}")))?;
+    }
     Ok(keys)
 }
 
@@ -339,6 +344,19 @@ mod tests {
         let mid = Vec3::from(fly[10].eye);
         assert!((mid.x - c.x).abs() < 1.0 && (mid.z - c.z).abs() < 1.0, "over the center half way: {mid}");
         assert!(orbit_path(&Aabb::EMPTY, 4).is_err() && fly_path(&Aabb::EMPTY, 4).is_err());
+    }
+
+    /// A key that makes no camera is refused when the path is read, naming the file and the
+    /// frame.
+    #[test]
+    fn a_bad_key_is_named_by_its_frame() {
+        let key = |near: f32| {
+            format!(r#"{{"eye":[0,1,5],"target":[0,1,0],"up":[0,1,0],"fovy_deg":60,"near":{near},"far":100}}"#)
+        };
+        let json = format!("[{},{},{}]", key(0.1), key(0.1), key(0.0));
+        assert_eq!(parse_path(format!("[{}]", key(0.1)).as_bytes(), Path::new("p.json")).unwrap().len(), 1);
+        let e = parse_path(json.as_bytes(), Path::new("p.json")).unwrap_err().to_string();
+        assert!(e.contains("p.json") && e.contains("frame 2") && e.contains("near"), "{e}");
     }
 
     #[test]
