@@ -221,8 +221,27 @@ struct Loader<'a> {
 
 fn node_label(root: &json::Root, i: usize) -> String {
     match root.nodes.get(i).and_then(|n| n.name.as_deref()) {
+        // A name of a hostile length is cut: the message names the node by its index anyway.
+        Some(name) if name.chars().nth(LABEL_CHARS).is_some() => {
+            format!("node {i} ('{}…')", name.chars().take(LABEL_CHARS).collect::<String>())
+        }
         Some(name) => format!("node {i} ('{name}')"),
         None => format!("node {i}"),
+    }
+}
+
+/// The most characters of a node's name a message quotes.
+const LABEL_CHARS: usize = 80;
+
+/// The scene or the glTF node that lists a node, as error messages name it.
+struct Referrer<'a>(&'a json::Root, Option<usize>);
+
+impl std::fmt::Display for Referrer<'_> {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self.1 {
+            Some(i) => f.write_str(&node_label(self.0, i)),
+            None => f.write_str("the scene"),
+        }
     }
 }
 
@@ -254,10 +273,13 @@ impl Loader<'_> {
         // glTF nodes from the scene root to the current one (`on_path` flags them).
         let mut on_path = vec![false; root.nodes.len()];
         let mut path: Vec<usize> = Vec::new();
-        // (glTF node, depth, parent scene node, does the parent pass a material down?)
-        let mut stack: Vec<(usize, usize, Option<NodeId>, bool, String)> =
-            roots.iter().rev().map(|&n| (n, 0, None, false, "the scene".to_string())).collect();
+        // (glTF node, depth, parent scene node, does the parent pass a material down?, the
+        // glTF node that lists it: `None` for the scene). The referrer is an index, named only
+        // in an error: a label per entry would copy a long name once per child entry.
+        let mut stack: Vec<(usize, usize, Option<NodeId>, bool, Option<usize>)> =
+            roots.iter().rev().map(|&n| (n, 0, None, false, None)).collect();
         while let Some((i, depth, parent, inherits, referrer)) = stack.pop() {
+            let referrer = Referrer(root, referrer);
             let node = root.nodes.get(i).ok_or_else(|| format!("{referrer} lists node {i}, which does not exist"))?;
             while path.len() > depth {
                 if let Some(left) = path.pop() {
@@ -327,8 +349,18 @@ impl Loader<'_> {
             if let Some(c) = node.camera {
                 self.camera(c.value(), id, &label);
             }
+            // Every entry waiting becomes a node at least: refuse before stacking more of them
+            // than the limit allows (a file can list one child millions of times).
+            let children = node.children.as_ref().map_or(0, Vec::len);
+            if self.scene.node_count().saturating_add(stack.len()).saturating_add(children) > self.max_nodes {
+                return Err(format!(
+                    "more than {} nodes once shared nodes are expanded ({label} adds {children} children); \
+                     the limit is LoadOptions::max_nodes",
+                    self.max_nodes
+                ));
+            }
             for c in node.children.iter().flatten().rev() {
-                stack.push((c.value(), depth + 1, Some(id), passes, label.clone()));
+                stack.push((c.value(), depth + 1, Some(id), passes, Some(i)));
             }
         }
         Ok(())

@@ -243,6 +243,22 @@ fn an_exponential_gltf_dag_stops_at_the_node_limit() {
     assert!(load_with(&path, &LoadOptions::default().max_nodes(2000)).is_err());
 }
 
+/// A node listing one child a million times is refused before the million entries are
+/// stacked, naming the node; its long name is not copied once per entry.
+#[test]
+fn a_node_listing_a_child_a_million_times_stops_at_the_node_limit() {
+    let dir = tmp_dir("wide-bomb");
+    let name = "n".repeat(100_000);
+    let path = tiny_gltf(&dir, "wide.gltf", &[0, 1, 2], |d| {
+        let children = vec![1; 1_000_000];
+        d["nodes"] = serde_json::json!([{"name": name, "children": children}, {"mesh": 0}]);
+    });
+    let opts = LoadOptions::default().max_nodes(10_000);
+    let e = err_text(load_with(&path, &opts));
+    assert_mentions(&e, &["wide.gltf", "more than 10000 nodes", "1000000 children", "LoadOptions::max_nodes"]);
+    assert!(e.len() < 1000, "the long name is cut in the message: {} bytes", e.len());
+}
+
 /// A glTF node shared by two parents and animated: the channel drives both copies.
 /// assets/animated.gltf's "hand" (scale STEP 1 → 2 at t = 1, translation CUBICSPLINE) is made
 /// a child of "base" as well as of "arm".
