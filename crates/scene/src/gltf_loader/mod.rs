@@ -233,6 +233,19 @@ fn node_label(root: &json::Root, i: usize) -> String {
 /// The most characters of a node's name a message quotes.
 const LABEL_CHARS: usize = 80;
 
+/// A glTF node waiting in the depth-first walk of [`Loader::build`].
+struct Visit {
+    node: usize,
+    depth: usize,
+    /// The scene node it goes under.
+    parent: Option<NodeId>,
+    /// Whether the parent passes a material down.
+    inherits: bool,
+    /// The glTF node that lists it (`None`: the scene), named only in an error: a label per
+    /// entry would copy a long name once per child entry.
+    lister: Option<usize>,
+}
+
 /// The scene or the glTF node that lists a node, as error messages name it.
 struct Referrer<'a>(&'a json::Root, Option<usize>);
 
@@ -273,13 +286,13 @@ impl Loader<'_> {
         // glTF nodes from the scene root to the current one (`on_path` flags them).
         let mut on_path = vec![false; root.nodes.len()];
         let mut path: Vec<usize> = Vec::new();
-        // (glTF node, depth, parent scene node, does the parent pass a material down?, the
-        // glTF node that lists it: `None` for the scene). The referrer is an index, named only
-        // in an error: a label per entry would copy a long name once per child entry.
-        let mut stack: Vec<(usize, usize, Option<NodeId>, bool, Option<usize>)> =
-            roots.iter().rev().map(|&n| (n, 0, None, false, None)).collect();
-        while let Some((i, depth, parent, inherits, referrer)) = stack.pop() {
-            let referrer = Referrer(root, referrer);
+        let mut stack: Vec<Visit> = roots
+            .iter()
+            .rev()
+            .map(|&node| Visit { node, depth: 0, parent: None, inherits: false, lister: None })
+            .collect();
+        while let Some(Visit { node: i, depth, parent, inherits, lister }) = stack.pop() {
+            let referrer = Referrer(root, lister);
             let node = root.nodes.get(i).ok_or_else(|| format!("{referrer} lists node {i}, which does not exist"))?;
             while path.len() > depth {
                 if let Some(left) = path.pop() {
@@ -360,7 +373,13 @@ impl Loader<'_> {
                 ));
             }
             for c in node.children.iter().flatten().rev() {
-                stack.push((c.value(), depth + 1, Some(id), passes, Some(i)));
+                stack.push(Visit {
+                    node: c.value(),
+                    depth: depth + 1,
+                    parent: Some(id),
+                    inherits: passes,
+                    lister: Some(i),
+                });
             }
         }
         Ok(())
