@@ -42,8 +42,13 @@ fn texel(t: &Texture, x: u32, y: u32) -> Vec4 {
     Vec4::new(c[0] as f32, c[1] as f32, c[2] as f32, c[3] as f32) * (1.0 / 255.0)
 }
 
-/// Samples `t` at `uv`: RGBA in [0, 1]. Non-finite UVs read texel (0, 0).
+/// Samples `t` at `uv`: RGBA in [0, 1]. Non-finite UVs read texel (0, 0). A texture that is
+/// not well formed (made by hand with sizes that do not match its data) samples as white,
+/// so the surface shows its base color alone.
 pub fn sample(t: &Texture, uv: Vec2, filter: Filter, wrap: Wrap) -> Vec4 {
+    if !t.is_well_formed() {
+        return Vec4::ONE;
+    }
     let uv = if uv.is_finite() { uv } else { Vec2::ZERO };
     // f32 → i64 casts saturate, so huge UVs cannot overflow.
     let (w, h) = (t.width, t.height);
@@ -75,6 +80,24 @@ mod tests {
     fn tex2x2() -> Texture {
         // Black, white / white, black.
         Texture::new(2, 2, vec![0, 0, 0, 255, 255, 255, 255, 255, 255, 255, 255, 255, 0, 0, 0, 255]).unwrap()
+    }
+
+    /// A texture made by hand with no texels, or fewer bytes than its size says, samples as
+    /// white instead of panicking.
+    #[test]
+    fn a_malformed_texture_samples_as_white() {
+        let empty = Texture { width: 0, height: 0, rgba: Vec::new() };
+        let short = Texture { width: 4, height: 4, rgba: vec![0; 12] };
+        for t in [&empty, &short] {
+            assert!(!t.is_well_formed());
+            for f in [Filter::Nearest, Filter::Bilinear] {
+                for w in [Wrap::Repeat, Wrap::Clamp] {
+                    assert_eq!(sample(t, Vec2::new(0.7, 0.2), f, w), Vec4::ONE);
+                }
+            }
+            assert_eq!(t.texel(3, 3), [0; 4]);
+        }
+        assert!(tex2x2().is_well_formed());
     }
 
     #[test]

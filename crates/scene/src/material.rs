@@ -34,13 +34,25 @@ impl Texture {
         })
     }
 
-    /// The texel at integer coordinates (clamped to the image).
+    /// Whether the sizes and the data agree (as [`Texture::new`] checks): the fields are
+    /// public, so a texture made by hand may break it.
+    pub fn is_well_formed(&self) -> bool {
+        self.width > 0
+            && self.height > 0
+            && (self.width as u64 * self.height as u64 * 4).try_into().is_ok_and(|n: usize| self.rgba.len() == n)
+    }
+
+    /// The texel at integer coordinates (clamped to the image); transparent black where a
+    /// texture that is not well formed has no data.
     #[inline]
     pub fn texel(&self, x: u32, y: u32) -> [u8; 4] {
-        let x = x.min(self.width - 1) as usize;
-        let y = y.min(self.height - 1) as usize;
+        let x = x.min(self.width.saturating_sub(1)) as usize;
+        let y = y.min(self.height.saturating_sub(1)) as usize;
         let i = (y * self.width as usize + x) * 4;
-        [self.rgba[i], self.rgba[i + 1], self.rgba[i + 2], self.rgba[i + 3]]
+        match self.rgba.get(i..i + 4) {
+            Some(&[r, g, b, a]) => [r, g, b, a],
+            _ => [0; 4],
+        }
     }
 }
 
