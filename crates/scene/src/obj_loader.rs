@@ -129,7 +129,10 @@ fn load_with_reader(mut reader: impl BufRead, path: &Path, assets: &AssetReader)
     }
     let (models, materials) = match result {
         Ok(Ok(loaded)) => loaded,
-        Ok(Err(e)) => return Err(Error::load(path, format!("malformed OBJ: {e}"))),
+        // tobj's messages name no place: the line it stopped at is the last one served.
+        Ok(Err(e)) => {
+            return Err(Error::load(path, format!("malformed OBJ: line {}: {e}{}", checked.line_no, checked.quoted())))
+        }
         Err(_) => return Err(Error::load(path, "malformed OBJ: the OBJ parser panicked")),
     };
     let materials = materials.unwrap_or_default();
@@ -205,6 +208,17 @@ struct FaceCheck<R> {
 impl<R: BufRead> FaceCheck<R> {
     fn new(inner: R) -> Self {
         FaceCheck { inner, line: Vec::new(), at: 0, line_no: 0, counts: [0; 3], error: None }
+    }
+
+    /// The current line, quoted for a message (cut at 80 characters), or nothing when empty.
+    fn quoted(&self) -> String {
+        let text = String::from_utf8_lossy(&self.line);
+        let text = text.trim();
+        match text.char_indices().nth(80) {
+            _ if text.is_empty() => String::new(),
+            Some((cut, _)) => format!(" ('{}…')", &text[..cut]),
+            None => format!(" ('{text}')"),
+        }
     }
 
     /// Checks one line, split into words as tobj splits it; `counts` are the `v`, `vt` and

@@ -384,8 +384,8 @@ fn obj_errors_name_the_file_and_problem() {
         ("texneg.obj", format!("{TRI}vt 0 0\nf 1/-5 2/-5 3/-5\n"), "malformed OBJ"),
         ("nan.obj", "v nan 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n".to_string(), "not finite"),
         ("inf.obj", "v 1e39 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n".to_string(), "not finite"),
-        ("short.obj", "v 1 2\n".to_string(), "position parse error"),
-        ("face.obj", format!("{TRI}f 1 x 3\n"), "face parse error"),
+        ("short.obj", "v 1 2\n".to_string(), "line 1: position parse error ('v 1 2')"),
+        ("face.obj", format!("{TRI}f 1 x 3\n"), "line 4: face parse error ('f 1 x 3')"),
     ];
     for (name, text, want) in cases {
         let path = write(&dir, name, &text);
