@@ -1,0 +1,140 @@
+//! glTF materials: `pbrMetallicRoughness.baseColorFactor` and `baseColorTexture` (PNG or JPEG
+//! images, decoded once each), `alphaMode` and `alphaCutoff`, and `emissiveFactor`; the glTF
+//! 2.0 specification, "Materials".
+
+use super::*;
+
+impl Loader<'_> {
+    pub(super) fn material(&mut self, i: usize) -> std::result::Result<MaterialId, String> {
+        if let Some(Some(id)) = self.materials.get(i) {
+            return Ok(*id);
+        }
+        let mat = self.root.materials.get(i).ok_or_else(|| format!("material {i} does not exist"))?;
+        let label = match &mat.name {
+            Some(n) => format!("material {i} ('{n}')"),
+            None => format!("material {i}"),
+        };
+        let pbr = &mat.pbr_metallic_roughness;
+        let mut base_color = pbr.base_color_factor.0;
+        if !base_color.iter().all(|c| c.is_finite()) {
+            self.scene.warnings.push(format!("{label}: baseColorFactor {base_color:?} is not finite; using white"));
+            base_color = [1.0; 4];
+        }
+        let mut texture = None;
+        if let Some(info) = &pbr.base_color_texture {
+            match self.base_color_texture(info) {
+                Ok(t) => texture = t,
+                Err(AssetError::Refused(e)) => return Err(format!("{label}: base color texture: {e}")),
+                Err(AssetError::Unavailable(e)) => self
+                    .scene
+                    .warnings
+                    .push(format!("{label}: base color texture: {e}; using the base color factor alone")),
+            }
+        }
+        let alpha_mode = self.alpha_mode(mat, &label);
+        let id = self.scene.add_material(Material {
+            name: mat.name.clone().unwrap_or_else(|| format!("material {i}")),
+            base_color,
+            base_color_texture: texture,
+            alpha_mode,
+            emissive: emissive(mat),
+        });
+        if let Some(slot) = self.materials.get_mut(i) {
+            *slot = Some(id);
+        }
+        Ok(id)
+    }
+
+    /// The material's `alphaMode` and `alphaCutoff`: an unknown mode is a warning (opaque),
+    /// a cutoff that is negative or not finite a warning (0.5); the cutoff of a mode other
+    /// than `MASK` is ignored, as the specification says.
+    fn alpha_mode(&mut self, mat: &json::Material, label: &str) -> AlphaMode {
+        match mat.alpha_mode {
+            Checked::Valid(json::material::AlphaMode::Opaque) => AlphaMode::Opaque,
+            Checked::Valid(json::material::AlphaMode::Blend) => AlphaMode::Blend,
+            Checked::Valid(json::material::AlphaMode::Mask) => {
+                let cutoff = mat.alpha_cutoff.map_or(DEFAULT_ALPHA_CUTOFF, |c| c.0);
+                if cutoff.is_finite() && cutoff >= 0.0 {
+                    AlphaMode::Mask { cutoff }
+                } else {
+                    self.scene.warnings.push(format!(
+                        "{label}: alphaCutoff {cutoff} is not a number >= 0; using {DEFAULT_ALPHA_CUTOFF}"
+                    ));
+                    AlphaMode::mask()
+                }
+            }
+            Checked::Invalid => {
+                self.scene.warnings.push(format!("{label}: unknown alphaMode; drawing it opaque"));
+                AlphaMode::Opaque
+            }
+        }
+    }
+
+    fn base_color_texture(
+        &mut self,
+        info: &json::texture::Info,
+    ) -> std::result::Result<Option<Arc<Texture>>, AssetError> {
+        let bad = AssetError::Unavailable;
+        if info.tex_coord != 0 {
+            return Err(bad(format!("it uses TEXCOORD_{}, only TEXCOORD_0 is loaded", info.tex_coord)));
+        }
+        let t = info.index.value();
+        let tex = self.root.textures.get(t).ok_or_else(|| bad(format!("texture {t} does not exist")))?;
+        let img = tex.source.value();
+        if let Some(Some(cached)) = self.images.get(img) {
+            return Ok(cached.clone());
+        }
+        let image = self
+            .root
+            .images
+            .get(img)
+            .ok_or_else(|| bad(format!("texture {t} refers to image {img}, which does not exist")))?;
+        let label = match (&image.uri, &image.name) {
+            (Some(uri), _) => format!("image {img} ('{}')", short_uri(uri)),
+            (None, Some(name)) => format!("image {img} ('{name}')"),
+            (None, None) => format!("image {img}"),
+        };
+        let from_uri;
+        let bytes: &[u8] = match (&image.uri, image.buffer_view) {
+            (Some(uri), _) => {
+                from_uri = read_uri(uri, self.assets, u64::MAX, MAX_IMAGE_FILE).map_err(|e| e.context(&label))?;
+                from_uri.bytes()
+            }
+            (None, Some(v)) => self.view_bytes(v.value()).map_err(|e| e.context(&label))?.0,
+            (None, None) => return Err(bad(format!("{label} has neither a uri nor a buffer view"))),
+        };
+        let decoded = decode_texture(bytes).map_err(|e| bad(format!("{label}: {e}")))?;
+        let decoded = Some(Arc::new(decoded));
+        if let Some(slot) = self.images.get_mut(img) {
+            *slot = Some(decoded.clone());
+        }
+        Ok(decoded)
+    }
+}
+
+/// Largest texture side accepted, in texels.
+const MAX_TEXTURE_SIDE: u32 = 16384;
+
+/// Decodes a PNG or JPEG image (format sniffed from the bytes) into an RGBA8 [`Texture`].
+pub(crate) fn decode_texture(bytes: &[u8]) -> std::result::Result<Texture, String> {
+    let mut reader =
+        image::ImageReader::new(std::io::Cursor::new(bytes)).with_guessed_format().map_err(|e| e.to_string())?;
+    if reader.format().is_none() {
+        return Err("unknown image format (PNG and JPEG are supported)".into());
+    }
+    let mut limits = image::Limits::default();
+    limits.max_image_width = Some(MAX_TEXTURE_SIDE);
+    limits.max_image_height = Some(MAX_TEXTURE_SIDE);
+    limits.max_alloc = Some(1 << 30);
+    reader.limits(limits);
+    let img = reader.decode().map_err(|e| format!("cannot decode: {e}"))?;
+    let rgba = img.to_rgba8();
+    let (w, h) = rgba.dimensions();
+    Texture::new(w, h, rgba.into_raw()).ok_or_else(|| format!("bad image size {w}x{h}"))
+}
+
+/// The material's `emissiveFactor` (glTF: linear RGB, default black); a component that is
+/// negative or not finite counts as 0.
+fn emissive(mat: &json::Material) -> [f32; 3] {
+    mat.emissive_factor.0.map(|c| if c.is_finite() { c.max(0.0) } else { 0.0 })
+}
