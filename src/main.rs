@@ -14,8 +14,11 @@ use clap::Parser;
 fn main() -> ExitCode {
     let args = match cli::Cli::try_parse() {
         Ok(args) => args,
-        // Help and version go to stdout as clap prints them.
-        Err(e) if !e.use_stderr() => e.exit(),
+        // Help and version go to stdout as clap prints them; with no command at all the
+        // help goes, whole, to stderr with exit code 2.
+        Err(e) if !e.use_stderr() || e.kind() == clap::error::ErrorKind::DisplayHelpOnMissingArgumentOrSubcommand => {
+            e.exit()
+        }
         Err(e) => {
             eprintln!("{}", one_line(&e.render().to_string()));
             return ExitCode::from(2);

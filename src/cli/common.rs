@@ -245,7 +245,6 @@ pub fn path_keys(loaded: &LoadedScene, path: Option<&Path>, frames: Option<usize
         None => loaded.path(true, frames.unwrap_or(120))?,
     };
     if let Some(n) = frames {
-        anyhow::ensure!(n > 0, "--frames must be at least 1");
         keys.truncate(n);
     }
     Ok(keys)

@@ -113,7 +113,7 @@ enum Command {
     },
 }
 
-/// The pictures of `--out` are drawn at `--size` times the `--aa` factor: a usage error when
+/// The pictures of `--out` are drawn at `size` times the `--aa` factor: a usage error when
 /// that is over the largest framebuffer.
 fn too_large_to_supersample(size: common::Size, look: &common::Look) -> Option<String> {
     let k = look.aa.factor();
@@ -148,8 +148,14 @@ impl Cli {
             {
                 Some(format!("--size {}: multiview draws four views in a 2×2 grid and needs at least 2x2", a.size))
             }
-            Command::Render(a) if a.out.is_some() => too_large_to_supersample(a.size, &a.look),
-            Command::Walk(a) if a.out.is_some() => too_large_to_supersample(a.size, &a.look),
+            Command::Render(a) if a.out.is_some() => {
+                // Multiview draws each of its four pictures at a quarter of the image.
+                let quarter = a.projection == render::ProjectionArg::Multiview;
+                let size = if quarter { common::Size { width: a.size.width / 2, height: a.size.height / 2 } } else { a.size };
+                too_large_to_supersample(size, &a.look)
+            }
+            // Only the PNG frames of a walk are drawn supersampled.
+            Command::Walk(a) if a.out.is_some() && a.png_every != Some(0) => too_large_to_supersample(a.size, &a.look),
             Command::Csg { out, .. } if !out.extension().is_some_and(|e| e.eq_ignore_ascii_case("png")) => {
                 Some(format!("--out {}: csg writes a PNG image; give a .png file", out.display()))
             }

@@ -20,7 +20,6 @@ pub enum PathKind {
 }
 
 pub fn run(scene: &SceneArg, kind: PathKind, frames: usize, out: &Path) -> Result<()> {
-    anyhow::ensure!(frames > 0, "--frames must be at least 1");
     super::common::check_outputs(&[], &[out])?;
     let loaded = super::load_scene(scene)?;
     let bounds = loaded.scene.world_aabb();

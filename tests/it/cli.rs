@@ -55,6 +55,10 @@ fn usage_errors_are_one_line_naming_the_flag() {
         assert!(err.starts_with("error: ") && err.contains(flag), "{args:?}: names {flag}: {err}");
         assert_eq!(err.lines().count(), 1, "{args:?}: one line: {err}");
     }
+    // With no command at all, the whole help goes to stderr, with exit code 2.
+    let (code, err) = run(&[]);
+    assert_eq!(code, Some(2), "{err}");
+    assert!(err.contains("Usage:") && err.contains("walk") && err.contains("bench"), "{err}");
     // Help still prints in full, to stdout, with success.
     let out = Command::new(env!("CARGO_BIN_EXE_sightline")).args(["walk", "--help"]).output().unwrap();
     assert_eq!(out.status.code(), Some(0));

@@ -88,7 +88,9 @@ mod tests {
     fn a_malformed_texture_samples_as_white() {
         let empty = Texture { width: 0, height: 0, rgba: Vec::new() };
         let short = Texture { width: 4, height: 4, rgba: vec![0; 12] };
-        for t in [&empty, &short] {
+        // Sizes whose byte count overflows.
+        let huge = Texture { width: u32::MAX, height: u32::MAX, rgba: vec![0; 16] };
+        for t in [&empty, &short, &huge] {
             assert!(!t.is_well_formed());
             for f in [Filter::Nearest, Filter::Bilinear] {
                 for w in [Wrap::Repeat, Wrap::Clamp] {

@@ -27,19 +27,15 @@ pub struct Texture {
 impl Texture {
     /// A texture from raw RGBA8 data; `None` when the sizes do not match or are zero.
     pub fn new(width: u32, height: u32, rgba: Vec<u8>) -> Option<Self> {
-        (width > 0 && height > 0 && rgba.len() == width as usize * height as usize * 4).then_some(Self {
-            width,
-            height,
-            rgba,
-        })
+        let t = Self { width, height, rgba };
+        t.is_well_formed().then_some(t)
     }
 
     /// Whether the sizes and the data agree (as [`Texture::new`] checks): the fields are
     /// public, so a texture made by hand may break it.
     pub fn is_well_formed(&self) -> bool {
-        self.width > 0
-            && self.height > 0
-            && (self.width as u64 * self.height as u64 * 4).try_into().is_ok_and(|n: usize| self.rgba.len() == n)
+        let bytes = (self.width as u64).checked_mul(self.height as u64).and_then(|n| n.checked_mul(4));
+        self.width > 0 && self.height > 0 && bytes.is_some_and(|n| self.rgba.len() as u64 == n)
     }
 
     /// The texel at integer coordinates (clamped to the image); transparent black where a
@@ -48,8 +44,8 @@ impl Texture {
     pub fn texel(&self, x: u32, y: u32) -> [u8; 4] {
         let x = x.min(self.width.saturating_sub(1)) as usize;
         let y = y.min(self.height.saturating_sub(1)) as usize;
-        let i = (y * self.width as usize + x) * 4;
-        match self.rgba.get(i..i + 4) {
+        let i = y.checked_mul(self.width as usize).and_then(|r| r.checked_add(x)?.checked_mul(4));
+        match i.and_then(|i| self.rgba.get(i..i.checked_add(4)?)) {
             Some(&[r, g, b, a]) => [r, g, b, a],
             _ => [0; 4],
         }

@@ -81,10 +81,20 @@ pub fn parse_path(bytes: &[u8], path: &Path) -> Result<Vec<CameraKey>> {
     if keys.is_empty() {
         return Err(Error::load(path, "camera path has no frames"));
     }
-    // Each key must make a camera (finite, eye apart from target, near > 0, near < far): a
-    // bad key is named here rather than when a walk reaches it.
+    // Each key must place a camera (finite numbers, the eye apart from the target, up not
+    // along the gaze): a bad key is named here rather than when a walk reaches it. Near and
+    // far are checked with each frame's camera, since a program may replace them.
     for (k, key) in keys.iter().enumerate() {
-        key.camera(1.0).map_err(|e| Error::load(path, format!("frame {k}: {e}")))?;
+        let finite = [key.fovy_deg, key.near, key.far].iter().chain(key.eye.iter()).all(|x| x.is_finite());
+        let placed = CameraKey { near: 1.0, far: 2.0, ..*key };
+        let why = if finite {
+            placed.camera(1.0).err().map(|e| e.to_string())
+        } else {
+            Some("a number is not finite".into())
+        };
+        if let Some(why) = why {
+            return Err(Error::load(path, format!("frame {k}: {why}")));
+        }
     }
     Ok(keys)
 }
@@ -346,17 +356,19 @@ mod tests {
         assert!(orbit_path(&Aabb::EMPTY, 4).is_err() && fly_path(&Aabb::EMPTY, 4).is_err());
     }
 
-    /// A key that makes no camera is refused when the path is read, naming the file and the
-    /// frame.
+    /// A key that places no camera is refused when the path is read, naming the file and
+    /// the frame; near and far, which a program may replace, are left to each frame.
     #[test]
     fn a_bad_key_is_named_by_its_frame() {
-        let key = |near: f32| {
-            format!(r#"{{"eye":[0,1,5],"target":[0,1,0],"up":[0,1,0],"fovy_deg":60,"near":{near},"far":100}}"#)
+        let key = |target_z: f32, near: &str| {
+            format!(r#"{{"eye":[0,1,5],"target":[0,1,{target_z}],"up":[0,1,0],"fovy_deg":60,"near":{near},"far":100}}"#)
         };
-        let json = format!("[{},{},{}]", key(0.1), key(0.1), key(0.0));
-        assert_eq!(parse_path(format!("[{}]", key(0.1)).as_bytes(), Path::new("p.json")).unwrap().len(), 1);
-        let e = parse_path(json.as_bytes(), Path::new("p.json")).unwrap_err().to_string();
-        assert!(e.contains("p.json") && e.contains("frame 2") && e.contains("near"), "{e}");
+        let read = |keys: &[String]| parse_path(format!("[{}]", keys.join(",")).as_bytes(), Path::new("p.json"));
+        assert_eq!(read(&[key(0.0, "0.1"), key(0.0, "0")]).unwrap().len(), 2, "near = 0 is left to the frame");
+        let e = read(&[key(0.0, "0.1"), key(0.0, "0.1"), key(5.0, "0.1")]).unwrap_err().to_string();
+        assert!(e.contains("p.json") && e.contains("frame 2"), "the eye on the target: {e}");
+        let e = read(&[key(0.0, "1e39")]).unwrap_err().to_string();
+        assert!(e.contains("frame 0") && e.contains("not finite"), "{e}");
     }
 
     #[test]
