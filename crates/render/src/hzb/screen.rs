@@ -66,16 +66,31 @@ impl DepthPyramid {
     }
 
     /// Rebuilds every level from `depth` (row-major, `width × height`), one pass per level.
+    ///
+    /// # Panics
+    ///
+    /// When `depth` does not hold `width × height` values.
     pub fn build(&mut self, depth: &[f32]) {
-        let full = Rect { x0: 0, y0: 0, x1: self.width - 1, y1: self.height - 1 };
+        let full = Rect { x0: 0, y0: 0, x1: self.width.saturating_sub(1), y1: self.height.saturating_sub(1) };
         self.update(depth, full);
     }
 
-    /// Re-propagates the texels above the pixel rectangle `r` after it was drawn into.
+    /// Re-propagates the texels above the pixel rectangle `r` after it was drawn into (the
+    /// part of it on the screen; nothing for an empty or inverted rectangle).
+    ///
+    /// # Panics
+    ///
+    /// When `depth` does not hold `width × height` values.
     pub fn update(&mut self, depth: &[f32], r: Rect) {
         assert_eq!(depth.len(), self.width as usize * self.height as usize, "depth buffer size");
+        if self.width == 0 || self.height == 0 {
+            return;
+        }
+        let mut r = Rect { x1: r.x1.min(self.width - 1), y1: r.y1.min(self.height - 1), ..r };
+        if r.x0 > r.x1 || r.y0 > r.y1 {
+            return;
+        }
         let (mut sw, mut sh) = (self.width, self.height);
-        let mut r = r;
         for k in 0..self.levels.len() {
             let (below, rest) = self.levels.split_at_mut(k);
             let src: &[f32] = if k == 0 { depth } else { &below[k - 1].texels };
@@ -100,6 +115,11 @@ impl DepthPyramid {
 
     /// True when nothing inside the pixel rectangle `r` at window depth ≥ `nearest` can pass
     /// a LESS test against `depth`, judged from the pyramid.
+    ///
+    /// # Panics
+    ///
+    /// When `r` reaches outside the screen (a [`BoxProjector`](sightline_spatial::BoxProjector)'s
+    /// rectangles never do).
     pub fn is_occluded(&self, depth: &[f32], r: Rect, nearest: f32) -> bool {
         // NaN nearest: not occluded (be conservative).
         if !(nearest <= 1.0) {
@@ -135,6 +155,21 @@ impl DepthPyramid {
 mod tests {
     use super::*;
     use crate::hzb::{brute_max, Rect};
+
+    /// A pyramid over an empty screen, and updates of rectangles that are inverted or reach
+    /// past the screen, do nothing rather than panic.
+    #[test]
+    fn empty_screens_and_odd_rectangles_are_no_ops() {
+        let mut empty = DepthPyramid::new(0, 5);
+        empty.build(&[]);
+        let (w, h) = (10u32, 6u32);
+        let depth = vec![0.5f32; (w * h) as usize];
+        let mut p = DepthPyramid::new(w, h);
+        p.update(&depth, Rect { x0: 5, y0: 0, x1: 2, y1: 3 });
+        assert_eq!(p.farthest(&depth), 1.0, "an inverted rectangle changes nothing");
+        p.update(&depth, Rect { x0: 0, y0: 0, x1: 100, y1: 100 });
+        assert_eq!(p.farthest(&depth), 0.5, "a rectangle past the screen updates the screen");
+    }
 
     #[test]
     fn pyramid_is_exactly_conservative_on_odd_sizes() {
