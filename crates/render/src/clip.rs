@@ -225,4 +225,36 @@ mod tests {
         // Scaling a vertex by a positive factor (same point) keeps the sign.
         assert!(facing_det([ccw[0] * 3.0, ccw[1], ccw[2] * 0.2]) > 0.0);
     }
+
+    /// For triangles with one or two vertices behind the eye (w < 0), the sign of
+    /// `facing_det` is the sign of the area of what is seen: the clipped polygon in NDC.
+    #[test]
+    fn facing_matches_the_visible_part_when_vertices_lie_behind_the_eye() {
+        let mut rng = sightline_scene::rng::Rng::new(21);
+        let mut checked = [0usize; 2];
+        for _ in 0..4000 {
+            let mut v = [Vec4::ZERO; 3];
+            for c in &mut v {
+                let w = rng.range(-2.0, 2.0);
+                *c = Vec4::new(rng.range(-3.0, 3.0), rng.range(-3.0, 3.0), rng.range(-0.9, 0.9) * w.abs(), w);
+            }
+            let behind = v.iter().filter(|c| c.w < 0.0).count();
+            if behind == 0 || behind == 3 {
+                continue;
+            }
+            let poly = clip_triangle(v, 1e4, 1e4);
+            let ndc: Vec<glam::DVec2> = poly
+                .vertices()
+                .iter()
+                .map(|c| glam::DVec2::new(c.pos.x as f64 / c.pos.w as f64, c.pos.y as f64 / c.pos.w as f64))
+                .collect();
+            let area: f64 = (0..ndc.len()).map(|i| ndc[i].perp_dot(ndc[(i + 1) % ndc.len()])).sum();
+            if ndc.len() < 3 || area.abs() < 1e-6 {
+                continue;
+            }
+            assert_eq!(area > 0.0, facing_det(v) > 0.0, "{v:?}: area {area}");
+            checked[behind - 1] += 1;
+        }
+        assert!(checked[0] > 200 && checked[1] > 200, "cases with one and two vertices behind: {checked:?}");
+    }
 }
