@@ -180,13 +180,19 @@ fn read_at_most(f: std::fs::File, n: u64) -> Result<Vec<u8>, String> {
 /// blocks the read), no more bytes than its size, and at most `max_bytes`. The error
 /// says what is wrong with the file, for the caller to prefix with its name.
 pub fn read_regular_file(path: &Path, max_bytes: u64) -> Result<Vec<u8>, String> {
+    let len = regular_size(path)?;
+    if len > max_bytes {
+        return Err(format!("is {len} bytes, more than the {max_bytes} read of such a file"));
+    }
+    read_at_most(open_regular(path).map_err(String::from)?, len)
+}
+
+/// The size of a regular file, from its metadata (which does not open it, so a FIFO cannot
+/// block); an error for anything else.
+fn regular_size(path: &Path) -> Result<u64, String> {
     let meta = std::fs::metadata(path).map_err(|e| io_why("cannot read", &e))?;
     check_regular(&meta)?;
-    if meta.len() > max_bytes {
-        return Err(format!("is {} bytes, more than the {max_bytes} read of such a file", meta.len()));
-    }
-    let f = open_regular(path).map_err(String::from)?;
-    read_at_most(f, meta.len())
+    Ok(meta.len())
 }
 
 /// Canonical path → (the bytes read of it, the size of the whole file).
@@ -286,9 +292,7 @@ impl AssetReader {
 
     /// Checks the scene file, charges its size and opens it for reading at most that size.
     pub(crate) fn open_main(&self) -> Result<std::io::Take<std::fs::File>, String> {
-        let meta = std::fs::metadata(&self.main).map_err(|e| io_why("cannot read", &e))?;
-        check_regular(&meta)?;
-        let len = meta.len();
+        let len = regular_size(&self.main)?;
         self.seen_bytes.set(self.seen_bytes.get().saturating_add(len));
         self.charge(len, "the scene file").map_err(String::from)?;
         Ok(open_regular(&self.main).map_err(String::from)?.take(len))

@@ -85,7 +85,8 @@ pub fn parse_path(bytes: &[u8], path: &Path) -> Result<Vec<CameraKey>> {
     // along the gaze): a bad key is named here rather than when a walk reaches it. Near and
     // far are checked with each frame's camera, since a program may replace them.
     for (k, key) in keys.iter().enumerate() {
-        let finite = [key.fovy_deg, key.near, key.far].iter().chain(key.eye.iter()).all(|x| x.is_finite());
+        // The camera below checks the rest; near and far are set aside there.
+        let finite = key.near.is_finite() && key.far.is_finite();
         let placed = CameraKey { near: 1.0, far: 2.0, ..*key };
         let why = if finite {
             placed.camera(1.0).err().map(|e| e.to_string())
