@@ -21,6 +21,11 @@
 //!   [`LoadOptions::max_total_bytes`]; by default the cap is
 //!   [`DEFAULT_BUDGET_FACTOR`] × the sizes of the distinct files involved +
 //!   [`DEFAULT_BUDGET_BASE`].
+//! * **A total of what is made from them.** A few bytes can ask for much more than they
+//!   hold: a glTF file can point a million meshes at one big accessor, or reach one node
+//!   (its name, its animation curves) along a million paths. What a glTF load decodes and
+//!   copies is capped by [`LoadOptions::max_decoded_bytes`]; by default by
+//!   [`DEFAULT_DECODE_FACTOR`] × the sizes of the files involved + [`DEFAULT_BUDGET_BASE`].
 
 use std::cell::{Cell, RefCell};
 use std::collections::HashMap;
@@ -49,6 +54,13 @@ pub struct LoadOptions {
     /// (a shared subgraph) becomes one copy per path, so a small file can ask for very many;
     /// past this count the load fails, naming the limit. `None`: [`DEFAULT_MAX_NODES`].
     pub max_nodes: Option<usize>,
+    /// The most bytes of scene data one load may make from its files: decoded accessors
+    /// (4 bytes a component), and what each copy of a shared node repeats (its name, the
+    /// curves animating it). A file can make one accessor decode for every mesh that names
+    /// it, or one node load once per path to it; past this total the load fails, naming the
+    /// limit. `None`: [`DEFAULT_DECODE_FACTOR`] × the sizes of the distinct files involved
+    /// (the scene file included, also when given as bytes) + [`DEFAULT_BUDGET_BASE`].
+    pub max_decoded_bytes: Option<u64>,
 }
 
 impl LoadOptions {
@@ -69,6 +81,12 @@ impl LoadOptions {
         self.max_nodes = Some(nodes);
         self
     }
+
+    /// Caps the bytes of scene data one load may decode and copy.
+    pub fn max_decoded_bytes(mut self, bytes: u64) -> Self {
+        self.max_decoded_bytes = Some(bytes);
+        self
+    }
 }
 
 /// The default cap on the nodes one load may create (see [`LoadOptions::max_nodes`]).
@@ -78,6 +96,10 @@ pub const DEFAULT_MAX_NODES: usize = 1 << 20;
 pub const DEFAULT_BUDGET_FACTOR: u64 = 4;
 /// …plus this many bytes.
 pub const DEFAULT_BUDGET_BASE: u64 = 64 << 20;
+/// The default cap on decoded data is this many times the sizes of the files involved (plus
+/// [`DEFAULT_BUDGET_BASE`]): room for every accessor decoded once (a u8 triangle strip's
+/// index grows twelvefold) and for some sharing.
+pub const DEFAULT_DECODE_FACTOR: u64 = 16;
 
 /// Why a referenced file was not read.
 #[derive(Debug, Clone, PartialEq, Eq)]
@@ -211,10 +233,14 @@ pub(crate) struct AssetReader {
     /// The extra allowed roots, canonicalized.
     roots: Vec<PathBuf>,
     explicit_limit: Option<u64>,
-    /// Sizes of the distinct files seen (stat'ed) so far, for the default limit.
+    /// Sizes of the distinct files seen (stat'ed) so far, for the default limits.
     seen_bytes: Cell<u64>,
     /// Bytes read so far.
     read_bytes: Cell<u64>,
+    /// [`LoadOptions::max_decoded_bytes`].
+    explicit_decode_limit: Option<u64>,
+    /// Bytes decoded and copied so far.
+    decoded_bytes: Cell<u64>,
     files: RefCell<FileCache>,
 }
 
@@ -246,6 +272,8 @@ impl AssetReader {
             explicit_limit: opts.max_total_bytes,
             seen_bytes: Cell::new(0),
             read_bytes: Cell::new(0),
+            explicit_decode_limit: opts.max_decoded_bytes,
+            decoded_bytes: Cell::new(0),
             files: RefCell::new(HashMap::new()),
         })
     }
@@ -274,6 +302,42 @@ impl AssetReader {
             )));
         }
         self.read_bytes.set(total);
+        Ok(())
+    }
+
+    /// Counts a scene file given in memory (not read through this reader) among the files
+    /// involved, for the default limits.
+    pub(crate) fn given_main(&self, len: u64) {
+        self.seen_bytes.set(self.seen_bytes.get().saturating_add(len));
+    }
+
+    /// The decoded-data cap now (the default one grows with the files seen).
+    fn decode_limit(&self) -> u64 {
+        self.explicit_decode_limit.unwrap_or_else(|| {
+            DEFAULT_BUDGET_BASE.saturating_add(self.seen_bytes.get().saturating_mul(DEFAULT_DECODE_FACTOR))
+        })
+    }
+
+    /// Charges `n` bytes about to be decoded or copied for `what` against the cap; the error
+    /// names `what`, the totals and the option that sets the cap.
+    pub(crate) fn charge_decoded(&self, n: u64, what: impl std::fmt::Display) -> Result<(), String> {
+        let limit = self.decode_limit();
+        let total = self.decoded_bytes.get().saturating_add(n);
+        if total > limit {
+            let how = match self.explicit_decode_limit {
+                Some(_) => "LoadOptions::max_decoded_bytes".to_string(),
+                None => format!(
+                    "the default limit, {DEFAULT_DECODE_FACTOR} × the size of the files involved + {} MiB; \
+                     LoadOptions::max_decoded_bytes sets another",
+                    DEFAULT_BUDGET_BASE >> 20
+                ),
+            };
+            return Err(format!(
+                "{what} would bring the data this load decodes and copies to {total} bytes, \
+                 over its limit of {limit} bytes ({how})"
+            ));
+        }
+        self.decoded_bytes.set(total);
         Ok(())
     }
 

@@ -32,10 +32,20 @@ fn list(labels: &[String]) -> String {
     s
 }
 
+/// The bytes a copy of `c` holds: its key times and values.
+fn curve_bytes(c: &Curve) -> u64 {
+    let (times, values) = match c {
+        Curve::Translation(s) | Curve::Scale(s) => (s.times().len(), std::mem::size_of_val(s.values())),
+        Curve::Rotation(s) => (s.times().len(), std::mem::size_of_val(s.values())),
+    };
+    (times * 4 + values) as u64
+}
+
 impl Loader<'_> {
     /// Converts the file's animations into [`Scene::animations`], and warns about skins and
-    /// morph targets. Call after the nodes are built.
-    pub(super) fn load_animations(&mut self) {
+    /// morph targets. Call after the nodes are built. Fails only past
+    /// [`LoadOptions::max_decoded_bytes`]; a bad channel is skipped with a warning.
+    pub(super) fn load_animations(&mut self) -> std::result::Result<(), String> {
         let root = self.root;
         for (a, anim) in root.animations.iter().enumerate() {
             let label = match &anim.name {
@@ -52,6 +62,7 @@ impl Loader<'_> {
                 };
                 match self.channel(anim, ch) {
                     Ok(channels) => out.channels.extend(channels),
+                    Err(why) if self.over_budget.get() => return Err(format!("{label} channel {c} ({target}): {why}")),
                     Err(why) => {
                         self.scene.warnings.push(format!("{label} channel {c} ({target}): {why}; channel skipped"))
                     }
@@ -62,6 +73,7 @@ impl Loader<'_> {
             }
         }
         self.warn_bind_pose();
+        Ok(())
     }
 
     /// The channel `ch` aimed at each scene node made for its glTF node (one per copy of a
@@ -107,6 +119,12 @@ impl Loader<'_> {
             Property::Rotation => Curve::Rotation(self.sampler(output, Type::Vec4, times, interpolation)?),
             Property::Scale => Curve::Scale(self.sampler(output, Type::Vec3, times, interpolation)?),
         };
+        // Each copy of a shared node gets the curve again.
+        let copies = targets.len() as u64 - 1;
+        self.charge(
+            copies.saturating_mul(curve_bytes(&curve)),
+            format_args!("copying its curve to {copies} more copies of the node"),
+        )?;
         Ok(targets.iter().map(|&target| Channel { target, curve: curve.clone() }).collect())
     }
 

@@ -282,6 +282,10 @@ impl<'a> Loader<'a> {
         let csize = component_size(comp);
         let elem = dims * csize;
         let count = a.count.0;
+        // Charged per read, once the accessor is known to be readable: an accessor named by
+        // many meshes is decoded for each.
+        let bytes = count.saturating_mul(dims as u64).saturating_mul(4);
+        let charge = || self.charge(bytes, format_args!("decoding {what} accessor {i} ({count} elements)"));
         let mut out;
         match a.buffer_view {
             None => {
@@ -291,6 +295,7 @@ impl<'a> Loader<'a> {
                         "{what} accessor {i} has no buffer view but {count} elements; a load fills at most {MAX_UNBACKED_ELEMENTS} elements with zeros in all"
                     ));
                 }
+                charge()?;
                 self.unbacked.set(total);
                 out = vec![0.0; count as usize * dims];
             }
@@ -317,6 +322,7 @@ impl<'a> Loader<'a> {
                         bytes.len()
                     ));
                 }
+                charge()?;
                 let (count, off) = (count as usize, off as usize);
                 out = Vec::with_capacity(count * dims);
                 for e in 0..count {

@@ -7,7 +7,9 @@
 //!   reaches it: a node listed as the child of two parents (a shared subgraph, which the
 //!   glTF 2.0 specification does not allow but files do contain) loads as two copies of its
 //!   subtree, sharing their meshes. The copies count against [`LoadOptions::max_nodes`], so
-//!   a small file cannot ask for exponentially many. A glTF mesh
+//!   a small file cannot ask for exponentially many, and what each copy repeats (its name,
+//!   the curves animating it) against [`LoadOptions::max_decoded_bytes`], as every
+//!   accessor decoded does (once per mesh that names it). A glTF mesh
 //!   with one drawable primitive is drawn by the node itself; with several, by one child node
 //!   per primitive. Converted meshes are cached per (mesh, primitive), so glTF instancing stays
 //!   instancing in the mesh store.
@@ -36,7 +38,8 @@
 //! truncated GLB, invalid JSON, missing or short buffers that the scene uses, accessors
 //! reading past their buffer views, indices out of range, NaN/infinite transforms, a cycle in the
 //! node graph (a node its own ancestor), more nodes than [`LoadOptions::max_nodes`] once
-//! shared subgraphs are expanded, a required extension this loader does
+//! shared subgraphs are expanded, more decoded and copied data than
+//! [`LoadOptions::max_decoded_bytes`], a required extension this loader does
 //! not support, a buffer or image URI that the rules above refuse (outside the folder, not a
 //! regular file, over the total).
 //! Warnings (in [`Scene::warnings`], the scene still loads): a missing or undecodable
@@ -107,6 +110,7 @@ pub fn load_gltf_bytes(bytes: &[u8], path: &Path) -> Result<Scene> {
 /// [`load_gltf_bytes`] with options.
 pub fn load_gltf_bytes_with(bytes: &[u8], path: &Path, options: &LoadOptions) -> Result<Scene> {
     let assets = AssetReader::new(path, options).map_err(|e| Error::load(path, e))?;
+    assets.given_main(bytes.len() as u64);
     load_with_reader(bytes, path, &assets, options)
 }
 
@@ -171,11 +175,12 @@ fn load_with_reader(bytes: &[u8], path: &Path, assets: &AssetReader, options: &L
         skipped: Vec::new(),
         node_ids: vec![Vec::new(); root.nodes.len()],
         unbacked: Cell::new(0),
+        over_budget: Cell::new(false),
         max_nodes: options.max_nodes.unwrap_or(crate::assets::DEFAULT_MAX_NODES),
     };
     loader.scene.warnings = warnings;
     loader.build().map_err(fail)?;
-    loader.load_animations();
+    loader.load_animations().map_err(fail)?;
     let mut scene = loader.scene;
     let skipped = loader.skipped;
     if !skipped.is_empty() {
@@ -217,6 +222,9 @@ struct Loader<'a> {
     node_ids: Vec<Vec<NodeId>>,
     /// Accessor elements filled with zeros so far (accessors without a buffer view).
     unbacked: Cell<u64>,
+    /// A charge against [`LoadOptions::max_decoded_bytes`] was refused: the load fails, also
+    /// where the refusal would otherwise end as a warning (an animation channel skipped).
+    over_budget: Cell<bool>,
     /// The most scene nodes this load may create.
     max_nodes: usize,
 }
@@ -318,7 +326,9 @@ impl Loader<'_> {
             on_path[i] = true;
             path.push(i);
             let label = node_label(root, i);
+            // Each copy of a shared node stores its name again.
             let name = node.name.clone().unwrap_or_else(|| format!("node {i}"));
+            self.charge(name.len() as u64, format_args!("the name of {label}"))?;
             // A TRS node keeps its TRS (animation lays samples over it); a matrix node its matrix.
             let mut desc = NodeDesc::new(name.clone());
             desc = match node.matrix {
@@ -356,7 +366,9 @@ impl Loader<'_> {
             let passes = inherits || self.scene.node(id).is_some_and(|n| n.material().is_some());
             if prims.len() > 1 {
                 for (p, mesh_id, mat) in prims {
-                    let mut d = NodeDesc::new(format!("{name} primitive {p}")).mesh(mesh_id);
+                    let part = format!("{name} primitive {p}");
+                    self.charge(part.len() as u64, format_args!("the name of {label}'s primitive {p}"))?;
+                    let mut d = NodeDesc::new(part).mesh(mesh_id);
                     d.material = self.resolve_material(mat, inherits);
                     self.scene.add_node(Some(id), d).map_err(|e| e.to_string())?;
                 }
@@ -385,6 +397,11 @@ impl Loader<'_> {
             }
         }
         Ok(())
+    }
+
+    /// Charges `n` bytes decoded or copied for `what` ([`LoadOptions::max_decoded_bytes`]).
+    pub(super) fn charge(&self, n: u64, what: impl std::fmt::Display) -> std::result::Result<(), String> {
+        self.assets.charge_decoded(n, what).inspect_err(|_| self.over_budget.set(true))
     }
 
     /// The material a primitive's node gets: its own, or — when an ancestor would otherwise

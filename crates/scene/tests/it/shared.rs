@@ -283,3 +283,84 @@ fn an_animated_node_shared_by_two_parents_moves_in_both_copies() {
     assert_eq!(a, b, "both copies take the same pose");
     assert!(a.translation.y > 1.0, "the translation channel moved the hand: {}", a.translation);
 }
+
+/// A million meshes naming one accessor would decode it a million times: the load stops at
+/// the decoded-data limit, naming the accessor and the option; under the limit it loads.
+#[test]
+fn meshes_sharing_one_accessor_stop_at_the_decoded_data_limit() {
+    let dir = tmp_dir("accessor-bomb");
+    let bomb = |name: &str, meshes: usize, indices: &[u16]| {
+        tiny_gltf(&dir, name, indices, |d| {
+            let prim = d["meshes"][0]["primitives"][0].clone();
+            d["meshes"] = serde_json::Value::Array(vec![serde_json::json!({"primitives": [prim]}); meshes]);
+            let nodes: Vec<_> = (0..meshes).map(|m| serde_json::json!({"mesh": m})).collect();
+            d["nodes"] = serde_json::Value::Array(nodes);
+            d["scenes"] = serde_json::json!([{"nodes": (0..meshes).collect::<Vec<_>>()}]);
+        })
+    };
+    // Each mesh decodes 36 bytes of positions and 12 of indices.
+    let path = bomb("bomb.gltf", 1000, &[0, 1, 2]);
+    let e = err_text(load_with(&path, &LoadOptions::default().max_decoded_bytes(10_000)));
+    assert_mentions(&e, &["bomb.gltf", "accessor", "over its limit of 10000 bytes", "LoadOptions::max_decoded_bytes"]);
+    let s = load_with(&path, &LoadOptions::default().max_decoded_bytes(1000 * 48 + 20_000)).unwrap();
+    assert_eq!(s.meshes().count(), 1000);
+    // The default limit grows with the file: this one loads.
+    assert_eq!(load(&path).unwrap().instances().len(), 1000);
+    // 5,000 meshes naming one index accessor of 30,000 elements: a file of about 0.4 MB
+    // asking for 600 MB is refused by the default limit.
+    let big: Vec<u16> = (0..30_000).map(|k| (k % 3) as u16).collect();
+    let e = err_text(load(bomb("big.gltf", 5000, &big)));
+    assert_mentions(&e, &["big.gltf", "decoding index accessor 1 (30000 elements)", "the default limit"]);
+}
+
+/// A node reached along 2^16 paths is loaded once per path; a long name and an animation
+/// curve on it would be copied each time: both are charged, and the load stops at the limit.
+#[test]
+fn copies_of_a_shared_node_are_charged_for_its_name_and_curves() {
+    let dir = tmp_dir("copy-bomb");
+    let layers = 16;
+    let file = |name: &str, long_name: bool, animated: bool| {
+        tiny_gltf(&dir, name, &[0, 1, 2], |d| {
+            let mut nodes: Vec<serde_json::Value> =
+                (0..layers).map(|k| serde_json::json!({"children": [k + 1, k + 1]})).collect();
+            let leaf_name = if long_name { "n".repeat(10_000) } else { "leaf".into() };
+            nodes.push(serde_json::json!({"mesh": 0, "name": leaf_name}));
+            d["nodes"] = serde_json::Value::Array(nodes);
+            if animated {
+                // 1,000 keys of translation: 16 KB a copy.
+                let keys = 1000usize;
+                let mut buf = Vec::new();
+                for k in 0..keys {
+                    buf.extend((k as f32).to_le_bytes());
+                }
+                for k in 0..keys {
+                    for c in [k as f32, 0.0, 0.0] {
+                        buf.extend(c.to_le_bytes());
+                    }
+                }
+                let uri = format!("data:application/octet-stream;base64,{}", crate::support::base64(&buf));
+                d["buffers"].as_array_mut().unwrap().push(serde_json::json!({"byteLength": buf.len(), "uri": uri}));
+                let views = d["bufferViews"].as_array_mut().unwrap();
+                views.push(serde_json::json!({"buffer": 1, "byteOffset": 0, "byteLength": keys * 4}));
+                views.push(serde_json::json!({"buffer": 1, "byteOffset": keys * 4, "byteLength": keys * 12}));
+                let acc = d["accessors"].as_array_mut().unwrap();
+                acc.push(serde_json::json!({"bufferView": 2, "componentType": 5126, "count": keys, "type": "SCALAR"}));
+                acc.push(serde_json::json!({"bufferView": 3, "componentType": 5126, "count": keys, "type": "VEC3"}));
+                d["animations"] = serde_json::json!([{
+                    "channels": [{"sampler": 0, "target": {"node": layers, "path": "translation"}}],
+                    "samplers": [{"input": 2, "output": 3}]
+                }]);
+            }
+        })
+    };
+    let opts = LoadOptions::default().max_nodes(1 << 20).max_decoded_bytes(100 << 20);
+    // 65,536 copies of a 10,000-byte name: 655 MB.
+    let e = err_text(load_with(file("names.gltf", true, false), &opts));
+    assert_mentions(&e, &["names.gltf", "the name of node 16", "LoadOptions::max_decoded_bytes"]);
+    // 65,536 copies of a 16,000-byte curve: 1 GB.
+    let e = err_text(load_with(file("curves.gltf", false, true), &opts));
+    assert_mentions(&e, &["curves.gltf", "animation 0 channel 0", "copying its curve", "max_decoded_bytes"]);
+    // The same graph with a short name and no animation loads under that limit.
+    let s = load_with(file("plain.gltf", false, false), &opts).unwrap();
+    assert_eq!(s.instances().len(), 1 << layers);
+}
