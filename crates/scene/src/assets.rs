@@ -22,10 +22,11 @@
 //!   [`DEFAULT_BUDGET_FACTOR`] × the sizes of the distinct files involved +
 //!   [`DEFAULT_BUDGET_BASE`].
 //! * **A total of what is made from them.** A few bytes can ask for much more than they
-//!   hold: a glTF file can point a million meshes at one big accessor, or reach one node
-//!   (its name, its animation curves) along a million paths. What a glTF load decodes and
-//!   copies is capped by [`LoadOptions::max_decoded_bytes`]; by default by
-//!   [`DEFAULT_DECODE_FACTOR`] × the sizes of the files involved + [`DEFAULT_BUDGET_BASE`].
+//!   hold: a glTF file can point a million meshes at one big accessor or images at one
+//!   small file that decodes to a gigabyte, or reach one node (its name, its camera, its
+//!   animation curves) along a million paths. What a glTF load decodes and copies is capped
+//!   by [`LoadOptions::max_decoded_bytes`]; by default by [`DEFAULT_DECODE_FACTOR`] × the
+//!   bytes it reads (the scene file included) + [`DEFAULT_BUDGET_BASE`].
 
 use std::cell::{Cell, RefCell};
 use std::collections::HashMap;
@@ -54,12 +55,14 @@ pub struct LoadOptions {
     /// (a shared subgraph) becomes one copy per path, so a small file can ask for very many;
     /// past this count the load fails, naming the limit. `None`: [`DEFAULT_MAX_NODES`].
     pub max_nodes: Option<usize>,
-    /// The most bytes of scene data one load may make from its files: decoded accessors
-    /// (4 bytes a component), and what each copy of a shared node repeats (its name, the
-    /// curves animating it). A file can make one accessor decode for every mesh that names
-    /// it, or one node load once per path to it; past this total the load fails, naming the
-    /// limit. `None`: [`DEFAULT_DECODE_FACTOR`] × the sizes of the distinct files involved
-    /// (the scene file included, also when given as bytes) + [`DEFAULT_BUDGET_BASE`].
+    /// The most bytes of scene data one glTF load may make from its files: decoded
+    /// accessors (8 bytes a component, as they are decoded), index lists made from strips,
+    /// fans and unindexed primitives, decoded images (4 bytes a texel), a mesh's name kept
+    /// with each of its primitives, and what each copy of a shared node repeats (its name,
+    /// its camera's name, the curves animating it). A file can make one accessor decode for
+    /// every mesh that names it, or one node load once per path to it; past this total the
+    /// load fails, naming the limit. `None`: [`DEFAULT_DECODE_FACTOR`] × the bytes the load
+    /// reads (the scene file included, also when given as bytes) + [`DEFAULT_BUDGET_BASE`].
     pub max_decoded_bytes: Option<u64>,
 }
 
@@ -96,10 +99,10 @@ pub const DEFAULT_MAX_NODES: usize = 1 << 20;
 pub const DEFAULT_BUDGET_FACTOR: u64 = 4;
 /// …plus this many bytes.
 pub const DEFAULT_BUDGET_BASE: u64 = 64 << 20;
-/// The default cap on decoded data is this many times the sizes of the files involved (plus
-/// [`DEFAULT_BUDGET_BASE`]): room for every accessor decoded once (a u8 triangle strip's
-/// index grows twelvefold) and for some sharing.
-pub const DEFAULT_DECODE_FACTOR: u64 = 16;
+/// The default cap on decoded data is this many times the bytes a load reads (plus
+/// [`DEFAULT_BUDGET_BASE`]): room for every accessor decoded once (a u8 index of a triangle
+/// strip takes 8 bytes decoded and 12 as triangles) and for some sharing.
+pub const DEFAULT_DECODE_FACTOR: u64 = 32;
 
 /// Why a referenced file was not read.
 #[derive(Debug, Clone, PartialEq, Eq)]
@@ -239,6 +242,8 @@ pub(crate) struct AssetReader {
     read_bytes: Cell<u64>,
     /// [`LoadOptions::max_decoded_bytes`].
     explicit_decode_limit: Option<u64>,
+    /// The size of a scene file given in memory (not read through this reader).
+    given_bytes: Cell<u64>,
     /// Bytes decoded and copied so far.
     decoded_bytes: Cell<u64>,
     files: RefCell<FileCache>,
@@ -273,6 +278,7 @@ impl AssetReader {
             seen_bytes: Cell::new(0),
             read_bytes: Cell::new(0),
             explicit_decode_limit: opts.max_decoded_bytes,
+            given_bytes: Cell::new(0),
             decoded_bytes: Cell::new(0),
             files: RefCell::new(HashMap::new()),
         })
@@ -305,16 +311,18 @@ impl AssetReader {
         Ok(())
     }
 
-    /// Counts a scene file given in memory (not read through this reader) among the files
-    /// involved, for the default limits.
+    /// Counts a scene file given in memory (not read through this reader) among the bytes
+    /// the default decoded-data cap grows with (the cap on reads is not changed).
     pub(crate) fn given_main(&self, len: u64) {
-        self.seen_bytes.set(self.seen_bytes.get().saturating_add(len));
+        self.given_bytes.set(self.given_bytes.get().saturating_add(len));
     }
 
-    /// The decoded-data cap now (the default one grows with the files seen).
+    /// The decoded-data cap now (the default one grows with the bytes read: what a file
+    /// merely names, read or not, does not raise it).
     fn decode_limit(&self) -> u64 {
         self.explicit_decode_limit.unwrap_or_else(|| {
-            DEFAULT_BUDGET_BASE.saturating_add(self.seen_bytes.get().saturating_mul(DEFAULT_DECODE_FACTOR))
+            let input = self.read_bytes.get().saturating_add(self.given_bytes.get());
+            DEFAULT_BUDGET_BASE.saturating_add(input.saturating_mul(DEFAULT_DECODE_FACTOR))
         })
     }
 
@@ -327,7 +335,7 @@ impl AssetReader {
             let how = match self.explicit_decode_limit {
                 Some(_) => "LoadOptions::max_decoded_bytes".to_string(),
                 None => format!(
-                    "the default limit, {DEFAULT_DECODE_FACTOR} × the size of the files involved + {} MiB; \
+                    "the default limit, {DEFAULT_DECODE_FACTOR} × the bytes read + {} MiB; \
                      LoadOptions::max_decoded_bytes sets another",
                     DEFAULT_BUDGET_BASE >> 20
                 ),
@@ -472,6 +480,32 @@ mod tests {
         let e = r.read(&f, u64::MAX, u64::MAX).unwrap_err();
         assert!(matches!(&e, AssetError::Refused(m) if m.contains("limit of 4999 bytes")), "{e:?}");
         assert_eq!(r.bytes_read(), 0);
+    }
+
+    #[test]
+    fn the_default_decode_cap_grows_with_the_bytes_read_and_given() {
+        let d = fresh("decode-cap");
+        std::fs::write(d.path().join("asset/a.bin"), [1u8; 5000]).unwrap();
+        let r = AssetReader::new(&d.path().join("asset/x.gltf"), &LoadOptions::default()).unwrap();
+        assert_eq!(r.decode_limit(), DEFAULT_BUDGET_BASE);
+        r.given_main(100);
+        assert_eq!(r.decode_limit(), DEFAULT_BUDGET_BASE + DEFAULT_DECODE_FACTOR * 100);
+        assert_eq!(r.limit(), DEFAULT_BUDGET_BASE, "a scene given in memory leaves the read cap alone");
+        // Only what is read counts, not the size of the file named.
+        let f = r.resolve(Path::new("a.bin")).unwrap();
+        r.read(&f, 1000, u64::MAX).unwrap();
+        assert_eq!(r.decode_limit(), DEFAULT_BUDGET_BASE + DEFAULT_DECODE_FACTOR * 1100);
+        // Charges add up to the cap, and one past it is refused without being counted.
+        let cap = r.decode_limit();
+        r.charge_decoded(cap - 10, "most").unwrap();
+        r.charge_decoded(10, "the rest").unwrap();
+        let e = r.charge_decoded(1, "one more byte").unwrap_err();
+        assert!(e.starts_with("one more byte would bring") && e.contains(&format!("{}", cap + 1)), "{e}");
+        assert_eq!(r.decoded_bytes.get(), cap);
+        let r = AssetReader::new(&d.path().join("asset/x.gltf"), &LoadOptions::default().max_decoded_bytes(7)).unwrap();
+        r.given_main(1 << 20);
+        assert_eq!(r.decode_limit(), 7);
+        assert!(r.charge_decoded(8, "eight").unwrap_err().contains("LoadOptions::max_decoded_bytes"));
     }
 
     #[test]

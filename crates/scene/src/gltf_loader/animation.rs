@@ -8,7 +8,8 @@
 //! rotation, three per key for CUBICSPLINE. The accessors are read by the same bounds-checked
 //! code as vertex data.
 //!
-//! Bad animation data never fails the load: the channel is skipped with a warning that names
+//! Bad animation data never fails the load (only the cap on decoded data,
+//! [`LoadOptions::max_decoded_bytes`], does): the channel is skipped with a warning that names
 //! the animation, the channel and its target, and says what is wrong — a target node that
 //! does not exist or is not in the loaded scene, an unknown path or interpolation, a sampler
 //! that does not exist, an accessor that cannot be read, input and output counts that
@@ -49,7 +50,7 @@ impl Loader<'_> {
         let root = self.root;
         for (a, anim) in root.animations.iter().enumerate() {
             let label = match &anim.name {
-                Some(n) => format!("animation {a} ('{n}')"),
+                Some(n) => format!("animation {a} ('{}')", cut(n)),
                 None => format!("animation {a}"),
             };
             let mut out = Animation::new(anim.name.clone().unwrap_or_else(|| format!("animation {a}")));
@@ -162,7 +163,7 @@ impl Loader<'_> {
             let has_targets = mesh.primitives.iter().any(|p| p.targets.as_ref().is_some_and(|t| !t.is_empty()));
             if has_targets && !std::mem::replace(&mut seen_mesh[m], true) {
                 morphed.push(match &mesh.name {
-                    Some(n) => format!("mesh {m} ('{n}')"),
+                    Some(n) => format!("mesh {m} ('{}')", cut(n)),
                     None => format!("mesh {m}"),
                 });
             }

@@ -282,10 +282,10 @@ impl<'a> Loader<'a> {
         let csize = component_size(comp);
         let elem = dims * csize;
         let count = a.count.0;
-        // Charged per read, once the accessor is known to be readable: an accessor named by
-        // many meshes is decoded for each.
-        let bytes = count.saturating_mul(dims as u64).saturating_mul(4);
-        let charge = || self.charge(bytes, format_args!("decoding {what} accessor {i} ({count} elements)"));
+        // Charged per read, once the accessor is known to be readable (an accessor named by
+        // many meshes is decoded for each), at the 8 bytes a component takes here.
+        let decoded = count.saturating_mul(dims as u64).saturating_mul(8);
+        let charge = || self.charge(decoded, format_args!("decoding {what} accessor {i} ({count} elements)"));
         let mut out;
         match a.buffer_view {
             None => {

@@ -1,5 +1,5 @@
 //! glTF materials: `pbrMetallicRoughness.baseColorFactor` and `baseColorTexture` (PNG or JPEG
-//! images, decoded once each), `alphaMode` and `alphaCutoff`, and `emissiveFactor`; the glTF
+//! images, decoded once each, failures included), `alphaMode` and `alphaCutoff`, and `emissiveFactor`; the glTF
 //! 2.0 specification, "Materials".
 
 use super::*;
@@ -23,7 +23,7 @@ impl Loader<'_> {
         let mut texture = None;
         if let Some(info) = &pbr.base_color_texture {
             match self.base_color_texture(info) {
-                Ok(t) => texture = t,
+                Ok(t) => texture = Some(t),
                 Err(AssetError::Refused(e)) => return Err(format!("{label}: base color texture: {e}")),
                 Err(AssetError::Unavailable(e)) => self
                     .scene
@@ -70,10 +70,7 @@ impl Loader<'_> {
         }
     }
 
-    fn base_color_texture(
-        &mut self,
-        info: &json::texture::Info,
-    ) -> std::result::Result<Option<Arc<Texture>>, AssetError> {
+    fn base_color_texture(&mut self, info: &json::texture::Info) -> std::result::Result<Arc<Texture>, AssetError> {
         let bad = AssetError::Unavailable;
         if info.tex_coord != 0 {
             return Err(bad(format!("it uses TEXCOORD_{}, only TEXCOORD_0 is loaded", info.tex_coord)));
@@ -81,9 +78,21 @@ impl Loader<'_> {
         let t = info.index.value();
         let tex = self.root.textures.get(t).ok_or_else(|| bad(format!("texture {t} does not exist")))?;
         let img = tex.source.value();
-        if let Some(Some(cached)) = self.images.get(img) {
-            return Ok(cached.clone());
+        if let Some(Some(done)) = self.images.get(img) {
+            return done.clone();
         }
+        let done = self.decode_image(t, img);
+        if let Some(slot) = self.images.get_mut(img) {
+            *slot = Some(done.clone());
+        }
+        done
+    }
+
+    /// Reads and decodes image `img` (named by texture `t`), its pixels charged against
+    /// [`LoadOptions::max_decoded_bytes`] before they are decoded: many images (or materials)
+    /// can name one small file that decodes to a gigabyte.
+    fn decode_image(&self, t: usize, img: usize) -> std::result::Result<Arc<Texture>, AssetError> {
+        let bad = AssetError::Unavailable;
         let image = self
             .root
             .images
@@ -91,7 +100,7 @@ impl Loader<'_> {
             .ok_or_else(|| bad(format!("texture {t} refers to image {img}, which does not exist")))?;
         let label = match (&image.uri, &image.name) {
             (Some(uri), _) => format!("image {img} ('{}')", short_uri(uri)),
-            (None, Some(name)) => format!("image {img} ('{name}')"),
+            (None, Some(name)) => format!("image {img} ('{}')", cut(name)),
             (None, None) => format!("image {img}"),
         };
         let from_uri;
@@ -103,25 +112,37 @@ impl Loader<'_> {
             (None, Some(v)) => self.view_bytes(v.value()).map_err(|e| e.context(&label))?.0,
             (None, None) => return Err(bad(format!("{label} has neither a uri nor a buffer view"))),
         };
-        let decoded = decode_texture(bytes).map_err(|e| bad(format!("{label}: {e}")))?;
-        let decoded = Some(Arc::new(decoded));
-        if let Some(slot) = self.images.get_mut(img) {
-            *slot = Some(decoded.clone());
+        let (w, h) = texture_size(bytes).map_err(|e| bad(format!("{label}: {e}")))?;
+        if w > MAX_TEXTURE_SIDE || h > MAX_TEXTURE_SIDE {
+            return Err(bad(format!("{label}: {w} × {h} texels, more than {MAX_TEXTURE_SIDE} a side")));
         }
-        Ok(decoded)
+        let pixels = w as u64 * h as u64 * 4;
+        self.charge(pixels, format_args!("decoding {label} ({w} × {h})")).map_err(AssetError::Refused)?;
+        Ok(Arc::new(decode_texture(bytes).map_err(|e| bad(format!("{label}: {e}")))?))
     }
 }
 
 /// Largest texture side accepted, in texels.
 const MAX_TEXTURE_SIDE: u32 = 16384;
 
+/// A reader of a PNG or JPEG image (format sniffed from the bytes).
+fn image_reader(bytes: &[u8]) -> std::result::Result<image::ImageReader<std::io::Cursor<&[u8]>>, String> {
+    let reader =
+        image::ImageReader::new(std::io::Cursor::new(bytes)).with_guessed_format().map_err(|e| e.to_string())?;
+    match reader.format() {
+        Some(_) => Ok(reader),
+        None => Err("unknown image format (PNG and JPEG are supported)".into()),
+    }
+}
+
+/// The width and height of a PNG or JPEG image, from its header (nothing decoded).
+fn texture_size(bytes: &[u8]) -> std::result::Result<(u32, u32), String> {
+    image_reader(bytes)?.into_dimensions().map_err(|e| format!("cannot decode: {e}"))
+}
+
 /// Decodes a PNG or JPEG image (format sniffed from the bytes) into an RGBA8 [`Texture`].
 pub(crate) fn decode_texture(bytes: &[u8]) -> std::result::Result<Texture, String> {
-    let mut reader =
-        image::ImageReader::new(std::io::Cursor::new(bytes)).with_guessed_format().map_err(|e| e.to_string())?;
-    if reader.format().is_none() {
-        return Err("unknown image format (PNG and JPEG are supported)".into());
-    }
+    let mut reader = image_reader(bytes)?;
     let mut limits = image::Limits::default();
     limits.max_image_width = Some(MAX_TEXTURE_SIDE);
     limits.max_image_height = Some(MAX_TEXTURE_SIDE);

@@ -54,6 +54,7 @@
 use std::cell::{Cell, OnceCell};
 use std::collections::HashMap;
 use std::path::Path;
+use std::rc::Rc;
 use std::sync::Arc;
 
 use glam::{Mat4, Quat, Vec2, Vec3};
@@ -168,7 +169,8 @@ fn load_with_reader(bytes: &[u8], path: &Path, assets: &AssetReader, options: &L
         assets,
         uri_want,
         scene: Scene::new(),
-        meshes: HashMap::new(),
+        drawables: vec![None; root.meshes.len()],
+        bad_cameras: vec![false; root.cameras.len()],
         materials: vec![None; root.materials.len()],
         images: vec![None; root.images.len()],
         default_material: None,
@@ -200,6 +202,10 @@ fn load_with_reader(bytes: &[u8], path: &Path, assets: &AssetReader, options: &L
 
 // ---- container and buffers ----------------------------------------------------------------
 
+/// A primitive drawn as triangles: its index in its glTF mesh, the mesh made of it, and its
+/// material.
+type Drawable = (usize, MeshId, Option<MaterialId>);
+
 struct Loader<'a> {
     root: &'a json::Root,
     /// The GLB BIN chunk, and the buffer it belongs to (the first one without a URI).
@@ -211,10 +217,14 @@ struct Loader<'a> {
     /// Bytes to read of each external buffer file, by URI.
     uri_want: HashMap<&'a str, u64>,
     scene: Scene,
-    /// Converted primitives: (mesh, primitive) → mesh id, or `None` when skipped.
-    meshes: HashMap<(usize, usize), Option<MeshId>>,
+    /// Per glTF mesh, once converted: its primitives drawn as triangles (index, mesh,
+    /// material), shared by every node (and copy of a node) that draws the mesh.
+    drawables: Vec<Option<Rc<[Drawable]>>>,
+    /// Cameras already reported unusable (a copy of a node does not report its camera again).
+    bad_cameras: Vec<bool>,
     materials: Vec<Option<MaterialId>>,
-    images: Vec<Option<Option<Arc<Texture>>>>,
+    /// Images, decoded (or failed) on first use.
+    images: Vec<Option<std::result::Result<Arc<Texture>, AssetError>>>,
     default_material: Option<MaterialId>,
     skipped: Vec<String>,
     /// The scene nodes made for each glTF node: none when it is not in the loaded scene, one
@@ -231,12 +241,18 @@ struct Loader<'a> {
 
 fn node_label(root: &json::Root, i: usize) -> String {
     match root.nodes.get(i).and_then(|n| n.name.as_deref()) {
-        // A name of a hostile length is cut: the message names the node by its index anyway.
-        Some(name) if name.chars().nth(LABEL_CHARS).is_some() => {
-            format!("node {i} ('{}…')", name.chars().take(LABEL_CHARS).collect::<String>())
-        }
-        Some(name) => format!("node {i} ('{name}')"),
+        Some(name) => format!("node {i} ('{}')", cut(name)),
         None => format!("node {i}"),
+    }
+}
+
+/// A name as messages and labels quote it: one of a hostile length is cut at
+/// [`LABEL_CHARS`] (a label names its object by index anyway), so that a label made once
+/// per primitive or per copy of a node does not repeat a megabyte.
+fn cut(name: &str) -> std::borrow::Cow<'_, str> {
+    match name.char_indices().nth(LABEL_CHARS) {
+        Some((at, _)) => format!("{}…", &name[..at]).into(),
+        None => name.into(),
     }
 }
 
@@ -346,17 +362,13 @@ impl Loader<'_> {
             };
 
             // The primitives this node draws.
-            let mut prims = Vec::new();
-            if let Some(m) = node.mesh {
-                let m = m.value();
-                let mesh =
-                    root.meshes.get(m).ok_or_else(|| format!("{label} refers to mesh {m}, which does not exist"))?;
-                for p in 0..mesh.primitives.len() {
-                    if let Some((mesh_id, mat)) = self.primitive(m, p)? {
-                        prims.push((p, mesh_id, mat));
-                    }
+            let prims = match node.mesh.map(|m| m.value()) {
+                Some(m) if m >= root.meshes.len() => {
+                    return Err(format!("{label} refers to mesh {m}, which does not exist"))
                 }
-            }
+                Some(m) => self.drawables(m)?,
+                None => Rc::from([]),
+            };
             if let [(_, mesh_id, mat)] = prims[..] {
                 desc.mesh = Some(mesh_id);
                 desc.material = self.resolve_material(mat, inherits);
@@ -365,7 +377,7 @@ impl Loader<'_> {
             self.node_ids[i].push(id);
             let passes = inherits || self.scene.node(id).is_some_and(|n| n.material().is_some());
             if prims.len() > 1 {
-                for (p, mesh_id, mat) in prims {
+                for &(p, mesh_id, mat) in prims.iter() {
                     let part = format!("{name} primitive {p}");
                     self.charge(part.len() as u64, format_args!("the name of {label}'s primitive {p}"))?;
                     let mut d = NodeDesc::new(part).mesh(mesh_id);
@@ -374,7 +386,7 @@ impl Loader<'_> {
                 }
             }
             if let Some(c) = node.camera {
-                self.camera(c.value(), id, &label);
+                self.camera(c.value(), id, &label)?;
             }
             // Every entry waiting becomes a node at least: refuse before stacking more of them
             // than the limit allows (a file can list one child millions of times).
@@ -412,25 +424,41 @@ impl Loader<'_> {
         })
     }
 
-    /// Converts (once) primitive `p` of mesh `m`; `None` when it is not drawn as triangles.
+    /// The primitives of mesh `m` drawn as triangles, converted on the first call: a node
+    /// reached along many paths asks once per copy, and pays for what it draws, not for the
+    /// mesh's other primitives.
+    fn drawables(&mut self, m: usize) -> std::result::Result<Rc<[Drawable]>, String> {
+        if let Some(Some(list)) = self.drawables.get(m) {
+            return Ok(list.clone());
+        }
+        let mut list = Vec::new();
+        for p in 0..self.root.meshes[m].primitives.len() {
+            if let Some((mesh_id, mat)) = self.primitive(m, p)? {
+                list.push((p, mesh_id, mat));
+            }
+        }
+        let list: Rc<[Drawable]> = list.into();
+        self.drawables[m] = Some(list.clone());
+        Ok(list)
+    }
+
+    /// Converts primitive `p` of mesh `m` (called once per primitive); `None` when it is not
+    /// drawn as triangles.
     #[allow(clippy::type_complexity)]
     fn primitive(&mut self, m: usize, p: usize) -> std::result::Result<Option<(MeshId, Option<MaterialId>)>, String> {
         let mesh = &self.root.meshes[m];
         let prim = &mesh.primitives[p];
         let label = match &mesh.name {
-            Some(n) => format!("mesh {m} ('{n}') primitive {p}"),
+            Some(n) => format!("mesh {m} ('{}') primitive {p}", cut(n)),
             None => format!("mesh {m} primitive {p}"),
         };
         let material = match prim.material {
             Some(mi) => Some(self.material(mi.value()).map_err(|e| format!("{label}: {e}"))?),
             None => None,
         };
-        if let Some(&cached) = self.meshes.get(&(m, p)) {
-            return Ok(cached.map(|id| (id, material)));
-        }
         let converted = self.convert_primitive(m, p).map_err(|e| format!("{label}: {e}"))?;
-        let id = match converted {
-            Some(mesh) => Some(self.scene.add_mesh(mesh)),
+        Ok(match converted {
+            Some(mesh) => Some((self.scene.add_mesh(mesh), material)),
             None => {
                 let mode = match prim.mode {
                     Checked::Valid(md) => format!("{md:?}"),
@@ -439,9 +467,7 @@ impl Loader<'_> {
                 self.skipped.push(format!("{label} ({mode})"));
                 None
             }
-        };
-        self.meshes.insert((m, p), id);
-        Ok(id.map(|id| (id, material)))
+        })
     }
 
     fn convert_primitive(&self, m: usize, p: usize) -> std::result::Result<Option<Mesh>, String> {
@@ -470,9 +496,15 @@ impl Loader<'_> {
             Some(a) => self.read_indices(a.value())?,
             None => {
                 let n = u32::try_from(n).map_err(|_| format!("{n} vertices is too many"))?;
+                self.charge(n as u64 * 4, format_args!("listing the {n} vertices as indices"))?;
                 (0..n).collect()
             }
         };
+        if mode != Mode::Triangles {
+            // A strip or fan of n indices becomes a list of 3(n − 2).
+            let list = (seq.len() as u64).saturating_sub(2) * 3;
+            self.charge(list * 4, format_args!("listing the triangles of a {mode:?} ({list} indices)"))?;
+        }
         let indices = match mode {
             Mode::TriangleStrip => seq
                 .windows(3)
@@ -485,21 +517,29 @@ impl Loader<'_> {
             },
             _ => seq,
         };
+        // The mesh's name is stored once per primitive.
         let name = match (&mesh.name, mesh.primitives.len()) {
             (Some(nm), 1) => nm.clone(),
-            (Some(nm), _) => format!("{nm} primitive {p}"),
+            (Some(nm), _) => {
+                self.charge(nm.len() as u64, "the mesh's name, stored with each of its primitives")?;
+                format!("{nm} primitive {p}")
+            }
             (None, 1) => format!("mesh {m}"),
             (None, _) => format!("mesh {m} primitive {p}"),
         };
         Mesh::new(name, positions, normals, uvs, indices).map(Some).map_err(|e| e.to_string())
     }
 
-    fn camera(&mut self, c: usize, node: NodeId, node_label: &str) {
+    /// Places camera `c` on `node` (one camera per copy of a node, each storing the camera's
+    /// name: charged); an unusable camera is reported once, with a warning.
+    fn camera(&mut self, c: usize, node: NodeId, node_label: &str) -> std::result::Result<(), String> {
         let Some(cam) = self.root.cameras.get(c) else {
             self.scene.warnings.push(format!("{node_label} refers to camera {c}, which does not exist; ignored"));
-            return;
+            return Ok(());
         };
-        let name = cam.name.clone().unwrap_or_else(|| format!("camera {c}"));
+        if self.bad_cameras[c] {
+            return Ok(());
+        }
         let projection = match (&cam.type_, &cam.perspective, &cam.orthographic) {
             (Checked::Valid(json::camera::Type::Perspective), Some(p), _) => {
                 let far = p.zfar.unwrap_or(DEFAULT_FAR.max(p.znear * 1.0e4));
@@ -513,8 +553,22 @@ impl Loader<'_> {
             _ => Err("its type and parameters do not match".to_string()),
         };
         match projection {
-            Ok(projection) => self.scene.cameras.push(SceneCamera { name, node, projection }),
-            Err(e) => self.scene.warnings.push(format!("camera {c} ('{name}') on {node_label}: {e}; ignored")),
+            Ok(projection) => {
+                let name = match &cam.name {
+                    Some(n) => {
+                        self.charge(n.len() as u64, format_args!("the name of camera {c} on {node_label}"))?;
+                        n.clone()
+                    }
+                    None => format!("camera {c}"),
+                };
+                self.scene.cameras.push(SceneCamera { name, node, projection });
+            }
+            Err(e) => {
+                self.bad_cameras[c] = true;
+                let name = cam.name.as_deref().map_or(String::new(), |n| format!(" ('{}')", cut(n)));
+                self.scene.warnings.push(format!("camera {c}{name} on {node_label}: {e}; ignored"));
+            }
         }
+        Ok(())
     }
 }

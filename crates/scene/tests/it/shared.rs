@@ -285,7 +285,7 @@ fn an_animated_node_shared_by_two_parents_moves_in_both_copies() {
 }
 
 /// A million meshes naming one accessor would decode it a million times: the load stops at
-/// the decoded-data limit, naming the accessor and the option; under the limit it loads.
+/// the decoded-data limit, naming the accessor and the option; at the limit it loads.
 #[test]
 fn meshes_sharing_one_accessor_stop_at_the_decoded_data_limit() {
     let dir = tmp_dir("accessor-bomb");
@@ -298,35 +298,51 @@ fn meshes_sharing_one_accessor_stop_at_the_decoded_data_limit() {
             d["scenes"] = serde_json::json!([{"nodes": (0..meshes).collect::<Vec<_>>()}]);
         })
     };
-    // Each mesh decodes 36 bytes of positions and 12 of indices.
-    let path = bomb("bomb.gltf", 1000, &[0, 1, 2]);
-    let e = err_text(load_with(&path, &LoadOptions::default().max_decoded_bytes(10_000)));
-    assert_mentions(&e, &["bomb.gltf", "accessor", "over its limit of 10000 bytes", "LoadOptions::max_decoded_bytes"]);
-    let s = load_with(&path, &LoadOptions::default().max_decoded_bytes(1000 * 48 + 20_000)).unwrap();
+    // 1,000 meshes, each decoding the shared accessors: 9 position components and 3,000
+    // indices at 8 bytes each; the nodes' names ("node 0" to "node 999") take 7,890 bytes.
+    let indices: Vec<u16> = (0..3000).map(|k| (k % 3) as u16).collect();
+    let path = bomb("bomb.gltf", 1000, &indices);
+    let exact = 1000 * (9 + 3000) * 8 + 7890;
+    let e = err_text(load_with(&path, &LoadOptions::default().max_decoded_bytes(exact - 1)));
+    let limit = format!("over its limit of {} bytes", exact - 1);
+    assert_mentions(&e, &["bomb.gltf", "mesh 999", "accessor", &limit, "LoadOptions::max_decoded_bytes"]);
+    let s = load_with(&path, &LoadOptions::default().max_decoded_bytes(exact)).unwrap();
     assert_eq!(s.meshes().count(), 1000);
-    // The default limit grows with the file: this one loads.
-    assert_eq!(load(&path).unwrap().instances().len(), 1000);
     // 5,000 meshes naming one index accessor of 30,000 elements: a file of about 0.4 MB
-    // asking for 600 MB is refused by the default limit.
+    // asking for 1.2 GB is refused by the default limit.
     let big: Vec<u16> = (0..30_000).map(|k| (k % 3) as u16).collect();
     let e = err_text(load(bomb("big.gltf", 5000, &big)));
     assert_mentions(&e, &["big.gltf", "decoding index accessor 1 (30000 elements)", "the default limit"]);
 }
 
-/// A node reached along 2^16 paths is loaded once per path; a long name and an animation
-/// curve on it would be copied each time: both are charged, and the load stops at the limit.
+/// A node reached along 2^16 paths is loaded once per path; a long name, a camera's long
+/// name and an animation curve on it would be copied each time: each is charged, and the
+/// load stops at the limit.
 #[test]
-fn copies_of_a_shared_node_are_charged_for_its_name_and_curves() {
+fn copies_of_a_shared_node_are_charged_for_its_name_camera_and_curves() {
     let dir = tmp_dir("copy-bomb");
     let layers = 16;
-    let file = |name: &str, long_name: bool, animated: bool| {
+    let long = "n".repeat(10_000);
+    #[derive(Clone, Copy, PartialEq)]
+    enum Leaf {
+        Plain,
+        LongName,
+        Camera,
+        Animated,
+    }
+    let file = |name: &str, leaf: Leaf| {
         tiny_gltf(&dir, name, &[0, 1, 2], |d| {
             let mut nodes: Vec<serde_json::Value> =
                 (0..layers).map(|k| serde_json::json!({"children": [k + 1, k + 1]})).collect();
-            let leaf_name = if long_name { "n".repeat(10_000) } else { "leaf".into() };
+            let leaf_name = if leaf == Leaf::LongName { long.clone() } else { "leaf".into() };
             nodes.push(serde_json::json!({"mesh": 0, "name": leaf_name}));
+            if leaf == Leaf::Camera {
+                nodes[layers]["camera"] = serde_json::json!(0);
+                d["cameras"] = serde_json::json!([{"name": long, "type": "perspective",
+                    "perspective": {"yfov": 0.8, "znear": 0.1, "zfar": 50}}]);
+            }
             d["nodes"] = serde_json::Value::Array(nodes);
-            if animated {
+            if leaf == Leaf::Animated {
                 // 1,000 keys of translation: 16 KB a copy.
                 let keys = 1000usize;
                 let mut buf = Vec::new();
@@ -355,12 +371,72 @@ fn copies_of_a_shared_node_are_charged_for_its_name_and_curves() {
     };
     let opts = LoadOptions::default().max_nodes(1 << 20).max_decoded_bytes(100 << 20);
     // 65,536 copies of a 10,000-byte name: 655 MB.
-    let e = err_text(load_with(file("names.gltf", true, false), &opts));
+    let e = err_text(load_with(file("names.gltf", Leaf::LongName), &opts));
     assert_mentions(&e, &["names.gltf", "the name of node 16", "LoadOptions::max_decoded_bytes"]);
+    assert!(e.len() < 1000, "the long name is cut in the message: {} bytes", e.len());
+    // 65,536 cameras named with 10,000 bytes.
+    let e = err_text(load_with(file("cameras.gltf", Leaf::Camera), &opts));
+    assert_mentions(&e, &["cameras.gltf", "the name of camera 0", "max_decoded_bytes"]);
     // 65,536 copies of a 16,000-byte curve: 1 GB.
-    let e = err_text(load_with(file("curves.gltf", false, true), &opts));
+    let e = err_text(load_with(file("curves.gltf", Leaf::Animated), &opts));
     assert_mentions(&e, &["curves.gltf", "animation 0 channel 0", "copying its curve", "max_decoded_bytes"]);
-    // The same graph with a short name and no animation loads under that limit.
-    let s = load_with(file("plain.gltf", false, false), &opts).unwrap();
+    // The same graph with a short name, no camera and no animation loads under that limit.
+    let s = load_with(file("plain.gltf", Leaf::Plain), &opts).unwrap();
     assert_eq!(s.instances().len(), 1 << layers);
+}
+
+/// A mesh's name is kept with each of its primitives: a long name on a mesh of many
+/// primitives is charged per primitive.
+#[test]
+fn a_mesh_name_kept_per_primitive_is_charged() {
+    let dir = tmp_dir("prim-names");
+    let path = tiny_gltf(&dir, "prims.gltf", &[0, 1, 2], |d| {
+        let prim = d["meshes"][0]["primitives"][0].clone();
+        d["meshes"][0]["name"] = serde_json::json!("m".repeat(100_000));
+        d["meshes"][0]["primitives"] = serde_json::Value::Array(vec![prim; 2000]);
+    });
+    // 2,000 copies of 100,000 bytes: 200 MB.
+    let e = err_text(load_with(&path, &LoadOptions::default().max_decoded_bytes(100 << 20)));
+    assert_mentions(&e, &["prims.gltf", "primitive", "the mesh's name", "max_decoded_bytes"]);
+    assert!(e.len() < 1000, "the long name is cut in the message: {} bytes", e.len());
+    let s = load_with(&path, &LoadOptions::default().max_decoded_bytes(300 << 20)).unwrap();
+    assert_eq!(s.instances().len(), 2000);
+}
+
+/// Images naming one small file that decodes to 16 MB each: their texels are charged
+/// before each is decoded.
+#[test]
+fn images_sharing_one_file_are_charged_for_their_texels() {
+    let dir = tmp_dir("image-bomb");
+    let mut png = Vec::new();
+    image::RgbaImage::new(2048, 2048).write_to(&mut std::io::Cursor::new(&mut png), image::ImageFormat::Png).unwrap();
+    let n = 1000;
+    let path = tiny_gltf(&dir, "images.gltf", &[0, 1, 2], |d| {
+        let uri = format!("data:image/png;base64,{}", crate::support::base64(&png));
+        d["buffers"].as_array_mut().unwrap().push(serde_json::json!({"byteLength": png.len(), "uri": uri}));
+        d["bufferViews"].as_array_mut().unwrap().push(serde_json::json!({"buffer": 1, "byteLength": png.len()}));
+        d["images"] = (0..n).map(|_| serde_json::json!({"bufferView": 2, "mimeType": "image/png"})).collect();
+        d["textures"] = (0..n).map(|i| serde_json::json!({"source": i})).collect();
+        d["materials"] =
+            (0..n).map(|i| serde_json::json!({"pbrMetallicRoughness": {"baseColorTexture": {"index": i}}})).collect();
+        let prim = d["meshes"][0]["primitives"][0].clone();
+        d["meshes"][0]["primitives"] = (0..n)
+            .map(|i| {
+                let mut p = prim.clone();
+                p["material"] = serde_json::json!(i);
+                p
+            })
+            .collect();
+    });
+    assert!(std::fs::metadata(&path).unwrap().len() < 1 << 20, "a small file");
+    let e = err_text(load(&path));
+    assert_mentions(&e, &["images.gltf", "decoding image", "2048 × 2048", "the default limit"]);
+    // Ten of them take 167.8 MB of texels (4 bytes each): they fit in 170 MB, not in 160.
+    let mut few: serde_json::Value = serde_json::from_slice(&std::fs::read(&path).unwrap()).unwrap();
+    few["meshes"][0]["primitives"].as_array_mut().unwrap().truncate(10);
+    std::fs::write(dir.join("few.gltf"), few.to_string()).unwrap();
+    let s = load_with(dir.join("few.gltf"), &LoadOptions::default().max_decoded_bytes(170 << 20)).unwrap();
+    assert_eq!(s.materials().filter(|(_, m)| m.base_color_texture.is_some()).count(), 10);
+    let e = err_text(load_with(dir.join("few.gltf"), &LoadOptions::default().max_decoded_bytes(160 << 20)));
+    assert_mentions(&e, &["few.gltf", "decoding image", "LoadOptions::max_decoded_bytes"]);
 }
