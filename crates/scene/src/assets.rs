@@ -24,9 +24,10 @@
 //! * **A total of what is made from them.** A few bytes can ask for much more than they
 //!   hold: a glTF file can point a million meshes at one big accessor or images at one
 //!   small file that decodes to a gigabyte, or reach one node (its name, its camera, its
-//!   animation curves) along a million paths. What a glTF load decodes and copies is capped
-//!   by [`LoadOptions::max_decoded_bytes`]; by default by [`DEFAULT_DECODE_FACTOR`] × the
-//!   bytes it reads (the scene file included) + [`DEFAULT_BUDGET_BASE`].
+//!   animation curves) along a million paths. What a load decodes and copies (all of it for
+//!   a glTF file, the textures for an OBJ) is capped by [`LoadOptions::max_decoded_bytes`];
+//!   by default by [`DEFAULT_DECODE_FACTOR`] × the bytes it reads (the scene file included)
+//!   + [`DEFAULT_BUDGET_BASE`].
 
 use std::cell::{Cell, RefCell};
 use std::collections::HashMap;
@@ -55,9 +56,10 @@ pub struct LoadOptions {
     /// (a shared subgraph) becomes one copy per path, so a small file can ask for very many;
     /// past this count the load fails, naming the limit. `None`: [`DEFAULT_MAX_NODES`].
     pub max_nodes: Option<usize>,
-    /// The most bytes of scene data one glTF load may make from its files: decoded
+    /// The most bytes of scene data one load may make from its files: decoded images (4
+    /// bytes a texel; for an OBJ, only these are counted), and for a glTF file decoded
     /// accessors (8 bytes a component, as they are decoded), index lists made from strips,
-    /// fans and unindexed primitives, decoded images (4 bytes a texel), a mesh's name kept
+    /// fans and unindexed primitives, a mesh's name kept
     /// with each of its primitives, and what each copy of a shared node repeats (its name,
     /// its camera's name, the curves animating it). A file can make one accessor decode for
     /// every mesh that names it, or one node load once per path to it; past this total the

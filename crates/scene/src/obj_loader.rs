@@ -293,12 +293,13 @@ impl<R: BufRead> BufRead for FaceCheck<R> {
     }
 }
 
-/// Converts a tobj material; `textures` caches decoded textures by file, so many materials
-/// naming one texture decode it once. A texture the asset rules refuse is an error.
+/// Converts a tobj material; `textures` caches decoded textures (and failures) by file, so
+/// many materials naming one texture decode it once. A texture the asset rules refuse is an
+/// error, as is one past the cap on decoded data ([`crate::LoadOptions::max_decoded_bytes`]).
 fn convert_material(
     m: &tobj::Material,
     assets: &AssetReader,
-    textures: &mut HashMap<PathBuf, Arc<Texture>>,
+    textures: &mut HashMap<PathBuf, std::result::Result<Arc<Texture>, AssetError>>,
     warnings: &mut Vec<String>,
 ) -> std::result::Result<Material, String> {
     let mut out = Material { name: m.name.clone(), ..Material::default() };
@@ -315,13 +316,11 @@ fn convert_material(
     }
     if let Some(tex) = &m.diffuse_texture {
         let decoded = assets.resolve(Path::new(tex)).and_then(|file| {
-            if let Some(t) = textures.get(&file) {
-                return Ok(t.clone());
-            }
-            let (bytes, _) = assets.read(&file, u64::MAX, MAX_IMAGE_FILE)?;
-            let t = Arc::new(crate::gltf_loader::decode_texture(&bytes).map_err(AssetError::Unavailable)?);
-            textures.insert(file, t.clone());
-            Ok(t)
+            let t = textures.entry(file).or_insert_with_key(|file| {
+                let (bytes, _) = assets.read(file, u64::MAX, MAX_IMAGE_FILE)?;
+                Ok(Arc::new(crate::gltf_loader::decode_for_load(&bytes, assets)?))
+            });
+            t.clone()
         });
         match decoded {
             Ok(t) => out.base_color_texture = Some(t),

@@ -112,14 +112,22 @@ impl Loader<'_> {
             (None, Some(v)) => self.view_bytes(v.value()).map_err(|e| e.context(&label))?.0,
             (None, None) => return Err(bad(format!("{label} has neither a uri nor a buffer view"))),
         };
-        let (w, h) = texture_size(bytes).map_err(|e| bad(format!("{label}: {e}")))?;
-        if w > MAX_TEXTURE_SIDE || h > MAX_TEXTURE_SIDE {
-            return Err(bad(format!("{label}: {w} × {h} texels, more than {MAX_TEXTURE_SIDE} a side")));
-        }
-        let pixels = w as u64 * h as u64 * 4;
-        self.charge(pixels, format_args!("decoding {label} ({w} × {h})")).map_err(AssetError::Refused)?;
-        Ok(Arc::new(decode_texture(bytes).map_err(|e| bad(format!("{label}: {e}")))?))
+        Ok(Arc::new(decode_for_load(bytes, self.assets).map_err(|e| e.context(&label))?))
     }
+}
+
+/// Decodes a texture for a load: its texels are charged against
+/// [`LoadOptions::max_decoded_bytes`] before it is decoded (past it, a refusal), and an image
+/// that cannot be decoded or is too large is unavailable (a warning: the texture skipped).
+/// The caller names the image in the message.
+pub(crate) fn decode_for_load(bytes: &[u8], assets: &AssetReader) -> std::result::Result<Texture, AssetError> {
+    let (w, h) = texture_size(bytes).map_err(AssetError::Unavailable)?;
+    if w > MAX_TEXTURE_SIDE || h > MAX_TEXTURE_SIDE {
+        return Err(AssetError::Unavailable(format!("{w} × {h} texels, more than {MAX_TEXTURE_SIDE} a side")));
+    }
+    let texels = w as u64 * h as u64 * 4;
+    assets.charge_decoded(texels, format_args!("decoding its {w} × {h} texels")).map_err(AssetError::Refused)?;
+    decode_texture(bytes).map_err(AssetError::Unavailable)
 }
 
 /// Largest texture side accepted, in texels.
@@ -141,7 +149,7 @@ fn texture_size(bytes: &[u8]) -> std::result::Result<(u32, u32), String> {
 }
 
 /// Decodes a PNG or JPEG image (format sniffed from the bytes) into an RGBA8 [`Texture`].
-pub(crate) fn decode_texture(bytes: &[u8]) -> std::result::Result<Texture, String> {
+fn decode_texture(bytes: &[u8]) -> std::result::Result<Texture, String> {
     let mut reader = image_reader(bytes)?;
     let mut limits = image::Limits::default();
     limits.max_image_width = Some(MAX_TEXTURE_SIDE);

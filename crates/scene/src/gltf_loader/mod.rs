@@ -73,7 +73,7 @@ use crate::{
     SceneCamera, Texture, Transform, DEFAULT_ALPHA_CUTOFF,
 };
 use data::*;
-pub(crate) use materials::decode_texture;
+pub(crate) use materials::decode_for_load;
 
 /// glTF extensions this loader honours, so a file may list them in `extensionsRequired`.
 pub const SUPPORTED_EXTENSIONS: &[&str] = &["KHR_mesh_quantization"];

@@ -368,3 +368,29 @@ fn an_mtllib_named_many_times_is_read_once() {
     assert!(scene.warnings.is_empty(), "{:?}", scene.warnings);
     assert_eq!(scene.materials().next().unwrap().1.base_color, [1.0, 0.0, 0.0, 1.0]);
 }
+
+/// Small PNG files that decode to 16 MB each: an OBJ's textures are charged their texels
+/// against the cap on decoded data, like a glTF's.
+#[test]
+fn obj_textures_are_charged_for_their_texels() {
+    let dir = tmp_dir("obj-texels");
+    let mut png = Vec::new();
+    image::RgbaImage::new(2048, 2048).write_to(&mut std::io::Cursor::new(&mut png), image::ImageFormat::Png).unwrap();
+    let mut mtl = String::new();
+    for k in 0..10 {
+        std::fs::write(dir.join(format!("asset/t{k}.png")), &png).unwrap();
+        mtl.push_str(&format!("newmtl m{k}\nmap_Kd t{k}.png\n"));
+    }
+    std::fs::write(dir.join("asset/many.mtl"), mtl).unwrap();
+    let mut obj = String::from("mtllib many.mtl\n");
+    for k in 0..10 {
+        obj.push_str(&format!("o o{k}\nv 0 0 0\nv 1 0 0\nv 0 1 0\nusemtl m{k}\nf -3 -2 -1\n"));
+    }
+    let path = dir.join("asset/many.obj");
+    std::fs::write(&path, obj).unwrap();
+    // Ten textures: 160 MiB of texels, all the load decodes. They fit in 160 MiB exactly.
+    let e = err_text(load_with(&path, &LoadOptions::default().max_decoded_bytes((160 << 20) - 1)));
+    assert_mentions(&e, &["many.obj", "texture 't9.png'", "decoding its 2048 × 2048 texels", "max_decoded_bytes"]);
+    let scene = load_with(&path, &LoadOptions::default().max_decoded_bytes(160 << 20)).unwrap();
+    assert_eq!(scene.materials().filter(|(_, m)| m.base_color_texture.is_some()).count(), 10);
+}

@@ -430,13 +430,14 @@ fn images_sharing_one_file_are_charged_for_their_texels() {
     });
     assert!(std::fs::metadata(&path).unwrap().len() < 1 << 20, "a small file");
     let e = err_text(load(&path));
-    assert_mentions(&e, &["images.gltf", "decoding image", "2048 × 2048", "the default limit"]);
-    // Ten of them take 167.8 MB of texels (4 bytes each): they fit in 170 MB, not in 160.
+    assert_mentions(&e, &["images.gltf", "image", "decoding its 2048 × 2048 texels", "the default limit"]);
+    // Ten of them take 160 MiB of texels (4 bytes each): with the mesh's data they fit in 170
+    // MiB, not in 160.
     let mut few: serde_json::Value = serde_json::from_slice(&std::fs::read(&path).unwrap()).unwrap();
     few["meshes"][0]["primitives"].as_array_mut().unwrap().truncate(10);
     std::fs::write(dir.join("few.gltf"), few.to_string()).unwrap();
     let s = load_with(dir.join("few.gltf"), &LoadOptions::default().max_decoded_bytes(170 << 20)).unwrap();
     assert_eq!(s.materials().filter(|(_, m)| m.base_color_texture.is_some()).count(), 10);
     let e = err_text(load_with(dir.join("few.gltf"), &LoadOptions::default().max_decoded_bytes(160 << 20)));
-    assert_mentions(&e, &["few.gltf", "decoding image", "LoadOptions::max_decoded_bytes"]);
+    assert_mentions(&e, &["few.gltf", "decoding its 2048 × 2048 texels", "LoadOptions::max_decoded_bytes"]);
 }
