@@ -14,7 +14,9 @@
 //! O(n log n).
 //!
 //! Deterministic for any thread count: the splits are, and subtrees built in parallel are
-//! appended in a fixed order. Inner nodes come out depth first, as `refit` requires.
+//! laid out in a fixed order. Inner nodes come out parents before their children, as
+//! `refit` requires: depth first within each subtree built as one task, each task's
+//! nodes after those of the task above it.
 
 use glam::Vec4;
 use obvhs::aabb::Aabb as ObAabb;
@@ -51,10 +53,54 @@ pub(crate) fn build(n: usize, max_leaf: u32, traversal: f32, bounds: impl Fn(usi
         .reduce(|| (Bounds::EMPTY, Bounds::EMPTY), |a, b| (a.0.union(&b.0), a.1.union(&b.1)));
     let set = Set { start: 0, end: n, bounds: set.0, centroids: set.1, depth: 0 };
     let builder = Builder { max_leaf: max_leaf.max(1) as usize, traversal };
-    let mut nodes = Vec::with_capacity(n / 2);
+    let mut piece = Piece::default();
     let part = Part { prims: &mut prims, ids: &mut ids, offset: 0 };
-    let (root, depth) = builder.node(part, set, &mut nodes, &mut Box::new(Bins::new()));
+    let (root, depth) = builder.node(part, set, &mut piece, &mut Box::new(Bins::new()));
+    // The root's piece goes first, so the root's link (0) stands.
+    let mut nodes = Vec::with_capacity(piece.total());
+    piece.flatten(&mut nodes);
     WideBvh { root, nodes, order: ids, depth }
+}
+
+/// The inner nodes of a subtree built as one task (links between them relative to its
+/// first node), and the subtrees below it built as tasks of their own. Pieces are laid out
+/// once, when the whole tree is built ([`Piece::flatten`]): appending each task's nodes to
+/// its parent's list as it finished copied every node once per level of tasks above it,
+/// into freshly allocated memory.
+#[derive(Default)]
+struct Piece {
+    nodes: Vec<WideNode>,
+    below: Vec<Below>,
+}
+
+/// A subtree built as a task: the root it hangs from slot `slot` of node `node` of the
+/// piece above (its link relative to its own piece), and its piece.
+struct Below {
+    node: u32,
+    slot: usize,
+    root: WideChild,
+    piece: Piece,
+}
+
+impl Piece {
+    /// Inner nodes in the piece and every piece below it.
+    fn total(&self) -> usize {
+        self.nodes.len() + self.below.iter().map(|b| b.piece.total()).sum::<usize>()
+    }
+
+    /// Appends the piece's nodes to `out`, then each piece below it (in the order they were
+    /// built), linking each from its slot: parents come before their children.
+    fn flatten(self, out: &mut Vec<WideNode>) {
+        let base = out.len() as u32;
+        out.extend(self.nodes.iter().map(|n| n.shifted(base, 0)));
+        for b in self.below {
+            let at = out.len() as u32;
+            b.piece.flatten(out);
+            let mut root = b.root;
+            root.link = super::shift_link(root.link, root.count, at, 0);
+            out[(base + b.node) as usize].set(b.slot, &root);
+        }
+    }
 }
 
 /// The primitives (and their indices) a subtree is built over, which start at leaf-order
@@ -71,9 +117,9 @@ struct Builder {
 }
 
 impl Builder {
-    /// Builds the subtree over `set` (a range of `part`), appending its inner nodes to
-    /// `out`; returns its root and its depth in nodes counted as `WideBvh::depth` does.
-    fn subtree(&self, part: Part, set: Set, out: &mut Vec<WideNode>, scratch: &mut Bins) -> (WideChild, usize) {
+    /// Builds the subtree over `set` (a range of `part`), adding its inner nodes to `out`;
+    /// returns its root and its depth in nodes counted as `WideBvh::depth` does.
+    fn subtree(&self, part: Part, set: Set, out: &mut Piece, scratch: &mut Bins) -> (WideChild, usize) {
         if set.len() <= self.max_leaf {
             return (leaf(&part, &set), 1);
         }
@@ -83,7 +129,7 @@ impl Builder {
     /// [`Builder::subtree`] for a set that may be split even if it fits in a leaf: the
     /// root. (A child that fits in a leaf was weighed by its parent, or left whole when the
     /// parent's four slots filled first.)
-    fn node(&self, part: Part, set: Set, out: &mut Vec<WideNode>, scratch: &mut Bins) -> (WideChild, usize) {
+    fn node(&self, part: Part, set: Set, out: &mut Piece, scratch: &mut Bins) -> (WideChild, usize) {
         let Part { prims, ids, offset } = part;
         let (lo, hi) = (set.bounds.lo.truncate().to_array(), set.bounds.hi.truncate().to_array());
         // Split the child with the largest area until four are made or none is worth it.
@@ -126,13 +172,13 @@ impl Builder {
         let mut idx = [0, 1, 2, 3];
         idx[..nk].sort_unstable_by_key(|&k| kids[k].start);
         let idx = &idx[..nk];
-        let me = out.len();
-        out.push(WideNode::EMPTY);
+        let me = out.nodes.len();
+        out.nodes.push(WideNode::EMPTY);
         let mut node = WideNode::EMPTY;
         let mut depth = 0;
         if set.len() >= PARALLEL_SUBTREE {
             // Cut the arrays into the children's ranges and build them as parallel tasks,
-            // each into its own node list, appended afterwards in slot order.
+            // each into a piece of its own, laid out after this one's (slot order).
             let mut parts = Vec::with_capacity(nk);
             let (mut p_rest, mut i_rest) = (prims, ids);
             let mut at = 0;
@@ -145,19 +191,18 @@ impl Builder {
                 parts.push((Part { prims: p, ids: i, offset: offset + s.start }, Set { start: 0, end: s.len(), ..s }));
                 (p_rest, i_rest, at) = (p_next, i_next, s.end);
             }
-            let built: Vec<(WideChild, usize, Vec<WideNode>)> = parts
+            let built: Vec<(WideChild, usize, Piece)> = parts
                 .into_par_iter()
                 .map(|(part, s)| {
-                    let mut local = Vec::new();
-                    let (c, depth) = self.subtree(part, s, &mut local, &mut Box::new(Bins::new()));
-                    (c, depth, local)
+                    let mut piece = Piece::default();
+                    let (c, depth) = self.subtree(part, s, &mut piece, &mut Box::new(Bins::new()));
+                    (c, depth, piece)
                 })
                 .collect();
-            for (slot, (mut c, d, local)) in built.into_iter().enumerate() {
-                let base = out.len() as u32;
-                c.link = super::shift_link(c.link, c.count, base, 0);
-                out.extend(local.iter().map(|n| n.shifted(base, 0)));
-                node.set(slot, &c);
+            for (slot, (root, d, piece)) in built.into_iter().enumerate() {
+                // The bounds now; the link when the pieces are laid out.
+                node.set(slot, &root);
+                out.below.push(Below { node: me as u32, slot, root, piece });
                 depth = depth.max(d);
             }
         } else {
@@ -168,7 +213,7 @@ impl Builder {
                 depth = depth.max(d);
             }
         }
-        out[me] = node;
+        out.nodes[me] = node;
         (WideChild { lo, link: me as u32, hi, count: 0 }, depth + 1)
     }
 }

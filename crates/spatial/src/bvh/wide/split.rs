@@ -67,7 +67,8 @@ fn cell_cut(keys: &[(u64, u32)], target: usize, slack: usize) -> usize {
 }
 
 /// The trees of `parts` (at most [`WIDTH`], each over its own primitives) as the children
-/// of one new root; the root comes first, then each part's nodes in turn (depth first).
+/// of one new root; the root comes first, then each part's nodes in turn (parents before
+/// children).
 fn join(parts: Vec<WideBvh>) -> WideBvh {
     debug_assert!(parts.len() <= WIDTH);
     let mut root = WideNode::EMPTY;
