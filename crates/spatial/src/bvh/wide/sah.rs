@@ -53,7 +53,7 @@ pub(crate) fn build(n: usize, max_leaf: u32, traversal: f32, bounds: impl Fn(usi
         .reduce(|| (Bounds::EMPTY, Bounds::EMPTY), |a, b| (a.0.union(&b.0), a.1.union(&b.1)));
     let set = Set { start: 0, end: n, bounds: set.0, centroids: set.1, depth: 0 };
     let builder = Builder { max_leaf: max_leaf.max(1) as usize, traversal };
-    let mut piece = Piece::default();
+    let mut piece = Piece::for_prims(n);
     let part = Part { prims: &mut prims, ids: &mut ids, offset: 0 };
     let (root, depth) = builder.node(part, set, &mut piece, &mut Box::new(Bins::new()));
     // The root's piece goes first, so the root's link (0) stands.
@@ -67,7 +67,6 @@ pub(crate) fn build(n: usize, max_leaf: u32, traversal: f32, bounds: impl Fn(usi
 /// once, when the whole tree is built ([`Piece::flatten`]): appending each task's nodes to
 /// its parent's list as it finished copied every node once per level of tasks above it,
 /// into freshly allocated memory.
-#[derive(Default)]
 struct Piece {
     nodes: Vec<WideNode>,
     below: Vec<Below>,
@@ -83,6 +82,14 @@ struct Below {
 }
 
 impl Piece {
+    /// An empty piece with room for `n / 2` inner nodes, more than a subtree over `n`
+    /// primitives usually has (the list still grows past it if needed). Room not used
+    /// costs address space only; a list grown from empty was copied into new memory at each
+    /// doubling.
+    fn for_prims(n: usize) -> Piece {
+        Piece { nodes: Vec::with_capacity(n / 2), below: Vec::new() }
+    }
+
     /// Inner nodes in the piece and every piece below it.
     fn total(&self) -> usize {
         self.nodes.len() + self.below.iter().map(|b| b.piece.total()).sum::<usize>()
@@ -194,7 +201,7 @@ impl Builder {
             let built: Vec<(WideChild, usize, Piece)> = parts
                 .into_par_iter()
                 .map(|(part, s)| {
-                    let mut piece = Piece::default();
+                    let mut piece = Piece::for_prims(s.len());
                     let (c, depth) = self.subtree(part, s, &mut piece, &mut Box::new(Bins::new()));
                     (c, depth, piece)
                 })
