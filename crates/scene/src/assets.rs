@@ -24,10 +24,11 @@
 //! * **A total of what is made from them.** A few bytes can ask for much more than they
 //!   hold: a glTF file can point a million meshes at one big accessor or images at one
 //!   small file that decodes to a gigabyte, or reach one node (its name, its camera, its
-//!   animation curves) along a million paths. What a load decodes and copies (all of it for
-//!   a glTF file, the textures for an OBJ) is capped by [`LoadOptions::max_decoded_bytes`];
-//!   by default by [`DEFAULT_DECODE_FACTOR`] × the bytes it reads (the scene file included)
-//!   + [`DEFAULT_BUDGET_BASE`].
+//!   animation curves) along a million paths. What a load decodes and copies (a glTF
+//!   file's accessors, images and what copies of a node repeat; an OBJ's textures) is capped
+//!   by [`LoadOptions::max_decoded_bytes`]; by default by [`DEFAULT_DECODE_FACTOR`] × the
+//!   bytes it reads (the scene file included) + [`DEFAULT_BUDGET_BASE`]. Past the cap a
+//!   texture is skipped with a warning (it is not decoded); anything else fails the load.
 
 use std::cell::{Cell, RefCell};
 use std::collections::HashMap;
@@ -58,13 +59,14 @@ pub struct LoadOptions {
     pub max_nodes: Option<usize>,
     /// The most bytes of scene data one load may make from its files: decoded images (4
     /// bytes a texel; for an OBJ, only these are counted), and for a glTF file decoded
-    /// accessors (8 bytes a component, as they are decoded), index lists made from strips,
-    /// fans and unindexed primitives, a mesh's name kept
+    /// accessors (4 bytes a component, once per primitive or animation sampler naming
+    /// them), index lists made from strips, fans and unindexed primitives, a mesh's name kept
     /// with each of its primitives, and what each copy of a shared node repeats (its name,
     /// its camera's name, the curves animating it). A file can make one accessor decode for
-    /// every mesh that names it, or one node load once per path to it; past this total the
-    /// load fails, naming the limit. `None`: [`DEFAULT_DECODE_FACTOR`] × the bytes the load
-    /// reads (the scene file included, also when given as bytes) + [`DEFAULT_BUDGET_BASE`].
+    /// every mesh that names it, or one node load once per path to it. Past this total a
+    /// texture is skipped with a warning, anything else fails the load, naming the limit.
+    /// `None`: [`DEFAULT_DECODE_FACTOR`] × the bytes the load reads (the scene file
+    /// included, also a glTF file given as bytes) + [`DEFAULT_BUDGET_BASE`].
     pub max_decoded_bytes: Option<u64>,
 }
 
@@ -103,7 +105,8 @@ pub const DEFAULT_BUDGET_FACTOR: u64 = 4;
 pub const DEFAULT_BUDGET_BASE: u64 = 64 << 20;
 /// The default cap on decoded data is this many times the bytes a load reads (plus
 /// [`DEFAULT_BUDGET_BASE`]): room for every accessor decoded once (a u8 index of a triangle
-/// strip takes 8 bytes decoded and 12 as triangles) and for some sharing.
+/// strip takes 4 bytes decoded and 12 as triangles) and for sharing (a vertex set named by
+/// the primitives of a multi-material mesh is kept once per primitive).
 pub const DEFAULT_DECODE_FACTOR: u64 = 32;
 
 /// Why a referenced file was not read.

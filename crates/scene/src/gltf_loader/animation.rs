@@ -49,10 +49,7 @@ impl Loader<'_> {
     pub(super) fn load_animations(&mut self) -> std::result::Result<(), String> {
         let root = self.root;
         for (a, anim) in root.animations.iter().enumerate() {
-            let label = match &anim.name {
-                Some(n) => format!("animation {a} ('{}')", cut(n)),
-                None => format!("animation {a}"),
-            };
+            let label = label("animation", a, anim.name.as_deref());
             let mut out = Animation::new(anim.name.clone().unwrap_or_else(|| format!("animation {a}")));
             for (c, ch) in anim.channels.iter().enumerate() {
                 let node = ch.target.node.value();
@@ -162,10 +159,7 @@ impl Loader<'_> {
             let Some(mesh) = root.meshes.get(m) else { continue };
             let has_targets = mesh.primitives.iter().any(|p| p.targets.as_ref().is_some_and(|t| !t.is_empty()));
             if has_targets && !std::mem::replace(&mut seen_mesh[m], true) {
-                morphed.push(match &mesh.name {
-                    Some(n) => format!("mesh {m} ('{}')", cut(n)),
-                    None => format!("mesh {m}"),
-                });
+                morphed.push(label("mesh", m, mesh.name.as_deref()));
             }
         }
         if !skinned.is_empty() {

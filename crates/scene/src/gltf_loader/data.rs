@@ -283,8 +283,9 @@ impl<'a> Loader<'a> {
         let elem = dims * csize;
         let count = a.count.0;
         // Charged per read, once the accessor is known to be readable (an accessor named by
-        // many meshes is decoded for each), at the 8 bytes a component takes here.
-        let decoded = count.saturating_mul(dims as u64).saturating_mul(8);
+        // many primitives is decoded for each), at the 4 bytes a component keeps: each
+        // primitive keeps its own copy (the doubles decoded here are dropped at once).
+        let decoded = count.saturating_mul(dims as u64).saturating_mul(4);
         let charge = || self.charge(decoded, format_args!("decoding {what} accessor {i} ({count} elements)"));
         let mut out;
         match a.buffer_view {

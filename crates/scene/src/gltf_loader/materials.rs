@@ -10,10 +10,7 @@ impl Loader<'_> {
             return Ok(*id);
         }
         let mat = self.root.materials.get(i).ok_or_else(|| format!("material {i} does not exist"))?;
-        let label = match &mat.name {
-            Some(n) => format!("material {i} ('{n}')"),
-            None => format!("material {i}"),
-        };
+        let label = label("material", i, mat.name.as_deref());
         let pbr = &mat.pbr_metallic_roughness;
         let mut base_color = pbr.base_color_factor.0;
         if !base_color.iter().all(|c| c.is_finite()) {
@@ -98,10 +95,9 @@ impl Loader<'_> {
             .images
             .get(img)
             .ok_or_else(|| bad(format!("texture {t} refers to image {img}, which does not exist")))?;
-        let label = match (&image.uri, &image.name) {
-            (Some(uri), _) => format!("image {img} ('{}')", short_uri(uri)),
-            (None, Some(name)) => format!("image {img} ('{}')", cut(name)),
-            (None, None) => format!("image {img}"),
+        let label = match &image.uri {
+            Some(uri) => format!("image {img} ('{}')", short_uri(uri)),
+            None => label("image", img, image.name.as_deref()),
         };
         let from_uri;
         let bytes: &[u8] = match (&image.uri, image.buffer_view) {
@@ -117,8 +113,9 @@ impl Loader<'_> {
 }
 
 /// Decodes a texture for a load: its texels are charged against
-/// [`LoadOptions::max_decoded_bytes`] before it is decoded (past it, a refusal), and an image
-/// that cannot be decoded or is too large is unavailable (a warning: the texture skipped).
+/// [`LoadOptions::max_decoded_bytes`] before it is decoded. An image past that cap, too
+/// large, or that cannot be decoded is unavailable: the material keeps its color and the
+/// load goes on with a warning (a texture is never needed to draw), without decoding it.
 /// The caller names the image in the message.
 pub(crate) fn decode_for_load(bytes: &[u8], assets: &AssetReader) -> std::result::Result<Texture, AssetError> {
     let (w, h) = texture_size(bytes).map_err(AssetError::Unavailable)?;
@@ -126,7 +123,7 @@ pub(crate) fn decode_for_load(bytes: &[u8], assets: &AssetReader) -> std::result
         return Err(AssetError::Unavailable(format!("{w} × {h} texels, more than {MAX_TEXTURE_SIDE} a side")));
     }
     let texels = w as u64 * h as u64 * 4;
-    assets.charge_decoded(texels, format_args!("decoding its {w} × {h} texels")).map_err(AssetError::Refused)?;
+    assets.charge_decoded(texels, format_args!("decoding its {w} × {h} texels")).map_err(AssetError::Unavailable)?;
     decode_texture(bytes).map_err(AssetError::Unavailable)
 }
 

@@ -8,11 +8,12 @@
 //!   glTF 2.0 specification does not allow but files do contain) loads as two copies of its
 //!   subtree, sharing their meshes. The copies count against [`LoadOptions::max_nodes`], so
 //!   a small file cannot ask for exponentially many, and what each copy repeats (its name,
-//!   the curves animating it) against [`LoadOptions::max_decoded_bytes`], as every
-//!   accessor decoded does (once per mesh that names it). A glTF mesh
-//!   with one drawable primitive is drawn by the node itself; with several, by one child node
-//!   per primitive. Converted meshes are cached per (mesh, primitive), so glTF instancing stays
-//!   instancing in the mesh store.
+//!   its camera's name, the curves animating it) against
+//!   [`LoadOptions::max_decoded_bytes`], as every accessor decoded does (once per primitive
+//!   or animation sampler that names it). A glTF mesh with one drawable primitive is drawn
+//!   by the node itself; with several, by one child node per primitive. Each glTF mesh is
+//!   converted once (a scene mesh per drawable primitive), for every node that draws it, so
+//!   glTF instancing stays instancing in the mesh store.
 //! * Primitives of mode `TRIANGLES`, `TRIANGLE_STRIP` and `TRIANGLE_FAN` (strips and fans are
 //!   converted to triangle lists with the winding kept); points and lines are skipped and
 //!   counted in a warning. Attributes `POSITION`, `NORMAL`, `TEXCOORD_0` (float, or integer
@@ -170,7 +171,6 @@ fn load_with_reader(bytes: &[u8], path: &Path, assets: &AssetReader, options: &L
         uri_want,
         scene: Scene::new(),
         drawables: vec![None; root.meshes.len()],
-        bad_cameras: vec![false; root.cameras.len()],
         materials: vec![None; root.materials.len()],
         images: vec![None; root.images.len()],
         default_material: None,
@@ -220,8 +220,6 @@ struct Loader<'a> {
     /// Per glTF mesh, once converted: its primitives drawn as triangles (index, mesh,
     /// material), shared by every node (and copy of a node) that draws the mesh.
     drawables: Vec<Option<Rc<[Drawable]>>>,
-    /// Cameras already reported unusable (a copy of a node does not report its camera again).
-    bad_cameras: Vec<bool>,
     materials: Vec<Option<MaterialId>>,
     /// Images, decoded (or failed) on first use.
     images: Vec<Option<std::result::Result<Arc<Texture>, AssetError>>>,
@@ -240,9 +238,14 @@ struct Loader<'a> {
 }
 
 fn node_label(root: &json::Root, i: usize) -> String {
-    match root.nodes.get(i).and_then(|n| n.name.as_deref()) {
-        Some(name) => format!("node {i} ('{}')", cut(name)),
-        None => format!("node {i}"),
+    label("node", i, root.nodes.get(i).and_then(|n| n.name.as_deref()))
+}
+
+/// How messages name object `i` of a kind ("mesh 3 ('wheel')"), its name [`cut`].
+fn label(kind: &str, i: usize, name: Option<&str>) -> String {
+    match name {
+        Some(name) => format!("{kind} {i} ('{}')", cut(name)),
+        None => format!("{kind} {i}"),
     }
 }
 
@@ -386,7 +389,9 @@ impl Loader<'_> {
                 }
             }
             if let Some(c) = node.camera {
-                self.camera(c.value(), id, &label)?;
+                // Only the node's first copy reports an unusable camera.
+                let first = self.node_ids[i].len() == 1;
+                self.camera(c.value(), id, &label, first)?;
             }
             // Every entry waiting becomes a node at least: refuse before stacking more of them
             // than the limit allows (a file can list one child millions of times).
@@ -448,10 +453,7 @@ impl Loader<'_> {
     fn primitive(&mut self, m: usize, p: usize) -> std::result::Result<Option<(MeshId, Option<MaterialId>)>, String> {
         let mesh = &self.root.meshes[m];
         let prim = &mesh.primitives[p];
-        let label = match &mesh.name {
-            Some(n) => format!("mesh {m} ('{}') primitive {p}", cut(n)),
-            None => format!("mesh {m} primitive {p}"),
-        };
+        let label = format!("{} primitive {p}", label("mesh", m, mesh.name.as_deref()));
         let material = match prim.material {
             Some(mi) => Some(self.material(mi.value()).map_err(|e| format!("{label}: {e}"))?),
             None => None,
@@ -530,16 +532,16 @@ impl Loader<'_> {
         Mesh::new(name, positions, normals, uvs, indices).map(Some).map_err(|e| e.to_string())
     }
 
-    /// Places camera `c` on `node` (one camera per copy of a node, each storing the camera's
-    /// name: charged); an unusable camera is reported once, with a warning.
-    fn camera(&mut self, c: usize, node: NodeId, node_label: &str) -> std::result::Result<(), String> {
+    /// Places camera `c` on `node` (one camera per copy of a glTF node, each storing the
+    /// camera's name: charged); an unusable camera is ignored, with a warning when `warn`
+    /// (the glTF node's first copy).
+    fn camera(&mut self, c: usize, node: NodeId, node_label: &str, warn: bool) -> std::result::Result<(), String> {
         let Some(cam) = self.root.cameras.get(c) else {
-            self.scene.warnings.push(format!("{node_label} refers to camera {c}, which does not exist; ignored"));
+            if warn {
+                self.scene.warnings.push(format!("{node_label} refers to camera {c}, which does not exist; ignored"));
+            }
             return Ok(());
         };
-        if self.bad_cameras[c] {
-            return Ok(());
-        }
         let projection = match (&cam.type_, &cam.perspective, &cam.orthographic) {
             (Checked::Valid(json::camera::Type::Perspective), Some(p), _) => {
                 let far = p.zfar.unwrap_or(DEFAULT_FAR.max(p.znear * 1.0e4));
@@ -563,11 +565,11 @@ impl Loader<'_> {
                 };
                 self.scene.cameras.push(SceneCamera { name, node, projection });
             }
-            Err(e) => {
-                self.bad_cameras[c] = true;
-                let name = cam.name.as_deref().map_or(String::new(), |n| format!(" ('{}')", cut(n)));
-                self.scene.warnings.push(format!("camera {c}{name} on {node_label}: {e}; ignored"));
+            Err(e) if warn => {
+                let camera = label("camera", c, cam.name.as_deref());
+                self.scene.warnings.push(format!("{camera} on {node_label}: {e}; ignored"));
             }
+            Err(_) => {}
         }
         Ok(())
     }

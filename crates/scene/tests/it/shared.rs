@@ -299,17 +299,17 @@ fn meshes_sharing_one_accessor_stop_at_the_decoded_data_limit() {
         })
     };
     // 1,000 meshes, each decoding the shared accessors: 9 position components and 3,000
-    // indices at 8 bytes each; the nodes' names ("node 0" to "node 999") take 7,890 bytes.
+    // indices at 4 bytes each; the nodes' names ("node 0" to "node 999") take 7,890 bytes.
     let indices: Vec<u16> = (0..3000).map(|k| (k % 3) as u16).collect();
     let path = bomb("bomb.gltf", 1000, &indices);
-    let exact = 1000 * (9 + 3000) * 8 + 7890;
+    let exact = 1000 * (9 + 3000) * 4 + 7890;
     let e = err_text(load_with(&path, &LoadOptions::default().max_decoded_bytes(exact - 1)));
     let limit = format!("over its limit of {} bytes", exact - 1);
     assert_mentions(&e, &["bomb.gltf", "mesh 999", "accessor", &limit, "LoadOptions::max_decoded_bytes"]);
     let s = load_with(&path, &LoadOptions::default().max_decoded_bytes(exact)).unwrap();
     assert_eq!(s.meshes().count(), 1000);
     // 5,000 meshes naming one index accessor of 30,000 elements: a file of about 0.4 MB
-    // asking for 1.2 GB is refused by the default limit.
+    // asking for 600 MB is refused by the default limit.
     let big: Vec<u16> = (0..30_000).map(|k| (k % 3) as u16).collect();
     let e = err_text(load(bomb("big.gltf", 5000, &big)));
     assert_mentions(&e, &["big.gltf", "decoding index accessor 1 (30000 elements)", "the default limit"]);
@@ -404,40 +404,81 @@ fn a_mesh_name_kept_per_primitive_is_charged() {
 }
 
 /// Images naming one small file that decodes to 16 MB each: their texels are charged
-/// before each is decoded.
+/// before each is decoded, and those past the cap are skipped with a warning (a texture is
+/// never needed to draw).
 #[test]
 fn images_sharing_one_file_are_charged_for_their_texels() {
     let dir = tmp_dir("image-bomb");
-    let mut png = Vec::new();
-    image::RgbaImage::new(2048, 2048).write_to(&mut std::io::Cursor::new(&mut png), image::ImageFormat::Png).unwrap();
-    let n = 1000;
-    let path = tiny_gltf(&dir, "images.gltf", &[0, 1, 2], |d| {
-        let uri = format!("data:image/png;base64,{}", crate::support::base64(&png));
-        d["buffers"].as_array_mut().unwrap().push(serde_json::json!({"byteLength": png.len(), "uri": uri}));
-        d["bufferViews"].as_array_mut().unwrap().push(serde_json::json!({"buffer": 1, "byteLength": png.len()}));
-        d["images"] = (0..n).map(|_| serde_json::json!({"bufferView": 2, "mimeType": "image/png"})).collect();
-        d["textures"] = (0..n).map(|i| serde_json::json!({"source": i})).collect();
-        d["materials"] =
-            (0..n).map(|i| serde_json::json!({"pbrMetallicRoughness": {"baseColorTexture": {"index": i}}})).collect();
-        let prim = d["meshes"][0]["primitives"][0].clone();
-        d["meshes"][0]["primitives"] = (0..n)
-            .map(|i| {
-                let mut p = prim.clone();
-                p["material"] = serde_json::json!(i);
-                p
-            })
-            .collect();
-    });
+    let with_images = |name: &str, png: &[u8], n: usize| {
+        tiny_gltf(&dir, name, &[0, 1, 2], |d| {
+            let uri = format!("data:image/png;base64,{}", crate::support::base64(png));
+            d["buffers"].as_array_mut().unwrap().push(serde_json::json!({"byteLength": png.len(), "uri": uri}));
+            d["bufferViews"].as_array_mut().unwrap().push(serde_json::json!({"buffer": 1, "byteLength": png.len()}));
+            d["images"] = (0..n).map(|_| serde_json::json!({"bufferView": 2, "mimeType": "image/png"})).collect();
+            d["textures"] = (0..n).map(|i| serde_json::json!({"source": i})).collect();
+            d["materials"] = (0..n)
+                .map(|i| serde_json::json!({"pbrMetallicRoughness": {"baseColorTexture": {"index": i}}}))
+                .collect();
+            let prim = d["meshes"][0]["primitives"][0].clone();
+            d["meshes"][0]["primitives"] = (0..n)
+                .map(|i| {
+                    let mut p = prim.clone();
+                    p["material"] = serde_json::json!(i);
+                    p
+                })
+                .collect();
+        })
+    };
+    let textured = |s: &Scene| s.materials().filter(|(_, m)| m.base_color_texture.is_some()).count();
+    let png = crate::support::blank_png(2048);
+    let path = with_images("images.gltf", &png, 1000);
     assert!(std::fs::metadata(&path).unwrap().len() < 1 << 20, "a small file");
-    let e = err_text(load(&path));
-    assert_mentions(&e, &["images.gltf", "image", "decoding its 2048 × 2048 texels", "the default limit"]);
-    // Ten of them take 160 MiB of texels (4 bytes each): with the mesh's data they fit in 170
-    // MiB, not in 160.
-    let mut few: serde_json::Value = serde_json::from_slice(&std::fs::read(&path).unwrap()).unwrap();
-    few["meshes"][0]["primitives"].as_array_mut().unwrap().truncate(10);
-    std::fs::write(dir.join("few.gltf"), few.to_string()).unwrap();
-    let s = load_with(dir.join("few.gltf"), &LoadOptions::default().max_decoded_bytes(170 << 20)).unwrap();
-    assert_eq!(s.materials().filter(|(_, m)| m.base_color_texture.is_some()).count(), 10);
-    let e = err_text(load_with(dir.join("few.gltf"), &LoadOptions::default().max_decoded_bytes(160 << 20)));
-    assert_mentions(&e, &["few.gltf", "decoding its 2048 × 2048 texels", "LoadOptions::max_decoded_bytes"]);
+    // The default cap (64 MiB and a little) holds three or four: the rest are skipped.
+    let s = load(&path).unwrap();
+    let kept = textured(&s);
+    assert!((1..10).contains(&kept), "{kept} textures kept");
+    let refused = s.warnings.iter().filter(|w| w.contains("decoding its 2048 × 2048 texels")).count();
+    assert_eq!(refused, 1000 - kept, "{:?}", &s.warnings[..3]);
+    assert_mentions(&s.warnings[0], &["images.gltf", "image", "the default limit", "using the base color factor"]);
+    // Ten of them take 160 MiB of texels (4 bytes each): with the mesh's data they fit in
+    // 170 MiB; in 160 MiB the last is skipped.
+    let path = with_images("few.gltf", &png, 10);
+    assert_eq!(textured(&load_with(&path, &LoadOptions::default().max_decoded_bytes(170 << 20)).unwrap()), 10);
+    let s = load_with(&path, &LoadOptions::default().max_decoded_bytes(160 << 20)).unwrap();
+    assert_eq!(textured(&s), 9);
+    assert_mentions(&s.warnings.join("\n"), &["image 9", "decoding its 2048 × 2048 texels", "max_decoded_bytes"]);
+    // The charge comes before decoding: a header promising 16384 × 16384 texels over no
+    // pixel data is refused for its size, not found undecodable.
+    let path = with_images("header.gltf", &crate::support::png_header_only(16384), 1);
+    let s = load_with(&path, &LoadOptions::default().max_decoded_bytes(100 << 20)).unwrap();
+    assert_mentions(&s.warnings.join("\n"), &["decoding its 16384 × 16384 texels", "max_decoded_bytes"]);
+    let s = load_with(&path, &LoadOptions::default().max_decoded_bytes(2 << 30)).unwrap();
+    assert_mentions(&s.warnings.join("\n"), &["image 0", "cannot decode"]);
+}
+
+/// A node reached along 1,024 paths with an unusable camera (or one that does not exist)
+/// is reported once, not once per copy; a usable one is placed on every copy.
+#[test]
+fn a_shared_node_reports_its_unusable_camera_once() {
+    let dir = tmp_dir("camera-copies");
+    let file = |name: &str, camera: usize| {
+        tiny_gltf(&dir, name, &[0, 1, 2], |d| {
+            let mut nodes: Vec<serde_json::Value> =
+                (0..10).map(|k| serde_json::json!({"children": [k + 1, k + 1]})).collect();
+            nodes.push(serde_json::json!({"mesh": 0, "camera": camera}));
+            d["nodes"] = serde_json::Value::Array(nodes);
+            d["cameras"] = serde_json::json!([
+                {"type": "perspective", "perspective": {"yfov": 0.8, "znear": 0.1, "zfar": 50}},
+                {"type": "perspective", "perspective": {"yfov": 0.8, "znear": 0.0, "zfar": 50}}
+            ]);
+        })
+    };
+    let s = load(file("good.gltf", 0)).unwrap();
+    assert_eq!((s.cameras.len(), s.warnings.len()), (1024, 0), "{:?}", s.warnings);
+    for (name, camera, why) in [("bad.gltf", 1, "camera 1 on node 10"), ("missing.gltf", 7, "refers to camera 7")] {
+        let s = load(file(name, camera)).unwrap();
+        assert_eq!(s.cameras.len(), 0);
+        assert_eq!(s.warnings.len(), 1, "{:?}", &s.warnings[..s.warnings.len().min(3)]);
+        assert_mentions(&s.warnings[0], &[name, why, "ignored"]);
+    }
 }

@@ -109,3 +109,40 @@ pub fn tiny_gltf(dir: &Path, name: &str, indices: &[u16], edit: impl FnOnce(&mut
     std::fs::write(&path, serde_json::to_string_pretty(&doc).unwrap()).unwrap();
     path
 }
+
+/// A PNG of `side` × `side` transparent black texels (a few kilobytes that decode to
+/// `4 side²` bytes).
+pub fn blank_png(side: u32) -> Vec<u8> {
+    let mut png = Vec::new();
+    image::RgbaImage::new(side, side).write_to(&mut std::io::Cursor::new(&mut png), image::ImageFormat::Png).unwrap();
+    png
+}
+
+/// A PNG whose header says `side` × `side` texels over an empty image-data chunk: its size
+/// can be read, it cannot be decoded.
+pub fn png_header_only(side: u32) -> Vec<u8> {
+    let mut ihdr = Vec::new();
+    ihdr.extend(side.to_be_bytes());
+    ihdr.extend(side.to_be_bytes());
+    ihdr.extend([8, 6, 0, 0, 0]); // 8-bit RGBA, no interlace
+    let mut png = b"\x89PNG\r\n\x1a\n".to_vec();
+    for (kind, data) in [(b"IHDR", &ihdr[..]), (b"IDAT", &[][..]), (b"IEND", &[][..])] {
+        let body = [&kind[..], data].concat();
+        png.extend((data.len() as u32).to_be_bytes());
+        png.extend(&body);
+        png.extend(crc32(&body).to_be_bytes());
+    }
+    png
+}
+
+/// CRC-32 (ISO-HDLC, as PNG chunks use), bit by bit.
+fn crc32(bytes: &[u8]) -> u32 {
+    let mut c = !0u32;
+    for &b in bytes {
+        c ^= b as u32;
+        for _ in 0..8 {
+            c = if c & 1 != 0 { 0xEDB8_8320 ^ (c >> 1) } else { c >> 1 };
+        }
+    }
+    !c
+}

@@ -82,12 +82,14 @@ struct Below {
 }
 
 impl Piece {
-    /// An empty piece with room for `n / 2` inner nodes, more than a subtree over `n`
-    /// primitives usually has (the list still grows past it if needed). Room not used
-    /// costs address space only; a list grown from empty was copied into new memory at each
-    /// doubling.
+    /// An empty piece for a subtree over `n` primitives, with room for its nodes: a set of
+    /// [`PARALLEL_SUBTREE`] or more gets one node, its children being tasks of their own; a
+    /// smaller one is built whole in the piece, which gets room for `n / 2` nodes, as a rule
+    /// more than it needs (a list that outgrows it still grows; one grown from empty was
+    /// copied into new memory at each doubling).
     fn for_prims(n: usize) -> Piece {
-        Piece { nodes: Vec::with_capacity(n / 2), below: Vec::new() }
+        let room = if n >= PARALLEL_SUBTREE { 1 } else { n / 2 };
+        Piece { nodes: Vec::with_capacity(room), below: Vec::new() }
     }
 
     /// Inner nodes in the piece and every piece below it.
