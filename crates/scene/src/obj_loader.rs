@@ -295,7 +295,8 @@ impl<R: BufRead> BufRead for FaceCheck<R> {
 
 /// Converts a tobj material; `textures` caches decoded textures (and failures) by file, so
 /// many materials naming one texture decode it once. A texture the asset rules refuse is an
-/// error, as is one past the cap on decoded data ([`crate::LoadOptions::max_decoded_bytes`]).
+/// error; one that cannot be read or decoded, or past the cap on decoded data
+/// ([`crate::LoadOptions::max_decoded_bytes`]), a warning.
 fn convert_material(
     m: &tobj::Material,
     assets: &AssetReader,

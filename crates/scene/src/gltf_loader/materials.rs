@@ -1,6 +1,6 @@
 //! glTF materials: `pbrMetallicRoughness.baseColorFactor` and `baseColorTexture` (PNG or JPEG
-//! images, decoded once each, failures included), `alphaMode` and `alphaCutoff`, and `emissiveFactor`; the glTF
-//! 2.0 specification, "Materials".
+//! images, decoded once each, failures included), `alphaMode` and `alphaCutoff`, and
+//! `emissiveFactor`; the glTF 2.0 specification, "Materials".
 
 use super::*;
 
