@@ -240,18 +240,44 @@ pub(crate) struct AssetReader {
     canon_folder: RefCell<Option<Result<PathBuf, String>>>,
     /// The extra allowed roots, canonicalized.
     roots: Vec<PathBuf>,
-    explicit_limit: Option<u64>,
-    /// Sizes of the distinct files seen (stat'ed) so far, for the default limits.
+    /// Sizes of the distinct files seen (stat'ed) so far, for the default read cap.
     seen_bytes: Cell<u64>,
-    /// Bytes read so far.
-    read_bytes: Cell<u64>,
-    /// [`LoadOptions::max_decoded_bytes`].
-    explicit_decode_limit: Option<u64>,
+    /// Bytes read ([`LoadOptions::max_total_bytes`]).
+    reads: Cap,
     /// The size of a scene file given in memory (not read through this reader).
     given_bytes: Cell<u64>,
-    /// Bytes decoded and copied so far.
-    decoded_bytes: Cell<u64>,
+    /// Bytes decoded and copied ([`LoadOptions::max_decoded_bytes`]).
+    decoded: Cap,
     files: RefCell<FileCache>,
+}
+
+/// One of a load's caps: the bytes counted so far, and the limit the options give (else a
+/// default the caller works out, which grows as the load goes).
+struct Cap {
+    explicit: Option<u64>,
+    used: Cell<u64>,
+}
+
+impl Cap {
+    fn new(explicit: Option<u64>) -> Cap {
+        Cap { explicit, used: Cell::new(0) }
+    }
+
+    /// The limit: the one given, else `default`.
+    fn limit(&self, default: impl FnOnce() -> u64) -> u64 {
+        self.explicit.unwrap_or_else(default)
+    }
+
+    /// Counts `n` more bytes if the total stays within the limit; else leaves the count and
+    /// returns the total it would reach and the limit.
+    fn take(&self, n: u64, default: impl FnOnce() -> u64) -> Result<(), (u64, u64)> {
+        let (limit, total) = (self.limit(default), self.used.get().saturating_add(n));
+        if total > limit {
+            return Err((total, limit));
+        }
+        self.used.set(total);
+        Ok(())
+    }
 }
 
 impl AssetReader {
@@ -279,29 +305,29 @@ impl AssetReader {
             folder,
             canon_folder: RefCell::new(None),
             roots,
-            explicit_limit: opts.max_total_bytes,
             seen_bytes: Cell::new(0),
-            read_bytes: Cell::new(0),
-            explicit_decode_limit: opts.max_decoded_bytes,
+            reads: Cap::new(opts.max_total_bytes),
             given_bytes: Cell::new(0),
-            decoded_bytes: Cell::new(0),
+            decoded: Cap::new(opts.max_decoded_bytes),
             files: RefCell::new(HashMap::new()),
         })
     }
 
-    /// The total-read cap now (the default one grows with the files seen).
+    /// The default total-read cap now (it grows with the files seen).
+    fn default_limit(&self) -> u64 {
+        DEFAULT_BUDGET_BASE.saturating_add(self.seen_bytes.get().saturating_mul(DEFAULT_BUDGET_FACTOR))
+    }
+
+    /// The total-read cap now.
+    #[cfg(test)]
     fn limit(&self) -> u64 {
-        self.explicit_limit.unwrap_or_else(|| {
-            DEFAULT_BUDGET_BASE.saturating_add(self.seen_bytes.get().saturating_mul(DEFAULT_BUDGET_FACTOR))
-        })
+        self.reads.limit(|| self.default_limit())
     }
 
     /// Charges `n` bytes about to be read from `what` against the cap.
     fn charge(&self, n: u64, what: &str) -> Result<(), AssetError> {
-        let limit = self.limit();
-        let total = self.read_bytes.get().saturating_add(n);
-        if total > limit {
-            let how = match self.explicit_limit {
+        if let Err((total, limit)) = self.reads.take(n, || self.default_limit()) {
+            let how = match self.reads.explicit {
                 Some(_) => "the limit set in the load options".to_string(),
                 None => format!(
                     "the default limit, {DEFAULT_BUDGET_FACTOR} × the size of the files involved + {} MiB",
@@ -312,7 +338,6 @@ impl AssetReader {
                 "reading {n} bytes of {what} would bring this load to {total} bytes, over its limit of {limit} bytes on total reads ({how})"
             )));
         }
-        self.read_bytes.set(total);
         Ok(())
     }
 
@@ -322,22 +347,24 @@ impl AssetReader {
         self.given_bytes.set(self.given_bytes.get().saturating_add(len));
     }
 
-    /// The decoded-data cap now (the default one grows with the bytes read: what a file
-    /// merely names, read or not, does not raise it).
+    /// The default decoded-data cap now (it grows with the bytes read: what a file merely
+    /// names, read or not, does not raise it).
+    fn default_decode_limit(&self) -> u64 {
+        let input = self.reads.used.get().saturating_add(self.given_bytes.get());
+        DEFAULT_BUDGET_BASE.saturating_add(input.saturating_mul(DEFAULT_DECODE_FACTOR))
+    }
+
+    /// The decoded-data cap now.
+    #[cfg(test)]
     fn decode_limit(&self) -> u64 {
-        self.explicit_decode_limit.unwrap_or_else(|| {
-            let input = self.read_bytes.get().saturating_add(self.given_bytes.get());
-            DEFAULT_BUDGET_BASE.saturating_add(input.saturating_mul(DEFAULT_DECODE_FACTOR))
-        })
+        self.decoded.limit(|| self.default_decode_limit())
     }
 
     /// Charges `n` bytes about to be decoded or copied for `what` against the cap; the error
     /// names `what`, the totals and the option that sets the cap.
     pub(crate) fn charge_decoded(&self, n: u64, what: impl std::fmt::Display) -> Result<(), String> {
-        let limit = self.decode_limit();
-        let total = self.decoded_bytes.get().saturating_add(n);
-        if total > limit {
-            let how = match self.explicit_decode_limit {
+        if let Err((total, limit)) = self.decoded.take(n, || self.default_decode_limit()) {
+            let how = match self.decoded.explicit {
                 Some(_) => "LoadOptions::max_decoded_bytes".to_string(),
                 None => format!(
                     "the default limit, {DEFAULT_DECODE_FACTOR} × the bytes read + {} MiB; \
@@ -350,14 +377,13 @@ impl AssetReader {
                  over its limit of {limit} bytes ({how})"
             ));
         }
-        self.decoded_bytes.set(total);
         Ok(())
     }
 
     /// Bytes read so far by this load.
     #[cfg(test)]
     pub(crate) fn bytes_read(&self) -> u64 {
-        self.read_bytes.get()
+        self.reads.used.get()
     }
 
     /// Checks and reads the scene file itself (not subject to the folder rule).
@@ -506,7 +532,7 @@ mod tests {
         r.charge_decoded(10, "the rest").unwrap();
         let e = r.charge_decoded(1, "one more byte").unwrap_err();
         assert!(e.starts_with("one more byte would bring") && e.contains(&format!("{}", cap + 1)), "{e}");
-        assert_eq!(r.decoded_bytes.get(), cap);
+        assert_eq!(r.decoded.used.get(), cap);
         let r = AssetReader::new(&d.path().join("asset/x.gltf"), &LoadOptions::default().max_decoded_bytes(7)).unwrap();
         r.given_main(1 << 20);
         assert_eq!(r.decode_limit(), 7);
