@@ -93,7 +93,7 @@ impl GifOut {
     pub fn append_gif(&mut self, path: &Path) -> Result<usize, GifError> {
         let mut opts = gif::DecodeOptions::new();
         opts.set_color_output(gif::ColorOutput::Indexed);
-        let file = File::open(path).map_err(|e| err(path, format!("cannot open: {e}")))?;
+        let file = sightline_scene::assets::open_regular_file(path).map_err(|why| err(path, why))?;
         let mut d = opts.read_info(std::io::BufReader::new(file)).map_err(|e| err(path, e))?;
         let mut n = 0;
         while let Some(frame) = d.read_next_frame().map_err(|e| err(path, e))? {
@@ -193,5 +193,28 @@ mod tests {
         let mut wrong = GifOut::create(&b, 4, 4, 480, 5).unwrap();
         assert!(wrong.append_gif(&a).unwrap_err().to_string().contains("8x4"));
         let _ = std::fs::remove_dir_all(&dir);
+    }
+
+    /// A FIFO named as a GIF to append is refused, and neither the open nor the reads block.
+    #[cfg(unix)]
+    #[test]
+    fn a_fifo_is_not_appended() {
+        let dir = std::env::temp_dir().join(format!("sightline-gif-fifo-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let fifo = dir.join("walk.gif");
+        if !std::process::Command::new("mkfifo").arg(&fifo).status().is_ok_and(|s| s.success()) {
+            eprintln!("skipped: cannot make a FIFO with mkfifo");
+            return;
+        }
+        let out = dir.join("out.gif");
+        let (tx, rx) = std::sync::mpsc::channel();
+        std::thread::spawn(move || {
+            let mut gif = GifOut::create(&out, 8, 4, 480, 5).unwrap();
+            let _ = tx.send(gif.append_gif(&fifo).map_err(|e| e.to_string()));
+        });
+        let why = rx.recv_timeout(std::time::Duration::from_secs(30)).expect("appending a FIFO blocked");
+        let _ = std::fs::remove_dir_all(&dir);
+        let why = why.unwrap_err();
+        assert!(why.contains("walk.gif") && why.contains("not a regular file"), "{why}");
     }
 }

@@ -205,6 +205,16 @@ fn read_at_most(f: std::fs::File, n: u64) -> Result<Vec<u8>, String> {
     Ok(out)
 }
 
+/// Opens a file named by a user for reading, when it is a regular file: a FIFO, socket or
+/// device is refused (checked through the open handle, so a file swapped for a FIFO after a
+/// check cannot block the open or the reads). For readers that stream a file rather than
+/// take its bytes (a GIF decoder); the error says what is wrong, for the caller to prefix
+/// with its name.
+pub fn open_regular_file(path: &Path) -> Result<std::fs::File, String> {
+    regular_size(path)?;
+    open_regular(path).map_err(String::from)
+}
+
 /// Reads a whole file named by a user (a camera path, a report) under the rules the scene
 /// files follow: a regular file only (a FIFO, socket or device is refused and never
 /// blocks the read), no more bytes than its size, and at most `max_bytes`. The error
