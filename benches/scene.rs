@@ -1,7 +1,7 @@
 //! Scene benchmarks: world-transform propagation over 10^6 nodes (flat and deep, and flat
 //! with every node drawing a mesh, so that the change report lists each moved node), full and
 //! after changing 1% of the nodes (on a fresh clone, and edited in place frame after frame as an
-//! animation would), and building the 10^6-triangle city.
+//! animation would), building the 10^6-triangle city, and its OBJ round trip (export, load).
 
 #![forbid(unsafe_code)]
 
@@ -10,6 +10,8 @@ use std::time::{Duration, Instant};
 use criterion::{criterion_group, criterion_main, BatchSize, Criterion};
 use glam::Vec3;
 use sightline_scene::builders::{city, CityParams};
+use sightline_scene::export::export_obj;
+use sightline_scene::obj_loader::load_obj;
 use sightline_scene::rng::Rng;
 use sightline_scene::{shapes, NodeDesc, NodeId, Scene, Transform};
 
@@ -128,5 +130,19 @@ fn build_city(c: &mut Criterion) {
     g.finish();
 }
 
-criterion_group!(benches, propagate, build_city);
+/// Exporting the 10^6-triangle city as one OBJ mesh and loading it back.
+fn obj_round_trip(c: &mut Criterion) {
+    let mut g = c.benchmark_group("obj");
+    g.sample_size(10);
+    let scene = city(&CityParams::for_triangles(1_000_000)).unwrap().scene;
+    let dir = std::env::temp_dir().join(format!("sightline-bench-obj-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let path = dir.join("city.obj");
+    g.bench_function("export_1e6", |b| b.iter(|| export_obj(&scene, &path).unwrap()));
+    g.bench_function("load_1e6", |b| b.iter(|| load_obj(&path).unwrap()));
+    g.finish();
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+criterion_group!(benches, propagate, build_city, obj_round_trip);
 criterion_main!(benches);
