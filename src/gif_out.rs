@@ -119,13 +119,14 @@ impl GifOut {
     }
 }
 
-/// The size of a `w × h` picture shrunk to at most `max_width` wide (never enlarged).
+/// The size of a `w × h` picture shrunk to at most `max_width` wide (never enlarged), each
+/// side at most 65,535 (a GIF's limit).
 pub fn fit(w: u32, h: u32, max_width: u32) -> (u32, u32) {
     if w <= max_width.max(1) {
         return (w.min(u16::MAX as u32), h.min(u16::MAX as u32));
     }
-    let nw = max_width.max(1);
-    let nh = ((h as u64 * nw as u64 + w as u64 / 2) / w as u64).max(1) as u32;
+    let nw = max_width.max(1).min(u16::MAX as u32);
+    let nh = ((h as u64 * nw as u64 + w as u64 / 2) / w as u64).clamp(1, u16::MAX as u64) as u32;
     (nw, nh)
 }
 
@@ -168,6 +169,7 @@ mod tests {
     fn shrinking_averages_and_keeps_the_aspect() {
         assert_eq!(fit(1280, 720, 480), (480, 270));
         assert_eq!(fit(320, 180, 480), (320, 180), "never enlarged");
+        assert_eq!(fit(481, u32::MAX, 480), (480, u16::MAX as u32), "no side past a GIF's limit");
         // A 4 × 2 checkerboard of black and white columns shrinks to mid-gray.
         let src: Vec<[u8; 4]> =
             (0..8).map(|i| if i % 2 == 0 { [0, 0, 0, 255] } else { [255, 255, 255, 255] }).collect();

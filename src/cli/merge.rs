@@ -4,7 +4,8 @@
 //! The shards must agree on everything but their frame ranges (scene, image size, the
 //! methods and their order, verification, animation, back-face culling, the path's length
 //! and which frames become pictures) and their ranges must not overlap; a shard that breaks
-//! either is refused, naming both folders. Frames no shard rendered are reported (on
+//! either is refused, naming both folders. A report whose frame size no walk draws, or whose
+//! range leaves the path, is refused too, and only regular files are read from the shards. Frames no shard rendered are reported (on
 //! standard error and as `missing_frames` in `walk.json`), not refused. The per-frame records
 //! are concatenated in path order and the summary recomputed from them; the PNG frames and
 //! any other per-frame files are copied; the shards' GIFs are joined frame by frame, as
@@ -93,6 +94,9 @@ fn same_folder(a: &Path, b: &Path) -> bool {
 
 /// Every shard ran the walk the first one ran, but for its frames.
 fn check_consistent(shards: &[Shard]) -> Result<()> {
+    for s in shards {
+        check_report(s)?;
+    }
     let first = &shards[0];
     let r0 = &first.report.run;
     for s in &shards[1..] {
@@ -127,6 +131,27 @@ fn check_consistent(shards: &[Shard]) -> Result<()> {
         if s.records.iter().any(|rec| !(s.report.frame_range[0]..s.report.frame_range[1]).contains(&rec.frame)) {
             bail!("{}: frames.json holds frames outside the shard's range in walk.json", s.dir.display());
         }
+    }
+    Ok(())
+}
+
+/// A shard's report describes a walk this program could have run: a frame size it draws,
+/// and a frame range inside the path. (A report is read from a folder that anyone may have
+/// written; its numbers size the merged GIF and the list of missing frames.)
+fn check_report(s: &Shard) -> Result<()> {
+    let r = &s.report;
+    let [w, h] = r.run.size;
+    let max = sightline::render::MAX_SIZE;
+    if !(1..=max).contains(&w) || !(1..=max).contains(&h) {
+        bail!("{}: walk.json gives the frame size {w}x{h}; a walk draws 1 to {max} pixels a side", s.dir.display());
+    }
+    let [a, b] = r.frame_range;
+    if a > b || b > r.run.path_frames {
+        bail!(
+            "{}: walk.json gives the frame range {a}..{b}, not a range of the path's {} frames",
+            s.dir.display(),
+            r.run.path_frames
+        );
     }
     Ok(())
 }
@@ -183,9 +208,15 @@ fn copy_frame_files(shards: &[Shard], out: &Path) -> Result<()> {
                     name.to_string_lossy()
                 );
             }
-            let dest = out.join(&name);
-            std::fs::copy(e.path(), &dest)
-                .with_context(|| format!("copying {} to {}", e.path().display(), dest.display()))?;
+            // Opened as a regular file (checked on the open handle): a file swapped for a FIFO
+            // since the listing must not block the merge.
+            let (src, dest) = (e.path(), out.join(&name));
+            let copy = || -> Result<u64> {
+                let mut from = sightline::scene::assets::open_regular_file(&src).map_err(anyhow::Error::msg)?;
+                let mut to = std::fs::File::create(&dest)?;
+                Ok(std::io::copy(&mut from, &mut to)?)
+            };
+            copy().with_context(|| format!("copying {} to {}", src.display(), dest.display()))?;
         }
     }
     Ok(())

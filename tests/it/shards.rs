@@ -130,6 +130,26 @@ fn two_shards_merged_are_the_single_run() {
     let (code, _, err) = merge(&root.join("z"), &[&a, &root]);
     assert_eq!(code, Some(1), "{err}");
     assert!(err.contains("walk.json"), "{err}");
+    // A report whose numbers no walk writes: a frame size past the renderer's limit, a frame
+    // range outside the path.
+    for (key, bad, says) in [
+        ("size", serde_json::json!([100000, 90]), "frame size 100000x90"),
+        ("frame_range", serde_json::json!([5, 3]), "frame range 5..3"),
+        ("frame_range", serde_json::json!([0, 10]), "frame range 0..10"),
+    ] {
+        let forged = root.join("forged");
+        let _ = std::fs::remove_dir_all(&forged);
+        std::fs::create_dir_all(&forged).unwrap();
+        for f in ["walk.json", "frames.json"] {
+            std::fs::copy(a.join(f), forged.join(f)).unwrap();
+        }
+        let mut report = json(&forged.join("walk.json"));
+        report[key] = bad;
+        std::fs::write(forged.join("walk.json"), report.to_string()).unwrap();
+        let (code, _, err) = merge(&root.join("f"), &[&forged]);
+        assert_eq!(code, Some(1), "{key}: {err}");
+        assert!(err.contains(says) && err.contains("forged"), "{key}: {err}");
+    }
     // A gap is reported, and the rest merged.
     let (code, _, err) = merge(&root.join("gap"), &[&a]);
     assert_eq!(code, Some(0), "{err}");
