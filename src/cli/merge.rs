@@ -5,11 +5,11 @@
 //! methods and their order, verification, animation, back-face culling, the path's length
 //! and which frames become pictures) and their ranges must not overlap; a shard that breaks
 //! either is refused, naming both folders. A report whose frame size no walk draws, or whose
-//! range leaves the path, is refused too, and only regular files are read from the shards. Frames no shard rendered are reported (on
-//! standard error and as `missing_frames` in `walk.json`), not refused. The per-frame records
-//! are concatenated in path order and the summary recomputed from them; the PNG frames and
-//! any other per-frame files are copied; the shards' GIFs are joined frame by frame, as
-//! encoded (nothing re-quantized).
+//! range leaves the path, is refused too, and only regular files are read from the shards.
+//! Frames no shard rendered are reported (on standard error and as `missing_frames` in
+//! `walk.json`), not refused. The per-frame records are concatenated in path order and the
+//! summary recomputed from them; the PNG frames and any other per-frame files are copied; the
+//! shards' GIFs are joined frame by frame, as encoded (nothing re-quantized).
 
 use std::collections::HashMap;
 use std::path::{Path, PathBuf};

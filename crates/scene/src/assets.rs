@@ -206,10 +206,10 @@ fn read_at_most(f: std::fs::File, n: u64) -> Result<Vec<u8>, String> {
 }
 
 /// Opens a file named by a user for reading, when it is a regular file: a FIFO, socket or
-/// device is refused (checked through the open handle, so a file swapped for a FIFO after a
-/// check cannot block the open or the reads). For readers that stream a file rather than
-/// take its bytes (a GIF decoder); the error says what is wrong, for the caller to prefix
-/// with its name.
+/// device is refused, from its metadata before the open (so a device is never opened) and
+/// again through the open handle (so a file swapped for a FIFO in between cannot block the
+/// open or the reads). For readers that stream a file rather than take its bytes (a GIF
+/// decoder); the error says what is wrong, for the caller to prefix with its name.
 pub fn open_regular_file(path: &Path) -> Result<std::fs::File, String> {
     regular_size(path)?;
     open_regular(path).map_err(String::from)

@@ -114,15 +114,9 @@ impl WideBlas {
             let lone = bvh.order().par_iter().map(|&i| BlasTriangle { corners: tris[i as usize], index: i }).collect();
             return WideBlas { prims: BlasPrims::Triangles(lone), bvh, triangles: count, turned: false };
         }
-        let quad = |&(index, turns): &Pairing| {
-            let a = turned(&tris[index[0] as usize], turns[0]);
-            let d = if index[1] == NO_TRIANGLE { a[2] } else { turned(&tris[index[1] as usize], turns[1])[2] };
-            BlasQuad { corners: [a[0], a[1], a[2], d], index, turns }
-        };
-        // Made once, in record order: a pair found across the mesh reads two far places.
-        let made: Vec<BlasQuad> = records.par_iter().map(quad).collect();
-        let bvh = WideBvh::build_fn(made.len(), WideBuildParams::BLAS_QUADS, |i| box_of(&made[i].corners));
-        let quads = bvh.order().par_iter().map(|&i| made[i as usize]).collect();
+        // Most pairs neighbours in the mesh: each quad made twice (see `quads_in_leaf_order`).
+        let apart = records.iter().filter(|(i, _)| i[1] != NO_TRIANGLE && i[1] != i[0] + 1).count();
+        let (bvh, quads) = quads_in_leaf_order(&tris, &records, 4 * apart > records.len());
         let turned = records.iter().any(|(_, turns)| *turns != [0; 2]);
         WideBlas { prims: BlasPrims::Quads(quads), bvh, triangles: count, turned }
     }
@@ -217,6 +211,34 @@ impl WideBlas {
         let root = self.bvh.root();
         Aabb::new(Vec3::from(root.lo), Vec3::from(root.hi))
     }
+}
+
+/// The tree over the quads that `records` make of `tris`, and the quads in its leaf order.
+///
+/// The leaf order is known only once the tree is built over the quads' boxes. A quad is
+/// made from its record and two triangles. When the two triangles are neighbours in the
+/// mesh, making each quad twice (once for its box, in record order, then again in leaf
+/// order) costs less than making it once and copying it into leaf order: the copy is 64
+/// bytes of fresh memory a quad, and on the exported OBJ city (10^6 triangles) the build
+/// took 191 ms against 211 ms (medians of twenty alternated cold builds; 131 against 143 ms
+/// warm). When many pairs were found across the mesh (`once`), making a quad in leaf order
+/// reads two far places; then each is made once, in record order, and copied (on the
+/// shuffled city, 329 ms against 353 ms warm). Both ways give the same tree and quads.
+fn quads_in_leaf_order(tris: &[[Vec3; 3]], records: &[Pairing], once: bool) -> (WideBvh, Vec<BlasQuad>) {
+    let quad = |&(index, turns): &Pairing| {
+        let a = turned(&tris[index[0] as usize], turns[0]);
+        let d = if index[1] == NO_TRIANGLE { a[2] } else { turned(&tris[index[1] as usize], turns[1])[2] };
+        BlasQuad { corners: [a[0], a[1], a[2], d], index, turns }
+    };
+    if once {
+        let made: Vec<BlasQuad> = records.par_iter().map(quad).collect();
+        let bvh = WideBvh::build_fn(made.len(), WideBuildParams::BLAS_QUADS, |i| box_of(&made[i].corners));
+        let quads = bvh.order().par_iter().map(|&i| made[i as usize]).collect();
+        return (bvh, quads);
+    }
+    let bvh = WideBvh::build_fn(records.len(), WideBuildParams::BLAS_QUADS, |i| box_of(&quad(&records[i]).corners));
+    let quads = bvh.order().par_iter().map(|&i| quad(&records[i as usize])).collect();
+    (bvh, quads)
 }
 
 #[cfg(test)]
@@ -325,6 +347,25 @@ mod tests {
         assert!(!n.is_multiple_of(7));
         let source = move |i: usize| (7 * i + 3) % n;
         (move |i| strip(source(i)), move |i| source(i) / 2)
+    }
+
+    /// Quads made once and copied, or made twice, give the same tree and the same quads, on
+    /// pairs of neighbours and on pairs found across the mesh. The squares are sheared, so
+    /// that a quad's box is wider than its first triangle's.
+    #[test]
+    fn both_ways_of_making_quads_agree() {
+        let shear = |t: [Vec3; 3]| t.map(|p| p - Vec3::X * (0.25 * p.y));
+        let (shuffled, _) = shuffled_strip(60);
+        let neighbours: Vec<_> = (0..61).map(|i| shear(strip(i))).collect();
+        for (tris, apart) in [(neighbours, false), ((0..60).map(|i| shear(shuffled(i))).collect(), true)] {
+            let records = pair_up(&tris);
+            assert_eq!(records.iter().any(|(i, _)| i[1] != NO_TRIANGLE && i[1] != i[0] + 1), apart);
+            let (a, qa) = quads_in_leaf_order(&tris, &records, true);
+            let (b, qb) = quads_in_leaf_order(&tris, &records, false);
+            assert_eq!((a.order(), a.root(), a.nodes()), (b.order(), b.root(), b.nodes()));
+            let key = |q: &BlasQuad| (q.corners.map(|c| c.to_array().map(f32::to_bits)), q.index, q.turns);
+            assert!(qa.iter().map(key).eq(qb.iter().map(key)));
+        }
     }
 
     /// Triangles that share an edge pair up wherever the mesh puts them, each with its
