@@ -119,15 +119,17 @@ impl GifOut {
     }
 }
 
-/// The size of a `w × h` picture shrunk to at most `max_width` wide (never enlarged), each
-/// side at most 65,535 (a GIF's limit).
+/// The size of a `w × h` picture shrunk, keeping its aspect, to at most `max_width` wide and
+/// at most 65,535 pixels a side (a GIF's limit); never enlarged.
 pub fn fit(w: u32, h: u32, max_width: u32) -> (u32, u32) {
-    if w <= max_width.max(1) {
-        return (w.min(u16::MAX as u32), h.min(u16::MAX as u32));
+    const SIDE: u64 = u16::MAX as u64;
+    let (w, h) = (w as u64, h as u64);
+    let nw = w.min(max_width.max(1) as u64).min(SIDE);
+    let mut size = if nw == w { (w, h) } else { (nw, ((h * nw + w / 2) / w).max(1)) };
+    if size.1 > SIDE {
+        size = (((w * SIDE + h / 2) / h).max(1), SIDE);
     }
-    let nw = max_width.max(1).min(u16::MAX as u32);
-    let nh = ((h as u64 * nw as u64 + w as u64 / 2) / w as u64).clamp(1, u16::MAX as u64) as u32;
-    (nw, nh)
+    (size.0 as u32, size.1 as u32)
 }
 
 /// Box-filter shrink: each output pixel is the mean of the source pixels whose index range
@@ -169,7 +171,10 @@ mod tests {
     fn shrinking_averages_and_keeps_the_aspect() {
         assert_eq!(fit(1280, 720, 480), (480, 270));
         assert_eq!(fit(320, 180, 480), (320, 180), "never enlarged");
-        assert_eq!(fit(481, u32::MAX, 480), (480, u16::MAX as u32), "no side past a GIF's limit");
+        // No side past a GIF's limit, the aspect kept.
+        assert_eq!(fit(100, 200_000, 480), (33, 65_535));
+        assert_eq!(fit(481, u32::MAX, 480), (1, 65_535));
+        assert_eq!(fit(8192, 8192, 480), (480, 480));
         // A 4 × 2 checkerboard of black and white columns shrinks to mid-gray.
         let src: Vec<[u8; 4]> =
             (0..8).map(|i| if i % 2 == 0 { [0, 0, 0, 255] } else { [255, 255, 255, 255] }).collect();

@@ -131,11 +131,13 @@ fn two_shards_merged_are_the_single_run() {
     assert_eq!(code, Some(1), "{err}");
     assert!(err.contains("walk.json"), "{err}");
     // A report whose numbers no walk writes: a frame size past the renderer's limit, a frame
-    // range outside the path.
+    // range outside the path, records outside the range.
     for (key, bad, says) in [
         ("size", serde_json::json!([100000, 90]), "frame size 100000x90"),
         ("frame_range", serde_json::json!([5, 3]), "frame range 5..3"),
         ("frame_range", serde_json::json!([0, 10]), "frame range 0..10"),
+        // Records past the range given (a lone shard is checked too).
+        ("frame_range", serde_json::json!([0, 2]), "frames outside the shard's range"),
     ] {
         let forged = root.join("forged");
         let _ = std::fs::remove_dir_all(&forged);

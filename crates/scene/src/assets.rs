@@ -29,6 +29,10 @@
 //!   by [`LoadOptions::max_decoded_bytes`]; by default by [`DEFAULT_DECODE_FACTOR`] × the
 //!   bytes it reads (the scene file included) + [`DEFAULT_BUDGET_BASE`]. Past the cap a
 //!   texture is skipped with a warning (it is not decoded); anything else fails the load.
+//!
+//! The files a user names outside a scene (a camera path, a walk's reports, the GIFs and
+//! frames a merge joins) follow the regular-file rule through [`read_regular_file`] (whole,
+//! at most a given size) and [`open_regular_file`] (streamed).
 
 use std::cell::{Cell, RefCell};
 use std::collections::HashMap;
@@ -206,10 +210,11 @@ fn read_at_most(f: std::fs::File, n: u64) -> Result<Vec<u8>, String> {
 }
 
 /// Opens a file named by a user for reading, when it is a regular file: a FIFO, socket or
-/// device is refused, from its metadata before the open (so a device is never opened) and
-/// again through the open handle (so a file swapped for a FIFO in between cannot block the
-/// open or the reads). For readers that stream a file rather than take its bytes (a GIF
-/// decoder); the error says what is wrong, for the caller to prefix with its name.
+/// device is refused, from its metadata before the open (so one that the metadata shows is
+/// not opened at all) and again through the open handle, opened non-blocking (so a file
+/// swapped for a FIFO in between cannot block the open or the reads). For readers that
+/// stream a file rather than take its bytes (a GIF decoder, a copy); the error says what is
+/// wrong, for the caller to prefix with its name.
 pub fn open_regular_file(path: &Path) -> Result<std::fs::File, String> {
     regular_size(path)?;
     open_regular(path).map_err(String::from)
@@ -558,5 +563,24 @@ mod tests {
         let e = r.read(&f, u64::MAX, 200).unwrap_err();
         assert!(matches!(&e, AssetError::Unavailable(m) if m.contains("300 bytes")), "{e:?}");
         assert_eq!(r.bytes_read(), 0);
+    }
+
+    /// The check on the open handle alone (what catches a file swapped for a FIFO after its
+    /// metadata was read): a FIFO is opened without blocking and refused.
+    #[cfg(unix)]
+    #[test]
+    fn a_fifo_reaching_the_open_is_refused_without_blocking() {
+        let d = fresh("fifo");
+        let fifo = d.path().join("asset/fifo");
+        if !std::process::Command::new("mkfifo").arg(&fifo).status().is_ok_and(|s| s.success()) {
+            eprintln!("skipped: cannot make a FIFO with mkfifo");
+            return;
+        }
+        let (tx, rx) = std::sync::mpsc::channel();
+        std::thread::spawn(move || {
+            let _ = tx.send(open_regular(&fifo).map(|_| ()));
+        });
+        let e = rx.recv_timeout(std::time::Duration::from_secs(30)).expect("opening a FIFO blocked").unwrap_err();
+        assert!(matches!(&e, AssetError::Refused(m) if m.contains("not a regular file")), "{e:?}");
     }
 }

@@ -19,7 +19,7 @@ mod fuzz_replay;
 mod graph;
 mod hostile_assets;
 mod loader_fuzz;
-mod loader_perf;
 mod loaders;
+mod obj_round_trip;
 mod shared;
 mod support;

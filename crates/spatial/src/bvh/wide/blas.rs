@@ -114,9 +114,7 @@ impl WideBlas {
             let lone = bvh.order().par_iter().map(|&i| BlasTriangle { corners: tris[i as usize], index: i }).collect();
             return WideBlas { prims: BlasPrims::Triangles(lone), bvh, triangles: count, turned: false };
         }
-        // Most pairs neighbours in the mesh: each quad made twice (see `quads_in_leaf_order`).
-        let apart = records.iter().filter(|(i, _)| i[1] != NO_TRIANGLE && i[1] != i[0] + 1).count();
-        let (bvh, quads) = quads_in_leaf_order(&tris, &records, 4 * apart > records.len());
+        let (bvh, quads) = quads_in_leaf_order(&tris, &records, make_once(&records));
         let turned = records.iter().any(|(_, turns)| *turns != [0; 2]);
         WideBlas { prims: BlasPrims::Quads(quads), bvh, triangles: count, turned }
     }
@@ -213,17 +211,27 @@ impl WideBlas {
     }
 }
 
+/// Whether [`quads_in_leaf_order`] makes each quad once and copies it: when more than a
+/// quarter of the records pair triangles that are not neighbours in the mesh. Only the two
+/// ends were measured (nearly every pair neighbours, every pair apart); the quarter between
+/// them is a guess that leans towards the copy.
+fn make_once(records: &[Pairing]) -> bool {
+    let apart = records.iter().filter(|(i, _)| i[1] != NO_TRIANGLE && i[1] != i[0] + 1).count();
+    4 * apart > records.len()
+}
+
 /// The tree over the quads that `records` make of `tris`, and the quads in its leaf order.
 ///
 /// The leaf order is known only once the tree is built over the quads' boxes. A quad is
 /// made from its record and two triangles. When the two triangles are neighbours in the
 /// mesh, making each quad twice (once for its box, in record order, then again in leaf
 /// order) costs less than making it once and copying it into leaf order: the copy is 64
-/// bytes of fresh memory a quad, and on the exported OBJ city (10^6 triangles) the build
-/// took 191 ms against 211 ms (medians of twenty alternated cold builds; 131 against 143 ms
-/// warm). When many pairs were found across the mesh (`once`), making a quad in leaf order
-/// reads two far places; then each is made once, in record order, and copied (on the
-/// shuffled city, 329 ms against 353 ms warm). Both ways give the same tree and quads.
+/// bytes of fresh memory a quad. On the exported OBJ city (10^6 triangles, nearly all pairs
+/// neighbours) one binary doing either way took 191 ms against 211 ms to build (medians of
+/// twenty alternated cold builds; 131 against 143 ms warm). When pairs were found across
+/// the mesh (`once`, see [`make_once`]), making a quad in leaf order reads two far places;
+/// then each is made once, in record order, and copied (on the shuffled city, every pair
+/// apart: 329 ms against 353 ms warm). Both ways give the same tree and quads.
 fn quads_in_leaf_order(tris: &[[Vec3; 3]], records: &[Pairing], once: bool) -> (WideBvh, Vec<BlasQuad>) {
     let quad = |&(index, turns): &Pairing| {
         let a = turned(&tris[index[0] as usize], turns[0]);
@@ -349,6 +357,16 @@ mod tests {
         (move |i| strip(source(i)), move |i| source(i) / 2)
     }
 
+    /// The copy is chosen when more than a quarter of the records pair triangles apart (a
+    /// lone triangle is no pair apart).
+    #[test]
+    fn quads_are_copied_when_many_pairs_lie_apart() {
+        let (near, far, lone) = (([4, 5], [0; 2]), ([4, 9], [0; 2]), ([4, NO_TRIANGLE], [0; 2]));
+        assert!(!make_once(&[near, near, lone, far]), "one of four apart");
+        assert!(make_once(&[near, lone, far]), "one of three apart");
+        assert!(!make_once(&[lone, lone]) && !make_once(&[]));
+    }
+
     /// Quads made once and copied, or made twice, give the same tree and the same quads, on
     /// pairs of neighbours and on pairs found across the mesh. The squares are sheared, so
     /// that a quad's box is wider than its first triangle's.
@@ -359,7 +377,7 @@ mod tests {
         let neighbours: Vec<_> = (0..61).map(|i| shear(strip(i))).collect();
         for (tris, apart) in [(neighbours, false), ((0..60).map(|i| shear(shuffled(i))).collect(), true)] {
             let records = pair_up(&tris);
-            assert_eq!(records.iter().any(|(i, _)| i[1] != NO_TRIANGLE && i[1] != i[0] + 1), apart);
+            assert_eq!(make_once(&records), apart, "pairs of neighbours are made twice, pairs apart once");
             let (a, qa) = quads_in_leaf_order(&tris, &records, true);
             let (b, qb) = quads_in_leaf_order(&tris, &records, false);
             assert_eq!((a.order(), a.root(), a.nodes()), (b.order(), b.root(), b.nodes()));
