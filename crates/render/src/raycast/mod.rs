@@ -11,9 +11,11 @@
 //!   ([`sightline_scene::Camera::ray_through_ndc`]'s rays) in 8 × 8 packets traced together
 //!   (Wald et al. 2001) with frustum culling (Reshetov et al. 2005), over bands of rows in
 //!   parallel; the image is bit-identical for any thread count and SIMD level. A hit writes
-//!   the rasterizer's triangle ID (`1 + first_triangle + triangle`), the window depth of the
-//!   hit point and the color from the shared [`crate::shading`] at the hit's exact
-//!   barycentrics. Hard shadows from the directional light come from any-hit shadow packets.
+//!   the rasterizer's triangle ID (`1 + first_triangle + triangle`) and the window depth of the
+//!   hit point. Colors come from the rasterizer's deferred pass over the ID buffer
+//!   ([`crate::shade_pass`]), or, with shadows or CSG solids, from the shared
+//!   [`crate::shading`] at each hit's exact barycentrics. Hard shadows from the directional
+//!   light come from any-hit shadow packets.
 //! * [`RayCaster::intersect`] and [`RayCaster::occluded`] answer single-ray queries.
 //!
 //! What is visible matches the rasterizer: only the part of each ray between the near and
