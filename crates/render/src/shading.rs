@@ -14,8 +14,9 @@
 //!   for the others, which glTF renders fully opaque ([`written_alpha`]).
 //!
 //! Everything takes *world-space barycentric weights* of a triangle, so both renderers
-//! share it: the rasterizer gets them perspective-correctly from the pixel (Heckbert &
-//! Moreton 1991; Blinn 1992), the ray caster gets them from its hit.
+//! share it: the rasterizer's deferred pass gets them perspective-correctly from the pixel
+//! (Heckbert & Moreton 1991; Blinn 1992), as does the ray caster's frame unless it casts
+//! shadows or draws CSG solids; then it shades each hit from the hit's own weights.
 
 use glam::{Affine3A, Mat3A, Vec2, Vec3, Vec3A, Vec4};
 use serde::Serialize;
@@ -68,7 +69,8 @@ pub struct ShadeOptions {
     /// Texture addressing.
     pub wrap: Wrap,
     /// Perspective-correct attribute interpolation (off: affine in screen space, to show
-    /// why it is needed).
+    /// why it is needed). Ray-cast hits shaded one by one (with shadows or CSG solids)
+    /// always use their exact weights.
     pub perspective_correct: bool,
     /// Optional depth cueing.
     pub depth_cue: Option<DepthCue>,

@@ -6,15 +6,26 @@
 //! solids per lane, then resolve each hit: its ID, and the window depth `(z_ndc + 1) / 2` of
 //! the world point `o + t·d` through `clip_from_world` (f64, all 64 lanes in one vectorized
 //! loop; the hit's `t` is the same in every space, so no triangle is read again).
-//! With shading on and nothing but the triangles to color it (no shadow rays, no CSG
-//! solids), the frame is cast for IDs and depth only and then shaded from its ID buffer by
-//! the rasterizer's deferred pass ([`crate::shade_pass`]), as a raster frame is: the same
-//! colors, and on the OBJ city's street path 16.6–17.0 → 13.2–13.5 ms a frame. Otherwise
-//! an optional any-hit shadow packet goes towards the light and the color comes from the
-//! shared [`crate::shading`] per hit (`TriangleShader`s cached per band, one per triangle
-//! and light state). Each band owns its rows of the framebuffer, so the image does not
-//! depend on the thread count. The whole packet step is compiled once per instruction set
-//! (AVX-512, AVX2, portable) and picked at run time.
+//!
+//! Colors come one of two ways:
+//! * *From the ID buffer* when nothing but the triangles colors a pixel (no shadow rays,
+//!   no CSG solids): the frame is cast for IDs and depth only, then shaded by the
+//!   rasterizer's deferred pass ([`crate::shade_pass`]), sky and background included. A
+//!   pixel showing the same triangle as in a raster frame then gets the raster frame's
+//!   color exactly: weights at the pixel center from 2D homogeneous coordinates (affine
+//!   ones when [`crate::ShadeOptions::perspective_correct`] is off), and flat colors bit
+//!   for bit as per hit. Its caches hold a whole frame's triangles, where the per-hit
+//!   shaders below, 256 per band, were missed so often that flat shading took a street
+//!   frame of the OBJ city 3.7–4.2 ms instead of 0.3–0.6 ms.
+//! * *Per hit* otherwise: an optional any-hit shadow packet goes towards the light and the
+//!   color comes from the shared [`crate::shading`] at the hit's exact barycentrics
+//!   (perspective-correct whatever the option says; `TriangleShader`s cached per band, one
+//!   per triangle and light state).
+//!
+//! Each band owns its rows of the framebuffer, so the image does not depend on the thread
+//! count. The whole packet step is compiled once per instruction set (AVX-512, AVX2,
+//! portable) and picked at run time ([`RaycastOptions::simd`]; the deferred pass picks its
+//! own, with the same result at every level).
 
 use std::time::Instant;
 
@@ -42,14 +53,16 @@ struct CastFrame<'a> {
     scene: &'a Scene,
     camera: &'a Camera,
     gen: CameraRays,
+    /// The options the frame is cast with (shading off when the deferred pass shades it).
     opts: &'a RaycastOptions,
     dark: ShadeOptions,
+    /// Per instance, what shading per hit needs (empty when no hit is shaded).
     shading: Vec<InstanceShading<'a>>,
     csg_materials: Vec<Material>,
     simd: SimdLevel,
     /// `clip_from_world` rows z and w (window depth of a world point).
     world_zw: [DVec4; 2],
-    /// Per TLAS record: `world_from_blas` in f64.
+    /// Per TLAS record: `world_from_blas` in f64 (empty when no hit is shaded).
     world_f64: Vec<DAffine3>,
     width: u32,
 }
@@ -117,32 +130,34 @@ pub(crate) fn render(
     let t0 = Instant::now();
     camera.projection.validate()?;
     let (width, height) = (fb.width(), fb.height());
-    // Each band paints its own rows' background below, while they are in cache (each packet
-    // writes its depth and IDs whole); only the raster's
-    // depth-test counters are cleared here.
+    // The planes are public fields: one replaced by a plane of another length would cut the
+    // bands short and leave stale pixels (see `Framebuffer`).
+    let n = width as usize * height as usize;
+    assert!(
+        fb.color.len() == n && fb.depth.len() == n && fb.ids.len() == n,
+        "a framebuffer plane does not hold {width} × {height} values"
+    );
+    // Each band paints its own rows' background below (unless the deferred pass shades the
+    // frame), while they are in cache (each packet writes its depth and IDs whole); only the
+    // raster's depth-test counters are cleared here.
     if let Some(c) = &mut fb.depth_tests {
         c.fill(0);
     }
-    // Where a pixel's color follows from its triangle alone (no shadow rays, no CSG solids),
-    // the frame is cast for IDs and depth and then shaded from the ID buffer by the
-    // rasterizer's deferred pass, which paints the background too: its caches hold a
-    // frame's triangles and find eight pixels' flat colors at once, where shaders prepared
-    // per hit in 256 entries per band were missed so often that shading cost a street frame
-    // 3.7 ms against 0.3 ms.
+    // Shaded from the ID buffer after the cast, or per hit (see the module docs): the cast
+    // itself runs with `cast_opts`, shading off in the first case.
     let deferred = opts.shading.mode != ShadingMode::None && !opts.shadows && caster.csg.is_empty();
-    let cast = RaycastOptions { shading: ShadeOptions { mode: ShadingMode::None, ..opts.shading }, ..*opts };
-    let asked = opts;
-    let opts = if deferred { &cast } else { opts };
+    let ids_only = RaycastOptions { shading: ShadeOptions { mode: ShadingMode::None, ..opts.shading }, ..*opts };
+    let cast_opts = if deferred { &ids_only } else { opts };
+    let per_hit = cast_opts.shading.mode != ShadingMode::None;
     // With shading off every pixel keeps the clear color, as in the raster's shading pass.
-    let sky = match (&opts.shading.sky, opts.shading.mode) {
+    let sky = match (&cast_opts.shading.sky, cast_opts.shading.mode) {
         (Some(s), m) if m != ShadingMode::None => Some(s.rows(camera, height as usize)),
         _ => None,
     };
     let default = Material::default();
     let clip: DMat4 = camera.clip_from_world_f64();
     // What shading per hit reads (instances' shading, f64 transforms), made only for it.
-    let shaded = opts.shading.mode != ShadingMode::None;
-    let world_f64: Vec<DAffine3> = match shaded {
+    let world_f64: Vec<DAffine3> = match per_hit {
         true => caster.tlas.instances().iter().map(|r| to_f64(&r.world_from_blas)).collect(),
         false => Vec::new(),
     };
@@ -151,9 +166,9 @@ pub(crate) fn render(
         scene,
         camera,
         gen: CameraRays::new(camera, width, height),
-        opts,
+        opts: cast_opts,
         dark: ShadeOptions { diffuse: 0.0, ..opts.shading },
-        shading: match shaded {
+        shading: match per_hit {
             true => caster
                 .instances
                 .iter()
@@ -189,7 +204,7 @@ pub(crate) fn render(
         shits: Hits::new(),
         csg: CsgScratch::default(),
         csg_hit: [(u32::MAX, Vec3::ZERO); LANES],
-        cache: vec![None; CACHE],
+        cache: if per_hit { vec![None; CACHE] } else { Vec::new() },
         shadow_rays: 0,
         hit_count: 0,
     };
@@ -197,7 +212,8 @@ pub(crate) fn render(
         let mut out = Out { color, depth, ids };
         let y0 = b as u32 * TILE;
         // The background: the sky's row colors (as the raster's deferred shading paints
-        // them) or the flat clear color; hit pixels are shaded over it.
+        // them) or the flat clear color; hit pixels are shaded over it (by the deferred
+        // pass, which paints the background too, when it shades the frame).
         match &sky {
             Some(rows) => {
                 for (r, row) in out.color.chunks_mut(w).enumerate() {
@@ -215,7 +231,7 @@ pub(crate) fn render(
         }
     });
     if deferred {
-        shade_pass(scene, &caster.instances, camera, fb, &asked.shading, asked.background);
+        shade_pass(scene, &caster.instances, camera, fb, &opts.shading, opts.background);
     }
     let shadow_rays = workers.iter().map(|b| b.shadow_rays).sum();
     let hit_count = workers.iter().map(|b| b.hit_count).sum();

@@ -54,10 +54,12 @@ fn the_sky_and_the_light_change_colours_only_and_both_renderers_paint_the_same_s
     let both_background: Vec<usize> = (0..r.len()).filter(|&i| r.ids[i] == 0 && b.ids[i] == 0).collect();
     assert!(!both_background.is_empty());
     assert!(both_background.iter().all(|&i| r.color[i] == b.color[i]), "the ray caster paints the rasterizer's sky");
-    // Where both see the same triangle, both shade it alike.
+    // Where both see the same triangle, both shade it alike: the ray caster's frame is
+    // shaded from its IDs by the rasterizer's own pass.
     let same = (0..r.len()).filter(|&i| r.ids[i] != 0 && r.ids[i] == b.ids[i]);
-    let differ = same.clone().filter(|&i| r.color[i] != b.color[i]).count();
-    assert!(differ * 100 <= same.count(), "{differ} pixels of the same triangle shaded differently");
+    assert!(same.clone().count() > 0);
+    let differ = same.filter(|&i| r.color[i] != b.color[i]).count();
+    assert_eq!(differ, 0, "{differ} pixels of the same triangle shaded differently");
 }
 
 #[test]

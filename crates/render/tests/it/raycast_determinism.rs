@@ -1,5 +1,6 @@
 //! The ray cast image does not depend on the thread count or the SIMD level: color, depth
-//! and IDs are bit-identical (with shadows and CSG solids in the frame).
+//! and IDs are bit-identical, shaded hit by hit (shadows and CSG solids in the frame) and
+//! shaded from the ID buffer (neither).
 
 use glam::{Affine3A, Vec3};
 use sightline_render::csg::{classic_demo, CsgObject};
@@ -40,18 +41,22 @@ fn raycast_is_deterministic_across_threads_and_simd_levels() {
         [0.9, 0.5, 0.2, 1.0],
     )
     .unwrap();
-    let caster = RayCaster::build(&c.scene).unwrap().with_csg(vec![solid]);
+    let plain = RayCaster::build(&c.scene).unwrap();
+    let with_csg = RayCaster::build(&c.scene).unwrap().with_csg(vec![solid]);
     let aspect = 203.0 / 117.0;
     let cams =
         [c.layout.street_path(20, 1)[5].camera(aspect).unwrap(), c.layout.aerial_path(8)[3].camera(aspect).unwrap()];
-    for cam in &cams {
-        let opts = RaycastOptions { shadows: true, ..RaycastOptions::default() };
-        let reference = frame(&caster, &c.scene, cam, &RaycastOptions { simd: SimdLevel::Portable, ..opts }, 1);
-        assert!(reference.ids.iter().any(|&i| i != 0));
-        for simd in [SimdLevel::Portable, SimdLevel::Avx2, SimdLevel::Avx512, SimdLevel::Auto] {
-            for threads in [1, 2, 3] {
-                let f = frame(&caster, &c.scene, cam, &RaycastOptions { simd, ..opts }, threads);
-                assert_bit_identical(&reference, &f, &format!("{simd:?} with {threads} threads"));
+    let per_hit = RaycastOptions { shadows: true, ..RaycastOptions::default() };
+    for (caster, opts) in [(&with_csg, per_hit), (&plain, RaycastOptions::default())] {
+        for cam in &cams {
+            let reference = frame(caster, &c.scene, cam, &RaycastOptions { simd: SimdLevel::Portable, ..opts }, 1);
+            assert!(reference.ids.iter().any(|&i| i != 0));
+            for simd in [SimdLevel::Portable, SimdLevel::Avx2, SimdLevel::Avx512, SimdLevel::Auto] {
+                for threads in [1, 2, 3] {
+                    let f = frame(caster, &c.scene, cam, &RaycastOptions { simd, ..opts }, threads);
+                    let what = format!("{simd:?} with {threads} threads, shadows {}", opts.shadows);
+                    assert_bit_identical(&reference, &f, &what);
+                }
             }
         }
     }

@@ -110,11 +110,14 @@ fn raycast_odd_scenes_and_frames_do_not_panic() {
     for (w, h) in [(1, 1), (1, 17), (9, 1), (13, 11)] {
         for cam in &cams {
             for (c, scene) in [(&caster, &scene), (&nothing, &empty)] {
-                let mut fb = Framebuffer::new(w, h).unwrap();
-                let opts = RaycastOptions { shadows: true, ..RaycastOptions::default() };
-                let s = c.render(scene, cam, &mut fb, &opts).unwrap();
-                assert_eq!(s.primary_rays, (w * h) as u64);
-                assert!(fb.depth.iter().all(|d| (0.0..=1.0).contains(d)));
+                // Shaded hit by hit (shadows), and from the ID buffer.
+                for shadows in [true, false] {
+                    let mut fb = Framebuffer::new(w, h).unwrap();
+                    let opts = RaycastOptions { shadows, ..RaycastOptions::default() };
+                    let s = c.render(scene, cam, &mut fb, &opts).unwrap();
+                    assert_eq!(s.primary_rays, (w * h) as u64);
+                    assert!(fb.depth.iter().all(|d| (0.0..=1.0).contains(d)));
+                }
             }
         }
     }
@@ -144,4 +147,18 @@ fn raycast_bad_csg_transforms_are_errors() {
     let bad = sphere.clone().scaled(Vec3::ZERO);
     let e = CsgObject::new("zero scale", &bad, Affine3A::IDENTITY, [1.0; 4]).unwrap_err().to_string();
     assert!(e.contains("zero scale"), "{e}");
+}
+
+/// The planes are public: one replaced by a plane of another length is caught before the
+/// cast, which would otherwise stop its bands where the plane ends and leave stale pixels.
+#[test]
+#[should_panic(expected = "does not hold")]
+fn a_replaced_depth_plane_of_the_wrong_length_is_caught_before_casting() {
+    let scene = Scene::new();
+    let caster = RayCaster::build(&scene).unwrap();
+    let look = LookAt { target: Vec3::NEG_Z, ..LookAt::default() };
+    let camera = Camera::perspective(&look, 1.0).unwrap();
+    let mut fb = Framebuffer::new(64, 64).unwrap();
+    fb.depth = sightline_render::Plane::filled(64, 1.0);
+    let _ = caster.render(&scene, &camera, &mut fb, &RaycastOptions::default());
 }
