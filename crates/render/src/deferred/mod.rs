@@ -144,6 +144,9 @@ struct ShadeFrame<'a> {
     /// The instruction set of the cache lookups: gathers of eight pixels with AVX2, of
     /// sixteen with AVX-512, none below.
     simd: SimdLevel,
+    /// Whether rows are asked for ahead ([`ShadeFrame::start_loads`]): only when the meshes
+    /// are bigger than [`PREFETCH_BYTES`].
+    prefetch: bool,
 }
 
 /// One worker's caches of prepared instances and triangles (see [`ShadeFrame::row`]);
@@ -171,12 +174,26 @@ struct Shader<'a> {
 }
 
 /// Triangles prepared in a row from which the next row's are asked for ahead
-/// ([`ShadeFrame::start_loads`]). On the default city 2% of rows prepare as many, and
-/// scanning every row made shading 70% slower there; on the 10^9-triangle city half do.
+/// ([`ShadeFrame::start_loads`]). On the default city's street frames 2% of rows prepare as
+/// many, and scanning every row made shading 70% slower there; on the 10^9-triangle city
+/// half do.
 const PREFETCH_ROW: u32 = 64;
+
+/// The size of the meshes' indices and positions (what a preparation reads) above which
+/// rows are asked for ahead. Below it they stay in the cores' caches and the scan is pure
+/// cost: hzb aerial walks of the default city (2.0 MB) shaded in 9.7-9.9 ms without it
+/// against 10.4-13.0 ms with it, while the 10^8-triangle city's (19 MB) took 30.5-31.9 ms
+/// with it against 35.7-39.6 ms without, the 10^9's (68 MB) 41-45 against 61-65 ms; the
+/// 10^7 (6.3 MB), 3 x 10^7 (10.6 MB) and the one-mesh OBJ city (23 MB) were even.
+const PREFETCH_BYTES: usize = 8 << 20;
 
 /// No full entry: a slot's `full_at` before it first holds one.
 const NONE: u32 = u32::MAX;
+
+/// The bytes of every mesh's indices and positions in `scene`.
+fn mesh_bytes(scene: &Scene) -> usize {
+    scene.meshes().map(|(_, m)| std::mem::size_of_val(m.indices()) + std::mem::size_of_val(m.positions())).sum()
+}
 
 /// The triangle cache slot of ID `id`: the top log2([`TRI_CACHE`]) bits of a multiplicative
 /// hash (Knuth's constant), so that neighboring IDs spread.
@@ -207,6 +224,7 @@ impl<'a> ShadeFrame<'a> {
             sx: 2.0 / width.max(1) as f32,
             sy: 2.0 / height.max(1) as f32,
             simd: SimdLevel::Auto.resolve(),
+            prefetch: mesh_bytes(scene) > PREFETCH_BYTES,
         }
     }
 
@@ -232,7 +250,7 @@ impl<'a> ShadeFrame<'a> {
         }
         // Rows that prepare many triangles come in runs (distant facades): when the last row
         // did, ask for this row's triangles first.
-        if std::mem::take(&mut st.row_prepared) >= PREFETCH_ROW {
+        if std::mem::take(&mut st.row_prepared) >= PREFETCH_ROW && self.prefetch {
             self.start_loads(st, ids);
         }
         match self.simd {
