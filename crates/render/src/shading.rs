@@ -209,16 +209,16 @@ impl<'a> InstanceShading<'a> {
 
 /// The color of triangle `tri` when it is the same at every point (flat shading without
 /// texture or depth cueing), else `None`. Cheaper than a [`TriangleShader`]: the face
-/// normal is taken in local space and carried to world space by the normal matrix.
+/// normal is taken in local space and carried to world space by the normal matrix, and it
+/// comes with the first corner from the mesh's face record ([`Mesh::faces`]), one load
+/// instead of the indices and then the corners (two dependent cache misses in a big scene).
 pub fn flat_color(inst: &InstanceShading, mesh: &Mesh, tri: usize, eye: Vec3, opts: &ShadeOptions) -> Option<[u8; 4]> {
     let textured = mesh.uvs().is_some() && inst.material.base_color_texture.is_some();
     if opts.mode != ShadingMode::Flat || textured || opts.depth_cue.is_some() || tri >= mesh.triangle_count() {
         return None;
     }
-    let [i0, i1, i2] = mesh.triangle(tri);
-    let pos = mesh.positions();
-    let p0 = Vec3A::from(pos[i0 as usize]);
-    let n_local = (Vec3A::from(pos[i1 as usize]) - p0).cross(Vec3A::from(pos[i2 as usize]) - p0);
+    let face = &mesh.faces()[tri];
+    let (n_local, p0) = (Vec3A::from(face.normal), Vec3A::from(face.corner));
     let n = inst.normal_from_local * n_local;
     let len2 = n.length_squared();
     // cos(n, l), with n turned towards the eye when two-sided (sign of n·(eye − p0)).

@@ -65,7 +65,7 @@ pub use graph::{
     SceneDelta, SceneId, SceneStamp, MAX_DRAWN_TRIANGLES,
 };
 pub use material::{AlphaMode, Material, Texture, DEFAULT_ALPHA_CUTOFF};
-pub use mesh::Mesh;
+pub use mesh::{Face, Mesh};
 pub use projection::Projection;
 pub use stats::SceneStats;
 pub use transform::{affine_from_mat4, validate_affine, Transform};

@@ -147,6 +147,9 @@ struct ShadeFrame<'a> {
     /// Whether rows are asked for ahead ([`ShadeFrame::start_loads`]): only when the meshes
     /// are bigger than [`PREFETCH_BYTES`].
     prefetch: bool,
+    /// Whether preparations read face records ([`Mesh::faces`]: flat shading without depth
+    /// cueing) rather than indices and corners.
+    flat_faces: bool,
 }
 
 /// One worker's caches of prepared instances and triangles (see [`ShadeFrame::row`]);
@@ -179,8 +182,8 @@ struct Shader<'a> {
 /// half do.
 const PREFETCH_ROW: u32 = 64;
 
-/// The size of the meshes' indices and positions (what a preparation reads) above which
-/// rows are asked for ahead. Below it they stay in the cores' caches and the scan is pure
+/// The size of the meshes' indices and positions above which rows are asked for ahead
+/// (measured before flat shading read face records, which take 24 bytes a triangle). Below it they stay in the cores' caches and the scan is pure
 /// cost: hzb aerial walks of the default city (2.0 MB) shaded in 9.7-9.9 ms without it
 /// against 10.4-13.0 ms with it, while the 10^8-triangle city's (19 MB) took 30.5-31.9 ms
 /// with it against 35.7-39.6 ms without, the 10^9's (68 MB) 41-45 against 61-65 ms; the
@@ -225,6 +228,7 @@ impl<'a> ShadeFrame<'a> {
             sy: 2.0 / height.max(1) as f32,
             simd: SimdLevel::Auto.resolve(),
             prefetch: mesh_bytes(scene) > PREFETCH_BYTES,
+            flat_faces: opts.mode == ShadingMode::Flat && opts.depth_cue.is_none(),
         }
     }
 
@@ -394,9 +398,10 @@ impl<'a> ShadeFrame<'a> {
         self.row_runs(st, &ids[n..], n, y, &mut out[n..]);
     }
 
-    /// Asks for what preparing the row's uncached triangles will read: their vertex indices,
-    /// then their corners. Each preparation would otherwise wait on two dependent cache
-    /// misses in a big scene (a street frame of the 10^9-triangle city prepares about
+    /// Asks for what preparing the row's uncached triangles will read: their face records
+    /// when shading is flat ([`Mesh::faces`]), else their vertex indices, then their corners.
+    /// Each preparation would otherwise wait on a cache miss (two dependent ones without
+    /// face records) in a big scene (a street frame of the 10^9-triangle city prepares about
     /// 59,000 triangles over 120 MB of meshes); asked for a row at a time, they overlap.
     /// The scan goes run by run, a mispredicted branch per run: worth it only on rows that
     /// prepare many triangles ([`PREFETCH_ROW`]). Returns the triangles asked for.
@@ -411,7 +416,11 @@ impl<'a> ShadeFrame<'a> {
             }
             let Some((inst, _, t)) = self.locate(id, &mut st.hint) else { continue };
             let Some(mesh) = self.scene.mesh(inst.mesh) else { continue };
-            if let Some(i) = mesh.indices().get(3 * t) {
+            if self.flat_faces {
+                if let Some(f) = mesh.faces().get(t) {
+                    prefetch(f);
+                }
+            } else if let Some(i) = mesh.indices().get(3 * t) {
                 prefetch(i);
                 st.soon.push((mesh, t));
             }
