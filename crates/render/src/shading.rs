@@ -207,14 +207,20 @@ impl<'a> InstanceShading<'a> {
     }
 }
 
+/// Whether every triangle of `mesh` drawn with `material` has one color at every point:
+/// flat shading, no texture, no depth cueing. [`flat_color`] gives that color.
+pub fn is_constant(material: &Material, mesh: &Mesh, opts: &ShadeOptions) -> bool {
+    let textured = mesh.uvs().is_some() && material.base_color_texture.is_some();
+    opts.mode == ShadingMode::Flat && !textured && opts.depth_cue.is_none()
+}
+
 /// The color of triangle `tri` when it is the same at every point (flat shading without
 /// texture or depth cueing), else `None`. Cheaper than a [`TriangleShader`]: the face
 /// normal is taken in local space and carried to world space by the normal matrix, and it
 /// comes with the first corner from the mesh's face record ([`Mesh::faces`]), one load
 /// instead of the indices and then the corners (two dependent cache misses in a big scene).
 pub fn flat_color(inst: &InstanceShading, mesh: &Mesh, tri: usize, eye: Vec3, opts: &ShadeOptions) -> Option<[u8; 4]> {
-    let textured = mesh.uvs().is_some() && inst.material.base_color_texture.is_some();
-    if opts.mode != ShadingMode::Flat || textured || opts.depth_cue.is_some() || tri >= mesh.triangle_count() {
+    if !is_constant(inst.material, mesh, opts) || tri >= mesh.triangle_count() {
         return None;
     }
     let face = &mesh.faces()[tri];

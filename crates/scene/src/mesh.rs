@@ -131,7 +131,8 @@ impl Mesh {
     /// normal and 12 of corner a triangle). A renderer shading whole triangles reads one
     /// record here instead of three indices and then three corners, two dependent loads
     /// that miss the caches in big scenes. Making them takes one pass over the triangles
-    /// (about 15 ms for a 10^6-triangle mesh).
+    /// (about 15 ms for a 10^6-triangle mesh); the records are kept with the mesh and are
+    /// not counted in [`Mesh::vertex_bytes`].
     pub fn faces(&self) -> &[Face] {
         self.faces.get_or_init(|| {
             self.indices

@@ -12,8 +12,9 @@
 //!
 //! Triangles and instances are prepared once and cached per worker (direct-mapped caches,
 //! see [`Shader`]), so a triangle covering many pixels costs one setup; in a big scene the
-//! setup waits on memory (the triangle's indices, then its corners), so rows that prepare
-//! many triangles ask for all of theirs first and the waits overlap. Bands of rows are
+//! setup waits on memory (a flat triangle's face record, else its indices and then its
+//! corners), so when the meshes outgrow the caches, rows that prepare many triangles ask
+//! for all of theirs first and the waits overlap. Bands of rows are
 //! claimed one at a time ([`crate::claim`]). With AVX2 eight pixels find their cached
 //! colors at once, by two gathers (sixteen with AVX-512: the oracle frame of the street
 //! path, shading on one thread 0.98 → 0.87–0.96 ms), so the common case (flat shading) has
@@ -24,7 +25,7 @@ use sightline_scene::{Camera, Instance, Material, Mesh, Scene};
 use sightline_spatial::{prefetch, SimdLevel};
 
 use crate::claim::for_each_claimed;
-use crate::shading::{InstanceShading, ShadeOptions, ShadingMode, TriangleShader};
+use crate::shading::{is_constant, InstanceShading, ShadeOptions, ShadingMode, TriangleShader};
 use crate::Framebuffer;
 
 mod lookup;
@@ -144,12 +145,9 @@ struct ShadeFrame<'a> {
     /// The instruction set of the cache lookups: gathers of eight pixels with AVX2, of
     /// sixteen with AVX-512, none below.
     simd: SimdLevel,
-    /// Whether rows are asked for ahead ([`ShadeFrame::start_loads`]): only when the meshes
-    /// are bigger than [`PREFETCH_BYTES`].
+    /// Whether rows are asked for ahead ([`ShadeFrame::start_loads`]): only when the meshes'
+    /// indices and positions take more than [`PREFETCH_BYTES`].
     prefetch: bool,
-    /// Whether preparations read face records ([`Mesh::faces`]: flat shading without depth
-    /// cueing) rather than indices and corners.
-    flat_faces: bool,
 }
 
 /// One worker's caches of prepared instances and triangles (see [`ShadeFrame::row`]);
@@ -182,10 +180,11 @@ struct Shader<'a> {
 /// half do.
 const PREFETCH_ROW: u32 = 64;
 
-/// The size of the meshes' indices and positions above which rows are asked for ahead
-/// (measured before flat shading read face records, which take 24 bytes a triangle). Below it they stay in the cores' caches and the scan is pure
-/// cost: hzb aerial walks of the default city (2.0 MB) shaded in 9.7-9.9 ms without it
-/// against 10.4-13.0 ms with it, while the 10^8-triangle city's (19 MB) took 30.5-31.9 ms
+/// The size of the meshes' indices and positions above which rows are asked for ahead.
+/// Below it they stay in the cores' caches and the scan is pure cost. Measured in one
+/// binary with and without the scan, before flat shading read face records (24 bytes a
+/// triangle): hzb aerial walks of the default city (2.0 MB) shaded in 9.7-9.9 ms without
+/// it against 10.4-13.0 ms with it, while the 10^8-triangle city's (19 MB) took 30.5-31.9 ms
 /// with it against 35.7-39.6 ms without, the 10^9's (68 MB) 41-45 against 61-65 ms; the
 /// 10^7 (6.3 MB), 3 x 10^7 (10.6 MB) and the one-mesh OBJ city (23 MB) were even.
 const PREFETCH_BYTES: usize = 8 << 20;
@@ -228,7 +227,6 @@ impl<'a> ShadeFrame<'a> {
             sy: 2.0 / height.max(1) as f32,
             simd: SimdLevel::Auto.resolve(),
             prefetch: mesh_bytes(scene) > PREFETCH_BYTES,
-            flat_faces: opts.mode == ShadingMode::Flat && opts.depth_cue.is_none(),
         }
     }
 
@@ -406,6 +404,7 @@ impl<'a> ShadeFrame<'a> {
     /// The scan goes run by run, a mispredicted branch per run: worth it only on rows that
     /// prepare many triangles ([`PREFETCH_ROW`]). Returns the triangles asked for.
     fn start_loads(&'a self, st: &mut Shader<'a>, ids: &[u32]) -> usize {
+        let mut faces = 0;
         let mut x = 0;
         while x < ids.len() {
             let id = ids[x];
@@ -416,16 +415,19 @@ impl<'a> ShadeFrame<'a> {
             }
             let Some((inst, _, t)) = self.locate(id, &mut st.hint) else { continue };
             let Some(mesh) = self.scene.mesh(inst.mesh) else { continue };
-            if self.flat_faces {
+            let material = inst.material.and_then(|m| self.scene.material(m)).unwrap_or(&self.default);
+            if is_constant(material, mesh, self.opts) {
+                // What `flat_color` reads.
                 if let Some(f) = mesh.faces().get(t) {
                     prefetch(f);
+                    faces += 1;
                 }
             } else if let Some(i) = mesh.indices().get(3 * t) {
                 prefetch(i);
                 st.soon.push((mesh, t));
             }
         }
-        let asked = st.soon.len();
+        let asked = faces + st.soon.len();
         // The indices asked for first have arrived by now, or soon will.
         for (mesh, t) in st.soon.drain(..) {
             if let Some(ix) = mesh.indices().get(3 * t..3 * t + 3) {

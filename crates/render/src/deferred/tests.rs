@@ -10,7 +10,7 @@ use sightline_scene::builders::{city, CityParams};
 /// flat triangles (the gathers' fast path), interpolated ones (entries the gathers
 /// miss), the sky, and a cache with many triangles sharing slots (a small city seen
 /// along a street, at two sizes so rows end mid-group); the gathered rows' uncached
-/// triangles are asked for ahead on every row, and some are.
+/// triangles are asked for ahead on every row, and some are, flat and interpolated.
 #[test]
 fn gathered_rows_equal_run_by_run_rows() {
     if SimdLevel::Auto.resolve() < SimdLevel::Avx2 {
@@ -23,7 +23,8 @@ fn gathered_rows_equal_run_by_run_rows() {
     let instances = c.scene.instances();
     let items = crate::draw_all(&instances);
     let mut renderer = Renderer::new();
-    let mut asked = 0;
+    // Triangles asked for ahead, flat (face records) and interpolated (indices, corners).
+    let mut asked = [0; 2];
     for (w, h) in [(320, 180), (203, 97)] {
         let mut fb = Framebuffer::new(w, h).unwrap();
         for key in c.layout.street_path(3, 5) {
@@ -45,7 +46,8 @@ fn gathered_rows_equal_run_by_run_rows() {
                         for (k, frame) in frames.iter().enumerate() {
                             // Asking for the row's triangles ahead changes no color.
                             if k > 0 {
-                                asked += frame.start_loads(&mut shaders[k], ids);
+                                asked[usize::from(mode != ShadingMode::Flat)] +=
+                                    frame.start_loads(&mut shaders[k], ids);
                             }
                             frame.row(&mut shaders[k], ids, y, &mut colors[k]);
                         }
@@ -58,7 +60,7 @@ fn gathered_rows_equal_run_by_run_rows() {
             }
         }
     }
-    assert!(asked > 0, "no row had an uncached triangle to ask for");
+    assert!(asked.iter().all(|&a| a > 0), "no row had an uncached triangle to ask for: {asked:?}");
 }
 
 /// The lookup finds every triangle's instance, and none for IDs no instance holds,

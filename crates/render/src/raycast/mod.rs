@@ -394,6 +394,10 @@ impl RayCaster {
 
     /// Clears `fb` and ray casts the frame of `scene` seen by `camera` into it. `scene`
     /// must be the one the caster was built for, as of its last [`RayCaster::sync`].
+    ///
+    /// # Panics
+    /// If one of `fb`'s planes (public fields) was replaced by one that does not hold
+    /// width × height values.
     pub fn render(
         &self,
         scene: &Scene,
