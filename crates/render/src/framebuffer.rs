@@ -68,6 +68,20 @@ impl Framebuffer {
     pub fn index(&self, x: u32, y: u32) -> usize {
         y as usize * self.width as usize + x as usize
     }
+    /// Panics, naming the size, unless every plane holds width × height values. The planes
+    /// are public fields, so a caller could have replaced one; the drawing and shading loops
+    /// walk them in bands of rows and would otherwise stop short or reach past one's end.
+    pub(crate) fn assert_planes(&self) {
+        let (w, h) = (self.width, self.height);
+        let n = self.len();
+        assert!(
+            self.color.len() == n
+                && self.depth.len() == n
+                && self.ids.len() == n
+                && self.depth_tests.as_ref().is_none_or(|c| c.len() == n),
+            "a framebuffer plane does not hold {w} × {h} values"
+        );
+    }
     /// Turns per-pixel depth-test counting on or off (off by default: it costs a write per test).
     pub fn count_depth_tests(&mut self, on: bool) {
         self.depth_tests = on.then(|| Plane::filled(self.len(), 0));

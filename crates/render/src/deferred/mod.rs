@@ -112,9 +112,9 @@ pub fn shade_pass(
     background: [u8; 4],
 ) {
     let (w, h) = (fb.width() as usize, fb.height() as usize);
-    // The planes are public fields: a replaced color plane of another length would be left
-    // partly unshaded without a word (the bands below stop where it ends).
-    assert!(fb.color.len() == w * h && fb.ids.len() == w * h, "a framebuffer plane does not hold {w} × {h} values");
+    // A replaced color plane of another length would be left partly unshaded without a word
+    // (the bands below stop where it ends).
+    fb.assert_planes();
     let frame = ShadeFrame::new(scene, instances, camera, (w, h), opts, background);
     let ids = &fb.ids;
     // Bands of rows claimed one at a time (see [`crate::claim`]: the sky's rows cost next

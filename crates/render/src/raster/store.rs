@@ -72,14 +72,8 @@ impl<'a> Planes<'a> {
     /// The planes of `fb`, for the length of its borrow.
     pub(crate) fn new(fb: &'a mut Framebuffer) -> Self {
         let (width, height) = (fb.width() as usize, fb.height() as usize);
-        // The raw row accesses rely on every plane holding width × height values; the planes
-        // are public fields, so a caller could have replaced one.
-        let n = width * height;
-        // (Color is the shading pass's to check: `deferred::shade_pass`.)
-        assert!(
-            fb.depth.len() == n && fb.ids.len() == n && fb.depth_tests.as_ref().is_none_or(|c| c.len() == n),
-            "a framebuffer plane does not hold {width} × {height} values"
-        );
+        // The raw row accesses rely on every plane holding width × height values.
+        fb.assert_planes();
         let counts = fb.depth_tests.as_mut().map_or(std::ptr::null_mut(), |c| c.as_mut_ptr());
         Self { depth: fb.depth.as_mut_ptr(), ids: fb.ids.as_mut_ptr(), counts, width, height, _fb: PhantomData }
     }

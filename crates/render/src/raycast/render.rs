@@ -130,13 +130,8 @@ pub(crate) fn render(
     let t0 = Instant::now();
     camera.projection.validate()?;
     let (width, height) = (fb.width(), fb.height());
-    // The planes are public fields: one replaced by a plane of another length would cut the
-    // bands short and leave stale pixels (see `Framebuffer`).
-    let n = width as usize * height as usize;
-    assert!(
-        fb.color.len() == n && fb.depth.len() == n && fb.ids.len() == n,
-        "a framebuffer plane does not hold {width} × {height} values"
-    );
+    // A replaced plane of another length would cut the bands short and leave stale pixels.
+    fb.assert_planes();
     // Each band paints its own rows' background below (unless the deferred pass shades the
     // frame), while they are in cache (each packet writes its depth and IDs whole); only the
     // raster's depth-test counters are cleared here.
@@ -157,10 +152,8 @@ pub(crate) fn render(
     let default = Material::default();
     let clip: DMat4 = camera.clip_from_world_f64();
     // What shading per hit reads (instances' shading, f64 transforms), made only for it.
-    let world_f64: Vec<DAffine3> = match per_hit {
-        true => caster.tlas.instances().iter().map(|r| to_f64(&r.world_from_blas)).collect(),
-        false => Vec::new(),
-    };
+    let world_f64: Vec<DAffine3> =
+        if per_hit { caster.tlas.instances().iter().map(|r| to_f64(&r.world_from_blas)).collect() } else { Vec::new() };
     let frame = CastFrame {
         caster,
         scene,
@@ -168,16 +161,17 @@ pub(crate) fn render(
         gen: CameraRays::new(camera, width, height),
         opts: cast_opts,
         dark: ShadeOptions { diffuse: 0.0, ..opts.shading },
-        shading: match per_hit {
-            true => caster
+        shading: if per_hit {
+            caster
                 .instances
                 .iter()
                 .map(|i| {
                     let m = i.material.and_then(|m| scene.material(m)).unwrap_or(&default);
                     InstanceShading::new(i.world_from_local, m)
                 })
-                .collect(),
-            false => Vec::new(),
+                .collect()
+        } else {
+            Vec::new()
         },
         csg_materials: caster
             .csg
