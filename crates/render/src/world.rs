@@ -30,6 +30,7 @@
 
 use std::path::Path;
 
+use rayon::prelude::*;
 use serde::Serialize;
 use sightline_scene::{Camera, Scene};
 
@@ -138,8 +139,9 @@ impl World {
     }
 
     /// Builds what `method` draws with, if not built yet, for the scene as it is now (the
-    /// culler for a culling method, the ray caster's BVHs for ray casting), so that the
-    /// build is not paid by the first frame.
+    /// culler for a culling method, the ray caster's BVHs for ray casting) and the meshes'
+    /// face records that flat shading reads ([`Mesh::faces`](sightline_scene::Mesh::faces),
+    /// 24 bytes a triangle), so that the builds are not paid by the first frame.
     pub fn prepare(&mut self, method: impl Into<Visibility>) -> Result<()> {
         match method.into() {
             Visibility::Cull(m) => self.culler()?.prepare(m),
@@ -147,6 +149,10 @@ impl World {
                 self.caster()?;
             }
         }
+        let meshes: Vec<_> = self.scene.meshes().map(|(_, m)| m).collect();
+        meshes.par_iter().for_each(|m| {
+            m.faces();
+        });
         Ok(())
     }
 
@@ -254,7 +260,9 @@ mod tests {
         let (mut world, node) = one_cube();
         world.update().unwrap();
         assert!(world.culler.is_none() && world.caster.is_none(), "update builds nothing");
+        assert!(!world.scene().meshes().any(|(_, m)| m.has_faces()));
         world.prepare(Method::Hzb).unwrap();
+        assert!(world.scene().meshes().all(|(_, m)| m.has_faces()), "prepare makes the face records");
         world.prepare(Visibility::RayCast).unwrap();
         let moved = Transform::from_translation(Vec3::new(3.0, 0.0, 0.0));
         world.scene_mut().set_local_transform(node, moved).unwrap();

@@ -11,7 +11,7 @@
 //! own; [`Scene::instances`](crate::Scene::instances) resolves the inherited material of every
 //! drawn node.
 
-use std::sync::Arc;
+use std::sync::{Arc, LazyLock};
 
 /// A decoded RGBA8 texture, rows from the top.
 #[derive(Debug, Clone, PartialEq)]
@@ -123,7 +123,16 @@ impl Default for Material {
     }
 }
 
+/// The one [`Material::default`] that [`Material::fallback`] lends.
+static FALLBACK: LazyLock<Material> = LazyLock::new(Material::default);
+
 impl Material {
+    /// The material of surfaces that have none (no own or inherited material, or a stale
+    /// handle): [`Material::default`], made once and shared.
+    pub fn fallback() -> &'static Material {
+        &FALLBACK
+    }
+
     /// A plain colored material.
     pub fn color(name: impl Into<String>, rgb: [f32; 3]) -> Self {
         Self { name: name.into(), base_color: [rgb[0], rgb[1], rgb[2], 1.0], ..Self::default() }

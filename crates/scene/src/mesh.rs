@@ -86,7 +86,7 @@ impl Mesh {
             aabb.grow(a);
             aabb.grow(b);
             aabb.grow(c);
-            if (b - a).cross(c - a).length_squared() == 0.0 {
+            if face_normal([a, b, c].map(Vec3A::from)) == Vec3A::ZERO {
                 degenerate += 1;
             }
         }
@@ -138,11 +138,16 @@ impl Mesh {
             self.indices
                 .chunks_exact(3)
                 .map(|t| {
-                    let [a, b, c] = [0, 1, 2].map(|k| Vec3A::from(self.positions[t[k] as usize]));
-                    Face { normal: (b - a).cross(c - a).into(), corner: a.into() }
+                    let corners = [0, 1, 2].map(|k| Vec3A::from(self.positions[t[k] as usize]));
+                    Face { normal: face_normal(corners).into(), corner: corners[0].into() }
                 })
                 .collect()
         })
+    }
+    /// Whether [`Mesh::faces`] has made the face records yet (they take 24 bytes a
+    /// triangle once made).
+    pub fn has_faces(&self) -> bool {
+        self.faces.get().is_some()
     }
     /// Local-space bounds of the referenced vertices.
     pub fn aabb(&self) -> Aabb {
@@ -157,6 +162,14 @@ impl Mesh {
         let n = self.positions.len();
         n * 12 + self.normals.as_ref().map_or(0, |_| n * 12) + self.uvs.as_ref().map_or(0, |_| n * 8)
     }
+}
+
+/// The unnormalized normal (b − a) × (c − a) of the triangle with corners `[a, b, c]`: zero
+/// when the triangle has no area (or is so small that the products underflow). Flat shading
+/// reads it from [`Mesh::faces`]; the degenerate count uses the same test.
+#[inline]
+fn face_normal([a, b, c]: [Vec3A; 3]) -> Vec3A {
+    (b - a).cross(c - a)
 }
 
 #[cfg(test)]
@@ -194,6 +207,7 @@ mod tests {
     fn faces_hold_each_triangles_normal_and_first_corner_in_triangle_order() {
         let p = vec![Vec3::new(0.1, 0.2, 0.3), Vec3::new(2.5, -1.0, 0.7), Vec3::new(-0.3, 4.0, 1.9), Vec3::ZERO];
         let m = Mesh::new("m", p.clone(), None, None, vec![0, 1, 2, 2, 1, 3, 3, 3, 0]).unwrap();
+        assert!(!m.has_faces(), "made on first use only");
         let faces = m.faces();
         assert_eq!(faces.len(), 3);
         for (t, f) in faces.iter().enumerate() {

@@ -21,7 +21,7 @@
 //! no branch that depends on where a triangle's run of pixels ends.
 
 use glam::{Mat4, Vec3, Vec3A};
-use sightline_scene::{Camera, Instance, Material, Mesh, Scene};
+use sightline_scene::{Camera, Instance, Mesh, Scene};
 use sightline_spatial::{prefetch, SimdLevel};
 
 use crate::claim::for_each_claimed;
@@ -138,7 +138,6 @@ struct ShadeFrame<'a> {
     background: [u8; 4],
     /// The sky's color of each row, when there is a sky.
     sky: Option<Vec<[u8; 4]>>,
-    default: Material,
     /// 2 / width and 2 / height: NDC per pixel.
     sx: f32,
     sy: f32,
@@ -222,7 +221,6 @@ impl<'a> ShadeFrame<'a> {
             opts,
             background,
             sky,
-            default: Material::default(),
             sx: 2.0 / width.max(1) as f32,
             sy: 2.0 / height.max(1) as f32,
             simd: SimdLevel::Auto.resolve(),
@@ -415,7 +413,7 @@ impl<'a> ShadeFrame<'a> {
             }
             let Some((inst, _, t)) = self.locate(id, &mut st.hint) else { continue };
             let Some(mesh) = self.scene.mesh(inst.mesh) else { continue };
-            let material = inst.material.and_then(|m| self.scene.material(m)).unwrap_or(&self.default);
+            let material = self.scene.instance_material(inst);
             if is_constant(material, mesh, self.opts) {
                 // What `flat_color` reads.
                 if let Some(f) = mesh.faces().get(t) {
@@ -510,7 +508,7 @@ impl<'a> ShadeFrame<'a> {
         let slot = index as usize & (INST_CACHE - 1);
         if !matches!(&insts[slot], Some(e) if e.index == index) {
             let mesh = scene.mesh(inst.mesh)?;
-            let material = inst.material.and_then(|m| scene.material(m)).unwrap_or(&self.default);
+            let material = scene.instance_material(inst);
             insts[slot] = Some(InstEntry {
                 index,
                 clip: self.camera.clip_from_local(&inst.world_from_local),

@@ -149,7 +149,6 @@ pub(crate) fn render(
         (Some(s), m) if m != ShadingMode::None => Some(s.rows(camera, height as usize)),
         _ => None,
     };
-    let default = Material::default();
     let clip: DMat4 = camera.clip_from_world_f64();
     // What shading per hit reads (instances' shading, f64 transforms), made only for it.
     let world_f64: Vec<DAffine3> =
@@ -165,10 +164,7 @@ pub(crate) fn render(
             caster
                 .instances
                 .iter()
-                .map(|i| {
-                    let m = i.material.and_then(|m| scene.material(m)).unwrap_or(&default);
-                    InstanceShading::new(i.world_from_local, m)
-                })
+                .map(|i| InstanceShading::new(i.world_from_local, scene.instance_material(i)))
                 .collect()
         } else {
             Vec::new()

@@ -7,7 +7,7 @@ use std::sync::atomic::AtomicU64;
 use std::time::Instant;
 
 use rayon::prelude::*;
-use sightline_scene::{AlphaMode, Camera, Instance, Material, Scene};
+use sightline_scene::{AlphaMode, Camera, Instance, Scene};
 
 use super::abuffer::{self, MAX_ABUFFER_FRAGMENTS};
 use super::stats::{LayerCounts, Transparency, TransparencyStats};
@@ -41,7 +41,7 @@ impl Renderer {
 }
 
 pub(super) fn mode_of(scene: &Scene, inst: &Instance) -> AlphaMode {
-    inst.material.and_then(|m| scene.material(m)).map_or(AlphaMode::Opaque, |m| m.alpha_mode)
+    scene.instance_material(inst).alpha_mode
 }
 
 /// A draw list split by alpha mode.
@@ -122,8 +122,7 @@ pub(crate) fn draw_frame(
     };
     let fresh = Target::Frame { fb: &mut *fb, fresh: true };
     let mut st = renderer.draw_items(scene, instances, &routes.opaque, camera, fresh, opts)?;
-    let default = Material::default();
-    let surfaces = Surfaces::new(scene, instances, camera, &default, &opts.shading, size);
+    let surfaces = Surfaces::new(scene, instances, camera, &opts.shading, size);
 
     if !routes.masked.is_empty() {
         let t = Instant::now();

@@ -7,7 +7,7 @@
 //! the z-buffer path would give it.
 
 use glam::{Vec3, Vec3A};
-use sightline_scene::{AlphaMode, Camera, Instance, Material, Scene};
+use sightline_scene::{AlphaMode, Camera, Instance, Scene};
 
 use crate::deferred::{ndc_x, ndc_y, Lookup, TriEntry};
 use crate::shading::{InstanceShading, ShadeOptions, TriangleShader};
@@ -17,7 +17,6 @@ pub(crate) struct Surfaces<'a> {
     lookup: Lookup<'a>,
     scene: &'a Scene,
     camera: &'a Camera,
-    default: &'a Material,
     /// Shading options.
     pub opts: &'a ShadeOptions,
     sx: f32,
@@ -33,17 +32,16 @@ pub(crate) struct Surface<'a> {
 
 impl<'a> Surfaces<'a> {
     /// Surfaces of the triangles of `instances` seen by `camera` on a `width × height`
-    /// target; instances without a material use `default`.
+    /// target.
     pub fn new(
         scene: &'a Scene,
         instances: &'a [Instance],
         camera: &'a Camera,
-        default: &'a Material,
         opts: &'a ShadeOptions,
         (width, height): (u32, u32),
     ) -> Self {
         let (sx, sy) = (2.0 / width as f32, 2.0 / height as f32);
-        Self { lookup: Lookup::new(instances), scene, camera, default, opts, sx, sy }
+        Self { lookup: Lookup::new(instances), scene, camera, opts, sx, sy }
     }
 
     /// The surface of triangle ID `id` (`None` when no instance draws it); `hint` is the
@@ -57,7 +55,7 @@ impl<'a> Surfaces<'a> {
         if t >= mesh.triangle_count() {
             return None;
         }
-        let material = inst.material.and_then(|m| self.scene.material(m)).unwrap_or(self.default);
+        let material = self.scene.instance_material(inst);
         let shading = InstanceShading::new(inst.world_from_local, material);
         let shader = TriangleShader::new(&shading, mesh, t, self.camera.view.eye, self.opts);
         let clip = self.camera.clip_from_local(&inst.world_from_local);

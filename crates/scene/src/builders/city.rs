@@ -293,7 +293,7 @@ mod tests {
         let s = &c.scene;
         let mut tris = std::collections::HashMap::<String, u64>::new();
         for inst in s.instances() {
-            let name = inst.material.and_then(|m| s.material(m)).map_or("default".into(), |m| m.name.clone());
+            let name = s.instance_material(&inst).name.clone();
             *tris.entry(name).or_default() += u64::from(inst.triangle_count);
         }
         let (dark, lit) = (tris["window"], tris["lit window"]);

@@ -344,6 +344,11 @@ impl Scene {
     pub fn material(&self, id: MaterialId) -> Option<&Material> {
         self.materials.get(id)
     }
+    /// The material `inst` is drawn with: its own or inherited one, or
+    /// [`Material::fallback`] when it has none or its handle no longer names a material.
+    pub fn instance_material(&self, inst: &Instance) -> &Material {
+        inst.material.and_then(|m| self.material(m)).unwrap_or(Material::fallback())
+    }
     /// All materials in the store.
     pub fn materials(&self) -> impl Iterator<Item = (MaterialId, &Material)> {
         self.materials.iter()

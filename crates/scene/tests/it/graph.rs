@@ -182,6 +182,16 @@ fn materials_are_inherited_unless_overridden() {
     assert_eq!(inst[1].node, b);
     // Instancing: one mesh, three draws.
     assert!(inst.iter().all(|i| i.mesh == m));
+    // What each is drawn with: its own or inherited material, else the shared fallback.
+    let names: Vec<&str> = inst.iter().map(|i| s.instance_material(i).name.as_str()).collect();
+    assert_eq!(names, ["red", "blue", "default"]);
+    assert!(std::ptr::eq(s.instance_material(&inst[2]), Material::fallback()));
+    assert_eq!(*Material::fallback(), Material::default());
+    // A handle this scene never gave (another scene's third material) falls back too.
+    let mut other = Scene::new();
+    let foreign = (0..3).map(|k| other.add_material(Material::color(format!("o{k}"), [0.5; 3]))).last();
+    let stray = sightline_scene::Instance { material: foreign, ..inst[0] };
+    assert!(std::ptr::eq(s.instance_material(&stray), Material::fallback()));
 }
 
 #[test]
