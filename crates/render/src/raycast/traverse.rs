@@ -6,8 +6,12 @@
 //! Tracing"), on a 4-wide tree. A node is entered with the mask of lanes that may hit it;
 //! for its children:
 //!
-//! 1. *early hit*: the first active lane is tested against all four boxes at once; an inner
-//!    child it hits is entered with the whole mask (the common case for coherent rays);
+//! 1. *early hit*: one lead lane is tested against all four boxes at once; an inner child it
+//!    hits is entered with the whole mask (the common case for coherent rays). The lead is
+//!    a lane at the packet's center when one is active, else the first active lane: the
+//!    central ray stands for the packet better than a corner's (aerial path of the exported
+//!    city, 120 frames alternated in one process: 23.83 and 23.95 ms against 24.28 and 24.07
+//!    ms with the first active lane; the street path as fast);
 //! 2. *frustum cull*: the other children are tested against the packet's four beam planes,
 //!    all sixteen plane–box pairs at once (`Isa::culls4`); a box outside one plane is hit
 //!    by no lane;
@@ -19,7 +23,7 @@
 //!
 //! Lane tests clip against each lane's current closest hit, so subtrees behind what the
 //! packet already sees drop out (occlusion). Children are visited near to far along the
-//! first active lane. Box tests use the robust slab test of Ize 2013 ("Robust BVH Ray
+//! lead lane. Box tests use the robust slab test of Ize 2013 ("Robust BVH Ray
 //! Traversal"): the exit distance is scaled up by 1 + 2⁻²⁰ (more than Ize's 1 + 2γ₃ and than
 //! the triangle tie window), so rounding never loses a hit.
 
@@ -28,7 +32,7 @@ use sightline_spatial::bvh::wide::{WideBvh, WideNode, EMPTY_LINK, WIDTH};
 use sightline_spatial::prefetch;
 
 use super::isa::{Isa, Slab, ROBUST};
-use super::packet::{chunk_bits, BeamPlanes, Hits, Rays, CHUNK, CHUNKS};
+use super::packet::{chunk_bits, BeamPlanes, Hits, Rays, CHUNK, CHUNKS, TILE};
 
 /// A pending subtree: (link, primitive count, lane mask).
 pub(crate) type Entry = (u32, u32, u64);
@@ -54,6 +58,21 @@ pub(crate) fn box_mask<I: Isa>(rays: &Rays, hits: &Hits, lo: &[f32; 3], hi: &[f3
         out |= (m & bits) << (c * CHUNK);
     }
     out
+}
+
+/// The four lanes at the center of a packet's [`TILE`] × [`TILE`] pixels (lane = row ·
+/// TILE + column).
+const CENTER: u64 = {
+    let (a, b) = (TILE as u64 / 2 - 1, TILE as u64 / 2);
+    1 << (a * TILE as u64 + a) | 1 << (a * TILE as u64 + b) | 1 << (b * TILE as u64 + a) | 1 << (b * TILE as u64 + b)
+};
+
+/// The lane of `mask` that leads a node's early-hit test and orders its children: a
+/// [`CENTER`] lane when one is active, else the first active lane.
+#[inline(always)]
+fn lead_lane(mask: u64) -> usize {
+    let center = mask & CENTER;
+    (if center != 0 { center } else { mask }).trailing_zeros() as usize
 }
 
 /// Lane `i` against the four boxes of a node, four boxes per SIMD operation: the hit
@@ -133,8 +152,7 @@ where
                         }
                     }
                 }
-                let first = m.trailing_zeros() as usize;
-                let (early, key) = lane_vs_node(rays, hits, first, node);
+                let (early, key) = lane_vs_node(rays, hits, lead_lane(m), node);
                 let mut valid = 0u32;
                 for k in 0..WIDTH {
                     valid |= ((node.link[k] != EMPTY_LINK) as u32) << k;
@@ -189,4 +207,22 @@ where
     }
     stack.truncate(base);
     done
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_lead_lane_is_a_central_one_when_active_else_the_first() {
+        // Lanes 27, 28, 35, 36: rows 3 and 4, columns 3 and 4 of the 8 × 8 packet.
+        assert_eq!(CENTER.count_ones(), 4);
+        for lane in [27u32, 28, 35, 36] {
+            assert!(CENTER >> lane & 1 == 1, "lane {lane}");
+        }
+        assert_eq!(lead_lane(u64::MAX), 27);
+        assert_eq!(lead_lane(1 << 5 | 1 << 36), 36);
+        assert_eq!(lead_lane(1 << 5 | 1 << 40), 5);
+        assert_eq!(lead_lane(1 << 63), 63);
+    }
 }
