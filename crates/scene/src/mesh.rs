@@ -231,7 +231,7 @@ mod tests {
     }
 
     #[test]
-    fn a_big_mesh_makes_its_faces_in_parallel_in_triangle_order() {
+    fn a_big_mesh_made_in_parallel_has_its_faces_in_triangle_order() {
         // A fan of 2·PARALLEL_FACES triangles over points of a helix, each its own shape.
         let n = 2 * PARALLEL_FACES;
         let p: Vec<Vec3> =
