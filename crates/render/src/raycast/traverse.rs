@@ -10,8 +10,9 @@
 //!    hits is entered with the whole mask (the common case for coherent rays). The lead is
 //!    a lane at the packet's center when one is active, else the first active lane: the
 //!    central ray stands for the packet better than a corner's (aerial path of the exported
-//!    city, 120 frames alternated in one process: 23.83 and 23.95 ms against 24.28 and 24.07
-//!    ms with the first active lane; the street path as fast);
+//!    city, one caster casting each camera twice, the two leads taking turns going first:
+//!    24.37 and 26.00 ms against 24.44 and 26.34 ms with the first active lane, within
+//!    noise but ahead; the street path as fast);
 //! 2. *frustum cull*: the other children are tested against the packet's four beam planes,
 //!    all sixteen plane–box pairs at once (`Isa::culls4`); a box outside one plane is hit
 //!    by no lane;
