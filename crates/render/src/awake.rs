@@ -16,6 +16,13 @@
 //! The occluder pass draws every cluster, so its walk does not wait for the pyramid: one
 //! worker finds the next batch while the others draw the current one, and the finder, once
 //! done, helps draw the same way.
+//!
+//! A world's update before a frame (propagating the edits, the culler's sync: moving its
+//! clusters, refitting its BVH) is a run of short parallel steps between serial ones too,
+//! and runs the same way ([`with_helper_awake`]). On the traffic city with every vehicle
+//! moving (`examples/moving_cost`), moving frames took 1.36–1.41× as long as parked ones
+//! against 1.39–1.45× before, in each of four alternated runs. Posing the animations, kept
+//! awake the same way, measured no gain, and is not.
 
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::{Duration, Instant};
@@ -53,6 +60,12 @@ pub(crate) fn join_helping<RA: Send, RB: Send>(
             r
         },
     )
+}
+
+/// Runs `f`, a run of serial steps and short parallel ones, with the pool's other worker
+/// kept awake meanwhile ([`join_helping`] with no side work).
+pub(crate) fn with_helper_awake<R: Send>(f: impl FnOnce() -> R + Send) -> R {
+    join_helping(f, |_| ()).0
 }
 
 /// Runs pending jobs of the current pool, or spins, until `done` is set (true) or `limit`

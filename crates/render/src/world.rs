@@ -34,6 +34,7 @@ use rayon::prelude::*;
 use serde::Serialize;
 use sightline_scene::{Camera, Scene};
 
+use crate::awake::with_helper_awake;
 use crate::{CullStats, Culler, FrameStats, Framebuffer, Method, RayCaster, RaycastOptions, RaycastStats};
 use crate::{RenderOptions, Result};
 
@@ -173,14 +174,31 @@ impl World {
     /// the next frame would do first. A frame loop that times its frames apart from the
     /// scene's changes (as `sightline walk` does) calls it before the clock starts.
     pub fn update(&mut self) -> Result<()> {
-        self.propagate();
-        if let Some(c) = &mut self.culler {
-            c.sync(&self.scene)?;
+        self.update_with(|w| {
+            if let Some(c) = &mut w.culler {
+                c.sync(&w.scene)?;
+            }
+            if let Some(c) = &mut w.caster {
+                c.sync(&w.scene)?;
+            }
+            Ok(())
+        })
+    }
+
+    /// Propagates pending edits, then runs `sync` (which brings structures up to date).
+    /// With edits pending, the pool's other worker is kept awake through it all: an update
+    /// is a run of short parallel steps between serial ones ([`with_helper_awake`]). Without,
+    /// there is little to do, and waking the worker would only cost.
+    fn update_with(&mut self, sync: impl FnOnce(&mut Self) -> Result<()> + Send) -> Result<()> {
+        if self.scene.needs_update() {
+            with_helper_awake(|| {
+                self.propagate();
+                sync(self)
+            })
+        } else {
+            self.propagate();
+            sync(self)
         }
-        if let Some(c) = &mut self.caster {
-            c.sync(&self.scene)?;
-        }
-        Ok(())
     }
 
     /// The ray caster (built on first use) beside the scene it casts, both up to date: for
@@ -212,9 +230,21 @@ impl World {
         opts: &RenderOptions,
     ) -> Result<FrameReport> {
         let t0 = std::time::Instant::now();
-        self.propagate();
+        let method = method.into();
+        self.update_with(|w| {
+            match method {
+                Visibility::Cull(_) => {
+                    let scene = &w.scene;
+                    w.culler.get_or_insert_with(|| Culler::new(scene)).sync(scene)?;
+                }
+                Visibility::RayCast => {
+                    w.caster()?;
+                }
+            }
+            Ok(())
+        })?;
         let mut report = FrameReport::default();
-        match method.into() {
+        match method {
             Visibility::Cull(m) => {
                 let scene = &self.scene;
                 let culler = self.culler.get_or_insert_with(|| Culler::new(scene));
@@ -223,8 +253,7 @@ impl World {
                 report.raster = Some(fs);
             }
             Visibility::RayCast => {
-                self.caster()?;
-                let caster = self.caster.as_ref().expect("built by caster()");
+                let caster = self.caster.as_ref().expect("built by caster() above");
                 report.rays = Some(caster.render(&self.scene, camera, fb, &RaycastOptions::from_render(opts))?);
             }
         }
