@@ -231,24 +231,16 @@ impl World {
     ) -> Result<FrameReport> {
         let t0 = std::time::Instant::now();
         let method = method.into();
-        self.update_with(|w| {
-            match method {
-                Visibility::Cull(_) => {
-                    let scene = &w.scene;
-                    w.culler.get_or_insert_with(|| Culler::new(scene)).sync(scene)?;
-                }
-                Visibility::RayCast => {
-                    w.caster()?;
-                }
-            }
-            Ok(())
+        // The structure `method` draws with, built on first use and up to date.
+        self.update_with(|w| match method {
+            Visibility::Cull(_) => w.culler().map(|_| ()),
+            Visibility::RayCast => w.caster().map(|_| ()),
         })?;
         let mut report = FrameReport::default();
         match method {
             Visibility::Cull(m) => {
-                let scene = &self.scene;
-                let culler = self.culler.get_or_insert_with(|| Culler::new(scene));
-                let (cs, fs) = culler.render(scene, camera, m, fb, opts)?;
+                let culler = self.culler.as_mut().expect("built by culler() above");
+                let (cs, fs) = culler.render(&self.scene, camera, m, fb, opts)?;
                 report.cull = Some(cs);
                 report.raster = Some(fs);
             }
