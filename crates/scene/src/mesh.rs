@@ -10,7 +10,8 @@ use rayon::prelude::*;
 
 use crate::{Aabb, Error, Result};
 
-/// Meshes of at least this many triangles make their [`Face`] records in parallel.
+/// Meshes of at least this many triangles are checked, and make their [`Face`] records, in
+/// parallel.
 const PARALLEL_FACES: usize = 1 << 14;
 
 /// An indexed triangle mesh in its own (local) coordinates.
@@ -59,18 +60,18 @@ impl Mesh {
         if !indices.len().is_multiple_of(3) {
             return Err(bad(format!("{} indices is not a multiple of 3", indices.len())));
         }
-        if let Some(i) = positions.iter().position(|p| !p.is_finite()) {
+        if let Some(i) = first_where(&positions, |p| !p.is_finite()) {
             return Err(bad(format!("position {i} is not finite: {:?}", positions[i])));
         }
         let n = positions.len();
-        if let Some(k) = indices.iter().position(|&i| i as usize >= n) {
+        if let Some(k) = first_where(&indices, |&i| i as usize >= n) {
             return Err(bad(format!("index {} at slot {k} is out of range for {n} vertices", indices[k])));
         }
         if let Some(nr) = &normals {
             if nr.len() != n {
                 return Err(bad(format!("{} normals for {n} positions", nr.len())));
             }
-            if let Some(i) = nr.iter().position(|v| !v.is_finite()) {
+            if let Some(i) = first_where(nr, |v| !v.is_finite()) {
                 return Err(bad(format!("normal {i} is not finite")));
             }
         }
@@ -78,22 +79,11 @@ impl Mesh {
             if uv.len() != n {
                 return Err(bad(format!("{} UVs for {n} positions", uv.len())));
             }
-            if let Some(i) = uv.iter().position(|v| !v.is_finite()) {
+            if let Some(i) = first_where(uv, |v| !v.is_finite()) {
                 return Err(bad(format!("UV {i} is not finite")));
             }
         }
-        // Bounds over referenced vertices only: unreferenced ones must not inflate culling boxes.
-        let mut aabb = Aabb::EMPTY;
-        let mut degenerate = 0;
-        for t in indices.chunks_exact(3) {
-            let [a, b, c] = [positions[t[0] as usize], positions[t[1] as usize], positions[t[2] as usize]];
-            aabb.grow(a);
-            aabb.grow(b);
-            aabb.grow(c);
-            if face_normal([a, b, c].map(Vec3A::from)) == Vec3A::ZERO {
-                degenerate += 1;
-            }
-        }
+        let (aabb, degenerate) = bounds_and_degenerate(&positions, &indices);
         Ok(Self { name, positions, normals, uvs, indices, aabb, degenerate, faces: OnceLock::new() })
     }
 
@@ -168,6 +158,39 @@ impl Mesh {
     pub fn vertex_bytes(&self) -> usize {
         let n = self.positions.len();
         n * 12 + self.normals.as_ref().map_or(0, |_| n * 12) + self.uvs.as_ref().map_or(0, |_| n * 8)
+    }
+}
+
+/// The index of the first element of `v` that `bad` holds for (the same answer in
+/// parallel over a big array: checking a 10^6-triangle mesh is a pass over 3·10^6 indices).
+fn first_where<T: Sync>(v: &[T], bad: impl Fn(&T) -> bool + Sync + Send) -> Option<usize> {
+    if v.len() >= 3 * PARALLEL_FACES {
+        // Whole blocks in parallel, with the serial loop inside: rayon's per-item
+        // `position_first` pays for every item's enumeration.
+        const BLOCK: usize = 1 << 14;
+        let k = v.par_chunks(BLOCK).position_first(|b| b.iter().any(&bad))?;
+        v[k * BLOCK..].iter().position(bad).map(|i| k * BLOCK + i)
+    } else {
+        v.iter().position(bad)
+    }
+}
+
+/// The bounds of the vertices `indices` reference (unreferenced ones must not inflate
+/// culling boxes) and the number of zero-area triangles, in parallel over a big mesh: a
+/// union of boxes and a count come out the same in any order.
+fn bounds_and_degenerate(positions: &[Vec3], indices: &[u32]) -> (Aabb, usize) {
+    let step = |(mut aabb, degenerate): (Aabb, usize), t: &[u32]| {
+        let [a, b, c] = [0, 1, 2].map(|k| positions[t[k] as usize]);
+        aabb.grow(a);
+        aabb.grow(b);
+        aabb.grow(c);
+        (aabb, degenerate + (face_normal([a, b, c].map(Vec3A::from)) == Vec3A::ZERO) as usize)
+    };
+    let none = (Aabb::EMPTY, 0);
+    if indices.len() >= 3 * PARALLEL_FACES {
+        indices.par_chunks_exact(3).fold(|| none, step).reduce(|| none, |(a, m), (b, n)| (a.union(&b), m + n))
+    } else {
+        indices.chunks_exact(3).fold(none, step)
     }
 }
 
@@ -249,5 +272,47 @@ mod tests {
             let [a, b, c] = m.triangle_positions(t);
             assert_eq!((f.corner, f.normal), (a, cross_of([a, b, c])), "triangle {t}");
         }
+    }
+
+    /// A mesh big enough to be checked in parallel reports the first bad entry (two are
+    /// planted, in different blocks), and its bounds and degenerate count are those of a
+    /// serial pass over its triangles.
+    #[test]
+    fn a_big_mesh_checked_in_parallel_reports_the_first_fault_and_the_serial_bounds() {
+        let n = 3 * PARALLEL_FACES;
+        let p: Vec<Vec3> =
+            (0..n + 2).map(|i| Vec3::new((i as f32 * 0.37).cos(), (i as f32 * 0.37).sin(), i as f32 * 1e-3)).collect();
+        // A fan, every 7th triangle degenerate (a repeated corner), and vertices past the
+        // last one referenced (far away: they must not reach the bounds).
+        let mut idx: Vec<u32> =
+            (0..n as u32).flat_map(|t| if t % 7 == 0 { [0, t + 1, t + 1] } else { [0, t + 1, t + 2] }).collect();
+        let mut far = p.clone();
+        far.extend([Vec3::splat(1e6); 3]);
+        let m = Mesh::new("fan", far.clone(), None, None, idx.clone()).unwrap();
+        let mut aabb = Aabb::EMPTY;
+        for &i in &idx {
+            aabb.grow(p[i as usize]);
+        }
+        assert_eq!((m.aabb(), m.degenerate_triangles()), (aabb, n.div_ceil(7)));
+
+        for (first, second) in [(70_001, 3 * n - 5), (5, 40_000)] {
+            let mut bad = idx.clone();
+            bad[first] = u32::MAX;
+            bad[second] = u32::MAX - 1;
+            let e = Mesh::new("fan", far.clone(), None, None, bad).unwrap_err().to_string();
+            assert!(e.contains(&format!("index {} at slot {first} ", u32::MAX)), "{e}");
+            let mut q = p.clone();
+            q[first / 3].z = f32::NAN;
+            q[second / 3].x = f32::INFINITY;
+            let e = Mesh::new("fan", q, None, None, idx.clone()).unwrap_err().to_string();
+            assert!(e.contains(&format!("position {} is not finite", first / 3)), "{e}");
+            let mut normals = vec![Vec3::Z; p.len()];
+            normals[first / 3] = Vec3::NAN;
+            normals[second / 3] = Vec3::NAN;
+            let e = Mesh::new("fan", p.clone(), Some(normals), None, idx.clone()).unwrap_err().to_string();
+            assert!(e.contains(&format!("normal {} is not finite", first / 3)), "{e}");
+        }
+        idx.truncate(3);
+        assert!(Mesh::new("small", p, None, None, idx).is_ok());
     }
 }
