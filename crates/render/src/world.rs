@@ -140,8 +140,8 @@ impl World {
     }
 
     /// Builds what `method` draws with, if not built yet, for the scene as it is now (the
-    /// culler for a culling method, the ray caster's BVHs for ray casting) and the meshes'
-    /// face records that flat shading reads ([`Mesh::faces`](sightline_scene::Mesh::faces),
+    /// culler for a culling method, the ray caster's BVHs for ray casting) and the drawn
+    /// meshes' face records that flat shading reads ([`Mesh::faces`](sightline_scene::Mesh::faces),
     /// 24 bytes a triangle), so that the builds are not paid by the first frame.
     pub fn prepare(&mut self, method: impl Into<Visibility>) -> Result<()> {
         match method.into() {
@@ -150,8 +150,12 @@ impl World {
                 self.caster()?;
             }
         }
-        let meshes: Vec<_> = self.scene.meshes().map(|(_, m)| m).collect();
-        meshes.par_iter().for_each(|m| {
+        // Only the drawn meshes: a mesh kept in the store and drawn by no node (a file's
+        // unused mesh, say) would hold 24 bytes a triangle for nothing.
+        let mut drawn: Vec<_> = self.scene.instances().iter().map(|i| i.mesh).collect();
+        drawn.sort_unstable();
+        drawn.dedup();
+        drawn.par_iter().filter_map(|&id| self.scene.mesh(id)).for_each(|m| {
             m.faces();
         });
         Ok(())
@@ -279,11 +283,14 @@ mod tests {
     #[test]
     fn update_brings_every_built_structure_up_to_date_and_builds_none() {
         let (mut world, node) = one_cube();
+        let unused = world.scene_mut().add_mesh(shapes::cube("unused").unwrap());
         world.update().unwrap();
         assert!(world.culler.is_none() && world.caster.is_none(), "update builds nothing");
         assert!(!world.scene().meshes().any(|(_, m)| m.has_faces()));
         world.prepare(Method::Hzb).unwrap();
-        assert!(world.scene().meshes().all(|(_, m)| m.has_faces()), "prepare makes the face records");
+        for (id, m) in world.scene().meshes() {
+            assert_eq!(m.has_faces(), id != unused, "prepare makes the face records of the drawn meshes only");
+        }
         world.prepare(Visibility::RayCast).unwrap();
         let moved = Transform::from_translation(Vec3::new(3.0, 0.0, 0.0));
         world.scene_mut().set_local_transform(node, moved).unwrap();
