@@ -9,7 +9,8 @@
 //! longest axis of its triangles' box centers, at an empty stretch that no triangle box
 //! crosses when one leaves a quarter to three quarters of them on each side, else at the
 //! median. So clusters hold at most 128 triangles, most of them 64 or more, and are compact
-//! cells. A PLOC BVH's subtrees were
+//! cells. The facing groups (below) are made by a counting sort and split side by side; the
+//! split's cost is its per-item histogram of [`gap_split`], once per level. A PLOC BVH's subtrees were
 //! tried first and rejected: on regular grids (subdivided faces, scanned surfaces) PLOC merges
 //! into long strips, since the SAH cannot tell a strip from a square on flat geometry, and
 //! strips spanning a whole facade cull badly. A cluster is a range of the stored triangle
@@ -19,6 +20,7 @@
 use sightline_scene::{Aabb, Mesh};
 
 use glam::Vec3;
+use rayon::prelude::*;
 
 use super::triangles::triangle_boxes;
 use crate::{AabbExt, BoxKind};
@@ -28,6 +30,9 @@ use crate::{AabbExt, BoxKind};
 pub const CLUSTER_MIN: usize = 64;
 /// Largest cluster size.
 pub const CLUSTER_MAX: usize = 128;
+
+/// Per-item passes over fewer items than this are not split across threads.
+const PARALLEL_MIN: usize = 1 << 14;
 
 /// One cluster: a box (mesh-local) and a range of the cluster-ordered permutation.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -60,7 +65,11 @@ impl MeshClusters {
         if mesh.triangle_count() <= CLUSTER_MAX {
             return Self::from_triangle_boxes(&boxes);
         }
-        let groups: Vec<u8> = (0..mesh.triangle_count()).map(|t| facing(mesh.triangle_positions(t))).collect();
+        let groups: Vec<u8> = (0..mesh.triangle_count())
+            .into_par_iter()
+            .with_min_len(PARALLEL_MIN)
+            .map(|t| facing(mesh.triangle_positions(t)))
+            .collect();
         Self::from_grouped_boxes(&boxes, &groups)
     }
 
@@ -73,29 +82,43 @@ impl MeshClusters {
     /// Like [`MeshClusters::from_triangle_boxes`], but no cluster mixes items of different
     /// `groups[i]`.
     pub fn from_grouped_boxes(boxes: &[Aabb], groups: &[u8]) -> MeshClusters {
-        let mut permutation: Vec<u32> = Vec::with_capacity(boxes.len());
+        let group = |i: usize| groups.get(i).copied().unwrap_or(0) as usize;
+        // Group first, by a counting sort (stable: ties keep index order), leaving out empty
+        // boxes and setting aside unbounded ones.
+        let mut starts = [0usize; 257];
         let mut unbounded: Vec<u32> = Vec::new();
         for (i, b) in boxes.iter().enumerate() {
             match b.kind() {
-                BoxKind::Finite => permutation.push(i as u32),
+                BoxKind::Finite => starts[group(i) + 1] += 1,
                 BoxKind::Unbounded => unbounded.push(i as u32),
                 BoxKind::Empty => {}
             }
         }
-        let centers: Vec<Vec3> = boxes.iter().map(|b| b.center()).collect();
-        // Group first (stable: ties keep index order), then split each group's range.
-        permutation.sort_by_key(|&t| groups.get(t as usize).copied().unwrap_or(0));
-        let mut ranges = Vec::new();
-        let mut start = 0;
-        while start < permutation.len() {
-            let g = groups.get(permutation[start] as usize).copied().unwrap_or(0);
-            let len =
-                permutation[start..].iter().take_while(|&&t| groups.get(t as usize).copied().unwrap_or(0) == g).count();
-            ranges.extend(median_split(boxes, &centers, &mut permutation[start..start + len], start as u32));
-            start += len;
+        for g in 0..256 {
+            starts[g + 1] += starts[g];
         }
+        let mut permutation = vec![0u32; starts[256]];
+        let mut next = starts;
+        for (i, b) in boxes.iter().enumerate() {
+            if b.kind() == BoxKind::Finite {
+                permutation[next[group(i)]] = i as u32;
+                next[group(i)] += 1;
+            }
+        }
+        let centers: Vec<Vec3> = boxes.par_iter().with_min_len(PARALLEL_MIN).map(|b| b.center()).collect();
+        // Then split each group's range, the groups side by side.
+        let mut parts: Vec<(u32, &mut [u32])> = Vec::new();
+        let mut rest = permutation.as_mut_slice();
+        for g in starts.windows(2).filter(|g| g[1] > g[0]) {
+            let (part, tail) = std::mem::take(&mut rest).split_at_mut(g[1] - g[0]);
+            parts.push((g[0] as u32, part));
+            rest = tail;
+        }
+        let ranges: Vec<(u32, u32)> =
+            parts.into_par_iter().flat_map_iter(|(base, part)| median_split(boxes, &centers, part, base)).collect();
         let mut clusters: Vec<Cluster> = ranges
-            .into_iter()
+            .into_par_iter()
+            .with_min_len(PARALLEL_MIN / CLUSTER_MAX)
             .map(|(first, count)| Cluster {
                 aabb: permutation[first as usize..(first + count) as usize]
                     .iter()
@@ -167,7 +190,9 @@ fn gap_split(boxes: &[Aabb], perm: &mut [u32], axis: usize, a0: f32, a1: f32) ->
     if !(extent > 0.0) || !extent.is_finite() {
         return None;
     }
-    let bin_of = |v: f32| ((v - a0) / extent * BINS as f32).clamp(0.0, (BINS - 1) as f32) as usize;
+    // Through i32: the value is clamped into range, and a conversion to usize costs extra
+    // instructions for values past i64 (none here). Per item and level, this is the cost.
+    let bin_of = |v: f32| ((v - a0) / extent * BINS as f32).clamp(0.0, (BINS - 1) as f32) as i32 as usize;
     let center = |t: u32| bin_of(boxes[t as usize].center()[axis]);
     // How many boxes cross each bin (difference array), and how many centers fall in it.
     let mut cross = [0i64; BINS + 1];
@@ -233,7 +258,7 @@ fn median_split(boxes: &[Aabb], centers: &[Vec3], perm: &mut [u32], base: u32) -
         }
     };
     let (left, right) = perm.split_at_mut(mid);
-    let (mut l, r) = if n > 1 << 14 {
+    let (mut l, r) = if n > PARALLEL_MIN {
         rayon::join(
             || median_split(boxes, centers, left, base),
             || median_split(boxes, centers, right, base + mid as u32),
@@ -284,5 +309,50 @@ mod tests {
         assert_eq!(mc.triangles(0).len(), 12);
         let e = Mesh::new("e", vec![], None, None, vec![]).unwrap();
         assert!(MeshClusters::build(&e).clusters().is_empty());
+    }
+
+    /// Grouping by a counting sort and splitting the groups side by side (in parallel, over
+    /// enough items for every parallel path) give the clusters of the plain way: a stable
+    /// sort by group, then each group's range split in turn. Empty boxes are left out and
+    /// unbounded ones kept apart, wherever they fall.
+    #[test]
+    fn grouped_clusters_are_those_of_a_stable_sort_and_groups_split_in_turn() {
+        let mut rng = sightline_scene::rng::Rng::new(17);
+        let n = 3 * PARALLEL_MIN;
+        let mut boxes: Vec<Aabb> = (0..n)
+            .map(|i| {
+                // Two blobs with a street between them, and a scatter: gaps and medians both.
+                let x = if i % 3 == 0 { rng.range(0.0, 40.0) } else { rng.range(60.0, 100.0) };
+                let p = Vec3::new(x, rng.range(0.0, 5.0), rng.range(0.0, 30.0));
+                Aabb::new(p, p + Vec3::splat(rng.range(0.0, 0.5)))
+            })
+            .collect();
+        for k in (0..n).step_by(997) {
+            boxes[k] = if k % 2 == 0 { Aabb::EMPTY } else { Aabb::new(Vec3::NAN, Vec3::ONE) };
+        }
+        let groups: Vec<u8> = (0..n).map(|i| [0, 3, 3, 7, 255][i * 7 % 5]).collect();
+        let got = MeshClusters::from_grouped_boxes(&boxes, &groups);
+
+        let centers: Vec<Vec3> = boxes.iter().map(|b| b.center()).collect();
+        let mut perm: Vec<u32> = (0..n as u32).filter(|&i| boxes[i as usize].kind() == BoxKind::Finite).collect();
+        perm.sort_by_key(|&i| groups[i as usize]);
+        let mut ranges = Vec::new();
+        let mut start = 0;
+        while start < perm.len() {
+            let len = perm[start..].iter().take_while(|&&t| groups[t as usize] == groups[perm[start] as usize]).count();
+            ranges.extend(median_split(&boxes, &centers, &mut perm[start..start + len], start as u32));
+            start += len;
+        }
+        let finite = perm.len();
+        assert_eq!(&got.permutation()[..finite], &perm[..]);
+        let unbounded: Vec<u32> = (0..n as u32).filter(|&i| boxes[i as usize].kind() == BoxKind::Unbounded).collect();
+        assert_eq!(&got.permutation()[finite..], &unbounded[..]);
+        assert_eq!(got.clusters().len(), ranges.len() + unbounded.len().div_ceil(CLUSTER_MAX));
+        for (c, &(first, count)) in got.clusters().iter().zip(&ranges) {
+            let aabb = perm[first as usize..(first + count) as usize]
+                .iter()
+                .fold(Aabb::EMPTY, |a, &t| a.union(&boxes[t as usize]));
+            assert_eq!((c.first, c.count, c.aabb), (first, count, aabb));
+        }
     }
 }

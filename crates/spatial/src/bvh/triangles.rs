@@ -3,6 +3,7 @@
 //! packet-traced BLAS is the 4-wide [`crate::bvh::wide::WideBlas`].
 
 use glam::Vec3;
+use rayon::prelude::*;
 use sightline_scene::{Aabb, Mesh};
 
 use super::{Bvh, BvhPreset};
@@ -115,7 +116,8 @@ impl TriangleBvh {
 /// The box of every triangle; triangles with missing vertices get the empty box.
 pub(crate) fn triangle_boxes(positions: &[Vec3], indices: &[u32]) -> Vec<Aabb> {
     indices
-        .chunks_exact(3)
+        .par_chunks_exact(3)
+        .with_min_len(1 << 14)
         .map(|t| match (positions.get(t[0] as usize), positions.get(t[1] as usize), positions.get(t[2] as usize)) {
             (Some(&a), Some(&b), Some(&c)) => Aabb::of_triangle(a, b, c),
             _ => Aabb::EMPTY,
