@@ -146,6 +146,7 @@ fn local_cones(
             *s = i;
         }
     }
+    // Over the clusters of every mesh at once: one big mesh (an OBJ city) is most of them.
     first
         .par_iter()
         .map(|&i| {
@@ -153,10 +154,18 @@ fn local_cones(
                 return Vec::new();
             };
             let Some(mesh) = scene.mesh(inst.mesh) else { return Vec::new() };
+            let cones: Vec<(usize, cone::LocalCone)> = clustered
+                .instance_items(i)
+                .into_par_iter()
+                .with_min_len(64)
+                .map(|item| {
+                    let c = clustered.item(item).cluster as usize;
+                    (c, cone::LocalCone::of_cluster(mesh.positions(), mesh.indices(), clustered.triangles(item)))
+                })
+                .collect();
             let mut v = vec![cone::LocalCone::NEVER; mc.clusters().len()];
-            for item in clustered.instance_items(i) {
-                let c = clustered.item(item).cluster as usize;
-                v[c] = cone::LocalCone::of_cluster(mesh.positions(), mesh.indices(), clustered.triangles(item));
+            for (c, cone) in cones {
+                v[c] = cone;
             }
             v
         })
