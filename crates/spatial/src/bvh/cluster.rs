@@ -10,12 +10,12 @@
 //! crosses when one leaves a quarter to three quarters of them on each side, else at the
 //! median. So clusters hold at most 128 triangles, most of them 64 or more, and are compact
 //! cells. The facing groups (below) are made by a counting sort and split side by side; the
-//! split's cost is its per-item histogram of [`gap_split`], once per level. A PLOC BVH's subtrees were
-//! tried first and rejected: on regular grids (subdivided faces, scanned surfaces) PLOC merges
-//! into long strips, since the SAH cannot tell a strip from a square on flat geometry, and
-//! strips spanning a whole facade cull badly. A cluster is a range of the stored triangle
-//! permutation, so drawing it needs only the original triangle indices, and a renderer can
-//! still write the ORIGINAL triangle IDs.
+//! split's cost is its per-item histogram of `gap_split`, once per level. A PLOC BVH's
+//! subtrees were tried first and rejected: on regular grids (subdivided faces, scanned
+//! surfaces) PLOC merges into long strips, since the SAH cannot tell a strip from a square on
+//! flat geometry, and strips spanning a whole facade cull badly. A cluster is a range of the
+//! stored triangle permutation, so drawing it needs only the original triangle indices, and
+//! a renderer can still write the ORIGINAL triangle IDs.
 
 use sightline_scene::{Aabb, Mesh};
 
