@@ -32,7 +32,8 @@ use std::path::Path;
 
 use rayon::prelude::*;
 use serde::Serialize;
-use sightline_scene::{Camera, Scene};
+use sightline_scene::{Camera, Mesh, MeshId, Scene};
+use slotmap::SecondaryMap;
 
 use crate::awake::with_helper_awake;
 use crate::{CullStats, Culler, FrameStats, Framebuffer, Method, RayCaster, RaycastOptions, RaycastStats};
@@ -150,12 +151,18 @@ impl World {
                 self.caster()?;
             }
         }
-        // Only the drawn meshes: a mesh kept in the store and drawn by no node (a file's
-        // unused mesh, say) would hold 24 bytes a triangle for nothing.
-        let mut drawn: Vec<_> = self.scene.instances().iter().map(|i| i.mesh).collect();
-        drawn.sort_unstable();
-        drawn.dedup();
-        drawn.par_iter().filter_map(|&id| self.scene.mesh(id)).for_each(|m| {
+        // Only the meshes some node draws: a mesh kept in the store and drawn by none (a
+        // file's unused mesh, say) would hold 24 bytes a triangle for nothing. Found from the
+        // nodes, not from `Scene::instances`, whose records (128 bytes an instance) would
+        // add to the peak memory of a scene of millions of instances.
+        let mut drawn = SecondaryMap::<MeshId, ()>::new();
+        for id in self.scene.depth_first() {
+            if let Some(mesh) = self.scene.node(id).and_then(|n| n.mesh()) {
+                drawn.insert(mesh, ());
+            }
+        }
+        let meshes: Vec<&Mesh> = drawn.keys().filter_map(|id| self.scene.mesh(id)).collect();
+        meshes.par_iter().for_each(|m| {
             m.faces();
         });
         Ok(())
