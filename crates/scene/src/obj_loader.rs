@@ -230,31 +230,65 @@ impl<R: BufRead> FaceCheck<R> {
             Some("vt") => counts[1] += 1,
             Some("vn") => counts[2] += 1,
             Some("f") | Some("l") => {
-                const KIND: [&str; 3] = ["vertex", "texture coordinate", "normal"];
                 for word in words {
                     for (k, part) in word.split('/').enumerate().take(3).filter(|(_, p)| !p.is_empty()) {
-                        // Not a number: tobj reports its own parse error.
-                        let Ok(x) = part.parse::<i64>() else { continue };
-                        let count = counts[k];
-                        if x == 0 {
-                            return Err(format!(
-                                "{} index 0 in '{word}' is out of bounds (OBJ indices start at 1)",
-                                KIND[k]
-                            ));
-                        }
-                        if x < 0 && x.unsigned_abs() > count as u64 {
-                            return Err(format!(
-                                "relative {} index {x} in '{word}' is out of bounds: it reaches before the first one ({count} so far)",
-                                KIND[k]
-                            ));
-                        }
-                        if x > u32::MAX as i64 {
-                            return Err(format!("{} index {x} in '{word}' is out of bounds", KIND[k]));
+                        Self::check_index(k, part, word, counts[k])?;
+                    }
+                }
+            }
+            _ => {}
+        }
+        Ok(())
+    }
+
+    /// [`FaceCheck::check`] of an ASCII line, on its bytes: the same words (the ASCII
+    /// characters `split_whitespace` splits at are tab, line feed, vertical tab, form feed,
+    /// carriage return and space) and the same verdicts, without decoding characters. An
+    /// index of one to nine digits, not all zeros, is a positive number below `u32::MAX` and
+    /// passes without being parsed: nearly every index of a big file.
+    fn check_ascii(line: &[u8], counts: &mut [usize; 3]) -> std::result::Result<(), String> {
+        let mut words = line.split(|b| matches!(b, b'\t'..=b'\r' | b' ')).filter(|w| !w.is_empty());
+        match words.next() {
+            Some(b"v") => counts[0] += 1,
+            Some(b"vt") => counts[1] += 1,
+            Some(b"vn") => counts[2] += 1,
+            Some(b"f") | Some(b"l") => {
+                for word in words {
+                    for (k, part) in word.split(|&b| b == b'/').enumerate().take(3).filter(|(_, p)| !p.is_empty()) {
+                        let plain =
+                            part.len() <= 9 && part.iter().all(u8::is_ascii_digit) && part.iter().any(|&b| b != b'0');
+                        if !plain {
+                            // ASCII, so UTF-8.
+                            let (Ok(part), Ok(word)) = (std::str::from_utf8(part), std::str::from_utf8(word)) else {
+                                continue;
+                            };
+                            Self::check_index(k, part, word, counts[k])?;
                         }
                     }
                 }
             }
             _ => {}
+        }
+        Ok(())
+    }
+
+    /// Checks `part`, the `k`th index (vertex, texture coordinate, normal) of `word` on an
+    /// `f` or `l` line, against `count` such elements so far.
+    fn check_index(k: usize, part: &str, word: &str, count: usize) -> std::result::Result<(), String> {
+        const KIND: [&str; 3] = ["vertex", "texture coordinate", "normal"];
+        // Not a number: tobj reports its own parse error.
+        let Ok(x) = part.parse::<i64>() else { return Ok(()) };
+        if x == 0 {
+            return Err(format!("{} index 0 in '{word}' is out of bounds (OBJ indices start at 1)", KIND[k]));
+        }
+        if x < 0 && x.unsigned_abs() > count as u64 {
+            return Err(format!(
+                "relative {} index {x} in '{word}' is out of bounds: it reaches before the first one ({count} so far)",
+                KIND[k]
+            ));
+        }
+        if x > u32::MAX as i64 {
+            return Err(format!("{} index {x} in '{word}' is out of bounds", KIND[k]));
         }
         Ok(())
     }
@@ -276,10 +310,13 @@ impl<R: BufRead> BufRead for FaceCheck<R> {
             self.inner.read_until(b'\n', &mut self.line)?;
             self.line_no += 1;
             // A line that is not UTF-8 goes through unchecked: tobj refuses it.
-            if let Ok(text) = std::str::from_utf8(&self.line) {
-                if let Err(e) = Self::check(text, &mut self.counts) {
-                    self.error = Some(format!("line {}: {e}", self.line_no));
-                }
+            let checked = if self.line.is_ascii() {
+                Self::check_ascii(&self.line, &mut self.counts)
+            } else {
+                std::str::from_utf8(&self.line).map_or(Ok(()), |text| Self::check(text, &mut self.counts))
+            };
+            if let Err(e) = checked {
+                self.error = Some(format!("line {}: {e}", self.line_no));
             }
         }
         if let Some(e) = &self.error {
@@ -423,6 +460,64 @@ mod tests {
         ] {
             let e = face_error(&format!("{tri}{bad}\n")).unwrap_or_default();
             assert!(e.contains(why), "{bad}: {e}");
+        }
+    }
+
+    /// The byte check of ASCII lines gives the text check's verdicts and counts, on lines
+    /// made of the tokens that matter (keywords, indices of every kind and length, slashes,
+    /// every ASCII whitespace character `split_whitespace` splits at, and some it does not).
+    #[test]
+    fn ascii_lines_are_checked_as_the_text_check_does() {
+        let heads = ["v", "vt", "vn", "f", "l", "fo", "#", "", "vp"];
+        let parts = [
+            "1",
+            "7",
+            "12",
+            "0",
+            "00",
+            "000000001",
+            "000000000",
+            "999999999",
+            "1000000000",
+            "4294967295",
+            "4294967296",
+            "-1",
+            "-2",
+            "-3",
+            "-9",
+            "+4",
+            "-0",
+            "x",
+            "1e3",
+            "9223372036854775808",
+            "",
+        ];
+        let spaces = [" ", "\t", "\x0b", "\x0c", "\r", "  ", " \r", "\x1f", "\x00"];
+        let mut rng = crate::rng::Rng::new(5);
+        let mut pick = |n: usize| rng.below(n as u32) as usize;
+        for _ in 0..20_000 {
+            let mut line = String::new();
+            if pick(4) == 0 {
+                line += spaces[pick(spaces.len())];
+            }
+            line += heads[pick(heads.len())];
+            for _ in 0..pick(5) {
+                line += spaces[pick(spaces.len())];
+                for s in 0..1 + pick(3) {
+                    if s > 0 {
+                        line.push('/');
+                    }
+                    line += parts[pick(parts.len())];
+                }
+            }
+            if pick(2) == 0 {
+                line.push('\n');
+            }
+            let start = [pick(4), pick(4), pick(4)];
+            let (mut a, mut b) = (start, start);
+            let text = FaceCheck::<&[u8]>::check(&line, &mut a);
+            let bytes = FaceCheck::<&[u8]>::check_ascii(line.as_bytes(), &mut b);
+            assert_eq!((&text, a), (&bytes, b), "{line:?} from counts {start:?}");
         }
     }
 }
