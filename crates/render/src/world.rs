@@ -201,14 +201,14 @@ impl World {
     /// is a run of short parallel steps between serial ones ([`with_helper_awake`]). Without,
     /// there is little to do, and waking the worker would only cost.
     fn update_with(&mut self, sync: impl FnOnce(&mut Self) -> Result<()> + Send) -> Result<()> {
+        let update = |w: &mut Self| {
+            w.propagate();
+            sync(w)
+        };
         if self.scene.needs_update() {
-            with_helper_awake(|| {
-                self.propagate();
-                sync(self)
-            })
+            with_helper_awake(|| update(self))
         } else {
-            self.propagate();
-            sync(self)
+            update(self)
         }
     }
 
