@@ -224,44 +224,37 @@ impl<R: BufRead> FaceCheck<R> {
     /// Checks one line, split into words as tobj splits it; `counts` are the `v`, `vt` and
     /// `vn` lines before it.
     fn check(line: &str, counts: &mut [usize; 3]) -> std::result::Result<(), String> {
-        let mut words = line.split_whitespace();
-        match words.next() {
-            Some("v") => counts[0] += 1,
-            Some("vt") => counts[1] += 1,
-            Some("vn") => counts[2] += 1,
-            Some("f") | Some("l") => {
-                for word in words {
-                    for (k, part) in word.split('/').enumerate().take(3).filter(|(_, p)| !p.is_empty()) {
-                        Self::check_index(k, part, word, counts[k])?;
-                    }
-                }
-            }
-            _ => {}
-        }
-        Ok(())
+        Self::check_words(line.split_whitespace().map(str::as_bytes), counts)
     }
 
     /// [`FaceCheck::check`] of an ASCII line, on its bytes: the same words (the ASCII
     /// characters `split_whitespace` splits at are tab, line feed, vertical tab, form feed,
-    /// carriage return and space) and the same verdicts, without decoding characters. An
-    /// index of one to nine digits, not all zeros, is a positive number below `u32::MAX` and
-    /// passes without being parsed: nearly every index of a big file.
+    /// carriage return and space), without decoding characters.
     fn check_ascii(line: &[u8], counts: &mut [usize; 3]) -> std::result::Result<(), String> {
-        let mut words = line.split(|b| matches!(b, b'\t'..=b'\r' | b' ')).filter(|w| !w.is_empty());
+        Self::check_words(line.split(|b| matches!(b, b'\t'..=b'\r' | b' ')).filter(|w| !w.is_empty()), counts)
+    }
+
+    /// The verdict on a line split into `words` (UTF-8 text each; see [`FaceCheck::check`]).
+    /// An index of one to nine digits, not all zeros, is a positive number below `u32::MAX`
+    /// and passes without being parsed: nearly every index of a big file.
+    fn check_words<'a>(
+        mut words: impl Iterator<Item = &'a [u8]>,
+        counts: &mut [usize; 3],
+    ) -> std::result::Result<(), String> {
         match words.next() {
             Some(b"v") => counts[0] += 1,
             Some(b"vt") => counts[1] += 1,
             Some(b"vn") => counts[2] += 1,
             Some(b"f") | Some(b"l") => {
                 for word in words {
+                    // '/' is ASCII, so the parts of UTF-8 text are UTF-8 text.
                     for (k, part) in word.split(|&b| b == b'/').enumerate().take(3).filter(|(_, p)| !p.is_empty()) {
                         let plain =
                             part.len() <= 9 && part.iter().all(u8::is_ascii_digit) && part.iter().any(|&b| b != b'0');
-                        if !plain {
-                            // ASCII, so UTF-8.
-                            let (Ok(part), Ok(word)) = (std::str::from_utf8(part), std::str::from_utf8(word)) else {
-                                continue;
-                            };
+                        if plain {
+                            continue;
+                        }
+                        if let (Ok(part), Ok(word)) = (std::str::from_utf8(part), std::str::from_utf8(word)) {
                             Self::check_index(k, part, word, counts[k])?;
                         }
                     }
@@ -457,13 +450,18 @@ mod tests {
             ("f 1/0 2 3", "texture coordinate index 0"),
             ("l 1 0", "vertex index 0"),
             ("f 1//9000000000000000000 2 3", "normal index 9000000000000000000 in '1//9000000000000000000' is out"),
+            // Ten digits past u32::MAX, and zeros written long: parsed, not passed as plain.
+            ("f 1 2 4294967296", "vertex index 4294967296 in '4294967296' is out of bounds"),
+            ("f 1 2/000000000 3", "texture coordinate index 0 in '2/000000000'"),
+            // Not ASCII: split at Unicode whitespace, as tobj splits (an ideographic space).
+            ("f 1\u{3000}0 2 3", "vertex index 0 in '0'"),
         ] {
             let e = face_error(&format!("{tri}{bad}\n")).unwrap_or_default();
             assert!(e.contains(why), "{bad}: {e}");
         }
     }
 
-    /// The byte check of ASCII lines gives the text check's verdicts and counts, on lines
+    /// ASCII lines split as bytes give the verdicts and counts of the text's split, on lines
     /// made of the tokens that matter (keywords, indices of every kind and length, slashes,
     /// every ASCII whitespace character `split_whitespace` splits at, and some it does not).
     #[test]
