@@ -90,7 +90,7 @@ impl TileLevels {
         let near = t.zmin;
         // First the whole tile's farthest depth (level 6, one texel): where nearer surfaces
         // cover the tile, every triangle behind them is settled by one load (the boxfield's
-        // occluder pass on one thread, 11.2 -> 9.7 ms).
+        // occluder pass on one thread, 11.2 → 9.7 ms).
         if near > self.mips[OFFSETS[5]] + self.tie_margin {
             return true;
         }
