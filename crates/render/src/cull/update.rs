@@ -150,24 +150,16 @@ fn local_cones(
     first
         .par_iter()
         .map(|&i| {
-            let (Some(inst), Some(mc)) = (instances.get(i as usize), clustered.mesh_clusters(i)) else {
+            let Some(mesh) = instances.get(i as usize).and_then(|inst| scene.mesh(inst.mesh)) else {
                 return Vec::new();
             };
-            let Some(mesh) = scene.mesh(inst.mesh) else { return Vec::new() };
-            let cones: Vec<(usize, cone::LocalCone)> = clustered
+            // The instance's items are its mesh's clusters in order (none when not clustered).
+            clustered
                 .instance_items(i)
                 .into_par_iter()
                 .with_min_len(64)
-                .map(|item| {
-                    let c = clustered.item(item).cluster as usize;
-                    (c, cone::LocalCone::of_cluster(mesh.positions(), mesh.indices(), clustered.triangles(item)))
-                })
-                .collect();
-            let mut v = vec![cone::LocalCone::NEVER; mc.clusters().len()];
-            for (c, cone) in cones {
-                v[c] = cone;
-            }
-            v
+                .map(|item| cone::LocalCone::of_cluster(mesh.positions(), mesh.indices(), clustered.triangles(item)))
+                .collect()
         })
         .collect()
 }

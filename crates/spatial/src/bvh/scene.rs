@@ -213,7 +213,8 @@ impl ClusteredScene {
         self.items[i as usize]
     }
 
-    /// Items of instance `instance` (a contiguous range of item indices).
+    /// Items of instance `instance`: a contiguous range of item indices, in the order of
+    /// its mesh's clusters (item `first + c` is cluster `c`).
     pub fn instance_items(&self, instance: u32) -> std::ops::Range<u32> {
         let i = instance as usize;
         self.instance_first_item[i]..self.instance_first_item[i + 1]
@@ -334,6 +335,11 @@ mod tests {
             }
         }
         assert!(seen.iter().all(|&s| s == 1));
+        // Item `first + c` of an instance is its mesh's cluster `c`.
+        for it in cs.instance_items(0).chain(cs.instance_items(3)) {
+            let first = cs.first_item(cs.item(it).instance);
+            assert_eq!(cs.item(it).cluster, it - first);
+        }
         // A camera close to a corner of the big mesh sees only part of it.
         let cam = sightline_scene::Camera::perspective(
             &sightline_scene::LookAt {
