@@ -30,7 +30,7 @@ use sightline_scene::{Camera, Instance, Scene};
 use sightline_spatial::SimdLevel;
 
 use crate::bin::bin_chunk;
-use crate::claim::for_each_claimed;
+use crate::claim::{for_each_claimed, Claim};
 use crate::clip_matrix::clip_from_local;
 use crate::depth::{with_codec, DepthCodec, DepthFormat};
 use crate::geometry::{split, Chunk, Item, Source};
@@ -454,9 +454,12 @@ impl Renderer {
         }
         let chunks = &mut self.chunks[..n];
         let levels = &self.levels[..];
-        // Claimed chunk by chunk: the chunks' costs differ with the memory they read.
+        // Claimed chunk by chunk, as the chunks' costs differ with the memory they read; each
+        // chunk first by the same worker from batch to batch, so that its buffers (vertex
+        // cache, triangles, bins) stay in that core's cache.
         for_each_claimed(
             chunks.iter_mut().zip(&self.work),
+            Claim::ByWorker,
             || (),
             |_, (c, w)| {
                 let t = Instant::now();

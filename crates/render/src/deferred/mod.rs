@@ -24,7 +24,7 @@ use glam::{Mat4, Vec3, Vec3A};
 use sightline_scene::{Camera, Instance, Mesh, Scene};
 use sightline_spatial::{prefetch, SimdLevel};
 
-use crate::claim::for_each_claimed;
+use crate::claim::{for_each_claimed, Claim};
 use crate::shading::{is_constant, InstanceShading, ShadeOptions, ShadingMode, TriangleShader};
 use crate::Framebuffer;
 
@@ -120,7 +120,7 @@ pub fn shade_pass(
     // Bands of rows claimed one at a time (see [`crate::claim`]: the sky's rows cost next
     // to nothing, the street's much more), each worker keeping its caches across its bands.
     let bands = fb.color.chunks_mut(w * BAND_ROWS).enumerate();
-    for_each_claimed(bands, Shader::default, |shader, (band, color)| {
+    for_each_claimed(bands, Claim::InOrder, Shader::default, |shader, (band, color)| {
         for (r, crow) in color.chunks_mut(w).enumerate() {
             let y = band * BAND_ROWS + r;
             frame.row(shader, &ids[y * w..(y + 1) * w], y, crow);

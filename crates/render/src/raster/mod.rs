@@ -33,7 +33,7 @@ use std::sync::Mutex;
 
 use sightline_spatial::SimdLevel;
 
-use crate::claim::for_each_claimed;
+use crate::claim::{for_each_claimed, Claim};
 use crate::depth::{with_codec, DepthCodec, DepthFormat};
 use crate::edge::{edges, wide_block, BlockSetup, Edge, FastEdges, Tri};
 use crate::geometry::Chunk;
@@ -285,6 +285,7 @@ fn tiles_in<D: DepthCodec>(
     let take = || pool.lock().ok().and_then(|mut p| p.pop()).unwrap_or_else(|| TileBuf::new(TileRect::default()));
     let workers = for_each_claimed(
         order,
+        Claim::InOrder,
         || (TileStats::default(), take()),
         |(sum, s), (cost, i, lv)| {
             s.rect = lv.rect;

@@ -39,7 +39,7 @@ use super::isa::{Isa, Portable};
 use super::packet::{BeamPlanes, Hits, Rays, CHUNK, CHUNKS, LANES, NO_HIT, TILE};
 use super::trace::{trace, Scratch};
 use super::{RayCaster, RaycastOptions, RaycastStats, SimdLevel};
-use crate::claim::for_each_claimed;
+use crate::claim::{for_each_claimed, Claim};
 use crate::csg::CsgScratch;
 use crate::shading::{shade, InstanceShading, ShadeOptions, ShadingMode, TriangleShader};
 use crate::{shade_pass, Framebuffer, Result};
@@ -198,7 +198,7 @@ pub(crate) fn render(
         shadow_rays: 0,
         hit_count: 0,
     };
-    let workers = for_each_claimed(bands.enumerate(), scratch, |band, (b, ((color, depth), ids))| {
+    let workers = for_each_claimed(bands.enumerate(), Claim::InOrder, scratch, |band, (b, ((color, depth), ids))| {
         let mut out = Out { color, depth, ids };
         let y0 = b as u32 * TILE;
         // The background: the sky's row colors (as the raster's deferred shading paints
