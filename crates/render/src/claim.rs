@@ -44,10 +44,12 @@ pub(crate) fn for_each_claimed<T: Send, S: Send>(
     f: impl Fn(&mut S, T) + Sync,
 ) -> Vec<S> {
     let slots: Vec<Mutex<Option<T>>> = items.into_iter().map(|t| Mutex::new(Some(t))).collect();
-    let workers = rayon::current_num_threads().min(slots.len());
+    let threads = rayon::current_num_threads().max(1);
+    let workers = threads.min(slots.len());
     // The items as `strides` interleaved runs (item k in run k mod strides), each with the
-    // index of its next unclaimed item.
-    let strides = if claim == Claim::ByWorker { workers.max(1) } else { 1 };
+    // index of its next unclaimed item. By worker, one run per thread of the pool whatever
+    // the item count, so that item k goes to the same worker from call to call.
+    let strides = if claim == Claim::ByWorker { threads } else { 1 };
     let next: Vec<AtomicUsize> = (0..strides).map(AtomicUsize::new).collect();
     // A worker's own run first, then the others'.
     let claim_next = |own: usize| {
