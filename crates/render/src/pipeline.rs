@@ -454,6 +454,7 @@ impl Renderer {
         }
         let chunks = &mut self.chunks[..n];
         let levels = &self.levels[..];
+        let far = &self.upper.tile_far[..];
         // Claimed chunk by chunk, as the chunks' costs differ with the memory they read; each
         // chunk first by the same worker from batch to batch, so that its buffers (vertex
         // cache, triangles, bins) stay in that core's cache.
@@ -468,7 +469,7 @@ impl Renderer {
                 c.ms = (geometry, 0.0);
                 if let Some(b) = &bin {
                     let t = Instant::now();
-                    bin_chunk(c, b.grid, b.session.then_some(levels));
+                    bin_chunk(c, b.grid, b.session.then_some((levels, far)));
                     c.ms.1 = ms_since(t);
                 }
             },

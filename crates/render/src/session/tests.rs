@@ -144,3 +144,39 @@ fn incremental_tile_pyramid_equals_a_full_rebuild() {
     }
     session.finish();
 }
+
+/// Binning leaves out a triangle wholly behind the depths drawn in its tile in earlier
+/// batches (the tile's farthest depth, read from the compact per-tile array), and only
+/// there: the same triangle in front of them, or in a tile no batch has drawn into, is
+/// drawn, and the frame equals plain draws of the same batches.
+#[test]
+fn binning_skips_triangles_behind_drawn_tiles_only() {
+    let opts = RenderOptions { backface_culling: false, ..RenderOptions::ids_only() };
+    // A 128 × 64 screen: tile 0 on the left, tile 1 on the right.
+    let quad = |x0: f32, x1: f32, z: f32| {
+        let p = |x: f32, y: f32| Vec4::new(x, y, z, 1.0);
+        [[p(x0, -1.0), p(x1, -1.0), p(x1, 1.0)], [p(x0, -1.0), p(x1, 1.0), p(x0, 1.0)]]
+    };
+    // A small triangle inside the tile whose NDC x range starts at `x0`, at depth `z`.
+    let small = |x0: f32, z: f32| {
+        let p = |x: f32, y: f32| Vec4::new(x0 + x, y, z, 1.0);
+        [[p(0.2, -0.3), p(0.6, -0.3), p(0.4, 0.3)]]
+    };
+    let cover_left = quad(-1.0, 0.0, -0.5);
+    let later: Vec<[[Vec4; 3]; 1]> = vec![small(-1.0, 0.5), small(-1.0, -0.9), small(0.0, 0.5)];
+    let mut plain = Framebuffer::new(128, 64).unwrap();
+    let mut r = Renderer::new();
+    r.draw_clip_triangles(&cover_left, 1, &mut plain, &opts);
+    for (k, t) in later.iter().enumerate() {
+        r.draw_clip_triangles(t, 10 + k as u32, &mut plain, &opts);
+    }
+    let mut fb = Framebuffer::new(128, 64).unwrap();
+    let mut session = r.begin(&mut fb, &opts);
+    session.draw_clip_triangles(&cover_left, 1);
+    let st: Vec<_> = later.iter().enumerate().map(|(k, t)| session.draw_clip_triangles(t, 10 + k as u32)).collect();
+    session.finish();
+    assert_eq!((st[0].coarse_rejected, st[0].rasterized), (1, 0), "behind the drawn tile: left out");
+    assert_eq!((st[1].coarse_rejected, st[1].rasterized), (0, 1), "in front of it: drawn");
+    assert_eq!((st[2].coarse_rejected, st[2].rasterized), (0, 1), "in a tile not drawn into: drawn");
+    assert!(fb.ids == plain.ids && fb.depth == plain.depth, "the frame equals plain draws");
+}
