@@ -60,8 +60,10 @@ pub struct FrontToBackCursor {
     frustum: Option<Frustum>,
     eye: Vec3,
     /// The slots of the items put ahead of the walk ([`FrontToBackCursor::nearest_first`]),
-    /// sorted: the walk passes over them.
-    seeded: Vec<u32>,
+    /// as bits (slot `s` is bit `s % 64` of word `s / 64`; empty when none): the walk passes
+    /// over them. A bit per slot costs one load per item met, where a search of the sorted
+    /// slots cost several.
+    seeded: Vec<u64>,
 }
 
 impl FrontToBackCursor {
@@ -95,8 +97,12 @@ impl FrontToBackCursor {
             return self;
         }
         let found = nearest_items(bvh, self.frustum.as_ref(), self.eye, k);
-        self.seeded = found.iter().map(|s| s.0).collect();
-        self.seeded.sort_unstable();
+        if !found.is_empty() {
+            self.seeded = vec![0; bvh.items.len().div_ceil(64)];
+            for &(slot, _) in &found {
+                self.seeded[slot as usize / 64] |= 1 << (slot % 64);
+            }
+        }
         // Above the root, below the unbounded items; farthest first, so that the nearest
         // pops first.
         let seeds = found.iter().rev().map(|&(id, mask)| Entry { id, mask, kind: KIND_SEED });
@@ -155,7 +161,7 @@ fn run(
     frustum: Option<&Frustum>,
     eye: Vec3,
     stack: &mut Vec<Entry>,
-    seeded: &[u32],
+    seeded: &[u64],
     mut node_visit: impl FnMut(&Aabb) -> Visit,
     mut item_visit: impl FnMut(Visible) -> Visit,
 ) {
@@ -247,10 +253,10 @@ fn run(
     }
 }
 
-/// True when item slot `slot` was emitted ahead of the walk (`seeded` sorted).
+/// True when item slot `slot` was emitted ahead of the walk (its bit in `seeded`).
 #[inline(always)]
-fn is_seed(seeded: &[u32], slot: u32) -> bool {
-    !seeded.is_empty() && seeded.binary_search(&slot).is_ok()
+fn is_seed(seeded: &[u64], slot: u32) -> bool {
+    seeded.get(slot as usize / 64).is_some_and(|w| w >> (slot % 64) & 1 != 0)
 }
 
 /// The (at most) `k` items in `frustum` whose boxes are nearest `eye`, nearest first, as
