@@ -236,3 +236,32 @@ fn split_keeps_order_and_balances() {
     assert_eq!(flat[1], (0, 5, 5));
     assert_eq!(flat[2], (1, 5, 3));
 }
+
+/// Two pieces draw the same data (and the prefetches for the later one are skipped) only
+/// when they are the same triangles of one mesh: instances of a cluster under two matrices,
+/// not another range of the mesh, another mesh with equal contents, or raw triangles.
+#[test]
+fn pieces_share_data_only_for_the_same_triangles_of_one_mesh() {
+    let positions = vec![Vec3::ZERO, Vec3::X, Vec3::Y, Vec3::Z];
+    let indices: Vec<u32> = vec![0, 1, 2, 0, 2, 3];
+    let copy = indices.clone();
+    let clip = [[Vec4::ZERO; 3]];
+    let src = |idx| Source::Mesh { positions: &positions, indices: idx, clip_from_local: Mat4::IDENTITY, ids: None };
+    let moved = Source::Mesh {
+        positions: &positions,
+        indices: &indices,
+        clip_from_local: Mat4::from_scale(Vec3::splat(2.0)),
+        ids: None,
+    };
+    let items = [
+        Item { src: src(&indices), first_id: 1, source_triangles: 2 },
+        Item { src: moved, first_id: 10, source_triangles: 2 },
+        Item { src: src(&copy), first_id: 20, source_triangles: 2 },
+        Item { src: Source::Clip(&clip), first_id: 30, source_triangles: 1 },
+    ];
+    let piece = |item, start| Piece { item, start, count: 1 };
+    assert!(same_data(&items, &piece(0, 1), &piece(1, 1)), "one cluster, two instances");
+    assert!(!same_data(&items, &piece(0, 0), &piece(1, 1)), "another range");
+    assert!(!same_data(&items, &piece(0, 1), &piece(2, 1)), "another mesh with equal contents");
+    assert!(!same_data(&items, &piece(3, 0), &piece(3, 0)), "raw triangles");
+}
