@@ -258,6 +258,7 @@ struct Seeds {
 }
 
 impl Seeds {
+    /// The seeds `slots` (none: every lookup says no).
     fn new(slots: impl IntoIterator<Item = u32>) -> Self {
         let mut s = Seeds { slots: slots.into_iter().collect(), filter: [0; 16] };
         s.slots.sort_unstable();
