@@ -16,17 +16,16 @@ use crate::tiling::{Grid, TILE, TILE_SHIFT};
 
 /// Bins all triangles of a chunk (also assigns their multi-tile flags).
 ///
-/// With `session` (the tiles of a frame session, and each tile's [`TileLevels::far`],
-/// infinite for tiles not drawn into yet), the coarse depth test runs here, while the
-/// triangle is still in cache from setup: a triangle behind a tile's pyramid (as of the last
-/// draw batch) is not sent to that tile (the per-tile z-max of ATI's "HyperZ"). Tiles not yet
-/// drawn into this session hold a stale pyramid and are not tested. The whole tile's
-/// farthest depth is read from the compact array of them, which stays in every core's cache
-/// (the boxfield's occluder pass binned in 0.98 ms instead of 1.18 ms on one thread, and 2–4%
-/// faster on two): the tile records hold it too, but the core that drew the tile last wrote
-/// them.
+/// With `session` (the tiles of a frame session, the pyramid's level 6 over them and the
+/// depth format's tie margin), the coarse depth test runs here, while the triangle is still
+/// in cache from setup: a triangle behind a tile's pyramid (as of the last draw batch) is not
+/// sent to that tile (the per-tile z-max of ATI's "HyperZ", then Greene's test per triangle;
+/// [`TileLevels::occludes`]). The whole tile's farthest depth is read from level 6, one
+/// compact array that stays in every core's cache (the boxfield's occluder pass binned in
+/// 0.98 ms instead of 1.18 ms on one thread, and 2–4% faster on two): the tile records hold
+/// it too, but the core that drew the tile last wrote them.
 #[inline(never)] // a stage of its own in profiles
-pub(crate) fn bin_chunk(chunk: &mut Chunk, grid: &Grid, session: Option<(&[TileLevels], &[f32])>) {
+pub(crate) fn bin_chunk(chunk: &mut Chunk, grid: &Grid, session: Option<(&[TileLevels], &[f32], f32)>) {
     let n = grid.len();
     chunk.bins.resize_with(n, Vec::new);
     chunk.bins.truncate(n);
@@ -36,10 +35,7 @@ pub(crate) fn bin_chunk(chunk: &mut Chunk, grid: &Grid, session: Option<(&[TileL
     chunk.multi.clear();
     chunk.hidden_at_binning = 0;
     let tx = grid.tiles_x as usize;
-    // The whole tile's farthest depth first, then the texels under the triangle.
-    let hidden = |k: usize, t: &Tri| {
-        session.is_some_and(|(levels, far)| t.zmin > far[k] || (levels[k].touched && levels[k].occludes_below_tile(t)))
-    };
+    let hidden = |k: usize, t: &Tri| session.is_some_and(|(levels, l6, margin)| levels[k].occludes(l6[k], margin, t));
     for (i, t) in chunk.tris.iter_mut().enumerate() {
         let [x0, y0, x1, y1] = t.bbox.map(|v| v as u32);
         let (tx0, ty0) = (x0 >> TILE_SHIFT, y0 >> TILE_SHIFT);

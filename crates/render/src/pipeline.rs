@@ -54,6 +54,8 @@ const CHUNK_TRIANGLES: u64 = 1024;
 struct Binning<'a> {
     grid: &'a Grid,
     session: bool,
+    /// The depth format's tie margin (for the session's coarse depth test).
+    margin: f32,
 }
 
 /// A rasterizer with its reusable buffers. Create once, render many frames.
@@ -397,7 +399,12 @@ impl Renderer {
         // still in cache. Its time is split between the two stages in proportion to the
         // time the chunks spent in each.
         let t = Instant::now();
-        let n = self.geometry(items, &vp, opts.backface_culling, Some(Binning { grid: &grid, session }));
+        let n = self.geometry(
+            items,
+            &vp,
+            opts.backface_culling,
+            Some(Binning { grid: &grid, session, margin: opts.depth_format.tie_margin() }),
+        );
         let step = ms_since(t);
         let (geometry, binning) = self.chunks[..n].iter().fold((0.0, 0.0), |(g, b), c| (g + c.ms.0, b + c.ms.1));
         st.ms_binning = if binning > 0.0 { step * binning / (geometry + binning) } else { 0.0 };
@@ -454,7 +461,7 @@ impl Renderer {
         }
         let chunks = &mut self.chunks[..n];
         let levels = &self.levels[..];
-        let far = &self.upper.tile_far[..];
+        let l6 = self.upper.levels.first().map_or(&[][..], |l| &l.texels[..]);
         // Claimed chunk by chunk, as the chunks' costs differ with the memory they read; each
         // chunk first by the same worker from batch to batch, so that its buffers (vertex
         // cache, triangles, bins) stay in that core's cache.
@@ -469,7 +476,7 @@ impl Renderer {
                 c.ms = (geometry, 0.0);
                 if let Some(b) = &bin {
                     let t = Instant::now();
-                    bin_chunk(c, b.grid, b.session.then_some((levels, far)));
+                    bin_chunk(c, b.grid, b.session.then_some((levels, l6, b.margin)));
                     c.ms.1 = ms_since(t);
                 }
             },

@@ -7,9 +7,8 @@
 //! the next triangles of the same batch are tested against it (Masked Occlusion Culling's
 //! sequential updates; Hasselgren, Andersson, Akenine-Möller 2016); levels 1–2 under the
 //! written blocks and levels 4–6 follow after the batch ([`TileLevels::update`]). Two tests
-//! read them: a whole triangle against the tile at binning ([`TileLevels::far`], the
-//! per-tile z-max of "HyperZ", then [`TileLevels::occludes_below_tile`], Greene's pyramid
-//! test per triangle), and each 8 × 8 block in the rasterizer ([`TileLevels::block_hidden`]).
+//! read them: a whole triangle against the tile at binning ([`TileLevels::occludes`]: the
+//! per-tile z-max of "HyperZ", then Greene's pyramid test per triangle), and each 8 × 8 block in the rasterizer ([`TileLevels::block_hidden`]).
 
 use super::{reduce_2x2, Rect};
 use crate::depth::DepthCodec;
@@ -71,32 +70,25 @@ impl TileLevels {
         self.touched = true;
     }
 
-    /// The depth behind which (by more than the format's tie margin) a triangle cannot
-    /// pass the depth test anywhere in this tile: its single level-6 texel, the farthest
-    /// depth drawn in it, plus the margin. Only meaningful on a tile drawn into in this
-    /// session.
-    #[inline]
-    pub(crate) fn far(&self) -> f32 {
-        self.mips[OFFSETS[5]] + self.tie_margin
-    }
-
     /// True when triangle `t` cannot pass the depth test anywhere in this tile, judged from
     /// the levels. They may lag behind the pixels (refreshed after each draw batch), but
-    /// depths only decrease, so a stale max is a safe bound. Only meaningful on a tile drawn
-    /// into in this session. First the whole tile's farthest depth ([`TileLevels::far`]):
-    /// where nearer surfaces cover the tile, every triangle behind them is settled by one
-    /// load (the boxfield's occluder pass on one thread, 11.2 → 9.7 ms); then
-    /// [`TileLevels::occludes_below_tile`]. Binning makes the same two tests, the first
-    /// from a compact copy of every tile's [`TileLevels::far`].
-    #[cfg(test)]
-    pub(crate) fn occludes(&self, t: &Tri) -> bool {
-        t.zmin > self.far() || self.occludes_below_tile(t)
+    /// depths only decrease, so a stale max is a safe bound. First the whole tile: `far` is
+    /// its farthest depth as binning reads it from the compact level 6 of the upper pyramid
+    /// (where a tile not drawn into holds the clear depth, which no fragment beats), and a
+    /// triangle behind it by more than the format's tie `margin` is hidden. Where nearer
+    /// surfaces cover the tile, that one load settles every triangle behind them (the
+    /// boxfield's occluder pass on one thread, 11.2 → 9.7 ms), without reading this record,
+    /// which the core that drew the tile last wrote. Then, on a tile drawn into in this
+    /// session, [`TileLevels::occludes_below_tile`].
+    #[inline]
+    pub(crate) fn occludes(&self, far: f32, margin: f32, t: &Tri) -> bool {
+        t.zmin > far + margin || (self.touched && self.occludes_below_tile(t))
     }
 
     /// True when the texels of the level by the triangle's size, under the part of `t`
     /// inside this tile, all lie nearer than `t` (by more than the tie margin): the test
-    /// after the whole tile's ([`TileLevels::far`]). Only meaningful on a tile drawn into
-    /// in this session.
+    /// after the whole tile's in [`TileLevels::occludes`]. Only meaningful on a tile drawn
+    /// into in this session.
     #[inline]
     pub(crate) fn occludes_below_tile(&self, t: &Tri) -> bool {
         // The triangle's pixels in this tile, in tile coordinates.
@@ -275,11 +267,18 @@ mod tests {
         assert!((far - 0.75).abs() < 1e-4, "{far}");
         let whole = [(60.0, -4.0), (140.0, -4.0), (100.0, 80.0)];
         let (left, right) = ([(70.0, 10.0), (90.0, 10.0), (80.0, 30.0)], [(100.0, 10.0), (120.0, 10.0), (110.0, 30.0)]);
-        assert!(lv.occludes(&flat(whole, 0.8)), "behind the whole tile");
-        assert!(!lv.occludes(&flat(whole, far + 0.5 * lv.tie_margin)), "within the tie margin of the farthest depth");
-        assert!(!lv.occludes(&flat(whole, 0.5)), "in front of the right half");
-        assert!(lv.occludes(&flat(left, 0.5)), "behind the left half, where it lies");
-        assert!(!lv.occludes(&flat(right, 0.5)), "in front of the right half, where it lies");
-        assert!(!lv.occludes(&flat(whole, 0.0)) && !lv.occludes(&flat(whole, -0.5)), "at or before the near plane");
+        let m = lv.tie_margin;
+        assert!(lv.occludes(far, m, &flat(whole, 0.8)), "behind the whole tile");
+        assert!(
+            !lv.occludes(far, m, &flat(whole, far + 0.5 * lv.tie_margin)),
+            "within the tie margin of the farthest depth"
+        );
+        assert!(!lv.occludes(far, m, &flat(whole, 0.5)), "in front of the right half");
+        assert!(lv.occludes(far, m, &flat(left, 0.5)), "behind the left half, where it lies");
+        assert!(!lv.occludes(far, m, &flat(right, 0.5)), "in front of the right half, where it lies");
+        assert!(
+            !lv.occludes(far, m, &flat(whole, 0.0)) && !lv.occludes(far, m, &flat(whole, -0.5)),
+            "at or before the near plane"
+        );
     }
 }

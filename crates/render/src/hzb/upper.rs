@@ -9,19 +9,12 @@ use super::{Level, Rect, TileLevels};
 pub(crate) struct UpperLevels {
     /// Level 6 first, up to the 1 × 1 top.
     pub levels: Vec<Level>,
-    /// Per tile, [`TileLevels::far`] (its level-6 texel plus the tie margin), infinite for
-    /// a tile not drawn into yet: what binning tests every triangle against first. One
-    /// compact array, which each core keeps in its cache, where the tile records were last
-    /// written by whichever core drew the tile.
-    pub tile_far: Vec<f32>,
 }
 
 impl UpperLevels {
     /// Clears the levels for a grid of `tiles_x × tiles_y` tiles (allocated only when the
     /// grid changes).
     pub(crate) fn clear(&mut self, tiles_x: u32, tiles_y: u32) {
-        self.tile_far.clear();
-        self.tile_far.resize((tiles_x * tiles_y) as usize, f32::INFINITY);
         if self.levels.first().is_some_and(|l| (l.width, l.height) == (tiles_x, tiles_y)) {
             for l in &mut self.levels {
                 l.texels.fill(1.0);
@@ -41,10 +34,8 @@ impl UpperLevels {
     /// Recomputes every level from the tiles' own levels (untouched tiles count as clear).
     pub(crate) fn update(&mut self, tiles: &[TileLevels]) {
         let Some(l6) = self.levels.first_mut() else { return };
-        self.tile_far.clear();
         for (v, t) in l6.texels.iter_mut().zip(tiles) {
             *v = if t.touched { t.mips[super::tile::OFFSETS[5]] } else { 1.0 };
-            self.tile_far.push(if t.touched { t.far() } else { f32::INFINITY });
         }
         for k in 1..self.levels.len() {
             let (below, above) = self.levels.split_at_mut(k);
@@ -61,23 +52,24 @@ mod tests {
     use crate::depth::{DepthCodec, Unorm16};
     use crate::tiling::TileRect;
 
-    /// The per-tile far depths that binning reads: infinite for every tile of a new
-    /// session, and after an update each drawn tile's [`TileLevels::far`] (its farthest
-    /// depth plus the tie margin), the others still infinite.
+    /// Level 6, which binning tests every triangle against first: the clear depth for every
+    /// tile of a new session, and after an update each drawn tile's farthest depth, the
+    /// others still clear.
     #[test]
-    fn tile_far_depths_follow_the_drawn_tiles() {
+    fn level_6_follows_the_drawn_tiles() {
         let mut upper = UpperLevels::default();
         upper.clear(2, 1);
-        assert_eq!(upper.tile_far, [f32::INFINITY; 2]);
+        assert_eq!(upper.levels[0].texels, [1.0; 2]);
         let mut tiles: Vec<TileLevels> =
             (0..2).map(|k| TileLevels::new(TileRect { x0: 64 * k, y0: 0, w: 64, h: 64 })).collect();
         tiles[1].clear::<Unorm16>();
         tiles[1].compute::<Unorm16>(&vec![Unorm16::key(0.5); 64 * 64]);
         upper.update(&tiles);
-        assert_eq!(upper.tile_far[0], f32::INFINITY, "a tile not drawn into");
-        assert!((upper.tile_far[1] - 0.5 - Unorm16::tie_margin()).abs() < 1e-4, "{}", upper.tile_far[1]);
-        assert_eq!(upper.tile_far[1], tiles[1].far());
+        let l6 = &upper.levels[0].texels;
+        assert_eq!(l6[0], 1.0, "a tile not drawn into");
+        assert!((l6[1] - 0.5).abs() < 1e-4, "{}", l6[1]);
+        assert_eq!(l6[1], tiles[1].mips[super::super::tile::OFFSETS[5]]);
         upper.clear(2, 1);
-        assert_eq!(upper.tile_far, [f32::INFINITY; 2], "a new session");
+        assert_eq!(upper.levels[0].texels, [1.0; 2], "a new session");
     }
 }
