@@ -81,11 +81,6 @@ impl VertexCache {
         self.code[i] = code;
         (self.sx[i], self.sy[i], self.sz[i]) = (s.x, s.y, s.z);
     }
-
-    #[inline(always)]
-    fn snapped(&self, i: usize) -> SnappedVertex {
-        SnappedVertex { x: self.sx[i], y: self.sy[i], z: self.sz[i] }
-    }
 }
 
 /// Output of the geometry stage for one chunk of the draw list.
@@ -150,6 +145,7 @@ impl Chunk {
                 prefetch_vertices(items, a);
             }
             let item = &items[p.item as usize];
+            self.stats.triangles_in += p.count as u64;
             match item.src {
                 Source::Mesh { positions, indices, ref clip_from_local, ids } => {
                     let idx = &indices[3 * p.start as usize..3 * (p.start + p.count) as usize];
@@ -162,29 +158,30 @@ impl Chunk {
                     };
                     let span = &positions[lo..hi];
                     transform(&mut self.verts, span, clip_from_local, vp);
-                    let first_id = item.first_id.wrapping_add(p.start);
-                    let ids = ids.map(|m| &m[p.start as usize..(p.start + p.count) as usize]);
+                    let corners =
+                        idx.chunks_exact(3).map(|t| [t[0] as usize - lo, t[1] as usize - lo, t[2] as usize - lo]);
                     // The clipper's input, recomputed for the few triangles that need it
                     // (the same product as the transform's, so the same bits).
                     let clip = |i: usize| *clip_from_local * span[i].extend(1.0);
-                    for (k, t) in idx.chunks_exact(3).enumerate() {
-                        let v = [t[0] as usize - lo, t[1] as usize - lo, t[2] as usize - lo];
-                        let id = match ids {
-                            Some(m) => item.first_id.wrapping_add(m[k]),
-                            None => first_id.wrapping_add(k as u32),
-                        };
-                        self.triangle(v, id, vp, cull, clip);
+                    // Two loops rather than a test per triangle of whether IDs are mapped.
+                    match ids {
+                        Some(m) => {
+                            let m = &m[p.start as usize..(p.start + p.count) as usize];
+                            self.triangles(corners, |k| item.first_id.wrapping_add(m[k]), vp, cull, clip);
+                        }
+                        None => {
+                            let first_id = item.first_id.wrapping_add(p.start);
+                            self.triangles(corners, |k| first_id.wrapping_add(k as u32), vp, cull, clip);
+                        }
                     }
                 }
                 Source::Clip(tris) => {
                     let tris = &tris[p.start as usize..(p.start + p.count) as usize];
                     self.load_clip(tris, vp);
                     let first_id = item.first_id.wrapping_add(p.start);
+                    let corners = (0..tris.len()).map(|k| [3 * k, 3 * k + 1, 3 * k + 2]);
                     let clip = |i: usize| tris[i / 3][i % 3];
-                    for k in 0..tris.len() {
-                        let v = [3 * k, 3 * k + 1, 3 * k + 2];
-                        self.triangle(v, first_id.wrapping_add(k as u32), vp, cull, clip);
-                    }
+                    self.triangles(corners, |k| first_id.wrapping_add(k as u32), vp, cull, clip);
                 }
             }
         }
@@ -212,74 +209,109 @@ impl Chunk {
         }
     }
 
-    /// One triangle of vertex-cache indices `v`; `clip(i)` gives vertex `i`'s clip-space
-    /// position for the clipper.
+    /// The triangles whose vertex-cache indices `corners` gives; `id(k)` is triangle `k`'s
+    /// ID and `clip(i)` vertex `i`'s clip-space position for the clipper.
     #[inline(always)]
-    fn triangle(&mut self, v: [usize; 3], id: u32, vp: &Viewport, cull: bool, clip: impl Fn(usize) -> Vec4) {
-        let st = &mut self.stats;
-        st.triangles_in += 1;
-        let c = [self.verts.code[v[0]], self.verts.code[v[1]], self.verts.code[v[2]]];
-        let and = c[0] & c[1] & c[2];
-        let or = c[0] | c[1] | c[2];
-        if and & VIEW_BITS != 0 || or & BAD != 0 {
-            st.trivially_rejected += 1;
-            return;
+    fn triangles(
+        &mut self,
+        corners: impl Iterator<Item = [usize; 3]>,
+        id: impl Fn(usize) -> u32,
+        vp: &Viewport,
+        cull: bool,
+        clip: impl Fn(usize) -> Vec4,
+    ) {
+        let Chunk { verts, tris, stats, .. } = self;
+        // The four arrays sliced to one length, so that each vertex index is checked once;
+        // held in locals, which the output's pushes cannot change.
+        let n = verts.code.len();
+        let (code, sx, sy, sz) = (&verts.code[..n], &verts.sx[..n], &verts.sy[..n], &verts.sz[..n]);
+        let mut tally = Tally::default();
+        for (k, v) in corners.enumerate() {
+            let c = [code[v[0]], code[v[1]], code[v[2]]];
+            let and = c[0] & c[1] & c[2];
+            let or = c[0] | c[1] | c[2];
+            if and & VIEW_BITS != 0 || or & BAD != 0 {
+                tally.rejected += 1;
+                continue;
+            }
+            if or & GUARD != 0 {
+                clipped([clip(v[0]), clip(v[1]), clip(v[2])], id(k), vp, cull, tris, stats);
+                continue;
+            }
+            let s = v.map(|i| SnappedVertex { x: sx[i], y: sy[i], z: sz[i] });
+            tally.count(setup_into(s, id(k), cull, vp, tris));
         }
-        if or & GUARD != 0 {
-            self.clipped([clip(v[0]), clip(v[1]), clip(v[2])], id, vp, cull);
-            return;
-        }
-        let s = [self.verts.snapped(v[0]), self.verts.snapped(v[1]), self.verts.snapped(v[2])];
-        let o = setup_into(s, id, cull, vp, &mut self.tris);
-        self.count(o);
+        tally.add_to(stats);
     }
+}
 
+/// What the triangle loop counts, in locals added to the chunk's [`FrameStats`] once per
+/// piece (counters in the chunk would be memory that each output push may change).
+#[derive(Default)]
+struct Tally {
+    rejected: u64,
+    backface: u64,
+    degenerate: u64,
+    too_small: u64,
+}
+
+impl Tally {
     #[inline(always)]
     fn count(&mut self, o: Outcome) {
         match o {
             Outcome::Ready => {}
-            Outcome::BackFace => self.stats.backface_culled += 1,
-            Outcome::Degenerate => self.stats.degenerate += 1,
-            Outcome::TooSmall => self.stats.too_small += 1,
+            Outcome::BackFace => self.backface += 1,
+            Outcome::Degenerate => self.degenerate += 1,
+            Outcome::TooSmall => self.too_small += 1,
         }
     }
 
-    #[cold]
-    fn clipped(&mut self, c: [Vec4; 3], id: u32, vp: &Viewport, cull: bool) {
-        // Facing from the homogeneous determinant: valid before clipping, whatever the w's.
-        let det = clip::facing_det(c);
-        if !det.is_finite() {
-            self.stats.trivially_rejected += 1;
-            return;
-        }
-        if det == 0.0 {
-            self.stats.degenerate += 1;
-            return;
-        }
-        if cull && det < 0.0 {
-            self.stats.backface_culled += 1;
-            return;
-        }
-        self.stats.clipped += 1;
-        let poly = clip::clip_triangle(c, vp.gx, vp.gy);
-        if poly.len() < 3 {
-            return;
-        }
-        let mut s = [NONE; clip::MAX_POLYGON];
-        for (o, cv) in s.iter_mut().zip(poly.vertices()) {
-            // w > 0 after near/far clipping, except for degenerate input (w = 0 points).
-            match (cv.pos.w > 0.0).then(|| vp.project(cv.pos)).flatten() {
-                Some(p) => *o = p,
-                None => return,
-            }
-        }
-        for i in 1..poly.len() - 1 {
-            self.stats.clip_output += 1;
-            // Facing was decided above; each fan piece is oriented by its own area.
-            let o = setup_into([s[0], s[i], s[i + 1]], id, false, vp, &mut self.tris);
-            self.count(o);
+    fn add_to(&self, st: &mut FrameStats) {
+        st.trivially_rejected += self.rejected;
+        st.backface_culled += self.backface;
+        st.degenerate += self.degenerate;
+        st.too_small += self.too_small;
+    }
+}
+
+/// A triangle crossing the near/far planes or the guard band: facing from its clip-space
+/// corners `c`, then the homogeneous clipper and setup of the fan it leaves.
+#[cold]
+fn clipped(c: [Vec4; 3], id: u32, vp: &Viewport, cull: bool, tris: &mut Vec<Tri>, stats: &mut FrameStats) {
+    // Facing from the homogeneous determinant: valid before clipping, whatever the w's.
+    let det = clip::facing_det(c);
+    if !det.is_finite() {
+        stats.trivially_rejected += 1;
+        return;
+    }
+    if det == 0.0 {
+        stats.degenerate += 1;
+        return;
+    }
+    if cull && det < 0.0 {
+        stats.backface_culled += 1;
+        return;
+    }
+    stats.clipped += 1;
+    let poly = clip::clip_triangle(c, vp.gx, vp.gy);
+    if poly.len() < 3 {
+        return;
+    }
+    let mut s = [NONE; clip::MAX_POLYGON];
+    for (o, cv) in s.iter_mut().zip(poly.vertices()) {
+        // w > 0 after near/far clipping, except for degenerate input (w = 0 points).
+        match (cv.pos.w > 0.0).then(|| vp.project(cv.pos)).flatten() {
+            Some(p) => *o = p,
+            None => return,
         }
     }
+    let mut tally = Tally::default();
+    for i in 1..poly.len() - 1 {
+        stats.clip_output += 1;
+        // Facing was decided above; each fan piece is oriented by its own area.
+        tally.count(setup_into([s[0], s[i], s[i + 1]], id, false, vp, tris));
+    }
+    tally.add_to(stats);
 }
 
 /// Triangles of a piece whose data [`prefetch_indices`] and [`prefetch_vertices`] ask for:
