@@ -169,16 +169,10 @@ pub fn setup_into(v: [SnappedVertex; 3], id: u32, cull: bool, vp: &Viewport, out
     if cull && area > 0 {
         return Outcome::BackFace;
     }
-    // Orient positively. Front and back faces come in random order, so swap with selects
-    // (conditional moves) rather than a mispredicted branch.
-    let swap = area < 0;
-    let pick = |p: i32, q: i32| if swap { q } else { p };
-    let pickf = |p: f32, q: f32| if swap { q } else { p };
-    let b = SnappedVertex { x: pick(b0.x, c0.x), y: pick(b0.y, c0.y), z: pickf(b0.z, c0.z) };
-    let c = SnappedVertex { x: pick(c0.x, b0.x), y: pick(c0.y, b0.y), z: pickf(c0.z, b0.z) };
-    let area = area.abs();
-    let (xmin, xmax) = (a.x.min(b.x).min(c.x), a.x.max(b.x).max(c.x));
-    let (ymin, ymax) = (a.y.min(b.y).min(c.y), a.y.max(b.y).max(c.y));
+    // The pixel-center box does not depend on the orientation: find it first, so that the
+    // many triangles that cover no pixel center leave before the swap below.
+    let (xmin, xmax) = (a.x.min(b0.x).min(c0.x), a.x.max(b0.x).max(c0.x));
+    let (ymin, ymax) = (a.y.min(b0.y).min(c0.y), a.y.max(b0.y).max(c0.y));
     // Pixel centers 256 i + 128 inside [min, max].
     let half = ONE / 2;
     let px0 = ((xmin + half - 1) >> SUBPIXEL_BITS).max(0);
@@ -188,20 +182,20 @@ pub fn setup_into(v: [SnappedVertex; 3], id: u32, cull: bool, vp: &Viewport, out
     if px0 > px1 || py0 > py1 {
         return Outcome::TooSmall;
     }
-    let tri = Tri {
-        x: [a.x, b.x, c.x],
-        y: [a.y, b.y, c.y],
-        z0: a.z,
-        zx: 0.0,
-        zy: 0.0,
-        zmin: a.z.min(b.z).min(c.z),
-        id,
-        bbox: [px0 as u16, py0 as u16, px1 as u16, py1 as u16],
-        multi: u32::MAX,
-    };
+    // Orient positively. Front and back faces come in random order, so swap with selects
+    // (conditional moves) rather than a mispredicted branch.
+    let swap = area < 0;
+    let pick = |p: i32, q: i32| if swap { q } else { p };
+    let pickf = |p: f32, q: f32| if swap { q } else { p };
+    let b = SnappedVertex { x: pick(b0.x, c0.x), y: pick(b0.y, c0.y), z: pickf(b0.z, c0.z) };
+    let c = SnappedVertex { x: pick(c0.x, b0.x), y: pick(c0.y, b0.y), z: pickf(c0.z, b0.z) };
+    let area = area.abs();
+    let bbox = [px0 as u16, py0 as u16, px1 as u16, py1 as u16];
+    let zmin = a.z.min(b.z).min(c.z);
+    let tri = |zx, zy| Tri { x: [a.x, b.x, c.x], y: [a.y, b.y, c.y], z0: a.z, zx, zy, zmin, id, bbox, multi: u32::MAX };
     // Tiny boxes: decide coverage now, before the triangle costs a depth plane, binning and
     // a tile visit.
-    if (px1 - px0 + 1) * (py1 - py0 + 1) <= 4 && !covers_any(&tri) {
+    if (px1 - px0 + 1) * (py1 - py0 + 1) <= 4 && !covers_any(&tri(0.0, 0.0)) {
         return Outcome::TooSmall;
     }
     // Depth plane through the snapped vertices, in f64 once per triangle.
@@ -209,7 +203,7 @@ pub fn setup_into(v: [SnappedVertex; 3], id: u32, cull: bool, vp: &Viewport, out
     let (dx2, dy2) = ((c.x - a.x) as f64, (c.y - a.y) as f64);
     let (dz1, dz2) = ((b.z - a.z) as f64, (c.z - a.z) as f64);
     let inv = 1.0 / area as f64;
-    out.push(Tri { zx: ((dz1 * dy2 - dz2 * dy1) * inv) as f32, zy: ((dx1 * dz2 - dx2 * dz1) * inv) as f32, ..tri });
+    out.push(tri(((dz1 * dy2 - dz2 * dy1) * inv) as f32, ((dx1 * dz2 - dx2 * dz1) * inv) as f32));
     Outcome::Ready
 }
 
