@@ -33,9 +33,9 @@ use crate::bin::bin_chunk;
 use crate::claim::{for_each_claimed, Claim};
 use crate::clip_matrix::clip_from_local;
 use crate::depth::{with_codec, DepthCodec, DepthFormat};
-use crate::geometry::{split, Chunk, Item, Source};
+use crate::geometry::{split, Chunk, DrawList, Item, Placed, Source};
 use crate::hzb::{TileLevels, TilePyramid, UpperLevels};
-use crate::options::{same_matrix, DrawItem, DrawSource, RenderOptions, Wireframe};
+use crate::options::{DrawItem, DrawSource, RenderOptions, Wireframe};
 use crate::raster::{raster_tiles, Planes, TileBuf, TilePass};
 use crate::setup::Viewport;
 use crate::stats::{ms_since, FrameStats};
@@ -183,7 +183,7 @@ impl Renderer {
         opts.depth_format.check_resolves(&camera.projection)?;
         let t0 = Instant::now();
         let resolved = self.resolve_items(scene, instances, items, camera)?;
-        let mut stats = self.run(&resolved, target, opts);
+        let mut stats = self.run(&resolved[..], target, opts);
         stats.ms_total = ms_since(t0);
         Ok(stats)
     }
@@ -281,11 +281,7 @@ impl Renderer {
     ) -> Result<FrameStats> {
         opts.depth_format.check_resolves(&camera.projection)?;
         let t0 = Instant::now();
-        let mut resolved: Vec<Item> = Vec::with_capacity(sources.len());
         self.ranges.clear();
-        let mut m = glam::Mat4::ZERO;
-        let clip_from_world = camera.clip_from_world_f64();
-        let simd = SimdLevel::Auto.resolve();
         for (k, d) in sources.iter().enumerate() {
             let n = (d.indices.len() / 3) as u64;
             let bad = |why: String| Err(Error::InvalidDraw(format!("source {k}: {why}")));
@@ -300,24 +296,11 @@ impl Renderer {
             if (check_indices || cfg!(debug_assertions)) && range.iter().any(|&i| i as usize >= d.positions.len()) {
                 return bad("an index is out of range".into());
             }
-            // Consecutive clusters of one instance share the matrix.
-            let same = k > 0 && same_matrix(&sources[k - 1].world_from_local, &d.world_from_local);
-            if !same {
-                m = clip_from_local(&clip_from_world, &d.world_from_local, simd);
-            }
-            resolved.push(Item {
-                src: Source::Mesh {
-                    positions: d.positions,
-                    indices: d.indices,
-                    clip_from_local: m,
-                    ids: d.triangle_ids,
-                },
-                first_id: d.first_triangle.wrapping_add(1),
-                source_triangles: n as u32,
-            });
             self.ranges.push((k as u32, d.first, d.count));
         }
-        let mut st = self.run(&resolved, target, opts);
+        // Each source's matrix is computed by the chunk that draws it, in parallel.
+        let placed = Placed { sources, clip_from_world: camera.clip_from_world_f64(), simd: SimdLevel::Auto.resolve() };
+        let mut st = self.run(&placed, target, opts);
         st.ms_total = ms_since(t0);
         Ok(st)
     }
@@ -379,12 +362,12 @@ impl Renderer {
         let items = [Item { src: Source::Clip(&triangles[..n as usize]), first_id, source_triangles: n }];
         self.ranges.clear();
         self.ranges.push((0, 0, n));
-        let mut st = self.run(&items, target, opts);
+        let mut st = self.run(&items[..], target, opts);
         st.ms_total = ms_since(t0);
         st
     }
 
-    fn run(&mut self, items: &[Item], mut target: Target, opts: &RenderOptions) -> FrameStats {
+    fn run<L: DrawList + ?Sized>(&mut self, items: &L, mut target: Target, opts: &RenderOptions) -> FrameStats {
         let mut st = FrameStats::default();
         let (width, height, session) = match &target {
             Target::Frame { fb, .. } => (fb.width(), fb.height(), false),
@@ -450,7 +433,7 @@ impl Renderer {
     /// chunks, in submission order; returns `n`. With `bin`, each chunk is binned right
     /// after its setup, by the same task. Each chunk records the milliseconds it spent in
     /// each stage.
-    fn geometry(&mut self, items: &[Item], vp: &Viewport, cull: bool, bin: Option<Binning>) -> usize {
+    fn geometry<L: DrawList + ?Sized>(&mut self, items: &L, vp: &Viewport, cull: bool, bin: Option<Binning>) -> usize {
         let total: u64 = self.ranges.iter().map(|r| r.2 as u64).sum();
         let threads = rayon::current_num_threads().max(1);
         // One thread gains nothing from chunks: each costs a pass over the tiles' bins.
@@ -498,7 +481,7 @@ impl Renderer {
     ) -> Result<&[Chunk]> {
         let resolved = self.resolve_items(scene, instances, items, camera)?;
         let vp = Viewport::new(width, height, opts.guard_band);
-        let n = self.geometry(&resolved, &vp, opts.backface_culling, None);
+        let n = self.geometry(&resolved[..], &vp, opts.backface_culling, None);
         Ok(&self.chunks[..n])
     }
 

@@ -24,6 +24,8 @@ use sightline_spatial::simd::SimdLevel;
 use crate::clip::{self, BAD, GUARD, VIEW_BITS};
 use crate::setup::{setup_into, Outcome, SnappedVertex, Tri, Viewport};
 use crate::stats::FrameStats;
+use list::MeshData;
+pub(crate) use list::{DrawList, Placed};
 
 /// Where a draw piece's triangles come from.
 #[derive(Debug, Clone, Copy)]
@@ -43,6 +45,17 @@ pub(crate) struct Item<'a> {
     pub first_id: u32,
     /// Total triangles in the source (to know when a piece is the whole mesh).
     pub source_triangles: u32,
+}
+
+impl Item<'_> {
+    /// The item's `clip_from_local` (none for raw clip-space triangles).
+    #[inline(always)]
+    fn matrix(&self) -> Option<&Mat4> {
+        match &self.src {
+            Source::Mesh { clip_from_local, .. } => Some(clip_from_local),
+            Source::Clip(_) => None,
+        }
+    }
 }
 
 /// A contiguous triangle range of one item.
@@ -110,7 +123,7 @@ impl Chunk {
     /// Runs the geometry stage over `pieces`, on the instruction set [`Chunk::simd`]
     /// resolves to (one branch here; none per vertex or triangle).
     #[inline(never)] // a stage of its own in profiles
-    pub fn process(&mut self, items: &[Item], pieces: &[Piece], vp: &Viewport, cull: bool) {
+    pub fn process<L: DrawList + ?Sized>(&mut self, items: &L, pieces: &[Piece], vp: &Viewport, cull: bool) {
         match self.simd.resolve() {
             #[cfg(target_arch = "x86_64")]
             // SAFETY: `SimdLevel::resolve` gives AVX2 or AVX-512 only when the CPU has every
@@ -123,9 +136,9 @@ impl Chunk {
     /// The stage, with `transform` filling the vertex cache for a span of positions; inlined
     /// into each instruction set's entry point.
     #[inline(always)]
-    fn process_with(
+    fn process_with<L: DrawList + ?Sized>(
         &mut self,
-        items: &[Item],
+        items: &L,
         pieces: &[Piece],
         vp: &Viewport,
         cull: bool,
@@ -133,6 +146,9 @@ impl Chunk {
     ) {
         self.tris.clear();
         self.stats = FrameStats::default();
+        // The item of the last piece (pieces of one item come together, and consecutive
+        // items often share their matrix).
+        let mut last: Option<(usize, Item)> = None;
         for (n, p) in pieces.iter().enumerate() {
             // Pieces are often small clusters scattered over memory: ask for the indices
             // and IDs two pieces ahead, and for the vertices of the next one (whose indices
@@ -144,7 +160,12 @@ impl Chunk {
             if let Some(a) = pieces.get(n + 1).filter(|a| !same_data(items, a, p)) {
                 prefetch_vertices(items, a);
             }
-            let item = &items[p.item as usize];
+            let k = p.item as usize;
+            let item = match last {
+                Some((j, it)) if j == k => it,
+                _ => items.item(k, last.as_ref().and_then(|(j, it)| it.matrix().map(|m| (*j, m)))),
+            };
+            last = Some((k, item));
             self.stats.triangles_in += p.count as u64;
             match item.src {
                 Source::Mesh { positions, indices, ref clip_from_local, ids } => {
@@ -331,19 +352,17 @@ struct PieceHead<'a> {
 /// True when pieces `a` and `b` draw the same triangles of the same mesh (instances of
 /// one cluster), whose data the one being drawn has just brought into the cache.
 #[inline(always)]
-fn same_data(items: &[Item], a: &Piece, b: &Piece) -> bool {
-    match (&items[a.item as usize].src, &items[b.item as usize].src) {
-        (Source::Mesh { indices: x, .. }, Source::Mesh { indices: y, .. }) => {
-            a.start == b.start && std::ptr::eq(x.as_ptr(), y.as_ptr())
-        }
+fn same_data<L: DrawList + ?Sized>(items: &L, a: &Piece, b: &Piece) -> bool {
+    match (items.mesh(a.item as usize), items.mesh(b.item as usize)) {
+        (Some(x), Some(y)) => a.start == b.start && std::ptr::eq(x.indices.as_ptr(), y.indices.as_ptr()),
         _ => false,
     }
 }
 
 /// The [`PieceHead`] of piece `p`, when it draws from a mesh.
 #[inline(always)]
-fn piece_head<'a>(items: &[Item<'a>], p: &Piece) -> Option<PieceHead<'a>> {
-    let Source::Mesh { positions, indices, ids, .. } = items[p.item as usize].src else { return None };
+fn piece_head<'a, L: DrawList + ?Sized>(items: &'a L, p: &Piece) -> Option<PieceHead<'a>> {
+    let MeshData { positions, indices, ids } = items.mesh(p.item as usize)?;
     let (s, c) = (p.start as usize, (p.count as usize).min(PREFETCH_TRIANGLES));
     let ids = ids.and_then(|m| m.get(s..s + c)).unwrap_or(&[]);
     Some(PieceHead { positions, indices: indices.get(3 * s..3 * (s + c))?, ids })
@@ -351,7 +370,7 @@ fn piece_head<'a>(items: &[Item<'a>], p: &Piece) -> Option<PieceHead<'a>> {
 
 /// Asks for the indices and triangle IDs of piece `p`.
 #[inline(always)]
-fn prefetch_indices(items: &[Item], p: &Piece) {
+fn prefetch_indices<L: DrawList + ?Sized>(items: &L, p: &Piece) {
     if let Some(h) = piece_head(items, p) {
         prefetch_all(h.indices);
         prefetch_all(h.ids);
@@ -361,7 +380,7 @@ fn prefetch_indices(items: &[Item], p: &Piece) {
 /// Asks for the first vertices of piece `p`: from its first index on, as many as it has
 /// triangles (a meshlet numbers its vertices in order of first use, so they start there).
 #[inline(always)]
-fn prefetch_vertices(items: &[Item], p: &Piece) {
+fn prefetch_vertices<L: DrawList + ?Sized>(items: &L, p: &Piece) {
     if let Some(h) = piece_head(items, p) {
         if let Some(&lo) = h.indices.first() {
             let lo = lo as usize;
@@ -393,7 +412,7 @@ fn transform_tail(vc: &mut VertexCache, positions: &[Vec3], m: &Mat4, vp: &Viewp
 /// given AVX2 or AVX-512.
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2,fma,bmi1,bmi2,lzcnt,popcnt")]
-fn process_avx2(chunk: &mut Chunk, items: &[Item], pieces: &[Piece], vp: &Viewport, cull: bool) {
+fn process_avx2<L: DrawList + ?Sized>(chunk: &mut Chunk, items: &L, pieces: &[Piece], vp: &Viewport, cull: bool) {
     chunk.process_with(items, pieces, vp, cull, |vc, positions, m, vp| transform_avx2(vc, positions, m, vp));
 }
 
@@ -570,5 +589,6 @@ pub(crate) fn split(items: &[(u32, u32, u32)], n: usize, out: &mut Vec<Vec<Piece
     }
 }
 
+mod list;
 #[cfg(test)]
 mod tests;

@@ -111,23 +111,25 @@ fn random_position(rng: &mut sightline_scene::rng::Rng) -> Vec3 {
     }
 }
 
+/// A perspective camera looking at the origin from `eye` (aspect 1.5, far plane at 100).
+fn camera(eye: Vec3, fovy_degrees: f32, near: f32) -> sightline_scene::Camera {
+    let at = sightline_scene::LookAt {
+        eye,
+        target: Vec3::ZERO,
+        up: Vec3::Y,
+        fovy: sightline_scene::Angle::degrees(fovy_degrees),
+        near,
+        far: 100.0,
+    };
+    sightline_scene::Camera::perspective(&at, 1.5).unwrap()
+}
+
 /// The vertex cache filled at every available level equals the portable one bit for bit
 /// (codes, snapped positions and depths), for spans of every length modulo 8.
 #[test]
 fn transform_is_the_same_on_every_level() {
     let mut rng = sightline_scene::rng::Rng::new(11);
-    let cam = sightline_scene::Camera::perspective(
-        &sightline_scene::LookAt {
-            eye: Vec3::new(0.5, 1.0, 8.0),
-            target: Vec3::ZERO,
-            up: Vec3::Y,
-            fovy: sightline_scene::Angle::degrees(60.0),
-            near: 0.5,
-            far: 100.0,
-        },
-        1.5,
-    )
-    .unwrap();
+    let cam = camera(Vec3::new(0.5, 1.0, 8.0), 60.0, 0.5);
     for round in 0..300 {
         let m = if round % 3 == 2 {
             Mat4::from_cols_array(&[0.0; 16].map(|_| rng.range(-2.0, 2.0)))
@@ -155,7 +157,10 @@ fn transform_is_the_same_on_every_level() {
 }
 
 /// A set-up triangle's fields, depths as bits.
-fn tri_bits(t: &Tri) -> ([i32; 3], [i32; 3], [u32; 3], u32, [u16; 4], u32) {
+type TriBits = ([i32; 3], [i32; 3], [u32; 3], u32, [u16; 4], u32);
+
+/// [`TriBits`] of `t`.
+fn tri_bits(t: &Tri) -> TriBits {
     (t.x, t.y, [t.z0.to_bits(), t.zx.to_bits(), t.zy.to_bits()], t.id, t.bbox, t.multi)
 }
 
@@ -165,18 +170,7 @@ fn tri_bits(t: &Tri) -> ([i32; 3], [i32; 3], [u32; 3], u32, [u16; 4], u32) {
 #[test]
 fn process_is_the_same_on_every_level() {
     let mut rng = sightline_scene::rng::Rng::new(12);
-    let cam = sightline_scene::Camera::perspective(
-        &sightline_scene::LookAt {
-            eye: Vec3::new(0.0, 0.5, 5.0),
-            target: Vec3::ZERO,
-            up: Vec3::Y,
-            fovy: sightline_scene::Angle::degrees(70.0),
-            near: 1.0,
-            far: 100.0,
-        },
-        1.5,
-    )
-    .unwrap();
+    let cam = camera(Vec3::new(0.0, 0.5, 5.0), 70.0, 1.0);
     let vp = Viewport::new(320, 200, true);
     let mut kinds = FrameStats::default();
     for _ in 0..20 {
@@ -204,7 +198,7 @@ fn process_is_the_same_on_every_level() {
         ];
         let run = |level: SimdLevel| {
             let mut chunk = Chunk { simd: level, ..Chunk::default() };
-            chunk.process(&items, &pieces, &vp, true);
+            chunk.process(&items[..], &pieces, &vp, true);
             (chunk.tris.iter().map(tri_bits).collect::<Vec<_>>(), chunk.stats)
         };
         let portable = run(SimdLevel::Portable);
@@ -217,6 +211,68 @@ fn process_is_the_same_on_every_level() {
     }
     let k = &kinds;
     assert!(k.trivially_rejected > 100 && k.clipped > 100 && k.backface_culled > 100 && k.triangles_in > 5000, "{k:?}");
+}
+
+/// Draw sources resolved by the chunks that draw them ([`Placed`]: each matrix computed
+/// when a chunk reaches its item, or taken from the item before when both are placed alike)
+/// give the triangles and counters of items resolved beforehand, each with its own product.
+#[test]
+fn placed_sources_draw_as_items_resolved_beforehand() {
+    use crate::clip_matrix::clip_from_local;
+    use crate::options::DrawSource;
+    use glam::Affine3A;
+    let mut rng = sightline_scene::rng::Rng::new(5);
+    let cam = camera(Vec3::new(0.0, 0.5, 6.0), 70.0, 0.5);
+    let vp = Viewport::new(320, 200, true);
+    let positions: Vec<Vec3> = (0..40).map(|_| random_position(&mut rng)).collect();
+    let indices: Vec<u32> = (0..3 * 30).map(|_| rng.below(40)).collect();
+    let ids: Vec<u32> = (0..30).rev().collect();
+    // Runs of one placement and changes between them, an equal copy of one included.
+    let at = |x: f32| Affine3A::from_translation(Vec3::new(x, 0.0, 0.0));
+    let placements = [at(0.0), at(0.0), at(0.7), at(0.0), at(0.7), at(0.7)];
+    let sources: Vec<DrawSource> = placements
+        .iter()
+        .enumerate()
+        .map(|(k, &world_from_local)| DrawSource {
+            positions: &positions,
+            indices: &indices,
+            triangle_ids: (k % 2 == 0).then_some(&ids[..]),
+            world_from_local,
+            first_triangle: 100 * k as u32,
+            first: 0,
+            count: 30,
+        })
+        .collect();
+    let (clip_from_world, simd) = (cam.clip_from_world_f64(), SimdLevel::Auto.resolve());
+    let items: Vec<Item> = sources
+        .iter()
+        .map(|d| Item {
+            src: Source::Mesh {
+                positions: d.positions,
+                indices: d.indices,
+                clip_from_local: clip_from_local(&clip_from_world, &d.world_from_local, simd),
+                ids: d.triangle_ids,
+            },
+            first_id: d.first_triangle + 1,
+            source_triangles: 30,
+        })
+        .collect();
+    let placed = Placed { sources: &sources, clip_from_world, simd };
+    // Whole items, and one split in two pieces.
+    let mut pieces: Vec<Piece> = (0..6).map(|k| Piece { item: k, start: 0, count: 30 }).collect();
+    pieces.splice(2..3, [Piece { item: 2, start: 0, count: 11 }, Piece { item: 2, start: 11, count: 19 }]);
+    fn run<L: DrawList + ?Sized>(list: &L, pieces: &[Piece], vp: &Viewport) -> (Vec<TriBits>, FrameStats) {
+        let mut chunk = Chunk::default();
+        chunk.process(list, pieces, vp, true);
+        (chunk.tris.iter().map(tri_bits).collect(), chunk.stats)
+    }
+    let want = run(&items[..], &pieces, &vp);
+    assert_eq!(run(&placed, &pieces, &vp), want);
+    // The placements draw differently, so a matrix taken from the wrong item would show.
+    let first = |k: usize| run(&items[..], &[Piece { item: k as u32, start: 0, count: 30 }], &vp).0;
+    let ready = |t: &[TriBits]| t.iter().map(|b| (b.0, b.1)).collect::<Vec<_>>();
+    assert!(!want.0.is_empty());
+    assert_ne!(ready(&first(0)), ready(&first(2)));
 }
 
 #[test]
@@ -260,8 +316,8 @@ fn pieces_share_data_only_for_the_same_triangles_of_one_mesh() {
         Item { src: Source::Clip(&clip), first_id: 30, source_triangles: 1 },
     ];
     let piece = |item, start| Piece { item, start, count: 1 };
-    assert!(same_data(&items, &piece(0, 1), &piece(1, 1)), "one cluster, two instances");
-    assert!(!same_data(&items, &piece(0, 0), &piece(1, 1)), "another range");
-    assert!(!same_data(&items, &piece(0, 1), &piece(2, 1)), "another mesh with equal contents");
-    assert!(!same_data(&items, &piece(3, 0), &piece(3, 0)), "raw triangles");
+    assert!(same_data(&items[..], &piece(0, 1), &piece(1, 1)), "one cluster, two instances");
+    assert!(!same_data(&items[..], &piece(0, 0), &piece(1, 1)), "another range");
+    assert!(!same_data(&items[..], &piece(0, 1), &piece(2, 1)), "another mesh with equal contents");
+    assert!(!same_data(&items[..], &piece(3, 0), &piece(3, 0)), "raw triangles");
 }

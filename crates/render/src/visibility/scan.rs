@@ -73,7 +73,7 @@ impl ScreenTriangles {
         let pieces = [Piece { item: 0, start: 0, count: n as u32 }];
         let vp = Viewport::new(width, height, true);
         let mut chunk = Chunk::default();
-        chunk.process(&items, &pieces, &vp, cull);
+        chunk.process(&items[..], &pieces, &vp, cull);
         let tris = std::mem::take(&mut chunk.tris);
         // Records come in triangle order (several in a row for a clipped triangle).
         let mut first = vec![0u32; n + 1];

@@ -180,7 +180,7 @@ fn polygons(soup: &Soup, camera: &Camera, width: u32, height: u32, cull: bool, c
         source_triangles: n,
     };
     let mut chunk = Chunk::default();
-    chunk.process(&[item], &[Piece { item: 0, start: 0, count: n }], &Viewport::new(width, height, true), cull);
+    chunk.process(&[item][..], &[Piece { item: 0, start: 0, count: n }], &Viewport::new(width, height, true), cull);
     let st = &chunk.stats;
     counters.add("triangles", st.triangles_in);
     counters.add("clipped", st.clipped);
