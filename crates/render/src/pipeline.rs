@@ -74,6 +74,13 @@ pub struct Renderer {
     upper: UpperLevels,
 }
 
+/// The start of a draw: refused when the depth format cannot resolve the camera's depth
+/// range, its start time otherwise.
+fn start_draw(camera: &Camera, opts: &RenderOptions) -> Result<Instant> {
+    opts.depth_format.check_resolves(&camera.projection)?;
+    Ok(Instant::now())
+}
+
 /// Where a draw goes.
 pub(crate) enum Target<'a> {
     /// Straight into a framebuffer: tiles load its pixels (or, when `fresh`, start from the
@@ -180,12 +187,9 @@ impl Renderer {
         target: Target,
         opts: &RenderOptions,
     ) -> Result<FrameStats> {
-        opts.depth_format.check_resolves(&camera.projection)?;
-        let t0 = Instant::now();
+        let t0 = start_draw(camera, opts)?;
         let resolved = self.resolve_items(scene, instances, items, camera)?;
-        let mut stats = self.run(&resolved[..], target, opts);
-        stats.ms_total = ms_since(t0);
-        Ok(stats)
+        Ok(self.run_since(&resolved[..], target, opts, t0))
     }
 
     /// Draws `items` into the depth and ID planes of `fb` (depth test LESS, exact ties to the
@@ -279,8 +283,7 @@ impl Renderer {
         opts: &RenderOptions,
         check_indices: bool,
     ) -> Result<FrameStats> {
-        opts.depth_format.check_resolves(&camera.projection)?;
-        let t0 = Instant::now();
+        let t0 = start_draw(camera, opts)?;
         self.ranges.clear();
         for (k, d) in sources.iter().enumerate() {
             let n = (d.indices.len() / 3) as u64;
@@ -300,9 +303,24 @@ impl Renderer {
         }
         // Each source's matrix is computed by the chunk that draws it, in parallel.
         let placed = Placed { sources, clip_from_world: camera.clip_from_world_f64(), simd: SimdLevel::Auto.resolve() };
-        let mut st = self.run(&placed, target, opts);
-        st.ms_total = ms_since(t0);
-        Ok(st)
+        Ok(self.run_since(&placed, target, opts, t0))
+    }
+
+    /// Draws `list` into `target`, `ranges` giving each piece's (item, first triangle, count)
+    /// in order: for lists whose items are valid by construction (the culler's clusters),
+    /// which resolve them as the chunks reach them.
+    pub(crate) fn draw_list_to<L: DrawList + ?Sized>(
+        &mut self,
+        list: &L,
+        ranges: &[(u32, u32, u32)],
+        camera: &Camera,
+        target: Target,
+        opts: &RenderOptions,
+    ) -> Result<FrameStats> {
+        let t0 = start_draw(camera, opts)?;
+        self.ranges.clear();
+        self.ranges.extend_from_slice(ranges);
+        Ok(self.run_since(list, target, opts, t0))
     }
 
     /// The per-tile records, for tests that look at a session's tiles.
@@ -362,7 +380,18 @@ impl Renderer {
         let items = [Item { src: Source::Clip(&triangles[..n as usize]), first_id, source_triangles: n }];
         self.ranges.clear();
         self.ranges.push((0, 0, n));
-        let mut st = self.run(&items[..], target, opts);
+        self.run_since(&items[..], target, opts, t0)
+    }
+
+    /// [`Renderer::run`], its total time counted from `t0` (when the draw began).
+    fn run_since<L: DrawList + ?Sized>(
+        &mut self,
+        items: &L,
+        target: Target,
+        opts: &RenderOptions,
+        t0: Instant,
+    ) -> FrameStats {
+        let mut st = self.run(items, target, opts);
         st.ms_total = ms_since(t0);
         st
     }

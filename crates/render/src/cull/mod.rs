@@ -38,6 +38,7 @@
 //! cameras.
 
 pub mod cone;
+mod drawn;
 pub mod meshlets;
 mod moves;
 mod occluder;

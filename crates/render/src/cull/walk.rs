@@ -8,9 +8,10 @@ use std::time::Instant;
 use glam::Affine3A;
 use sightline_scene::{Aabb, Camera};
 use sightline_spatial::{
-    prefetch, AabbExt, Containment, CullOptions, FrontToBackCursor, Frustum, OctreeCursor, Visible,
+    prefetch, AabbExt, Containment, CullOptions, FrontToBackCursor, Frustum, OctreeCursor, SimdLevel, Visible,
 };
 
+use super::drawn::ClusterList;
 use super::{BoxVisibility, ClusterDraw, Clusters, CullStats, OcclusionQueries, PREFETCH_AHEAD};
 use crate::awake::join_helping;
 use crate::stats::ms_since;
@@ -120,19 +121,32 @@ impl Clusters {
     /// order, counted into `cs`.
     pub(super) fn sources<T>(&self, items: &[T], index: impl Fn(&T) -> u32, cs: &mut CullStats) -> Vec<DrawSource<'_>> {
         let mut sources: Vec<DrawSource> = Vec::with_capacity(items.len());
+        self.for_each_drawn(items, index, cs, |_, d| sources.push(self.draw_source(d)));
+        sources
+    }
+
+    /// Calls `f` with the index and record of each of the given clusters that draws
+    /// something, in order, counting them into `cs`.
+    fn for_each_drawn<T>(
+        &self,
+        items: &[T],
+        index: impl Fn(&T) -> u32,
+        cs: &mut CullStats,
+        mut f: impl FnMut(u32, &ClusterDraw),
+    ) {
         for (k, v) in items.iter().enumerate() {
             if let Some(a) = items.get(k + PREFETCH_AHEAD) {
                 prefetch(&self.draws[index(a) as usize]);
             }
-            let d = &self.draws[index(v) as usize];
+            let i = index(v);
+            let d = &self.draws[i as usize];
             if d.count == 0 {
                 continue;
             }
-            sources.push(self.draw_source(d));
+            f(i, d);
             cs.clusters_drawn += 1;
             cs.triangles_drawn += d.count as u64;
         }
-        sources
     }
 
     /// The draw of one cluster record: its meshlet range under its instance's transform.
@@ -149,11 +163,20 @@ impl Clusters {
         }
     }
 
-    /// Draws the given items into the session, counting into `f`.
+    /// Draws the given items into the session, counting into `f`: the clusters that draw
+    /// something and their triangle ranges are listed here, and the chunks of the geometry
+    /// step make them into items ([`ClusterList`]); meshlet indices point into their own
+    /// positions by construction.
     fn draw<T>(&self, s: &mut Session, items: &[T], index: impl Fn(&T) -> u32, f: &mut Frame) -> Result<()> {
-        let sources = self.sources(items, index, &mut f.cs);
-        // Meshlet indices point into their own positions by construction.
-        f.fs.add(&s.draw_sources_checked(&sources, f.camera, false)?);
+        let (mut picked, mut ranges) = (Vec::with_capacity(items.len()), Vec::with_capacity(items.len()));
+        self.for_each_drawn(items, index, &mut f.cs, |i, d| {
+            ranges.push((picked.len() as u32, d.first, d.count));
+            picked.push(i);
+        });
+        let simd = SimdLevel::Auto.resolve();
+        let list =
+            ClusterList { clusters: self, picked: &picked, clip_from_world: f.camera.clip_from_world_f64(), simd };
+        f.fs.add(&s.draw_list(&list, &ranges, f.camera)?);
         Ok(())
     }
 

@@ -48,6 +48,26 @@ impl DrawList for [Item<'_>] {
     }
 }
 
+/// Source `d` as an item under `clip_from_world`: its `clip_from_local` is `same` when
+/// given (an item placed alike), computed on `simd` otherwise.
+#[inline(always)]
+pub(crate) fn placed_item<'a>(
+    d: &DrawSource<'a>,
+    clip_from_world: &DMat4,
+    simd: SimdLevel,
+    same: Option<&Mat4>,
+) -> Item<'a> {
+    let clip_from_local = match same {
+        Some(m) => *m,
+        None => clip_from_local(clip_from_world, &d.world_from_local, simd),
+    };
+    Item {
+        src: Source::Mesh { positions: d.positions, indices: d.indices, clip_from_local, ids: d.triangle_ids },
+        first_id: d.first_triangle.wrapping_add(1),
+        source_triangles: (d.indices.len() / 3) as u32,
+    }
+}
+
 /// Draw sources, checked, under one camera: item `k` is source `k` with its
 /// `clip_from_local` computed when a chunk reaches it.
 pub(crate) struct Placed<'a> {
@@ -62,15 +82,8 @@ impl DrawList for Placed<'_> {
     fn item(&self, k: usize, prev: Option<(usize, &Mat4)>) -> Item<'_> {
         let d = &self.sources[k];
         // Consecutive clusters of one instance share the matrix.
-        let clip_from_local = match prev {
-            Some((j, m)) if same_matrix(&self.sources[j].world_from_local, &d.world_from_local) => *m,
-            _ => clip_from_local(&self.clip_from_world, &d.world_from_local, self.simd),
-        };
-        Item {
-            src: Source::Mesh { positions: d.positions, indices: d.indices, clip_from_local, ids: d.triangle_ids },
-            first_id: d.first_triangle.wrapping_add(1),
-            source_triangles: (d.indices.len() / 3) as u32,
-        }
+        let same = prev.filter(|&(j, _)| same_matrix(&self.sources[j].world_from_local, &d.world_from_local));
+        placed_item(d, &self.clip_from_world, self.simd, same.map(|(_, m)| m))
     }
 
     #[inline(always)]

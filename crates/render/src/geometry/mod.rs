@@ -24,8 +24,7 @@ use sightline_spatial::simd::SimdLevel;
 use crate::clip::{self, BAD, GUARD, VIEW_BITS};
 use crate::setup::{setup_into, Outcome, SnappedVertex, Tri, Viewport};
 use crate::stats::FrameStats;
-use list::MeshData;
-pub(crate) use list::{DrawList, Placed};
+pub(crate) use list::{placed_item, DrawList, MeshData, Placed};
 
 /// Where a draw piece's triangles come from.
 #[derive(Debug, Clone, Copy)]

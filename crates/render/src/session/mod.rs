@@ -21,6 +21,7 @@
 use glam::Vec4;
 use sightline_scene::{Camera, Instance, Scene};
 
+use crate::geometry::DrawList;
 use crate::hzb::TilePyramid;
 use crate::options::{DrawItem, DrawSource, RenderOptions};
 use crate::pipeline::{Renderer, Target};
@@ -85,6 +86,18 @@ impl<'r> Session<'r> {
     ) -> Result<FrameStats> {
         let (renderer, target, opts) = self.batch();
         renderer.draw_sources_to(sources, camera, target, &opts, check_indices)
+    }
+
+    /// Draws the pieces `ranges` of `list` into the session's frame, in order
+    /// ([`Renderer::draw_list_to`]).
+    pub(crate) fn draw_list<L: DrawList + ?Sized>(
+        &mut self,
+        list: &L,
+        ranges: &[(u32, u32, u32)],
+        camera: &Camera,
+    ) -> Result<FrameStats> {
+        let (renderer, target, opts) = self.batch();
+        renderer.draw_list_to(list, ranges, camera, target, &opts)
     }
 
     /// Draws raw clip-space triangles into the session's frame, triangle `k` with ID
