@@ -497,9 +497,7 @@ impl Culler {
         if let Some(i) = items.iter().find(|&&i| i as usize >= n) {
             return Err(crate::Error::InvalidDraw(format!("cluster {i} is not one of the culler's {n} clusters")));
         }
-        let sources = self.c.sources(items, |&i| i, &mut CullStats::default());
-        // Meshlet indices point into their own positions by construction.
-        session.draw_sources_checked(&sources, camera, false)
+        self.c.draw_batch(session, items, |&i| i, camera, &mut CullStats::default())
     }
 }
 

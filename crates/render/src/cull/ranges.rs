@@ -185,7 +185,7 @@ impl Clusters {
 }
 
 #[cfg(test)]
-mod tests {
+pub(super) mod tests {
     use glam::Vec3;
     use sightline_scene::{shapes, Angle, Camera, LookAt, NodeDesc, Scene, Transform};
 
@@ -235,7 +235,7 @@ mod tests {
 
     /// A row of finely split boxes (many clusters each) with a plain cube (one cluster)
     /// between them, along x from 0 to 24.
-    fn row() -> Scene {
+    pub(in crate::cull) fn row() -> Scene {
         let mut scene = Scene::new();
         let fine =
             scene.add_mesh(shapes::subdivided_box("fine", Vec3::ZERO, Vec3::splat(2.0), [16, 16, 16], true).unwrap());
@@ -249,7 +249,7 @@ mod tests {
         scene
     }
 
-    fn camera(eye: Vec3, target: Vec3, fovy: f32) -> Camera {
+    pub(in crate::cull) fn camera(eye: Vec3, target: Vec3, fovy: f32) -> Camera {
         let look = LookAt { eye, target, up: Vec3::Y, fovy: Angle::degrees(fovy), near: 0.1, far: 500.0 };
         Camera::perspective(&look, 1.5).unwrap()
     }

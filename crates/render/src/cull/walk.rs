@@ -163,21 +163,33 @@ impl Clusters {
         }
     }
 
-    /// Draws the given items into the session, counting into `f`: the clusters that draw
-    /// something and their triangle ranges are listed here, and the chunks of the geometry
-    /// step make them into items ([`ClusterList`]); meshlet indices point into their own
-    /// positions by construction.
+    /// Draws the given items into the session, counting into `f`.
     fn draw<T>(&self, s: &mut Session, items: &[T], index: impl Fn(&T) -> u32, f: &mut Frame) -> Result<()> {
+        f.fs.add(&self.draw_batch(s, items, index, f.camera, &mut f.cs)?);
+        Ok(())
+    }
+
+    /// Draws the given items (cluster indices, `index` of each element) into the session
+    /// under `camera`, counting them into `cs`: the clusters that draw something and their
+    /// triangle ranges are listed here, and the chunks of the geometry step make them into
+    /// items ([`ClusterList`]); meshlet indices point into their own positions by
+    /// construction.
+    pub(super) fn draw_batch<T>(
+        &self,
+        s: &mut Session,
+        items: &[T],
+        index: impl Fn(&T) -> u32,
+        camera: &Camera,
+        cs: &mut CullStats,
+    ) -> Result<FrameStats> {
         let (mut picked, mut ranges) = (Vec::with_capacity(items.len()), Vec::with_capacity(items.len()));
-        self.for_each_drawn(items, index, &mut f.cs, |i, d| {
+        self.for_each_drawn(items, index, cs, |i, d| {
             ranges.push((picked.len() as u32, d.first, d.count));
             picked.push(i);
         });
         let simd = SimdLevel::Auto.resolve();
-        let list =
-            ClusterList { clusters: self, picked: &picked, clip_from_world: f.camera.clip_from_world_f64(), simd };
-        f.fs.add(&s.draw_list(&list, &ranges, f.camera)?);
-        Ok(())
+        let list = ClusterList { clusters: self, picked: &picked, clip_from_world: camera.clip_from_world_f64(), simd };
+        s.draw_list(&list, &ranges, camera)
     }
 
     /// The front-to-back walk of [`super::Method::HzbOnePass`] and
@@ -428,6 +440,46 @@ fn retain_ahead<T: Copy>(items: &mut Vec<T>, ahead: impl Fn(&T), mut keep: impl 
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// A batch drawn as a cluster list (each chunk making its clusters into items) draws what
+    /// the same clusters' draw sources, resolved beforehand, draw: over instances of two
+    /// meshes, runs of one instance's clusters (one matrix) and changes between instances.
+    #[test]
+    fn a_cluster_list_draws_as_its_draw_sources() {
+        use crate::cull::ranges::tests::{camera, row};
+        use glam::Vec3;
+        let scene = row();
+        let camera = camera(Vec3::new(12.0, 20.0, 40.0), Vec3::new(12.0, 1.0, 1.0), 60.0);
+        let culler = crate::Culler::new(&scene);
+        let c = &culler.c;
+        let every: Vec<u32> = (0..c.draws.len() as u32).collect();
+        let opts = RenderOptions::ids_only();
+        let mut renderer = crate::Renderer::new();
+        let mut draw = |listed: bool| {
+            let mut fb = crate::Framebuffer::new(160, 96).unwrap();
+            let mut s = renderer.begin(&mut fb, &opts);
+            let mut cs = CullStats::default();
+            if listed {
+                c.draw_batch(&mut s, &every, |&i| i, &camera, &mut cs).unwrap();
+            } else {
+                let sources = c.sources(&every, |&i| i, &mut cs);
+                s.draw_sources_checked(&sources, &camera, false).unwrap();
+            }
+            s.finish();
+            (fb.ids.to_vec(), fb.depth.iter().map(|d| d.to_bits()).collect::<Vec<_>>(), cs.clusters_drawn)
+        };
+        let (listed, sourced) = (draw(true), draw(false));
+        assert_eq!(listed, sourced);
+        // Clusters of several instances of both meshes show.
+        let instances: std::collections::BTreeSet<_> = listed
+            .0
+            .iter()
+            .filter(|&&id| id != 0)
+            .map(|&id| scene.instances().iter().rposition(|i| i.first_triangle < id).unwrap())
+            .collect();
+        assert!(instances.len() >= 4, "{instances:?}");
+        assert!(listed.2 > 20, "{}", listed.2);
+    }
 
     /// `retain_ahead` keeps what `retain_mut` keeps, in order, with the changes `keep` made,
     /// and asks ahead for every item once, before `keep` sees it, for any length.
