@@ -145,9 +145,9 @@ impl Chunk {
     ) {
         self.tris.clear();
         self.stats = FrameStats::default();
-        // The item of the last piece (pieces of one item come together, and consecutive
-        // items often share their matrix).
-        let mut last: Option<(usize, Item)> = None;
+        // The last piece's item and matrix: consecutive items often share the matrix (the
+        // clusters of one instance), which a list that computes matrices then reuses.
+        let mut prev: Option<(usize, Mat4)> = None;
         for (n, p) in pieces.iter().enumerate() {
             // Pieces are often small clusters scattered over memory: ask for the indices
             // and IDs two pieces ahead, and for the vertices of the next one (whose indices
@@ -160,11 +160,8 @@ impl Chunk {
                 prefetch_vertices(items, a);
             }
             let k = p.item as usize;
-            let item = match last {
-                Some((j, it)) if j == k => it,
-                _ => items.item(k, last.as_ref().and_then(|(j, it)| it.matrix().map(|m| (*j, m)))),
-            };
-            last = Some((k, item));
+            let item = items.item(k, prev.as_ref().map(|(j, m)| (*j, m)));
+            prev = item.matrix().map(|m| (k, *m));
             self.stats.triangles_in += p.count as u64;
             match item.src {
                 Source::Mesh { positions, indices, ref clip_from_local, ids } => {

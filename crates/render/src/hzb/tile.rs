@@ -8,7 +8,8 @@
 //! sequential updates; Hasselgren, Andersson, Akenine-Möller 2016); levels 1–2 under the
 //! written blocks and levels 4–6 follow after the batch ([`TileLevels::update`]). Two tests
 //! read them: a whole triangle against the tile at binning ([`TileLevels::occludes`]: the
-//! per-tile z-max of "HyperZ", then Greene's pyramid test per triangle), and each 8 × 8 block in the rasterizer ([`TileLevels::block_hidden`]).
+//! per-tile z-max of "HyperZ", then Greene's pyramid test per triangle), and each 8 × 8
+//! block in the rasterizer ([`TileLevels::block_hidden`]).
 
 use super::{reduce_2x2, Rect};
 use crate::depth::DepthCodec;
