@@ -293,9 +293,10 @@ fn draw_stages(frames: &[FrameStats]) -> [f64; 4] {
 
 /// What writing a frame out costs at least on this machine: every pixel's depth and ID
 /// (and then its color too) written once into `fb`'s planes, copied from a buffer in cache,
-/// in bands of 64 rows (the tile stage's rows) over the pool, as the renderer's tile stores
-/// and shading pass write them. Medians of `reps` writes, in ms: (depth and IDs, all three).
-/// An oracle frame writes the same bytes and rasterizes and shades besides.
+/// in bands of 64 rows (the tile stage's rows) over the pool. Medians of `reps` writes, in
+/// ms: (depth and IDs, all three). The planes stay in cache from one write to the next,
+/// which a frame's do not (the renderer streams depth and IDs past the cache instead), so
+/// this is a floor. An oracle frame writes the same bytes and rasterizes and shades besides.
 fn write_floor(fb: &mut Framebuffer, reps: usize) -> (f64, f64) {
     let w = fb.width() as usize;
     let band = 64 * w;

@@ -291,14 +291,6 @@ fn decode<D: DepthCodec>(key: u32) -> f32 {
     D::decode(key)
 }
 
-/// Decodes a row of keys into window depths (the loop vectorizes once the format is known).
-#[inline]
-pub(crate) fn decode_row<D: DepthCodec>(out: &mut [f32], keys: &[u32]) {
-    for (d, k) in out.iter_mut().zip(keys) {
-        *d = D::decode(*k);
-    }
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -36,7 +36,7 @@ use crate::depth::{with_codec, DepthCodec, DepthFormat};
 use crate::geometry::{split, Chunk, DrawList, Item, Placed, Source};
 use crate::hzb::{TileLevels, TilePyramid, UpperLevels};
 use crate::options::{DrawItem, DrawSource, RenderOptions, Wireframe};
-use crate::raster::{raster_tiles, Planes, TileBuf, TilePass};
+use crate::raster::{raster_tiles, written_through, Planes, TileBuf, TilePass};
 use crate::setup::Viewport;
 use crate::stats::{ms_since, FrameStats};
 use crate::tiling::Grid;
@@ -545,6 +545,7 @@ fn clear_untouched<D: DepthCodec>(levels: &[TileLevels], tiles_x: usize, fb: &mu
                         unsafe { planes.clear_row(l.rect, r, far) };
                     }
                 }
+                written_through();
             }
             covered
         })

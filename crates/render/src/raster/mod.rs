@@ -40,7 +40,7 @@ use crate::geometry::Chunk;
 use crate::hzb::TileLevels;
 use crate::tiling::{TileRect, BLOCK, TILE_SHIFT};
 pub(crate) use kernel::{Avx2, Avx512, Kernel, Rows};
-pub(crate) use store::{Planes, Span};
+pub(crate) use store::{written_through, Planes, Span};
 pub(crate) use tile::TileBuf;
 
 /// Per-triangle result of rasterizing into one tile.
@@ -330,7 +330,11 @@ unsafe fn raster_tile<D: DepthCodec, const C: bool, K: Kernel>(
         // few blocks of many tiles. Its first use clears and stores it whole.
         let first = !lv.touched;
         let span = if first { Span::whole(tile) } else { binned_span(tile, index, pass.chunks) };
-        out.prefetch(tile, span);
+        // Only a span that is loaded is asked for ahead: the planes are written without
+        // reading them (see `store`).
+        if !first {
+            out.prefetch(tile, span);
+        }
         // The pyramid's max reads whole 8×8 blocks: pixels off the screen hold 0 (the
         // scratch buffer last held another tile).
         if first {
@@ -356,7 +360,6 @@ unsafe fn raster_tile<D: DepthCodec, const C: bool, K: Kernel>(
         return st;
     }
     let span = Span::whole(tile);
-    out.prefetch(tile, span);
     // Start from the clear values on a fresh target; otherwise load the tile's pixels
     // (earlier batches may have drawn here).
     if pass.fresh {
@@ -366,6 +369,7 @@ unsafe fn raster_tile<D: DepthCodec, const C: bool, K: Kernel>(
             tile.counts.fill(0); // only read and written when counting
         }
     } else {
+        out.prefetch(tile, span);
         // SAFETY: as above.
         unsafe { out.load::<D, false>(tile, C, span) };
     }
