@@ -36,6 +36,7 @@ mod setup;
 pub mod shading;
 pub mod sky;
 mod stats;
+mod stream;
 pub mod texture;
 mod tiling;
 pub mod transparency;

@@ -36,9 +36,10 @@ use crate::depth::{with_codec, DepthCodec, DepthFormat};
 use crate::geometry::{split, Chunk, DrawList, Item, Placed, Source};
 use crate::hzb::{TileLevels, TilePyramid, UpperLevels};
 use crate::options::{DrawItem, DrawSource, RenderOptions, Wireframe};
-use crate::raster::{raster_tiles, written_through, Planes, TileBuf, TilePass};
+use crate::raster::{raster_tiles, Planes, TileBuf, TilePass};
 use crate::setup::Viewport;
 use crate::stats::{ms_since, FrameStats};
+use crate::stream::written_through;
 use crate::tiling::Grid;
 use crate::{aa, deferred, wire, Error, Framebuffer, Result};
 

@@ -40,7 +40,7 @@ use crate::geometry::Chunk;
 use crate::hzb::TileLevels;
 use crate::tiling::{TileRect, BLOCK, TILE_SHIFT};
 pub(crate) use kernel::{Avx2, Avx512, Kernel, Rows};
-pub(crate) use store::{written_through, Planes, Span};
+pub(crate) use store::{Planes, Span};
 pub(crate) use tile::TileBuf;
 
 /// Per-triangle result of rasterizing into one tile.

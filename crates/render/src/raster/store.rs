@@ -7,15 +7,12 @@
 //! touches only its own tile's rectangle of the planes, which is what makes sharing the
 //! planes between them sound.
 //!
-//! The planes are written with non-temporal (streaming) stores, whole 64-byte lines at a
-//! time: a plain store first reads the line it writes into the cache (a read for
-//! ownership), so writing a 1280×720 frame's depth and IDs (7.4 MB, more than the caches
-//! keep between frames) would also read 7.4 MB it then overwrites, and evict what the next
-//! stages read. The pieces of lines at either end of a row (a plane's rows need not start
-//! on a line) are written plainly. On a 2-core AMD EPYC without AVX-512, whose memory
-//! copies about 6–9 GB/s, the street path's oracle frame took 0.87–0.92× as long on two
-//! threads and the `hzb` frame 0.88–0.92× (in one process, the two ways taking turns frame
-//! by frame). The shading pass then reads the IDs from memory, as it mostly did anyway.
+//! The planes are written past the cache ([`crate::stream`]): a frame's depth and IDs
+//! (7.4 MB at 1280×720) would otherwise be read from memory just to be overwritten. On a
+//! 2-core AMD EPYC without AVX-512, whose memory copies about 6–9 GB/s, the street path's
+//! oracle frame took 0.87–0.92× as long on two threads and the `hzb` frame 0.88–0.92× (in
+//! one process, the two ways taking turns frame by frame). The shading pass then reads the
+//! IDs from memory, as it mostly did anyway.
 //!
 //! Loading is the other way round: a tile's rectangle is 64 pieces of 256 bytes, a plane's
 //! row apart, too short for the hardware's stream prefetch, so a load would wait for each
@@ -37,6 +34,7 @@ use std::marker::PhantomData;
 
 use super::tile::TileBuf;
 use crate::depth::{DepthCodec, DepthFormat};
+use crate::stream::{fill_through, write_through, written_through};
 use crate::tiling::{TileRect, TILE, TILE_SHIFT};
 use crate::Framebuffer;
 
@@ -230,103 +228,6 @@ impl<'a> Planes<'a> {
             fill_through(c, 0);
         }
     }
-}
-
-/// Words of 4 bytes in a 64-byte cache line.
-const LINE_WORDS: usize = 16;
-
-/// A 4-byte value of a plane or tile buffer, copied by its bits ([`write_through`]).
-pub(crate) trait Word: Copy {
-    /// The value's bits.
-    fn bits(self) -> u32;
-    /// The value with these bits.
-    fn from_bits(bits: u32) -> Self;
-}
-
-impl Word for u32 {
-    #[inline(always)]
-    fn bits(self) -> u32 {
-        self
-    }
-    #[inline(always)]
-    fn from_bits(bits: u32) -> Self {
-        bits
-    }
-}
-
-impl Word for f32 {
-    #[inline(always)]
-    fn bits(self) -> u32 {
-        self.to_bits()
-    }
-    #[inline(always)]
-    fn from_bits(bits: u32) -> Self {
-        f32::from_bits(bits)
-    }
-}
-
-/// The words of `dst` before its first cache line, and those up to the end of its last
-/// whole line (`dst` is 4-byte aligned).
-#[inline(always)]
-fn lines<T>(dst: &[T]) -> (usize, usize) {
-    let n = dst.len();
-    let head = dst.as_ptr().align_offset(4 * LINE_WORDS).min(n);
-    (head, head + (n - head) / LINE_WORDS * LINE_WORDS)
-}
-
-/// Copies the bits of `src` into `dst` (of the same length): the whole cache lines of
-/// `dst` with non-temporal stores, which do not read the lines first (see the module
-/// docs), the pieces of lines at either end with plain stores. Call [`written_through`]
-/// before the values are read elsewhere.
-#[inline(always)]
-pub(crate) fn write_through<T: Word, U: Word>(dst: &mut [T], src: &[U]) {
-    assert_eq!(dst.len(), src.len(), "rows of one length");
-    let (head, body) = lines(dst);
-    let plain = |dst: &mut [T], src: &[U]| {
-        for (d, s) in dst.iter_mut().zip(src) {
-            *d = T::from_bits(s.bits());
-        }
-    };
-    plain(&mut dst[..head], &src[..head]);
-    #[cfg(target_arch = "x86_64")]
-    for (d, s) in dst[head..body].chunks_exact_mut(4).zip(src[head..body].chunks_exact(4)) {
-        use std::arch::x86_64::{__m128i, _mm_loadu_si128, _mm_stream_si128};
-        // SAFETY: SSE2 is part of the x86-64 baseline; both chunks hold four 4-byte words,
-        // and `d` is 16-byte aligned (`head` starts a line, chunks are 16 bytes), as the
-        // streaming store requires.
-        unsafe { _mm_stream_si128(d.as_mut_ptr() as *mut __m128i, _mm_loadu_si128(s.as_ptr() as *const __m128i)) };
-    }
-    #[cfg(not(target_arch = "x86_64"))]
-    plain(&mut dst[head..body], &src[head..body]);
-    plain(&mut dst[body..], &src[body..]);
-}
-
-/// Sets every word of `dst` to `value`, as [`write_through`] writes.
-#[inline(always)]
-pub(crate) fn fill_through<T: Word>(dst: &mut [T], value: T) {
-    let (head, body) = lines(dst);
-    dst[..head].fill(value);
-    #[cfg(target_arch = "x86_64")]
-    for d in dst[head..body].chunks_exact_mut(4) {
-        use std::arch::x86_64::{__m128i, _mm_set1_epi32, _mm_stream_si128};
-        // SAFETY: as in `write_through`.
-        unsafe { _mm_stream_si128(d.as_mut_ptr() as *mut __m128i, _mm_set1_epi32(value.bits() as i32)) };
-    }
-    #[cfg(not(target_arch = "x86_64"))]
-    dst[head..body].fill(value);
-    dst[body..].fill(value);
-}
-
-/// Orders the non-temporal stores made so far before any later store of this thread (an
-/// `sfence`): the end of a task is then the end of its writes for whoever waits on it (the
-/// barrier's own release store cannot pass them). A no-op off x86-64.
-#[inline(always)]
-pub(crate) fn written_through() {
-    // SAFETY: SSE is part of the x86-64 baseline.
-    #[cfg(target_arch = "x86_64")]
-    unsafe {
-        std::arch::x86_64::_mm_sfence()
-    };
 }
 
 /// The covered pixels (ID ≠ 0) of a row of IDs.

@@ -406,34 +406,3 @@ fn no_pixel_is_nearer_than_the_nearest_vertex() {
         "the plane fell below the nearest vertex at {plane_below} pixels, by more than 8ε at {far_below}"
     );
 }
-
-/// Rows written through (non-temporal stores for whole cache lines, plain stores for the
-/// pieces at either end) hold exactly the values given, wherever a row starts and however
-/// long it is, and nothing outside the row changes.
-#[test]
-fn rows_written_through_hold_their_values_at_every_alignment() {
-    use super::store::{fill_through, write_through, written_through};
-    // 64-byte aligned storage: rows start at every word offset of a line.
-    #[repr(align(64))]
-    struct Lines([u32; 256]);
-    let src: Vec<f32> = (0..200).map(|k| k as f32 * 0.5 - 7.0).collect();
-    for start in 0..20 {
-        for len in [0, 1, 3, 4, 15, 16, 17, 31, 32, 33, 47, 64, 65, 100, 150] {
-            let mut buf = Lines([0xDEAD_BEEF; 256]);
-            write_through(&mut buf.0[start..start + len], &src[..len]);
-            written_through();
-            for (k, &w) in buf.0.iter().enumerate() {
-                let want = if (start..start + len).contains(&k) { src[k - start].to_bits() } else { 0xDEAD_BEEF };
-                assert_eq!(w, want, "copy: start {start}, length {len}, word {k}");
-            }
-            let mut depth = [1.5f32; 256];
-            let off = start + 3;
-            fill_through(&mut depth[off..off + len], -0.25);
-            written_through();
-            for (k, &d) in depth.iter().enumerate() {
-                let want = if (off..off + len).contains(&k) { -0.25 } else { 1.5 };
-                assert_eq!(d, want, "fill: start {off}, length {len}, word {k}");
-            }
-        }
-    }
-}
