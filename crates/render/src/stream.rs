@@ -8,13 +8,15 @@
 //! Drepper, "What Every Programmer Should Know About Memory", 2007, §6.1). They are used for
 //! the whole 64-byte lines of a row; the pieces of lines at either end are written plainly
 //! (a partial line written by streaming stores goes to memory as several partial writes).
+//! Planes start on a line ([`crate::plane`]), so at widths that are multiples of 16 pixels
+//! a tile's rows are whole lines.
 //! After its rows a task fences ([`written_through`]), so that whoever waits for it sees
 //! them.
 //!
 //! The tile stage writes depth and IDs this way. The shading pass writes its colors plainly:
-//! shaded into a scratch row and written through, a frame took as long or longer (1.00–1.04×
+//! shaded into a scratch row and written through, a frame took as long or longer (0.99–1.04×
 //! on the street path, on the machine where depth and IDs gained 8–13%), and streaming the
-//! colors straight from the shading kernel was slower still (its runs of pixels that miss
+//! colors straight from the shading kernel was 5–10% slower (its runs of pixels that miss
 //! the triangle cache are written plainly, so lines end up written both ways).
 
 /// Words of 4 bytes in a 64-byte cache line.
