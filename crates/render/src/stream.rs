@@ -9,9 +9,8 @@
 //! the whole 64-byte lines of a row; the pieces of lines at either end are written plainly
 //! (a partial line written by streaming stores goes to memory as several partial writes).
 //! Planes start on a line ([`crate::plane`]), so at widths that are multiples of 16 pixels
-//! a tile's rows are whole lines.
-//! After its rows a task fences ([`written_through`]), so that whoever waits for it sees
-//! them.
+//! a tile's rows are whole lines. After its rows a task fences ([`written_through`]), so
+//! that whoever waits for it sees them.
 //!
 //! The tile stage writes depth and IDs this way. The shading pass writes its colors plainly:
 //! shaded into a scratch row and written through, a frame took as long or longer (0.99–1.04×

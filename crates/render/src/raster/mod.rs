@@ -331,7 +331,7 @@ unsafe fn raster_tile<D: DepthCodec, const C: bool, K: Kernel>(
         let first = !lv.touched;
         let span = if first { Span::whole(tile) } else { binned_span(tile, index, pass.chunks) };
         // Only a span that is loaded is asked for ahead: the planes are written without
-        // reading them (see `store`).
+        // reading them (`crate::stream`).
         if !first {
             out.prefetch(tile, span);
         }
