@@ -73,6 +73,20 @@ impl Tri {
         no_nearer(self.zmin, zrow + self.zx * (((px << SUBPIXEL_BITS) + ONE / 2 - self.x[0]) as f32))
     }
 
+    /// True when the plane gives a number (not NaN) at every pixel the rasterizer can reach,
+    /// which the vector kernels take for granted: with `z0`, `zx` and `zy` at most 2^90 in
+    /// magnitude and a pixel center's offset from vertex 0 an i32 (below 2^32 fixed-point
+    /// units), each product is below 2^122 and each sum below 2^124, far from f32's overflow,
+    /// so no infinity can arise to meet another of the other sign. Every plane set-up makes
+    /// is such (window depths lie in [0, 1] and the area is at least one unit); a triangle
+    /// with any other plane is drawn by the scalar path, where a NaN depth is never written.
+    #[inline(always)]
+    pub(crate) fn depths_are_numbers(&self) -> bool {
+        const LIMIT: f32 = (1u128 << 90) as f32;
+        // Written as `<=` so that NaN coefficients fail.
+        self.z0.abs() <= LIMIT && self.zx.abs() <= LIMIT && self.zy.abs() <= LIMIT
+    }
+
     /// A lower bound of the depths the rasterizer computes over the pixel centers of the
     /// screen rectangle `[x0, y0, x1, y1]` (inclusive): the plane is affine, so its minimum
     /// is at a corner; the rounding that evaluating it at a pixel may add is subtracted, and
@@ -203,10 +217,11 @@ pub(crate) struct BlockEdges {
     pub b: [i32; 3],
 }
 
-/// Block setup from the i64 edge functions over the rectangle `[rx0, ry0, rx1, ry1]`.
+/// Block setup from the i64 edge functions over the rectangle `[rx0, ry0, rx1, ry1]`: a
+/// block whose values fit i32 goes to the kernels when `narrow` allows it.
 #[inline(always)]
 #[allow(clippy::needless_range_loop)] // edge k of several arrays
-pub(crate) fn wide_block(e: &[Edge; 3], [rx0, ry0, rx1, ry1]: [i32; 4]) -> BlockSetup {
+pub(crate) fn wide_block(e: &[Edge; 3], [rx0, ry0, rx1, ry1]: [i32; 4], narrow: bool) -> BlockSetup {
     let (w, h) = ((rx1 - rx0) as i64, (ry1 - ry0) as i64);
     let mut fits = true;
     let mut k32 = BlockEdges { e: [0; 3], a: [0; 3], b: [0; 3] };
@@ -226,7 +241,7 @@ pub(crate) fn wide_block(e: &[Edge; 3], [rx0, ry0, rx1, ry1]: [i32; 4]) -> Block
             (k32.e[k], k32.a[k], k32.b[k]) = (v as i32, e[k].a as i32, e[k].b as i32);
         }
     }
-    if fits {
+    if fits && narrow {
         BlockSetup::Narrow(k32)
     } else {
         BlockSetup::Wide(e00)

@@ -230,6 +230,20 @@ mod tests {
         assert_eq!((br.x, br.y, br.z), (8 * 256, 4 * 256, 1.0));
     }
 
+    /// The steepest plane set-up can make (depth 0 to 1 across a sliver of area one unit,
+    /// vertices at the projection limit) is far inside what the vector kernels take
+    /// ([`crate::edge::Tri::depths_are_numbers`]).
+    #[test]
+    fn set_up_planes_give_numbers_everywhere() {
+        let vp = Viewport::new(1280, 720, true);
+        let l = (PROJECT_LIMIT * 256.0) as i32;
+        let v = |x: i32, y: i32, z: f32| SnappedVertex { x, y, z };
+        let sliver = [v(-l, -l, 0.0), v(l, l - 1, 1.0), v(l - 1, l - 2, 0.0)];
+        let Setup::Ready(t) = setup(sliver, 1, false, &vp) else { panic!("the sliver crosses the screen") };
+        assert!(t.zx.abs().max(t.zy.abs()) > 1e7, "{t:?}");
+        assert!(t.depths_are_numbers(), "{t:?}");
+    }
+
     #[test]
     fn setup_culls_orients_and_finds_the_box() {
         let vp = Viewport::new(16, 16, true);

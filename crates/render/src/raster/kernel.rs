@@ -10,7 +10,9 @@
 //! [`Kernel`] type parameter of the block walk, chosen once per frame from the run-time
 //! [`SimdLevel`](sightline_spatial::SimdLevel).
 //! All are branch-free per pixel: coverage and the depth test are unpredictable along the
-//! edges of triangles.
+//! edges of triangles. Every depth they compute is a number: a triangle whose plane could
+//! give NaN never reaches them ([`Tri::depths_are_numbers`]), so their keys skip the NaN
+//! test.
 
 use super::tile::{TileBuf, PAD};
 use super::TriRaster;

@@ -9,9 +9,10 @@
 //! texel lies nearer than the triangle's plane over it is skipped too (coarse depth,
 //! [`TileLevels::block_hidden`]). The rest go through one [`Kernel`]. Edge values run on i32
 //! where they fit ([`FastEdges`]), per pixel on i64 in the rare blocks where they do not
-//! (vertices thousands of pixels away). After a triangle writes into a block, the block's
-//! pyramid texel is refreshed at once, so the next triangles of the same batch are tested
-//! against it.
+//! (vertices thousands of pixels away), and so do the blocks of a triangle whose depth plane
+//! could give NaN ([`Tri::depths_are_numbers`]; never one set-up makes). After a triangle
+//! writes into a block, the block's pyramid texel is refreshed at once, so the next
+//! triangles of the same batch are tested against it.
 //!
 //! The edge functions and the fill rule are in [`crate::edge`]; the per-pixel kernels in
 //! [`kernel`]; the tile buffers in [`tile`].
@@ -74,10 +75,14 @@ pub(crate) unsafe fn raster_tri<D: DepthCodec, const COUNT: bool, K: Kernel>(
     }
     let rect = [x0, y0, x1, y1];
     let e = edges(t);
+    // The kernels take every depth to be a number: a plane that could give NaN (never one
+    // set-up makes) is drawn pixel by pixel with scalar keys.
+    let numbers = t.depths_are_numbers();
+    let fast = if numbers { FastEdges::new(&e, rect) } else { None };
     // SAFETY (both): forwarded from the caller.
-    match FastEdges::new(&e, rect) {
+    match fast {
         Some(f) => unsafe { walk_blocks::<D, COUNT, K>(t, tile, lv, rect, &e, |r, c| f.block(r, c)) },
-        None => unsafe { walk_blocks::<D, COUNT, K>(t, tile, lv, rect, &e, |r, _| wide_block(&e, r)) },
+        None => unsafe { walk_blocks::<D, COUNT, K>(t, tile, lv, rect, &e, |r, _| wide_block(&e, r, numbers)) },
     }
 }
 

@@ -317,7 +317,8 @@ fn covers_exactly_its_pixels(t: &Tri, label: &str) -> usize {
 }
 
 /// A fragment whose depth is NaN is never written, in every depth format and with every
-/// kernel (on GPUs every comparison with NaN fails); its pixels still count as covered.
+/// kernel (on GPUs every comparison with NaN fails); its pixels still count as covered. The
+/// vector kernels never see such a plane (see [`Tri::depths_are_numbers`]).
 #[test]
 fn nan_depth_is_never_written() {
     fn check<D: DepthCodec>(simd: SimdLevel) {
@@ -334,6 +335,17 @@ fn nan_depth_is_never_written() {
         }
         assert!(tile.ids.iter().all(|&i| i == 0));
         assert!(tile.depth[..(TILE * TILE) as usize].iter().all(|&k| k == D::key(1.0)));
+        // Coefficients that are numbers yet so large that the plane is −∞ on every row and
+        // ±∞ along them, on either side of vertex 0: NaN (∞ − ∞) left of it, never
+        // written, and −∞ right of it, raised to the nearest vertex, as in the reference.
+        let mut u = tri([(32.0, 1.0), (62.0, 60.0), (2.0, 50.0)], 9, &vp).unwrap();
+        (u.z0, u.zx, u.zy) = (0.5, -1e38, -1e38);
+        let mut reached = tile.clone();
+        let drawn = draw_tri::<D, true>(&u, &mut tile, &mut lv, simd);
+        let expected = reference::<D>(&u, &mut reached);
+        assert_eq!((drawn.covered, drawn.written), (expected.covered, expected.written));
+        assert!(expected.written > 500 && expected.written + 500 < expected.covered, "{:?}", D::FORMAT);
+        assert_eq!((tile.depth, tile.ids), (reached.depth, reached.ids), "{:?} {simd:?}", D::FORMAT);
     }
     for simd in kernels() {
         check::<F32>(simd);
