@@ -237,9 +237,10 @@ pub(super) fn row_sse2<D: DepthCodec, const COUNT: bool>(
             let d = _mm_loadu_si128(dp);
             let old = _mm_loadu_si128(ip);
             // Keys and IDs are below 2^31, so signed compares order them. Ties in depth go to
-            // the smaller ID (see `wins`).
-            let tie = _mm_and_si128(_mm_cmpeq_epi32(key, d), _mm_cmplt_epi32(id, old));
-            let pass = _mm_and_si128(inside, _mm_or_si128(_mm_cmplt_epi32(key, d), tie));
+            // the smaller ID (see `wins`), as one compare: `d > key − 1` (that is, `d ≥ key`)
+            // where the stored ID is larger, `d > key` elsewhere (keys are at least 0).
+            let bar = _mm_add_epi32(key, _mm_cmpgt_epi32(old, id));
+            let pass = _mm_and_si128(inside, _mm_cmpgt_epi32(d, bar));
             // Plain stores of the blended vectors. `opaque` hides that they are selects of
             // the loaded values: with AVX enabled LLVM would otherwise emit masked stores
             // (vpmaskmovd), several times slower on AMD Zen.
@@ -358,9 +359,10 @@ unsafe fn block_avx2<D: DepthCodec, const COUNT: bool>(
             let (d_at, i_at) = (dp.add(base) as *mut __m256i, ip.add(base) as *mut __m256i);
             let (d, old) = (_mm256_loadu_si256(d_at), _mm256_loadu_si256(i_at));
             // Keys and IDs are below 2^31, so signed compares order them; depth ties go to the
-            // smaller ID (see `wins`).
-            let tie = _mm256_and_si256(_mm256_cmpeq_epi32(key, d), _mm256_cmpgt_epi32(old, id));
-            let pass = _mm256_and_si256(inside, _mm256_or_si256(_mm256_cmpgt_epi32(d, key), tie));
+            // smaller ID (see `wins`), as in `row_sse2`: one compare against the key less one
+            // where the stored ID is larger.
+            let bar = _mm256_add_epi32(key, _mm256_cmpgt_epi32(old, id));
+            let pass = _mm256_and_si256(inside, _mm256_cmpgt_epi32(d, bar));
             let nd = opaque256(_mm256_or_si256(_mm256_and_si256(pass, key), _mm256_andnot_si256(pass, d)));
             let ni = opaque256(_mm256_or_si256(_mm256_and_si256(pass, id), _mm256_andnot_si256(pass, old)));
             _mm256_storeu_si256(d_at, nd);
