@@ -312,8 +312,8 @@ fn block_base<const COUNT: bool>(tile: &TileBuf, [rx0, ry0, _, ry1]: [i32; 4]) -
 
 /// One block of at most 8×8 pixels (`rect`, inclusive, in screen pixels): eight pixels per
 /// row in AVX2 registers, with everything that does not change along a column (edge lane
-/// offsets, the depth plane's x part, the column mask) set up once per block instead of once
-/// per row. Same arithmetic per pixel as the row loops, so the same result bit for bit.
+/// offsets, the depth plane's x part, the column mask) and the plane's row depths set up once
+/// per block instead of once per row. Same arithmetic per pixel as the row loops, so the same result bit for bit.
 ///
 /// # Safety
 /// The CPU must have AVX2 (the caller resolved [`SimdLevel`](sightline_spatial::SimdLevel)).
@@ -351,8 +351,16 @@ unsafe fn block_avx2<D: DepthCodec, const COUNT: bool>(
         let dp = tile.depth.as_mut_ptr();
         let ip = tile.ids.as_mut_ptr();
         let cp = tile.counts.as_mut_ptr();
-        for py in ry0..=ry1 {
-            let z = _mm256_max_ps(zmin, _mm256_add_ps(_mm256_set1_ps(t.depth_row(py)), zx));
+        // `Tri::depth_row` of the block's rows (at most eight), the same operations at once.
+        let dy = _mm256_add_epi32(
+            _mm256_set1_epi32((ry0 << SUBPIXEL_BITS) + ONE / 2 - t.y[0]),
+            _mm256_slli_epi32(lanes, SUBPIXEL_BITS as i32),
+        );
+        let mut zrow = [0f32; 8];
+        let zy = _mm256_mul_ps(_mm256_set1_ps(t.zy), _mm256_cvtepi32_ps(dy));
+        _mm256_storeu_ps(zrow.as_mut_ptr(), _mm256_add_ps(_mm256_set1_ps(t.z0), zy));
+        for &zr in &zrow[..(ry1 - ry0 + 1) as usize] {
+            let z = _mm256_max_ps(zmin, _mm256_add_ps(_mm256_set1_ps(zr), zx));
             let inside =
                 _mm256_and_si256(_mm256_cmpgt_epi32(_mm256_or_si256(_mm256_or_si256(e0, e1), e2), minus1), cols);
             let key = D::key8(z);
