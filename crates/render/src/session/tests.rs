@@ -116,33 +116,37 @@ fn session_draws_of_scene_items_equal_a_plain_frame() {
 }
 
 /// The pyramid levels kept up to date block by block during a session equal levels
-/// computed from scratch, on tiles cut by the screen edge too.
+/// computed from scratch, on tiles cut by the screen edge too, and in a second session over
+/// the records the first one left (whose levels a new session starts from cleared).
 #[test]
 fn incremental_tile_pyramid_equals_a_full_rebuild() {
     let (w, h) = (200, 150);
     let mut fb = Framebuffer::new(w, h).unwrap();
     let opts = RenderOptions::ids_only();
     let mut r = Renderer::new();
-    let mut session = r.begin(&mut fb, &opts);
     let mut rng = Rng::new(3);
-    for batch in 0..6 {
-        let tris = batch_of_triangles(&mut rng, 1.0);
-        session.draw_clip_triangles(&tris, 1 + batch * 100);
-        let (r, fb) = (session.renderer(), session.framebuffer());
-        for lv in r.tile_levels().iter().filter(|lv| lv.touched) {
-            let t = lv.rect;
-            // The tile's keys from the framebuffer it wrote through to, 0 off the screen.
-            let mut keys = vec![0; (crate::tiling::TILE * crate::tiling::TILE) as usize];
-            for (y, x) in (0..t.h).flat_map(|y| (0..t.w).map(move |x| (y, x))) {
-                let d = fb.depth[fb.index(t.x0 + x, t.y0 + y)];
-                keys[(y * crate::tiling::TILE + x) as usize] = DepthFormat::F32.key(d);
+    for (frame, batches) in [6u32, 2].into_iter().enumerate() {
+        let mut session = r.begin(&mut fb, &opts);
+        for batch in 0..batches {
+            let tris = batch_of_triangles(&mut rng, 1.0);
+            session.draw_clip_triangles(&tris, 1 + batch * 100);
+            let (r, fb) = (session.renderer(), session.framebuffer());
+            for lv in r.tile_levels().iter().filter(|lv| lv.touched) {
+                let t = lv.rect;
+                // The tile's keys from the framebuffer it wrote through to, 0 off the screen.
+                let mut keys = vec![0; (crate::tiling::TILE * crate::tiling::TILE) as usize];
+                for (y, x) in (0..t.h).flat_map(|y| (0..t.w).map(move |x| (y, x))) {
+                    let d = fb.depth[fb.index(t.x0 + x, t.y0 + y)];
+                    keys[(y * crate::tiling::TILE + x) as usize] = DepthFormat::F32.key(d);
+                }
+                let mut full = lv.clone();
+                full.compute::<crate::depth::F32>(&keys);
+                let at = format!("tile at {},{}, frame {frame}, batch {batch}", t.x0, t.y0);
+                assert_eq!(lv.mips, full.mips, "{at}");
             }
-            let mut full = lv.clone();
-            full.compute::<crate::depth::F32>(&keys);
-            assert_eq!(lv.mips, full.mips, "tile at {},{} after batch {batch}", t.x0, t.y0);
         }
+        session.finish();
     }
-    session.finish();
 }
 
 /// Binning leaves out a triangle wholly behind the depths drawn in its tile in earlier
