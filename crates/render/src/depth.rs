@@ -163,7 +163,7 @@ pub(crate) trait DepthCodec: Copy + Send + Sync + 'static {
 
     /// [`DepthCodec::key`] of four lanes (SSE2), none of them NaN: the vector kernels meet
     /// only planes that give numbers ([`Tri::depths_are_numbers`]), so they leave out the
-    /// NaN test (a tenth of the AVX2 block kernel's row).
+    /// NaN test (four instructions in each row of the AVX2 block kernel).
     ///
     /// # Safety
     /// None beyond SSE2, which every x86-64 CPU has.

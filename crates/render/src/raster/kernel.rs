@@ -312,8 +312,9 @@ fn block_base<const COUNT: bool>(tile: &TileBuf, [rx0, ry0, _, ry1]: [i32; 4]) -
 
 /// One block of at most 8×8 pixels (`rect`, inclusive, in screen pixels): eight pixels per
 /// row in AVX2 registers, with everything that does not change along a column (edge lane
-/// offsets, the depth plane's x part, the column mask) and the plane's row depths set up once
-/// per block instead of once per row. Same arithmetic per pixel as the row loops, so the same result bit for bit.
+/// offsets, the depth plane's x part, the column mask) and the plane's row depths set up
+/// once per block instead of once per row. Same arithmetic per pixel as the row loops, so
+/// the same result bit for bit.
 ///
 /// # Safety
 /// The CPU must have AVX2 (the caller resolved [`SimdLevel`](sightline_spatial::SimdLevel)).
