@@ -179,7 +179,7 @@ impl TileLevels {
     /// depths, so a stale block's 16 + 4 + 1 texels are reduced from its 64 keys held in
     /// registers and each decoded once; levels 4–6 have fixed sizes, written out. (Through
     /// the general 2 × 2 reduction, rectangle by rectangle, the boxfield's occluder pass took
-    /// 1.03× as long and the street path's `hzb` frame 1.03–1.04×.) Inlined into the tile
+    /// 1.03× as long and the street path's `hzb` frame 1.03–1.05×.) Inlined into the tile
     /// stage, so that it is compiled for the stage's instruction set.
     #[inline(always)]
     pub(crate) fn update<D: DepthCodec>(&mut self, depth: &[u32]) {
