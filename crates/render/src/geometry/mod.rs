@@ -450,11 +450,14 @@ fn transform8(p: &[Vec3], m: &Mat4) -> [std::arch::x86_64::__m256; 4] {
         let y = _mm256_shuffle_ps::<0b11_01_10_00>(yz, xy);
         let z = _mm256_shuffle_ps::<0b11_00_11_01>(yz, m25);
         let c = m.to_cols_array_2d();
-        std::array::from_fn(|j| {
+        // Called here, not through `std::array::from_fn`, whose generic body is compiled
+        // without this function's target features.
+        let row = |j: usize| {
             let s = |k: usize| _mm256_set1_ps(c[k][j]);
             let r = _mm256_add_ps(_mm256_mul_ps(s(0), x), _mm256_mul_ps(s(1), y));
             _mm256_add_ps(_mm256_add_ps(r, _mm256_mul_ps(s(2), z)), s(3))
-        })
+        };
+        [row(0), row(1), row(2), row(3)]
     }
 }
 

@@ -195,23 +195,30 @@ impl TileLevels {
             let b = stale.trailing_zeros() as usize;
             stale &= stale - 1;
             let (bx, by) = (b & 7, b >> 3);
-            let k1: [[u32; 4]; 4] = std::array::from_fn(|y| {
+            // Plain loops, not `std::array::from_fn`: its closures run inside the library's
+            // generic function, which is compiled without this stage's target features
+            // (SSE2: no unsigned 32-bit max, emulated in five operations).
+            let mut k1 = [[0u32; 4]; 4];
+            for (y, row) in k1.iter_mut().enumerate() {
                 let at = (8 * by + 2 * y) * T + 8 * bx;
                 let (r0, r1) = (&depth[at..at + 8], &depth[at + T..at + T + 8]);
-                let m: [u32; 8] = std::array::from_fn(|i| r0[i].max(r1[i]));
-                std::array::from_fn(|x| m[2 * x].max(m[2 * x + 1]))
-            });
+                for (x, k) in row.iter_mut().enumerate() {
+                    *k = r0[2 * x].max(r1[2 * x]).max(r0[2 * x + 1].max(r1[2 * x + 1]));
+                }
+            }
             for (y, row) in k1.iter().enumerate() {
                 let at = (4 * by + y) * 32 + 4 * bx;
                 for (t, &k) in l1[at..at + 4].iter_mut().zip(row) {
                     *t = D::decode(k);
                 }
             }
-            let k2: [[u32; 2]; 2] = std::array::from_fn(|y| {
-                std::array::from_fn(|x| {
-                    k1[2 * y][2 * x].max(k1[2 * y][2 * x + 1]).max(k1[2 * y + 1][2 * x]).max(k1[2 * y + 1][2 * x + 1])
-                })
-            });
+            let mut k2 = [[0u32; 2]; 2];
+            for (y, row) in k2.iter_mut().enumerate() {
+                let (a, b) = (&k1[2 * y], &k1[2 * y + 1]);
+                for (x, k) in row.iter_mut().enumerate() {
+                    *k = a[2 * x].max(a[2 * x + 1]).max(b[2 * x]).max(b[2 * x + 1]);
+                }
+            }
             for (y, row) in k2.iter().enumerate() {
                 let at = (2 * by + y) * 16 + 2 * bx;
                 l2[at] = D::decode(row[0]);
