@@ -52,23 +52,40 @@ pub(crate) fn bin_chunk(chunk: &mut Chunk, grid: &Grid, session: Option<(&[TileL
         }
         t.multi = chunk.multi.len() as u32;
         chunk.multi.push(AtomicBool::new(false));
-        for ty in ty0..=ty1 {
-            for txi in tx0..=tx1 {
-                let r = [
-                    (txi * TILE).max(x0) as i32,
-                    (ty * TILE).max(y0) as i32,
-                    (txi * TILE + TILE - 1).min(x1) as i32,
-                    (ty * TILE + TILE - 1).min(y1) as i32,
-                ];
-                let k = ty as usize * tx + txi as usize;
-                if misses_rect(t, r) {
-                    continue;
-                }
-                if hidden(k, t) {
-                    chunk.stats.coarse_rejected += 1;
-                } else {
-                    chunk.bins[k].push(i as u32);
-                }
+        bin_across(t, i as u32, tx, &mut chunk.bins, &mut chunk.stats.coarse_rejected, hidden);
+    }
+}
+
+/// Bins triangle `t` (number `i` of its chunk) that spans several tiles: each tile of its box
+/// that it covers some pixel center of, unless `hidden` says the tile's pyramid hides it there
+/// (counted into `rejected`). Out of line, so that the loop over the chunk's triangles, most of
+/// them in one tile, stays short.
+#[inline(never)]
+fn bin_across(
+    t: &Tri,
+    i: u32,
+    tiles_x: usize,
+    bins: &mut [Vec<u32>],
+    rejected: &mut u64,
+    hidden: impl Fn(usize, &Tri) -> bool,
+) {
+    let [x0, y0, x1, y1] = t.bbox.map(|v| v as u32);
+    for ty in y0 >> TILE_SHIFT..=y1 >> TILE_SHIFT {
+        for txi in x0 >> TILE_SHIFT..=x1 >> TILE_SHIFT {
+            let r = [
+                (txi * TILE).max(x0) as i32,
+                (ty * TILE).max(y0) as i32,
+                (txi * TILE + TILE - 1).min(x1) as i32,
+                (ty * TILE + TILE - 1).min(y1) as i32,
+            ];
+            let k = ty as usize * tiles_x + txi as usize;
+            if misses_rect(t, r) {
+                continue;
+            }
+            if hidden(k, t) {
+                *rejected += 1;
+            } else {
+                bins[k].push(i);
             }
         }
     }
