@@ -199,7 +199,7 @@ impl TileLevels {
             let (bx, by) = (b & 7, b >> 3);
             // Plain loops, not `std::array::from_fn`: its closures run inside the library's
             // generic function, which is compiled without this stage's target features
-            // (SSE2: no unsigned 32-bit max, emulated in five operations).
+            // (SSE2: no unsigned 32-bit max, each emulated in several operations).
             let mut k1 = [[0u32; 4]; 4];
             for (y, row) in k1.iter_mut().enumerate() {
                 let at = (8 * by + 2 * y) * T + 8 * bx;
