@@ -13,6 +13,12 @@
 //! stopped, so the caller can draw a batch and refresh its pyramid between batches without
 //! fighting the borrow checker over callbacks. Frustum tests on the way are those of
 //! [`super::traverse`] (plane masking).
+//!
+//! A walk that tests nothing per item (drawing every occluder) can take a small subtree
+//! lying inside the frustum whole ([`FrontToBackCursor::whole_subtrees`]): the depth-first
+//! layout keeps a subtree's items contiguous, so they go out as one range in slot order, at
+//! the cost of a copy, instead of paying for each node, box distance and leaf sort under
+//! it. The order changes only inside such a subtree, whose items lie close together.
 
 use glam::Vec3;
 use sightline_scene::Aabb;
@@ -27,6 +33,11 @@ const KIND_UNBOUNDED: u8 = 2;
 /// An item put ahead of the walk, already classified against the frustum (its mask is the
 /// one after that test).
 const KIND_SEED: u8 = 3;
+/// The largest whole subtree: the tree's sizes saturate at 255, which means "255 or more".
+const MAX_WHOLE: u32 = 254;
+/// The rest of a whole subtree's items, in slot order: `id` is the next slot and `mask`
+/// holds the count left (the subtree is inside the frustum, so it needs no planes).
+const KIND_RANGE: u8 = 4;
 
 #[derive(Debug, Clone, Copy)]
 struct Entry {
@@ -62,6 +73,9 @@ pub struct FrontToBackCursor {
     /// The items put ahead of the walk ([`FrontToBackCursor::nearest_first`]): the walk
     /// passes over them.
     seeded: Seeds,
+    /// Subtrees inside the frustum with at most this many items go out whole, in slot order
+    /// ([`FrontToBackCursor::whole_subtrees`]; 0: none).
+    whole: u32,
 }
 
 impl FrontToBackCursor {
@@ -75,7 +89,20 @@ impl FrontToBackCursor {
         for k in (0..bvh.unbounded.len()).rev() {
             stack.push(Entry { id: k as u32, mask: ALL_PLANES, kind: KIND_UNBOUNDED });
         }
-        Self { stack, frustum: frustum.copied(), eye, seeded: Seeds::default() }
+        Self { stack, frustum: frustum.copied(), eye, seeded: Seeds::default(), whole: 0 }
+    }
+
+    /// Lets a subtree that lies inside the frustum and holds at most `max_items` items (at
+    /// most 254) go out whole: its items in slot order, after its own box was asked about,
+    /// instead of front to back one by one. Items of one small subtree lie close together,
+    /// so the order barely changes, and the walk no longer pays for their nodes, the
+    /// distances to their boxes and the sorting of each leaf: a walk that tests nothing per
+    /// item (drawing every occluder in the frustum) spends most of its time there when the
+    /// items are many and small. A walk that tests items against a depth pyramid wants
+    /// each asked about, and leaves this at 0 (the default: none).
+    pub fn whole_subtrees(mut self, max_items: u32) -> Self {
+        self.whole = max_items.min(MAX_WHOLE);
+        self
     }
 
     /// Puts the `k` items nearest the eye ahead of the walk, nearest first: the items in the
@@ -120,44 +147,44 @@ impl FrontToBackCursor {
     ) -> bool {
         let mut emitted = 0usize;
         let max = max_items.max(1);
-        run(
-            bvh,
-            self.frustum.as_ref(),
-            self.eye,
-            &mut self.stack,
-            &self.seeded,
-            |b| {
-                if possibly_visible(b) {
-                    Visit::Continue
-                } else {
-                    Visit::Skip
-                }
-            },
-            |v| {
-                out.push(v);
-                emitted += 1;
-                if emitted >= max {
-                    Visit::Stop
-                } else {
-                    Visit::Continue
-                }
-            },
-        );
+        let walk = Walk { frustum: self.frustum.as_ref(), eye: self.eye, seeded: &self.seeded, whole: self.whole };
+        let node_visit = |b: &Aabb| {
+            if possibly_visible(b) {
+                Visit::Continue
+            } else {
+                Visit::Skip
+            }
+        };
+        let item_visit = |v| {
+            out.push(v);
+            emitted += 1;
+            if emitted >= max {
+                Visit::Stop
+            } else {
+                Visit::Continue
+            }
+        };
+        // Two forms, so that walks without whole subtrees carry none of their tests.
+        if self.whole == 0 {
+            run::<false>(bvh, walk, &mut self.stack, node_visit, item_visit);
+        } else {
+            run::<true>(bvh, walk, &mut self.stack, node_visit, item_visit);
+        }
         !self.stack.is_empty()
     }
 }
 
 /// The front-to-back core shared by the callback and cursor forms. Returns when the stack is
 /// empty or a callback said `Stop` (the stack then holds the rest of the traversal).
-fn run(
+/// `WHOLE`: the walk may take subtrees whole (`walk.whole` > 0).
+fn run<const WHOLE: bool>(
     bvh: &Bvh,
-    frustum: Option<&Frustum>,
-    eye: Vec3,
+    walk: Walk,
     stack: &mut Vec<Entry>,
-    seeded: &Seeds,
     mut node_visit: impl FnMut(&Aabb) -> Visit,
     mut item_visit: impl FnMut(Visible) -> Visit,
 ) {
+    let Walk { frustum, eye, seeded, whole } = walk;
     let mut order: Vec<(f32, u32)> = Vec::new();
     while let Some(e) = stack.pop() {
         let mut mask = e.mask;
@@ -171,6 +198,11 @@ fn run(
                     Visit::Continue => {}
                 }
                 if item_visit(Visible { index: id, inside: false }) == Visit::Stop {
+                    return;
+                }
+            }
+            KIND_RANGE => {
+                if WHOLE && visit_range(bvh, frustum.is_some(), seeded, e.id, e.mask as u32, stack, &mut item_visit) {
                     return;
                 }
             }
@@ -209,7 +241,19 @@ fn run(
                     Visit::Skip => continue,
                     Visit::Continue => {}
                 }
-                if n.count == 1 {
+                let inside = frustum.is_none() || mask == 0;
+                if WHOLE && n.count != 1 && inside && (bvh.sizes[e.id as usize] as u32) <= whole {
+                    // A small subtree inside the frustum: its items are contiguous from its
+                    // leftmost leaf on.
+                    let mut first = n;
+                    while !first.is_leaf() {
+                        first = bvh.nodes[first.index as usize];
+                    }
+                    let count = bvh.sizes[e.id as usize] as u32;
+                    if visit_range(bvh, frustum.is_some(), seeded, first.index, count, stack, &mut item_visit) {
+                        return;
+                    }
+                } else if n.count == 1 {
                     // The leaf box is the item box: no second test.
                     let v = Visible { index: bvh.items[n.index as usize], inside: frustum.is_some() && mask == 0 };
                     if item_visit(v) == Visit::Stop {
@@ -244,6 +288,44 @@ fn run(
             }
         }
     }
+}
+
+/// What a walk runs with besides its stack and callbacks.
+#[derive(Clone, Copy)]
+struct Walk<'a> {
+    frustum: Option<&'a Frustum>,
+    eye: Vec3,
+    seeded: &'a Seeds,
+    /// See [`FrontToBackCursor::whole_subtrees`].
+    whole: u32,
+}
+
+/// Item slots `first..first + count` of a whole subtree in the frustum (`inside` when there
+/// is one), in order, seeds passed over. When `item_visit` says `Stop`, the slots left go
+/// on the stack as one entry, and true is returned.
+#[inline(always)]
+fn visit_range(
+    bvh: &Bvh,
+    inside: bool,
+    seeded: &Seeds,
+    first: u32,
+    count: u32,
+    stack: &mut Vec<Entry>,
+    item_visit: &mut impl FnMut(Visible) -> Visit,
+) -> bool {
+    let end = first + count;
+    for s in first..end {
+        if seeded.contains(s) {
+            continue;
+        }
+        if item_visit(Visible { index: bvh.items[s as usize], inside }) == Visit::Stop {
+            if s + 1 < end {
+                stack.push(Entry { id: s + 1, mask: (end - s - 1) as PlaneMask, kind: KIND_RANGE });
+            }
+            return true;
+        }
+    }
+    false
 }
 
 /// The item slots put ahead of the walk, sorted, with a filter of 1,024 bits in front: the
@@ -367,7 +449,8 @@ impl Bvh {
         item_visit: impl FnMut(Visible) -> Visit,
     ) {
         let mut cursor = FrontToBackCursor::new(self, frustum, eye);
-        run(self, frustum, eye, &mut cursor.stack, &Seeds::default(), node_visit, item_visit);
+        let walk = Walk { frustum, eye, seeded: &Seeds::default(), whole: 0 };
+        run::<false>(self, walk, &mut cursor.stack, node_visit, item_visit);
     }
 
     /// Every item (unbounded first, then the tree's) in front-to-back order for `eye`.
@@ -406,6 +489,21 @@ mod tests {
     use crate::bvh::traverse::tests::{grid_boxes, random_boxes};
     use crate::BvhPreset;
     use sightline_scene::{Angle, Camera, LookAt};
+
+    /// An eye over `random_boxes`' field and its frustum, looking at the field from a random
+    /// height with a random field of view; case `c` picks the far distance (10, 60 or 400).
+    fn random_view(rng: &mut sightline_scene::rng::Rng, c: usize) -> (Vec3, Frustum) {
+        let eye = Vec3::new(rng.range(-70.0, 70.0), rng.range(-5.0, 10.0), rng.range(-70.0, 70.0));
+        let look = LookAt {
+            eye,
+            target: Vec3::new(rng.range(-30.0, 30.0), 0.0, rng.range(-30.0, 30.0)),
+            up: Vec3::Y,
+            fovy: Angle::degrees(rng.range(20.0, 100.0)),
+            near: 0.1,
+            far: [10.0, 60.0, 400.0][c % 3],
+        };
+        (eye, Frustum::from_camera(&Camera::perspective(&look, 1.5).unwrap()))
+    }
 
     #[test]
     fn front_to_back_is_roughly_sorted_and_callbacks_prune() {
@@ -448,16 +546,7 @@ mod tests {
         for leaf in [1, 4, 8] {
             let bvh = Bvh::build(&boxes, BvhPreset::Fast, leaf);
             for c in 0..30 {
-                let eye = Vec3::new(rng.range(-70.0, 70.0), rng.range(-5.0, 10.0), rng.range(-70.0, 70.0));
-                let look = LookAt {
-                    eye,
-                    target: Vec3::new(rng.range(-30.0, 30.0), 0.0, rng.range(-30.0, 30.0)),
-                    up: Vec3::Y,
-                    fovy: Angle::degrees(rng.range(20.0, 100.0)),
-                    near: 0.1,
-                    far: [10.0, 60.0, 400.0][c % 3],
-                };
-                let frustum = Frustum::from_camera(&Camera::perspective(&look, 1.5).unwrap());
+                let (eye, frustum) = random_view(&mut rng, c);
                 let f = (c % 4 != 0).then_some(&frustum);
                 let walk = |k: usize| {
                     let mut cursor = FrontToBackCursor::new(&bvh, f, eye).nearest_first(&bvh, k);
@@ -497,5 +586,63 @@ mod tests {
             }
         }
         assert!(led > 1000, "{led} items led");
+    }
+
+    /// Whole subtrees change the order only: every item the plain walk emits comes once,
+    /// with the same `inside` flag, for any batch size (each batch but the last full), with
+    /// or without seeds and a frustum. With 0 the order is the plain one; sizes saturate
+    /// (255 is "255 or more", never taken whole, however large the limit asked for).
+    #[test]
+    fn whole_subtrees_change_the_order_only() {
+        let mut rng = sightline_scene::rng::Rng::new(9);
+        let boxes = random_boxes(&mut rng);
+        let mut reordered = 0;
+        for leaf in [1, 4] {
+            let bvh = Bvh::build(&boxes, BvhPreset::Fast, leaf);
+            // Each node's size is its subtree's item count, saturated.
+            let mut below = vec![0u32; bvh.nodes.len()];
+            for i in (0..bvh.nodes.len()).rev() {
+                let n = bvh.nodes[i];
+                let k = n.index as usize;
+                below[i] = if n.is_leaf() { n.count } else { below[k] + below[k + 1] };
+                assert_eq!(bvh.sizes[i] as u32, below[i].min(255), "node {i}");
+            }
+            assert_eq!(below[0] as usize, boxes.len());
+            for c in 0..16 {
+                let (eye, frustum) = random_view(&mut rng, c);
+                let f = (c % 4 != 0).then_some(&frustum);
+                let walk = |whole: u32, k: usize, batch: usize| {
+                    let mut cursor = FrontToBackCursor::new(&bvh, f, eye).nearest_first(&bvh, k).whole_subtrees(whole);
+                    let mut out = Vec::new();
+                    loop {
+                        let before = out.len();
+                        let more = cursor.next_batch(&bvh, |_| true, batch, &mut out);
+                        if !more {
+                            break;
+                        }
+                        assert_eq!(out.len() - before, batch, "whole {whole}, k {k}");
+                    }
+                    out
+                };
+                let sorted = |v: &[Visible]| {
+                    let mut v: Vec<(u32, bool)> = v.iter().map(|v| (v.index, v.inside)).collect();
+                    v.sort_unstable();
+                    v
+                };
+                let ids = |v: &[Visible]| v.iter().map(|v| v.index).collect::<Vec<_>>();
+                let plain = walk(0, 0, usize::MAX);
+                for whole in [0, 1, 3, 16, 254, 255, 100_000] {
+                    for (k, batch) in [(0, 1), (7, 5), (32, 64), (0, usize::MAX)] {
+                        let got = walk(whole, k, batch);
+                        assert_eq!(sorted(&got), sorted(&plain), "leaf {leaf}, camera {c}, whole {whole}, k {k}");
+                        if whole == 0 && k == 0 {
+                            assert_eq!(ids(&got), ids(&plain));
+                        }
+                        reordered += (k == 0 && ids(&got) != ids(&plain)) as u32;
+                    }
+                }
+            }
+        }
+        assert!(reordered > 20, "{reordered} walks reordered");
     }
 }

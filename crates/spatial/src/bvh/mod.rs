@@ -82,6 +82,9 @@ pub struct Bvh {
     pub(crate) unbounded: Vec<u32>,
     pub(crate) item_count: usize,
     pub(crate) depth: u32,
+    /// Per node, the items in its subtree, saturated at 255 (a byte a node): what
+    /// [`crate::FrontToBackCursor::whole_subtrees`] decides by. A refit leaves it as it is.
+    pub(crate) sizes: Vec<u8>,
     /// Item → its place in `items` (`u32::MAX`: empty or unbounded), made on the first
     /// [`Bvh::refit_changed`].
     pub(crate) slot_of: Vec<u32>,
@@ -131,6 +134,7 @@ impl Bvh {
                 out.items = ids;
                 out.item_boxes = vec![b];
                 out.depth = 1;
+                out.sizes = vec![1];
                 return out;
             }
             _ => {}
@@ -188,6 +192,7 @@ impl Bvh {
             }
         }
         self.depth = max_depth;
+        self.sizes = subtree_sizes(&self.nodes);
     }
 
     /// The nodes (root first; empty for a tree with no finite item).
@@ -238,6 +243,7 @@ impl Bvh {
     /// paths reads once one has run).
     pub fn memory_bytes(&self) -> usize {
         self.nodes.memory_bytes()
+            + self.sizes.capacity()
             + self.items.capacity() * 4
             + self.item_boxes.capacity() * std::mem::size_of::<Aabb>()
             + self.unbounded.capacity() * 4
@@ -283,6 +289,18 @@ impl Bvh {
         }
         Ok(())
     }
+}
+
+/// Per node, the items in its subtree, saturated at 255: children come after their parent
+/// in the layout, so one pass from the last node back sums each pair into its parent.
+fn subtree_sizes(nodes: &[BvhNode]) -> Vec<u8> {
+    let mut sizes = vec![0u8; nodes.len()];
+    for i in (0..nodes.len()).rev() {
+        let n = &nodes[i];
+        let k = n.index as usize;
+        sizes[i] = if n.is_leaf() { n.count.min(255) as u8 } else { sizes[k].saturating_add(sizes[k + 1]) };
+    }
+    sizes
 }
 
 #[cfg(test)]
