@@ -204,9 +204,10 @@ fn skipping_hidden_occluders_changes_nothing() {
     }
 }
 
-/// The occluder pass that draws every occluder finds each batch while the last one is drawn:
-/// its depth and IDs are the same on one, two and three threads, and its IDs are brute
-/// force's.
+/// The occluder pass that draws every occluder finds each batch while the last one is drawn,
+/// and takes small subtrees inside the frustum whole: its depth and IDs are the same on one,
+/// two and three threads, with no subtree, the default ones and the largest taken whole, and
+/// its IDs are brute force's.
 #[test]
 fn the_pipelined_occluder_pass_is_the_same_on_any_thread_count() {
     use sightline::render::Method;
@@ -215,18 +216,24 @@ fn the_pipelined_occluder_pass_is_the_same_on_any_thread_count() {
     let scene =
         boxfield(&BoxfieldParams { boxes: 6000, half_size: 40.0, seed: 9, layout: BoxfieldLayout::Instanced }).unwrap();
     let opts = RenderOptions::ids_only();
-    let mut frames = Vec::new();
+    let (mut frames, mut counts) = (Vec::new(), Vec::new());
     for threads in [1, 2, 3] {
         let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap();
-        let mut culler = Culler::new(&scene);
-        let mut fb = Framebuffer::new(320, 180).unwrap();
-        pool.install(|| {
-            let (cs, _, pass) = culler.occluder_pass(&camera, &mut fb, &opts).unwrap();
-            assert!(cs.batches > 3, "{threads} threads: {} batches", cs.batches);
-            pass.finish();
-        });
-        frames.push((fb.depth, fb.ids));
+        for whole in [0, Culler::DEFAULT_WHOLE_SUBTREE, 254] {
+            let mut culler = Culler::new(&scene);
+            culler.whole_subtree = whole;
+            let mut fb = Framebuffer::new(320, 180).unwrap();
+            pool.install(|| {
+                let (cs, _, pass) = culler.occluder_pass(&camera, &mut fb, &opts).unwrap();
+                assert!(cs.batches > 3, "{threads} threads, whole {whole}: {} batches", cs.batches);
+                counts.push((cs.clusters_in_frustum, cs.clusters_drawn, cs.triangles_drawn));
+                pass.finish();
+            });
+            frames.push((fb.depth, fb.ids));
+        }
     }
+    // Every occluder in the frustum is drawn, whatever the order.
+    assert!(counts.iter().all(|c| *c == counts[0]), "{counts:?}");
     assert!(frames[0].1.iter().any(|&i| i != 0));
     assert!(frames.iter().all(|f| *f == frames[0]), "the frame depends on the thread count");
     let mut brute = Framebuffer::new(320, 180).unwrap();

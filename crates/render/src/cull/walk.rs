@@ -35,6 +35,9 @@ pub(super) struct Batching {
     /// Clusters nearest the eye that a BVH walk takes before its depth-first order
     /// ([`FrontToBackCursor::nearest_first`]).
     pub nearest_first: usize,
+    /// Clusters of a subtree inside the frustum that the walk that tests nothing takes
+    /// whole ([`FrontToBackCursor::whole_subtrees`]).
+    pub whole_subtree: u32,
 }
 
 /// How [`Clusters::hzb_walk`] walks.
@@ -273,8 +276,11 @@ impl Clusters {
     ) -> Result<()> {
         let eye = f.camera.view.eye;
         let backface = f.opts.backface_culling;
-        let mut cursor =
-            self.clustered.cursor(Some(frustum), eye).nearest_first(self.clustered.bvh(), batching.nearest_first);
+        let mut cursor = self
+            .clustered
+            .cursor(Some(frustum), eye)
+            .nearest_first(self.clustered.bvh(), batching.nearest_first)
+            .whole_subtrees(batching.whole_subtree);
         // One batch: the clusters, whether more may follow, and what dropping back faces counted.
         let find = |cursor: &mut FrontToBackCursor, batch: usize| {
             let t = Instant::now();
