@@ -287,6 +287,25 @@ impl Bvh {
                 return Err(format!("unbounded item {u} also in the tree"));
             }
         }
+        // Every subtree's items are contiguous (what counting and whole subtrees rely on),
+        // and the sizes are their counts.
+        let mut span = vec![(0u32, 0u32); self.nodes.len()];
+        for i in (0..self.nodes.len()).rev() {
+            let n = &self.nodes[i];
+            span[i] = if n.is_leaf() {
+                (n.index, n.count)
+            } else {
+                let (a, b) = (span[n.index as usize], span[n.index as usize + 1]);
+                if b.0 != a.0 + a.1 {
+                    return Err(format!("node {i}: its children's items are not contiguous"));
+                }
+                (a.0, a.1 + b.1)
+            };
+        }
+        if self.sizes.len() != self.nodes.len() || self.sizes.iter().zip(&span).any(|(&s, t)| s as u32 != t.1.min(255))
+        {
+            return Err("subtree sizes do not match the tree".into());
+        }
         Ok(())
     }
 }
