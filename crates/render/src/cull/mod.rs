@@ -294,7 +294,8 @@ impl Culler {
             first: self.first_batch.max(1),
             cap: cap.min(one).max(1),
             nearest_first: self.nearest_first,
-            whole_subtree: self.whole_subtree.min(254) as u32,
+            // The cursor caps it (at 254).
+            whole_subtree: u32::try_from(self.whole_subtree).unwrap_or(u32::MAX),
         }
     }
 
