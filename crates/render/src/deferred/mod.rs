@@ -20,11 +20,12 @@
 //! path, shading on one thread 0.98 → 0.87–0.96 ms), so the common case (flat shading) has
 //! no branch that depends on where a triangle's run of pixels ends.
 
-use glam::{Mat4, Vec3, Vec3A};
+use glam::{DMat4, Mat4, Vec3, Vec3A};
 use sightline_scene::{Camera, Instance, Mesh, Scene};
 use sightline_spatial::{prefetch, SimdLevel};
 
 use crate::claim::{for_each_claimed, Claim};
+use crate::clip_matrix::clip_from_local;
 use crate::shading::{is_constant, InstanceShading, ShadeOptions, ShadingMode, TriangleShader};
 use crate::Framebuffer;
 
@@ -48,7 +49,9 @@ const INST_CACHE: usize = 64;
 
 struct InstEntry<'a> {
     index: u32,
-    clip: Mat4,
+    /// `clip_from_local`, formed on the first triangle that needs interpolation: flat
+    /// triangles (the common case) need none.
+    clip: Option<Mat4>,
     shading: InstanceShading<'a>,
     mesh: &'a Mesh,
 }
@@ -134,6 +137,9 @@ struct ShadeFrame<'a> {
     scene: &'a Scene,
     lookup: Lookup<'a>,
     camera: &'a Camera,
+    /// The camera's `clip_from_world` in f64, formed once for every instance's
+    /// `clip_from_local` (see [`InstEntry::clip`]).
+    clip_from_world: DMat4,
     opts: &'a ShadeOptions,
     background: [u8; 4],
     /// The sky's color of each row, when there is a sky.
@@ -218,6 +224,7 @@ impl<'a> ShadeFrame<'a> {
             scene,
             lookup: Lookup::new(instances),
             camera,
+            clip_from_world: camera.clip_from_world_f64(),
             opts,
             background,
             sky,
@@ -511,12 +518,12 @@ impl<'a> ShadeFrame<'a> {
             let material = scene.instance_material(inst);
             insts[slot] = Some(InstEntry {
                 index,
-                clip: self.camera.clip_from_local(&inst.world_from_local),
+                clip: None,
                 shading: InstanceShading::new(inst.world_from_local, material),
                 mesh,
             });
         }
-        let e = insts[slot].as_ref()?;
+        let e = insts[slot].as_mut()?;
         if t >= e.mesh.triangle_count() {
             return None;
         }
@@ -526,7 +533,9 @@ impl<'a> ShadeFrame<'a> {
             return Some(Prepared::Constant(k));
         }
         let shader = TriangleShader::new(&e.shading, e.mesh, t, eye, opts);
-        Some(Prepared::Full(TriEntry::new(&e.clip, e.mesh, t, shader)))
+        let clip =
+            *e.clip.get_or_insert_with(|| clip_from_local(&self.clip_from_world, &inst.world_from_local, self.simd));
+        Some(Prepared::Full(TriEntry::new(&clip, e.mesh, t, shader)))
     }
 }
 
