@@ -12,7 +12,8 @@
 //! a tile's rows are whole lines. After its rows a task fences ([`written_through`]), so
 //! that whoever waits for it sees them.
 //!
-//! The tile stage writes depth and IDs this way. The shading pass writes its colors plainly:
+//! The tile stage writes depth this way, and IDs plainly (the frame reads them back; see
+//! `raster::store`). The shading pass writes its colors plainly:
 //! shaded into a scratch row and written through, a frame took as long or longer (0.99–1.04×
 //! on the street path, on the machine where depth and IDs gained 8–13%), and streaming the
 //! colors straight from the shading kernel was 5–10% slower (its runs of pixels that miss

@@ -7,12 +7,17 @@
 //! touches only its own tile's rectangle of the planes, which is what makes sharing the
 //! planes between them sound.
 //!
-//! The planes are written past the cache ([`crate::stream`]): a frame's depth and IDs
+//! The depth plane is written past the cache ([`crate::stream`]): a frame's depth and IDs
 //! (7.4 MB at 1280×720) would otherwise be read from memory just to be overwritten. On a
-//! 2-core AMD EPYC without AVX-512, whose memory copies about 6–9 GB/s, the street path's
-//! oracle frame took 0.87–0.92× as long on two threads and the `hzb` frame 0.88–0.92× (in
-//! one process, the two ways taking turns frame by frame). The shading pass then reads the
-//! IDs from memory, as it mostly did anyway.
+//! 2-core AMD EPYC without AVX-512, whose memory copies about 6–9 GB/s, writing both planes
+//! so made the street path's oracle frame take 0.87–0.92× as long on two threads and the
+//! `hzb` frame 0.88–0.92× (in one process, the two ways taking turns frame by frame). The
+//! ID plane is written plainly again: the frame reads it back (a session's later batches
+//! load the spans they draw into, the shading pass reads every ID), and the 3.7 MB it
+//! keeps in the shared cache are worth the lines it reads first. With IDs written plainly
+//! and depth past the cache, on the same kind of machine, the `hzb` frame took a median
+//! 0.97× as long (eleven alternated pairs of runs, eight faster) and the oracle frame
+//! 0.99×; with both planes plain, the `hzb` frame 1.00–1.08× (five pairs).
 //!
 //! Loading is the other way round: a tile's rectangle is 64 pieces of 256 bytes, a plane's
 //! row apart, too short for the hardware's stream prefetch, so a load would wait for each
@@ -190,7 +195,8 @@ impl<'a> Planes<'a> {
                 write_through(&mut depth[x0..x1], &row[..keys.len()]);
             }
             let src = &tile.ids[at + x0..at + x1];
-            write_through(&mut ids[x0..x1], src);
+            // Plainly: the frame reads its IDs back (see the module docs).
+            ids[x0..x1].copy_from_slice(src);
             if let Some(c) = counts {
                 write_through(&mut c[x0..x1], &tile.counts[at + x0..at + x1]);
             }
@@ -223,7 +229,7 @@ impl<'a> Planes<'a> {
         // SAFETY: forwarded from the caller.
         let (depth, ids, counts) = unsafe { self.row(tile, r) };
         fill_through(depth, far);
-        fill_through(ids, 0);
+        ids.fill(0);
         if let Some(c) = counts {
             fill_through(c, 0);
         }
