@@ -145,6 +145,26 @@ impl TileLevels {
         true
     }
 
+    /// [`TileLevels::block_hidden`] for every 8×8 block under the screen rectangle `rect`
+    /// (inside this tile) at once, from the triangle's plane over the whole rectangle: no
+    /// nearer than over any block's part of it, so a true answer here is a true answer for
+    /// each block.
+    #[inline(always)]
+    pub(crate) fn blocks_hidden(&self, t: &Tri, rect: [i32; 4]) -> bool {
+        let near = t.plane_min(rect);
+        let (sx, sy) = (self.rect.x0 as i32, self.rect.y0 as i32);
+        let level3 = &self.mips[OFFSETS[2]..OFFSETS[3]];
+        let (bx0, bx1) = (((rect[0] - sx) >> 3) as usize, ((rect[2] - sx) >> 3) as usize + 1);
+        for by in ((rect[1] - sy) >> 3) as usize..((rect[3] - sy) >> 3) as usize + 1 {
+            for &max in &level3[by * 8..][bx0..bx1] {
+                if max >= 1.0 || near <= max + self.tie_margin {
+                    return false;
+                }
+            }
+        }
+        true
+    }
+
     /// Coarse depth per 8×8 block: true when the triangle's plane over the block's pixel
     /// centers `rect` (screen) lies behind the farthest depth drawn in the block (level 3;
     /// `[bx, by]` is the block's corner in the tile).

@@ -74,6 +74,12 @@ pub(crate) unsafe fn raster_tri<D: DepthCodec, const COUNT: bool, K: Kernel>(
         return TriRaster::default();
     }
     let rect = [x0, y0, x1, y1];
+    // In a frame session, a triangle behind every 8×8 block it reaches is settled before its
+    // edges and block walk (the walk would skip each block by the same test): binning tested
+    // it before the batch's earlier triangles refreshed those blocks.
+    if lv.coarse && lv.blocks_hidden(t, rect) {
+        return TriRaster::default();
+    }
     let e = edges(t);
     // The kernels take every depth to be a number: a plane that could give NaN (never one
     // set-up makes) is drawn pixel by pixel with scalar keys.

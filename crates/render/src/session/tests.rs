@@ -184,3 +184,38 @@ fn binning_skips_triangles_behind_drawn_tiles_only() {
     assert_eq!((st[2].coarse_rejected, st[2].rasterized), (0, 1), "in a tile not drawn into: drawn");
     assert!(fb.ids == plain.ids && fb.depth == plain.depth, "the frame equals plain draws");
 }
+
+/// A triangle behind one drawn in an earlier batch by less than half a step of an integer
+/// depth format gets the same depth key and so ties, and with the smaller ID wins: the
+/// session's coarse tests (at binning, per triangle and per 8×8 block in the rasterizer)
+/// leave that margin and give the frame plain draws give.
+#[test]
+fn coarse_tests_leave_integer_depth_ties_to_the_smaller_id() {
+    let opts = RenderOptions { backface_culling: false, ..RenderOptions::ids_only() };
+    // A quad over the whole 200 × 150 screen at window depth `d` (NDC z = 2d − 1).
+    let quad = |d: f32| {
+        let p = |x: f32, y: f32| Vec4::new(x, y, 2.0 * d - 1.0, 1.0);
+        [[p(-1.0, -1.0), p(1.0, -1.0), p(1.0, 1.0)], [p(-1.0, -1.0), p(1.0, 1.0), p(-1.0, 1.0)]]
+    };
+    for format in [DepthFormat::Unorm16, DepthFormat::Unorm24] {
+        let opts = RenderOptions { depth_format: format, ..opts };
+        // Depths near 0.015, where f32 resolves a tenth of a step of either format.
+        let step = 1.0 / format.max_value().unwrap() as f32;
+        let k = (0.015 / step).round();
+        for frac in [0.1f32, 0.2, 0.3, 0.4] {
+            let (near, far) = (quad(k * step), quad((k + frac) * step));
+            let mut plain = Framebuffer::new(200, 150).unwrap();
+            let mut r = Renderer::new();
+            r.draw_clip_triangles(&near, 10, &mut plain, &opts);
+            r.draw_clip_triangles(&far, 1, &mut plain, &opts);
+            let at = format!("{format:?}, {frac} of a step behind");
+            assert!(plain.ids.iter().all(|&id| id == 1 || id == 2), "{at}: the farther quad ties and wins");
+            let mut fb = Framebuffer::new(200, 150).unwrap();
+            let mut session = r.begin(&mut fb, &opts);
+            session.draw_clip_triangles(&near, 10);
+            session.draw_clip_triangles(&far, 1);
+            session.finish();
+            assert!(fb.ids == plain.ids && fb.depth == plain.depth, "{at}: the session differs");
+        }
+    }
+}
