@@ -6,10 +6,13 @@
 //! 8 × 8 block, that block's level-3 texel is recomputed ([`TileLevels::refresh_block`]), so
 //! the next triangles of the same batch are tested against it (Masked Occlusion Culling's
 //! sequential updates; Hasselgren, Andersson, Akenine-Möller 2016); levels 1–2 under the
-//! written blocks and levels 4–6 follow after the batch ([`TileLevels::update`]). Two tests
+//! written blocks and levels 4–6 follow after the batch ([`TileLevels::update`]). Three tests
 //! read them: a whole triangle against the tile at binning ([`TileLevels::occludes`]: the
-//! per-tile z-max of "HyperZ", then Greene's pyramid test per triangle), and each 8 × 8
-//! block in the rasterizer ([`TileLevels::block_hidden`]).
+//! per-tile z-max of "HyperZ", then Greene's pyramid test per triangle); in the rasterizer,
+//! the triangle against the level-3 texels of every block it reaches before its block walk
+//! ([`TileLevels::blocks_hidden`]: binning ran before the batch's earlier triangles refreshed
+//! them, and on the street path this settles half the triangle–tile pairs a culled frame
+//! rasterizes); and each 8 × 8 block in the walk ([`TileLevels::block_hidden`]).
 
 #[cfg(test)]
 use super::{reduce_2x2, Rect};

@@ -7,12 +7,13 @@
 //! Akenine-Möller 2016): blocks outside an edge are skipped, and an edge the whole block is
 //! inside of is dropped from the per-pixel test. In a frame session a block whose pyramid
 //! texel lies nearer than the triangle's plane over it is skipped too (coarse depth,
-//! [`TileLevels::block_hidden`]). The rest go through one [`Kernel`]. Edge values run on i32
-//! where they fit ([`FastEdges`]), per pixel on i64 in the rare blocks where they do not
-//! (vertices thousands of pixels away), and so do the blocks of a triangle whose depth plane
-//! could give NaN ([`Tri::depths_are_numbers`]; never one set-up makes). After a triangle
-//! writes into a block, the block's pyramid texel is refreshed at once, so the next
-//! triangles of the same batch are tested against it.
+//! [`TileLevels::block_hidden`]), and a triangle behind every block it reaches is settled
+//! before its edges are formed ([`TileLevels::blocks_hidden`]). The rest go through one
+//! [`Kernel`]. Edge values run on i32 where they fit ([`FastEdges`]), per pixel on i64 in
+//! the rare blocks where they do not (vertices thousands of pixels away), and so do the
+//! blocks of a triangle whose depth plane could give NaN ([`Tri::depths_are_numbers`]; never
+//! one set-up makes). After a triangle writes into a block, the block's pyramid texel is
+//! refreshed at once, so the next triangles of the same batch are tested against it.
 //!
 //! The edge functions and the fill rule are in [`crate::edge`]; the per-pixel kernels in
 //! [`kernel`]; the tile buffers in [`tile`].
