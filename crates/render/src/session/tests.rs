@@ -199,7 +199,8 @@ fn coarse_tests_leave_integer_depth_ties_to_the_smaller_id() {
     };
     for format in [DepthFormat::Unorm16, DepthFormat::Unorm24] {
         let opts = RenderOptions { depth_format: format, ..opts };
-        // Depths near 0.015, where f32 resolves a tenth of a step of either format.
+        // Depths near 0.015, tenths of a step apart for Unorm16; for Unorm24 the rounding of
+        // NDC depth (about a step there) may put both quads at one depth, a tie all the same.
         let step = 1.0 / format.max_value().unwrap() as f32;
         let k = (0.015 / step).round();
         for frac in [0.1f32, 0.2, 0.3, 0.4] {
