@@ -242,15 +242,17 @@ fn run<const WHOLE: bool>(
                     Visit::Continue => {}
                 }
                 let inside = frustum.is_none() || mask == 0;
-                if WHOLE && n.count != 1 && inside && (bvh.sizes[e.id as usize] as u32) <= whole {
+                // An inner node inside the frustum may be taken whole; its size is read once.
+                let candidate = WHOLE && n.count != 1 && inside;
+                let size = if candidate { bvh.sizes[e.id as usize] as u32 } else { 0 };
+                if candidate && size <= whole {
                     // A small subtree inside the frustum: its items are contiguous from its
                     // leftmost leaf on.
                     let mut first = n;
                     while !first.is_leaf() {
                         first = bvh.nodes[first.index as usize];
                     }
-                    let count = bvh.sizes[e.id as usize] as u32;
-                    if visit_range(bvh, frustum.is_some(), seeded, first.index, count, stack, &mut item_visit) {
+                    if visit_range(bvh, frustum.is_some(), seeded, first.index, size, stack, &mut item_visit) {
                         return;
                     }
                 } else if n.count == 1 {
