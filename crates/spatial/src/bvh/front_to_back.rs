@@ -19,6 +19,9 @@
 //! layout keeps a subtree's items contiguous, so they go out as one range in slot order, at
 //! the cost of a copy, instead of paying for each node, box distance and leaf sort under
 //! it. The order changes only inside such a subtree, whose items lie close together.
+//!
+//! A walk can pass over items the caller has drawn already ([`FrontToBackCursor::next_batch_except`]):
+//! they are neither asked about nor emitted, and the others come in the same order.
 
 use glam::Vec3;
 use sightline_scene::Aabb;
@@ -141,7 +144,22 @@ impl FrontToBackCursor {
     pub fn next_batch(
         &mut self,
         bvh: &Bvh,
+        possibly_visible: impl FnMut(&Aabb) -> bool,
+        max_items: usize,
+        out: &mut Vec<Visible>,
+    ) -> bool {
+        self.next_batch_except(bvh, possibly_visible, |_| false, max_items, out)
+    }
+
+    /// [`FrontToBackCursor::next_batch`], passing over the items for which `passed_over(item)`
+    /// holds: they are neither asked about nor emitted. An occlusion culler that has drawn
+    /// some items already this frame (last frame's visible set, say) passes them over, and
+    /// saves a pyramid test per such item whose answer would change nothing.
+    pub fn next_batch_except(
+        &mut self,
+        bvh: &Bvh,
         mut possibly_visible: impl FnMut(&Aabb) -> bool,
+        passed_over: impl Fn(u32) -> bool,
         max_items: usize,
         out: &mut Vec<Visible>,
     ) -> bool {
@@ -166,24 +184,28 @@ impl FrontToBackCursor {
         };
         // Two forms, so that walks without whole subtrees carry none of their tests.
         if self.whole == 0 {
-            run::<false>(bvh, walk, &mut self.stack, node_visit, item_visit);
+            run::<false>(bvh, walk, &mut self.stack, node_visit, passed_over, item_visit);
         } else {
-            run::<true>(bvh, walk, &mut self.stack, node_visit, item_visit);
+            run::<true>(bvh, walk, &mut self.stack, node_visit, passed_over, item_visit);
         }
         !self.stack.is_empty()
     }
 }
 
 /// The front-to-back core shared by the callback and cursor forms. Returns when the stack is
-/// empty or a callback said `Stop` (the stack then holds the rest of the traversal).
+/// empty or a callback said `Stop` (the stack then holds the rest of the traversal). Items
+/// for which `passed_over` holds are skipped before any test; it is asked through `get` (no
+/// bounds check that could panic), so that a constant `false` costs no load of the item.
 /// `WHOLE`: the walk may take subtrees whole (`walk.whole` > 0).
 fn run<const WHOLE: bool>(
     bvh: &Bvh,
     walk: Walk,
     stack: &mut Vec<Entry>,
     mut node_visit: impl FnMut(&Aabb) -> Visit,
+    passed_over: impl Fn(u32) -> bool,
     mut item_visit: impl FnMut(Visible) -> Visit,
 ) {
+    let passed_over_slot = |slot: u32| bvh.items.get(slot as usize).is_some_and(|&i| passed_over(i));
     let Walk { frustum, eye, seeded, whole } = walk;
     let mut order: Vec<(f32, u32)> = Vec::new();
     while let Some(e) = stack.pop() {
@@ -191,6 +213,9 @@ fn run<const WHOLE: bool>(
         match e.kind {
             KIND_UNBOUNDED => {
                 let id = bvh.unbounded[e.id as usize];
+                if passed_over(id) {
+                    continue;
+                }
                 let b = Aabb::new(Vec3::NAN, Vec3::NAN);
                 match node_visit(&b) {
                     Visit::Stop => return,
@@ -202,7 +227,8 @@ fn run<const WHOLE: bool>(
                 }
             }
             KIND_RANGE => {
-                if WHOLE && visit_range(bvh, frustum.is_some(), seeded, e.id, e.mask as u32, stack, &mut item_visit) {
+                let range = (e.id, e.mask as u32);
+                if WHOLE && visit_range(bvh, frustum.is_some(), seeded, range, stack, &passed_over, &mut item_visit) {
                     return;
                 }
             }
@@ -210,7 +236,7 @@ fn run<const WHOLE: bool>(
                 // A seed was classified against the frustum when it was found; the walk
                 // passes over it where it meets it as an item.
                 let item = e.kind == KIND_ITEM;
-                if item && seeded.contains(e.id) {
+                if item && seeded.contains(e.id) || passed_over_slot(e.id) {
                     continue;
                 }
                 let b = &bvh.item_boxes[e.id as usize];
@@ -229,7 +255,7 @@ fn run<const WHOLE: bool>(
             }
             _ => {
                 let n = bvh.nodes[e.id as usize];
-                if n.count == 1 && seeded.contains(n.index) {
+                if n.count == 1 && (seeded.contains(n.index) || passed_over_slot(n.index)) {
                     continue;
                 }
                 let b = n.aabb();
@@ -252,7 +278,8 @@ fn run<const WHOLE: bool>(
                     while !first.is_leaf() {
                         first = bvh.nodes[first.index as usize];
                     }
-                    if visit_range(bvh, frustum.is_some(), seeded, first.index, size, stack, &mut item_visit) {
+                    let range = (first.index, size);
+                    if visit_range(bvh, frustum.is_some(), seeded, range, stack, &passed_over, &mut item_visit) {
                         return;
                     }
                 } else if n.count == 1 {
@@ -303,24 +330,26 @@ struct Walk<'a> {
 }
 
 /// Item slots `first..first + count` of a whole subtree in the frustum (`inside` when there
-/// is one), in order, seeds passed over. When `item_visit` says `Stop`, the slots left go
-/// on the stack as one entry, and true is returned.
+/// is one), in order, seeds and the items `passed_over` names passed over. When
+/// `item_visit` says `Stop`, the slots left go on the stack as one entry, and true is
+/// returned.
 #[inline(always)]
 fn visit_range(
     bvh: &Bvh,
     inside: bool,
     seeded: &Seeds,
-    first: u32,
-    count: u32,
+    (first, count): (u32, u32),
     stack: &mut Vec<Entry>,
+    passed_over: &impl Fn(u32) -> bool,
     item_visit: &mut impl FnMut(Visible) -> Visit,
 ) -> bool {
     let end = first + count;
     for s in first..end {
-        if seeded.contains(s) {
+        let index = bvh.items[s as usize];
+        if seeded.contains(s) || passed_over(index) {
             continue;
         }
-        if item_visit(Visible { index: bvh.items[s as usize], inside }) == Visit::Stop {
+        if item_visit(Visible { index, inside }) == Visit::Stop {
             if s + 1 < end {
                 stack.push(Entry { id: s + 1, mask: (end - s - 1) as PlaneMask, kind: KIND_RANGE });
             }
@@ -452,7 +481,7 @@ impl Bvh {
     ) {
         let mut cursor = FrontToBackCursor::new(self, frustum, eye);
         let walk = Walk { frustum, eye, seeded: &Seeds::default(), whole: 0 };
-        run::<false>(self, walk, &mut cursor.stack, node_visit, item_visit);
+        run::<false>(self, walk, &mut cursor.stack, node_visit, |_| false, item_visit);
     }
 
     /// Every item (unbounded first, then the tree's) in front-to-back order for `eye`.
@@ -641,5 +670,49 @@ mod tests {
             }
         }
         assert!(reordered > 20, "{reordered} walks reordered");
+    }
+
+    /// Items passed over are neither asked about nor emitted, and the rest come in the plain
+    /// walk's order: with and without a frustum, seeds, whole subtrees and an unbounded item
+    /// (passed over or not), for any batch size. Every callback the plain walk makes for a
+    /// passed-over item is saved (here every box is possibly visible, so the plain walk asks
+    /// about exactly the items it emits, once each).
+    #[test]
+    fn items_passed_over_are_neither_asked_about_nor_emitted() {
+        let mut rng = sightline_scene::rng::Rng::new(13);
+        let mut boxes = random_boxes(&mut rng);
+        boxes[11] = Aabb::new(Vec3::splat(f32::NEG_INFINITY), Vec3::splat(f32::INFINITY));
+        let mut saved = 0;
+        for leaf in [1, 4] {
+            let bvh = Bvh::build(&boxes, BvhPreset::Fast, leaf);
+            for c in 0..16 {
+                let (eye, frustum) = random_view(&mut rng, c);
+                let f = (c % 4 != 0).then_some(&frustum);
+                let (k, whole, batch) = [(0, 0, 1), (7, 0, 5), (0, 16, 64), (32, 16, usize::MAX)][c % 4];
+                let modulus = [2, 3, 5][c % 3];
+                let over = |i: u32| i % modulus == c as u32 % modulus;
+                let walk = |except: bool| {
+                    let mut cursor = FrontToBackCursor::new(&bvh, f, eye).nearest_first(&bvh, k).whole_subtrees(whole);
+                    let (mut out, mut asked) = (Vec::new(), 0);
+                    let mut ask = |_: &Aabb| {
+                        asked += 1;
+                        true
+                    };
+                    while cursor.next_batch_except(&bvh, &mut ask, |i| except && over(i), batch, &mut out) {}
+                    (out.iter().map(|v| (v.index, v.inside)).collect::<Vec<_>>(), asked)
+                };
+                let (plain, plain_asked) = walk(false);
+                let (got, asked) = walk(true);
+                let kept: Vec<(u32, bool)> = plain.iter().copied().filter(|&(i, _)| !over(i)).collect();
+                assert_eq!(got, kept, "leaf {leaf}, camera {c}");
+                assert!(kept.len() < plain.len(), "leaf {leaf}, camera {c}: nothing passed over");
+                let passed = plain.len() - kept.len();
+                if whole == 0 {
+                    assert_eq!(plain_asked - asked, passed, "leaf {leaf}, camera {c}");
+                }
+                saved += passed;
+            }
+        }
+        assert!(saved > 1000, "{saved} items passed over");
     }
 }
