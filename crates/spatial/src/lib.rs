@@ -59,7 +59,7 @@ pub use bsp::split::{classify_triangle, split_triangle, Pieces, Side};
 pub use bsp::{BspOrder, BspParams, BspStats, BspTree, BspTriangle};
 pub use bvh::background::{rebuild_lag, LAG_ITEMS, REBUILD_LAG};
 pub use bvh::cluster::{Cluster, MeshClusters, CLUSTER_MAX, CLUSTER_MIN};
-pub use bvh::front_to_back::FrontToBackCursor;
+pub use bvh::front_to_back::{FrontToBackCursor, NodeSet};
 pub use bvh::instances::InstanceBvh;
 pub use bvh::policy::{RefitOutcome, REBUILD_RATIO};
 pub use bvh::scene::{ClusterItem, ClusteredScene};

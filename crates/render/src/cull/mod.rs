@@ -17,7 +17,10 @@
 //!   coherence: last frame's visible clusters (still in the frustum) are drawn first, in one batch,
 //!   front to back, as occluders; the walk then tests everything else against that pyramid, in big
 //!   batches, passing over the clusters drawn first without testing them again (where much is
-//!   in view, as on an orbit around the boxfield, those tests were a third of the walk's); at the
+//!   in view, as on an orbit around the boxfield, those tests were a third of the walk's), and,
+//!   when they are at least an eighth of the clusters, over the BVH nodes holding them too
+//!   (a node holding something just drawn is rarely hidden; the coherence CHC exploits,
+//!   Bittner et al., "Coherent Hierarchical Culling", Eurographics 2004); at the
 //!   end last frame's clusters are tested again, and those still visible join this
 //!   frame's newly drawn ones as the next frame's set. When none of last frame's set is left in
 //!   view (the first frame, or after a cut) it is the one-pass walk. On the street path it needs

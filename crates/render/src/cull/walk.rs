@@ -8,7 +8,7 @@ use std::time::Instant;
 use glam::Affine3A;
 use sightline_scene::{Aabb, Camera};
 use sightline_spatial::{
-    prefetch, AabbExt, Containment, CullOptions, FrontToBackCursor, Frustum, OctreeCursor, SimdLevel, Visible,
+    prefetch, AabbExt, Containment, CullOptions, FrontToBackCursor, Frustum, NodeSet, OctreeCursor, SimdLevel, Visible,
 };
 
 use super::drawn::ClusterList;
@@ -16,6 +16,10 @@ use super::{BoxVisibility, ClusterDraw, Clusters, CullStats, OcclusionQueries, P
 use crate::awake::join_helping;
 use crate::stats::ms_since;
 use crate::{DrawSource, FrameStats, RenderOptions, Result, Session};
+
+/// A first pass drawing at least one cluster in this many has the BVH nodes holding its
+/// clusters found, so that the walk does not test them ([`TwoPass::holding`]).
+const HOLDING_SHARE: usize = 8;
 
 /// One culled frame in progress: the camera and options it draws with, and its counters.
 pub(super) struct Frame<'a> {
@@ -60,6 +64,8 @@ pub(super) struct TwoPass {
     /// The current frame's number, matched against `drawn_in` (it restarts at 1 when it
     /// wraps or the cluster count changes; never 0 once started).
     frame: u32,
+    /// The BVH nodes holding a cluster of the first pass, when it drew many.
+    holding: NodeSet,
 }
 
 /// Which structure the front-to-back walk runs over.
@@ -219,6 +225,7 @@ impl Clusters {
         };
         let mut batch = walk.first_batch.max(1);
         let mut out: Vec<Visible> = Vec::new();
+        let no_nodes = NodeSet::default();
         loop {
             let t = Instant::now();
             out.clear();
@@ -230,8 +237,9 @@ impl Clusters {
                 // Clusters drawn already this frame are passed over untested where the walk
                 // can (the BVH walk); the rest leave its batch.
                 let drawn = |i: u32| walk.skip.as_ref().is_some_and(|two| two.drawn_in[i as usize] == two.frame);
+                let known = walk.skip.as_ref().map_or(&no_nodes, |two| &two.holding);
                 match &mut cursor {
-                    Cursor::Bvh(c) => c.next_batch_except(self.clustered.bvh(), visible, drawn, batch, &mut out),
+                    Cursor::Bvh(c) => c.next_batch_except(self.clustered.bvh(), visible, drawn, known, batch, &mut out),
                     Cursor::Octree(c) => c.next_batch(&self.octree, visible, batch, &mut out),
                 }
             };
@@ -388,6 +396,13 @@ impl Clusters {
         for &(_, i) in &first {
             two.drawn_in[i as usize] = frame;
         }
+        two.holding.clear();
+        // The sweep reads every node: worth it only when the first pass drew a fair share of
+        // the clusters (it then saves a test for most nodes the walk reaches).
+        if first.len() * HOLDING_SHARE >= n {
+            let drawn_in = &two.drawn_in;
+            self.clustered.bvh().nodes_holding(|i| drawn_in[i as usize] == frame, &mut two.holding);
+        }
         f.cs.ms_cull += ms_since(t);
         let mut result = Ok(());
         if !first.is_empty() {
@@ -451,17 +466,20 @@ mod tests {
     use super::*;
 
     /// In an `hzb` frame whose camera is the last frame's, the walk passes over the clusters
-    /// the first pass drew (last frame's visible set) instead of testing them again: the
-    /// frame makes no more tests than a first frame, which tests every box it reaches, while
-    /// without the pass-over it makes more (from above the row: 237 against 196), the walk
-    /// testing the set once and the final re-test once more. The frame itself is the first
-    /// one's.
+    /// the first pass drew (last frame's visible set) instead of testing them again, and
+    /// when that set is a fair share of the clusters, over the BVH nodes holding them too:
+    /// the frame makes no more tests than a first frame, which tests every box it reaches,
+    /// and a quarter fewer when the nodes are passed over. Seen from above the row: 196
+    /// tests in the first frame, 135 in the second (188 without the nodes passed over, 237
+    /// without the clusters either); from the side, where the set is 12 clusters of 122, 56
+    /// and 56. The frame itself is the first one's.
     #[test]
     fn the_walk_passes_over_the_clusters_drawn_first() {
         use crate::cull::ranges::tests::{camera, row};
         use glam::Vec3;
         let scene = row();
-        for eye in [Vec3::new(12.0, 20.0, 40.0), Vec3::new(-6.0, 1.0, 1.0), Vec3::new(12.0, 3.0, 9.0)] {
+        let views = [(Vec3::new(12.0, 20.0, 40.0), 3), (Vec3::new(-6.0, 1.0, 1.0), 4), (Vec3::new(12.0, 3.0, 9.0), 3)];
+        for (eye, quarters) in views {
             let camera = camera(eye, Vec3::new(12.0, 1.0, 1.0), 60.0);
             let mut culler = crate::Culler::new(&scene);
             let opts = RenderOptions::ids_only();
@@ -474,7 +492,8 @@ mod tests {
             let (second, again) = frame();
             assert_eq!(again, ids);
             assert!(second.clusters_drawn > 10, "{eye}: {} clusters drawn", second.clusters_drawn);
-            assert!(second.occlusion_tests <= first.occlusion_tests, "{eye}: {second:?} against {first:?}");
+            let bound = first.occlusion_tests * quarters / 4;
+            assert!(second.occlusion_tests <= bound, "{eye}: {second:?} against {first:?}");
         }
     }
 

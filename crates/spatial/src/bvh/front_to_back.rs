@@ -21,7 +21,10 @@
 //! it. The order changes only inside such a subtree, whose items lie close together.
 //!
 //! A walk can pass over items the caller has drawn already ([`FrontToBackCursor::next_batch_except`]):
-//! they are neither asked about nor emitted, and the others come in the same order.
+//! they are neither asked about nor emitted, and the others come in the same order; and it
+//! can leave the nodes holding them ([`Bvh::nodes_holding`]) unasked, as Coherent
+//! Hierarchical Culling (Bittner, Wimmer, Piringer & Purgathofer, Eurographics 2004) leaves
+//! nodes visible in the last frame untested.
 
 use glam::Vec3;
 use sightline_scene::Aabb;
@@ -148,18 +151,22 @@ impl FrontToBackCursor {
         max_items: usize,
         out: &mut Vec<Visible>,
     ) -> bool {
-        self.next_batch_except(bvh, possibly_visible, |_| false, max_items, out)
+        self.next_batch_except(bvh, possibly_visible, |_| false, &NodeSet::default(), max_items, out)
     }
 
     /// [`FrontToBackCursor::next_batch`], passing over the items for which `passed_over(item)`
-    /// holds: they are neither asked about nor emitted. An occlusion culler that has drawn
-    /// some items already this frame (last frame's visible set, say) passes them over, and
-    /// saves a pyramid test per such item whose answer would change nothing.
+    /// holds: they are neither asked about nor emitted; and the nodes in `known` are not
+    /// asked about (taken as possibly visible). An occlusion culler that has drawn some
+    /// items already this frame (last frame's visible set, say) passes them over, and
+    /// saves a pyramid test per such item whose answer would change nothing; given the
+    /// nodes that hold them ([`Bvh::nodes_holding`]), which hold something just drawn and
+    /// are rarely found hidden, it saves their tests too.
     pub fn next_batch_except(
         &mut self,
         bvh: &Bvh,
         mut possibly_visible: impl FnMut(&Aabb) -> bool,
         passed_over: impl Fn(u32) -> bool,
+        known: &NodeSet,
         max_items: usize,
         out: &mut Vec<Visible>,
     ) -> bool {
@@ -184,9 +191,9 @@ impl FrontToBackCursor {
         };
         // Two forms, so that walks without whole subtrees carry none of their tests.
         if self.whole == 0 {
-            run::<false>(bvh, walk, &mut self.stack, node_visit, passed_over, item_visit);
+            run::<false>(bvh, walk, &mut self.stack, node_visit, (passed_over, known), item_visit);
         } else {
-            run::<true>(bvh, walk, &mut self.stack, node_visit, passed_over, item_visit);
+            run::<true>(bvh, walk, &mut self.stack, node_visit, (passed_over, known), item_visit);
         }
         !self.stack.is_empty()
     }
@@ -194,15 +201,16 @@ impl FrontToBackCursor {
 
 /// The front-to-back core shared by the callback and cursor forms. Returns when the stack is
 /// empty or a callback said `Stop` (the stack then holds the rest of the traversal). Items
-/// for which `passed_over` holds are skipped before any test; it is asked through `get` (no
-/// bounds check that could panic), so that a constant `false` costs no load of the item.
+/// for which `passed_over` holds are skipped before any test (it is asked through `get`, no
+/// bounds check that could panic, so that a constant `false` costs no load of the item), and
+/// `node_visit` is not asked about the nodes in `known`.
 /// `WHOLE`: the walk may take subtrees whole (`walk.whole` > 0).
 fn run<const WHOLE: bool>(
     bvh: &Bvh,
     walk: Walk,
     stack: &mut Vec<Entry>,
     mut node_visit: impl FnMut(&Aabb) -> Visit,
-    passed_over: impl Fn(u32) -> bool,
+    (passed_over, known): (impl Fn(u32) -> bool, &NodeSet),
     mut item_visit: impl FnMut(Visible) -> Visit,
 ) {
     let passed_over_slot = |slot: u32| bvh.items.get(slot as usize).is_some_and(|&i| passed_over(i));
@@ -262,10 +270,12 @@ fn run<const WHOLE: bool>(
                 if Frustum::excludes(frustum, &b, &mut mask) {
                     continue;
                 }
-                match node_visit(&b) {
-                    Visit::Stop => return,
-                    Visit::Skip => continue,
-                    Visit::Continue => {}
+                if !known.contains(e.id) {
+                    match node_visit(&b) {
+                        Visit::Stop => return,
+                        Visit::Skip => continue,
+                        Visit::Continue => {}
+                    }
                 }
                 let inside = frustum.is_none() || mask == 0;
                 // An inner node inside the frustum may be taken whole; its size is read once.
@@ -315,6 +325,46 @@ fn run<const WHOLE: bool>(
                     stack.push(Entry { id: near, mask, kind: KIND_NODE });
                 }
             }
+        }
+    }
+}
+
+/// A set of a BVH's nodes, a bit a node: those holding some item of a set
+/// ([`Bvh::nodes_holding`]), which [`FrontToBackCursor::next_batch_except`] does not ask about.
+#[derive(Debug, Clone, Default)]
+pub struct NodeSet {
+    bits: Vec<u64>,
+}
+
+impl NodeSet {
+    /// True when node `node` is in the set.
+    #[inline(always)]
+    pub fn contains(&self, node: u32) -> bool {
+        self.bits.get(node as usize / 64).is_some_and(|w| w >> (node % 64) & 1 != 0)
+    }
+
+    /// Empties the set (keeping its memory).
+    pub fn clear(&mut self) {
+        self.bits.clear();
+    }
+}
+
+impl Bvh {
+    /// The nodes holding an item for which `holds(item)` is true, into `out`: one sweep from
+    /// the last node back (children come after their parents), a leaf asking about its
+    /// items, an inner node taking its children's answers.
+    pub fn nodes_holding(&self, holds: impl Fn(u32) -> bool, out: &mut NodeSet) {
+        out.bits.clear();
+        out.bits.resize(self.nodes.len().div_ceil(64), 0);
+        for i in (0..self.nodes.len()).rev() {
+            let n = &self.nodes[i];
+            let k = n.index as usize;
+            let held = if n.is_leaf() {
+                self.items[k..k + n.count as usize].iter().any(|&item| holds(item))
+            } else {
+                out.contains(k as u32) || out.contains(k as u32 + 1)
+            };
+            out.bits[i / 64] |= (held as u64) << (i % 64);
         }
     }
 }
@@ -481,7 +531,7 @@ impl Bvh {
     ) {
         let mut cursor = FrontToBackCursor::new(self, frustum, eye);
         let walk = Walk { frustum, eye, seeded: &Seeds::default(), whole: 0 };
-        run::<false>(self, walk, &mut cursor.stack, node_visit, |_| false, item_visit);
+        run::<false>(self, walk, &mut cursor.stack, node_visit, (|_| false, &NodeSet::default()), item_visit);
     }
 
     /// Every item (unbounded first, then the tree's) in front-to-back order for `eye`.
@@ -518,7 +568,7 @@ mod tests {
         assert!(!Seeds::default().contains(0));
     }
     use crate::bvh::traverse::tests::{grid_boxes, random_boxes};
-    use crate::BvhPreset;
+    use crate::{BvhPreset, Containment};
     use sightline_scene::{Angle, Camera, LookAt};
 
     /// An eye over `random_boxes`' field and its frustum, looking at the field from a random
@@ -698,7 +748,8 @@ mod tests {
                         asked += 1;
                         true
                     };
-                    while cursor.next_batch_except(&bvh, &mut ask, |i| except && over(i), batch, &mut out) {}
+                    let known = NodeSet::default();
+                    while cursor.next_batch_except(&bvh, &mut ask, |i| except && over(i), &known, batch, &mut out) {}
                     (out.iter().map(|v| (v.index, v.inside)).collect::<Vec<_>>(), asked)
                 };
                 let (plain, plain_asked) = walk(false);
@@ -714,5 +765,62 @@ mod tests {
             }
         }
         assert!(saved > 1000, "{saved} items passed over");
+    }
+
+    /// `nodes_holding` holds exactly the nodes with an item of the set in their subtree. A
+    /// walk given them asks about none it reaches and emits what it emits without them (here
+    /// every box is possibly visible): each node of the set that the walk reaches (its box
+    /// not outside the frustum) saves one question, except one-item leaves, whose item is
+    /// passed over before anything is asked.
+    #[test]
+    fn nodes_holding_passed_over_items_are_not_asked_about() {
+        let mut rng = sightline_scene::rng::Rng::new(17);
+        let boxes = random_boxes(&mut rng);
+        let mut saved = 0;
+        for leaf in [1, 4] {
+            let bvh = Bvh::build(&boxes, BvhPreset::Fast, leaf);
+            fn items(bvh: &Bvh, k: usize, out: &mut Vec<u32>) {
+                let n = bvh.nodes[k];
+                if n.is_leaf() {
+                    out.extend(&bvh.items[n.index as usize..(n.index + n.count) as usize]);
+                } else {
+                    items(bvh, n.index as usize, out);
+                    items(bvh, n.index as usize + 1, out);
+                }
+            }
+            for c in 0..12 {
+                let (eye, frustum) = random_view(&mut rng, c);
+                let f = (c % 3 != 0).then_some(&frustum);
+                let modulus = [7, 40, 400][c % 3];
+                let over = |i: u32| i % modulus == 1;
+                let mut known = NodeSet::default();
+                bvh.nodes_holding(over, &mut known);
+                let mut expected = 0;
+                for k in 0..bvh.nodes.len() {
+                    let mut under = Vec::new();
+                    items(&bvh, k, &mut under);
+                    let holds = under.iter().any(|&i| over(i));
+                    assert_eq!(known.contains(k as u32), holds, "leaf {leaf}, camera {c}, node {k}");
+                    let outside = f.is_some_and(|f| f.classify(&bvh.nodes[k].aabb()) == Containment::Outside);
+                    expected += (holds && bvh.nodes[k].count != 1 && !outside) as usize;
+                }
+                let walk = |known: &NodeSet| {
+                    let mut cursor = FrontToBackCursor::new(&bvh, f, eye);
+                    let (mut out, mut asked) = (Vec::new(), 0);
+                    let mut ask = |_: &Aabb| {
+                        asked += 1;
+                        true
+                    };
+                    while cursor.next_batch_except(&bvh, &mut ask, over, known, 16, &mut out) {}
+                    (out.iter().map(|v| (v.index, v.inside)).collect::<Vec<_>>(), asked)
+                };
+                let (plain, plain_asked) = walk(&NodeSet::default());
+                let (got, asked) = walk(&known);
+                assert_eq!(got, plain, "leaf {leaf}, camera {c}");
+                assert_eq!(plain_asked - asked, expected, "leaf {leaf}, camera {c}");
+                saved += expected;
+            }
+        }
+        assert!(saved > 500, "{saved} questions saved");
     }
 }
