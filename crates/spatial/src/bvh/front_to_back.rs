@@ -244,7 +244,7 @@ fn run<const WHOLE: bool>(
                 // A seed was classified against the frustum when it was found; the walk
                 // passes over it where it meets it as an item.
                 let item = e.kind == KIND_ITEM;
-                if item && seeded.contains(e.id) || passed_over_slot(e.id) {
+                if (item && seeded.contains(e.id)) || passed_over_slot(e.id) {
                     continue;
                 }
                 let b = &bvh.item_boxes[e.id as usize];
