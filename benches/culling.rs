@@ -4,6 +4,9 @@
 //!   drawn through the `World` facade as a program draws it, walking the 120 frames of the
 //!   street path in order (as `sightline walk` does, so `hzb` sees the last frame of a
 //!   walk), flat shading, all threads.
+//! * `city_orbit/METHOD`: the same along the orbit path (`sightline path --kind orbit`), one
+//!   turn around the whole city seen from outside: everything is in view and little is
+//!   hidden, the case where culling has the least to gain (`frustum` removes nothing).
 //! * `boxfield_1thread/occluders` and `/queries`: the occlusion benchmark of record on one
 //!   thread: (a) depth-only rasterization of the frustum- and back-face-culled occluders into
 //!   the z-buffer and pyramid, (b) 100,000 box queries against it. `occluders_skip_hidden`:
@@ -25,17 +28,30 @@ use criterion::{criterion_group, criterion_main, Criterion};
 use sightline::boxfield::{Boxfield, QUERIES, SIZE};
 use sightline::render::{Culler, Framebuffer, Method, RenderOptions, World};
 use sightline::scene::builders::{boxfield, city, BoxfieldLayout, BoxfieldParams, CityParams};
+use sightline::scene::path::{orbit_path, CameraKey};
+use sightline::scene::Scene;
 
 fn city_street(c: &mut Criterion) {
     let city = city(&CityParams::for_triangles(1_000_000)).unwrap();
     let keys = city.layout.street_path(120, 11);
+    city_walk(c, "city_street", city.scene, &keys, Duration::from_secs(4));
+}
+
+fn city_orbit(c: &mut Criterion) {
+    let city = city(&CityParams::for_triangles(1_000_000)).unwrap();
+    let keys = orbit_path(&city.scene.world_aabb(), 120).unwrap();
+    city_walk(c, "city_orbit", city.scene, &keys, Duration::from_secs(8));
+}
+
+/// Every culling method along the camera path `keys` through `scene`, one frame an iteration.
+fn city_walk(c: &mut Criterion, group: &str, scene: Scene, keys: &[CameraKey], time: Duration) {
     let cams: Vec<_> = keys.iter().map(|k| k.camera(1280.0 / 720.0).unwrap()).collect();
-    let mut world = World::new(city.scene);
+    let mut world = World::new(scene);
     world.prepare(Method::Hzb).unwrap();
     let mut fb = Framebuffer::new(1280, 720).unwrap();
     let opts = RenderOptions::default();
-    let mut g = c.benchmark_group("city_street");
-    g.sample_size(20).measurement_time(Duration::from_secs(4)).warm_up_time(Duration::from_secs(1));
+    let mut g = c.benchmark_group(group);
+    g.sample_size(20).measurement_time(time).warm_up_time(Duration::from_secs(1));
     // Each frame runs on a pool worker, as in the CLI: from outside the pool every parallel
     // call of a frame would hand its work over and wait (one handover per frame instead).
     let pool = rayon::ThreadPoolBuilder::new().build().unwrap();
@@ -100,5 +116,5 @@ fn boxfield_1thread(c: &mut Criterion) {
     g.finish();
 }
 
-criterion_group!(benches, city_street, boxfield_1thread);
+criterion_group!(benches, city_street, city_orbit, boxfield_1thread);
 criterion_main!(benches);

@@ -58,7 +58,7 @@ use std::time::Instant;
 
 use serde::{Deserialize, Serialize};
 use sightline_scene::{Aabb, Camera, Instance, Scene, SceneStamp};
-use sightline_spatial::{ClusteredScene, Frustum, FrustumCount, LooseOctree, Visible};
+use sightline_spatial::{ClusteredScene, Containment, Frustum, FrustumCount, LooseOctree, Visible};
 
 pub use crate::hzb::{DepthPyramid, Level, Rect, TilePyramid};
 pub use meshlets::{Meshlets, SceneMeshlets};
@@ -412,6 +412,16 @@ impl Culler {
         r
     }
 
+    /// True when every cluster lies inside `camera`'s view frustum (the BVH's root box does,
+    /// or the tree holds no box: only unbounded clusters, which are always drawn). The
+    /// frustum method then draws what brute force draws, and the same way (every instance
+    /// whole, in scene order), with no walk of the tree and no list of its clusters: where
+    /// the whole scene is in view (an orbit around it) it costs what brute force costs.
+    fn all_in_view(&self, camera: &Camera) -> bool {
+        let root = self.c.clustered.bvh().bounds();
+        root.is_empty() || Frustum::from_camera(camera).classify(&root) == Containment::Inside
+    }
+
     /// Renders one frame with `method` into `fb` (every plane written, so no clear needed;
     /// after an error its contents are unspecified), shaded as `opts` says; antialiasing,
     /// wireframe and transparency are the plain renderer's business and ignored here (every
@@ -430,7 +440,7 @@ impl Culler {
         let t0 = Instant::now();
         let mut cs = CullStats { clusters: self.c.clustered.item_count() as u64, ..Default::default() };
         let opts = culled_options(opts);
-        if method == Method::Brute {
+        if method == Method::Brute || method == Method::Frustum && self.all_in_view(camera) {
             let items = draw_all(&self.c.instances);
             let fs = self.renderer.render(scene, &self.c.instances, &items, camera, fb, &opts)?;
             cs.triangles_drawn = fs.triangles_in;

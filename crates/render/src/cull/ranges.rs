@@ -314,6 +314,32 @@ pub(super) mod tests {
         assert_eq!((n, whole, merged), (7, 7, 0), "one draw per instance, the mesh itself");
     }
 
+    /// With the whole scene in view, the frustum method's frame is brute force's: the same
+    /// counters (every cluster in the frustum and drawn), drawn the same way, with no walk
+    /// of the tree (no culling time, no batch of clusters). With the scene cut by the
+    /// frustum, it walks the tree and draws one batch.
+    #[test]
+    fn a_frustum_frame_seeing_everything_is_drawn_as_brute_force() {
+        let scene = row();
+        let opts = RenderOptions::ids_only();
+        let mut culler = Culler::new(&scene);
+        let mut frame = |cam: &Camera, m: Method| {
+            let mut fb = Framebuffer::new(96, 64).unwrap();
+            let (cs, fs) = culler.render(&scene, cam, m, &mut fb, &opts).unwrap();
+            (cs, fs.triangles_in, fb.ids.iter().copied().collect::<Vec<u32>>())
+        };
+        let everything = camera(Vec3::new(12.0, 20.0, 40.0), Vec3::new(12.0, 1.0, 1.0), 60.0);
+        let (brute, brute_in, brute_ids) = frame(&everything, Method::Brute);
+        let (cs, triangles_in, ids) = frame(&everything, Method::Frustum);
+        assert_eq!((ids, triangles_in), (brute_ids, brute_in));
+        let counts = |c: &CullStats| (c.clusters_in_frustum, c.clusters_drawn, c.triangles_drawn, c.batches);
+        assert_eq!(counts(&cs), counts(&brute));
+        assert_eq!((cs.batches, cs.ms_cull), (0, 0.0), "no walk");
+        let cut = camera(Vec3::new(11.0, 1.0, 4.0), Vec3::new(24.0, 1.0, 1.0), 40.0);
+        let (cs, _, _) = frame(&cut, Method::Frustum);
+        assert!(cs.clusters_in_frustum < brute.clusters_in_frustum && cs.batches == 1, "{cs:?}");
+    }
+
     #[test]
     fn a_camera_cutting_the_scene_merges_the_runs_of_each_instance() {
         let scene = row();
