@@ -6,7 +6,8 @@
 //! * [`Method::Frustum`]: the (instance, cluster) BVH of `sightline_spatial::ClusteredScene`
 //!   culled against the view frustum; the surviving clusters are drawn in scene order, as
 //!   few long ranges: whole instances as their meshes, runs of one instance's clusters as one
-//!   meshlet range (`ranges.rs`).
+//!   meshlet range (`ranges.rs`). When the tree's root box lies inside the frustum (the whole
+//!   scene in view), the frame is drawn as brute force draws it, without walking the tree.
 //! * [`Method::HzbOnePass`]: frustum culling plus occlusion culling with Greene's z-pyramid
 //!   ([`crate::hzb`]): the BVH is walked front to back in batches; before anything (node or
 //!   cluster) is drawn, its box is projected to a screen rectangle and nearest depth and tested
