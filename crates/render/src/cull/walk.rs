@@ -234,18 +234,23 @@ impl Clusters {
                 let q = OcclusionQueries::with_projector(projector, s.pyramid());
                 let cs = &mut f.cs;
                 let visible = |b: &_| q.counted_visible(b, cs);
-                // Clusters drawn already this frame are passed over untested where the walk
-                // can (the BVH walk); the rest leave its batch.
+                // Clusters drawn already this frame (by the two-pass form's first pass, which
+                // walks the BVH) are passed over untested, and the nodes holding them too when
+                // it found them.
                 let drawn = |i: u32| walk.skip.as_ref().is_some_and(|two| two.drawn_in[i as usize] == two.frame);
                 let known = walk.skip.as_ref().map_or(&no_nodes, |two| &two.holding);
                 match &mut cursor {
                     Cursor::Bvh(c) => c.next_batch_except(self.clustered.bvh(), visible, drawn, known, batch, &mut out),
-                    Cursor::Octree(c) => c.next_batch(&self.octree, visible, batch, &mut out),
+                    Cursor::Octree(c) => {
+                        debug_assert!(walk.skip.is_none(), "the two-pass form walks the BVH");
+                        c.next_batch(&self.octree, visible, batch, &mut out)
+                    }
                 }
             };
-            if let Some(two) = &walk.skip {
-                out.retain(|v| two.drawn_in[v.index as usize] != two.frame);
-            }
+            debug_assert!(walk
+                .skip
+                .as_ref()
+                .is_none_or(|two| out.iter().all(|v| two.drawn_in[v.index as usize] != two.frame)));
             // Clusters facing away would only be dropped triangle by triangle.
             if f.opts.backface_culling {
                 self.drop_backfacing(&mut out, eye, &mut f.cs);
