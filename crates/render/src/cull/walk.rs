@@ -397,7 +397,8 @@ impl Clusters {
             *key = b.distance_squared(eye).to_bits();
             true
         });
-        first.sort_unstable();
+        // The order of (key, cluster) pairs, compared as one number.
+        first.sort_unstable_by_key(|&(key, i)| (key as u64) << 32 | i as u64);
         for &(_, i) in &first {
             two.drawn_in[i as usize] = frame;
         }
