@@ -28,6 +28,7 @@ pub(crate) mod background;
 pub mod cluster;
 pub mod front_to_back;
 pub mod instances;
+pub mod node_set;
 mod nodes;
 mod ploc;
 pub mod policy;
