@@ -413,14 +413,14 @@ impl Culler {
         r
     }
 
-    /// True when every cluster lies inside `camera`'s view frustum (the BVH's root box does,
+    /// True when every cluster lies inside the view frustum (the BVH's root box does,
     /// or the tree holds no box: only unbounded clusters, which are always drawn). The
     /// frustum method then draws what brute force draws, and the same way (every instance
     /// whole, in scene order), with no walk of the tree and no list of its clusters: where
     /// the whole scene is in view (an orbit around it) it costs what brute force costs.
-    fn all_in_view(&self, camera: &Camera) -> bool {
+    fn all_in_view(&self, frustum: &Frustum) -> bool {
         let root = self.c.clustered.bvh().bounds();
-        root.is_empty() || Frustum::from_camera(camera).classify(&root) == Containment::Inside
+        root.is_empty() || frustum.classify(&root) == Containment::Inside
     }
 
     /// Renders one frame with `method` into `fb` (every plane written, so no clear needed;
@@ -441,7 +441,8 @@ impl Culler {
         let t0 = Instant::now();
         let mut cs = CullStats { clusters: self.c.clustered.item_count() as u64, ..Default::default() };
         let opts = culled_options(opts);
-        if method == Method::Brute || method == Method::Frustum && self.all_in_view(camera) {
+        let frustum = Frustum::from_camera(camera);
+        if method == Method::Brute || method == Method::Frustum && self.all_in_view(&frustum) {
             let items = draw_all(&self.c.instances);
             let fs = self.renderer.render(scene, &self.c.instances, &items, camera, fb, &opts)?;
             cs.triangles_drawn = fs.triangles_in;
@@ -457,8 +458,9 @@ impl Culler {
         let t = Instant::now();
         // The occlusion methods' walks test the frustum themselves; the clusters inside it
         // are counted (for the statistics only) beside the walk and the shading, below.
-        let frustum =
-            if method == Method::Frustum { self.c.frustum_cull(camera, &mut cs) } else { Frustum::from_camera(camera) };
+        if method == Method::Frustum {
+            self.c.frustum_cull(&frustum, &mut cs);
+        }
         cs.ms_cull = ms_since(t);
         let mut count = (method != Method::Frustum).then(|| FrustumCount::new(self.c.clustered.bvh(), &frustum));
         let mut f = Frame { camera, opts: &opts, cs, fs: FrameStats::default() };

@@ -8,6 +8,7 @@ use std::time::Instant;
 use serde::Serialize;
 use sightline_scene::rng::Rng;
 use sightline_scene::Camera;
+use sightline_spatial::Frustum;
 
 use super::{CullStats, Culler, Frame};
 use crate::pipeline::Target;
@@ -57,7 +58,7 @@ impl Culler {
         let t0 = Instant::now();
         let mut cs = CullStats { clusters: self.c.clustered.item_count() as u64, ..Default::default() };
         fb.clear(opts.background);
-        self.c.frustum_cull(camera, &mut cs);
+        self.c.frustum_cull(&Frustum::from_camera(camera), &mut cs);
         let eye = camera.view.eye;
         let mut items: Vec<(f32, u32)> = self
             .c

@@ -273,7 +273,7 @@ pub(super) mod tests {
         let mut culler = Culler::new(scene);
         let c = &mut culler.c;
         let mut cs = CullStats { clusters: c.clustered.item_count() as u64, ..Default::default() };
-        c.frustum_cull(cam, &mut cs);
+        c.frustum_cull(&sightline_spatial::Frustum::from_camera(cam), &mut cs);
         let visible = c.visible.clone();
         let sources = c.range_sources(scene, &visible, &mut cs);
         let mut want: Vec<u32> = visible

@@ -84,14 +84,12 @@ enum Cursor {
 }
 
 impl Clusters {
-    /// Starts a culled frame: the clusters in the view frustum go to `self.visible` (BVH
-    /// order) and their counts to `cs`; returns the frustum.
-    pub(super) fn frustum_cull(&mut self, camera: &Camera, cs: &mut CullStats) -> Frustum {
-        let frustum = Frustum::from_camera(camera);
+    /// Starts a culled frame: the clusters in `frustum` go to `self.visible` (BVH order) and
+    /// their counts to `cs`.
+    pub(super) fn frustum_cull(&mut self, frustum: &Frustum, cs: &mut CullStats) {
         self.visible.clear();
-        self.clustered.cull_with(&frustum, CullOptions::default(), &mut self.visible);
+        self.clustered.cull_with(frustum, CullOptions::default(), &mut self.visible);
         cs.set_in_frustum(self.visible.len() as u64);
-        frustum
     }
 
     /// True when cluster `i`'s cone can cull at all (one bit in a small array that stays in
