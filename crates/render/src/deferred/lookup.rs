@@ -1,12 +1,15 @@
-//! Which instance draws a global triangle ID: a binary search over the instances in
+//! Which instance draws a global triangle ID: an interpolation search over the instances in
 //! first-triangle order, tried after the last answer and its neighbours.
 
 use std::sync::OnceLock;
 
 use sightline_scene::Instance;
 
+/// Above this many positions left, [`Lookup`]'s search guesses where to probe.
+const INTERPOLATE_ABOVE: usize = 1024;
+
 /// Finds the instance drawing global triangle `g`. Instances come ordered by first triangle
-/// (as [`Scene::instances`](sightline_scene::Scene::instances) lists them), and a binary search over them answers; only when
+/// (as [`Scene::instances`](sightline_scene::Scene::instances) lists them), and a search over them answers; only when
 /// it finds no instance is the order checked, and for an unordered list a sorted index
 /// made, once (checking up front read every instance record each frame: 8.5 MB and about
 /// 0.4 ms for the 53,000 instances of a 10^9-triangle city).
@@ -14,17 +17,25 @@ pub(crate) struct Lookup<'a> {
     pub(crate) instances: &'a [Instance],
     /// The instances with triangles in first-triangle order, when the list is not in it.
     order: OnceLock<Option<Vec<u32>>>,
+    /// Instance records the searches have read (tests count the guesses' probes).
+    #[cfg(test)]
+    pub(crate) probes: std::sync::atomic::AtomicUsize,
 }
 
 impl<'a> Lookup<'a> {
     pub(crate) fn new(instances: &'a [Instance]) -> Self {
-        Self { instances, order: OnceLock::new() }
+        Self {
+            instances,
+            order: OnceLock::new(),
+            #[cfg(test)]
+            probes: Default::default(),
+        }
     }
 
     /// The instance drawing global triangle `g`, trying `hint` (the last answer) and the
     /// three instances on either side of it first: neighboring pixels mostly show the same
     /// instance or a sibling. In the street view of a 10^9-triangle city this leaves one
-    /// binary search in six.
+    /// search in six.
     #[inline]
     pub(crate) fn find_hinted(&self, g: u32, hint: &mut u32) -> Option<u32> {
         let holds = |k: u32| {
@@ -46,7 +57,7 @@ impl<'a> Lookup<'a> {
         Some(i)
     }
 
-    fn find(&self, g: u32) -> Option<u32> {
+    pub(crate) fn find(&self, g: u32) -> Option<u32> {
         let n = self.instances.len();
         // Instance ranges do not overlap: whatever the order, an instance found holding `g`
         // is the answer.
@@ -66,18 +77,51 @@ impl<'a> Lookup<'a> {
         self.search(g, o.len(), |k| o[k])
     }
 
-    /// Binary search for `g` over the `n` instances `inst(0..n)`, taken to be in
-    /// first-triangle order.
+    /// Search for `g` over the `n` instances `inst(0..n)`, taken to be in first-triangle
+    /// order. While more than [`INTERPOLATE_ABOVE`] positions remain, a probe guesses the
+    /// position by interpolating between the first triangles known at the interval's ends
+    /// (Perl, Itai, Avni, "Interpolation Search — A Log Log N Search", CACM 1978), and one
+    /// that left more than half the interval is followed by a halving one, so no search
+    /// takes much more than twice a binary search's probes; the last positions are halved.
+    /// A probe of a large list reads an instance record from memory: on the boxfield's
+    /// 83,334 instances of twelve triangles each a binary search made 16.4 probes, the
+    /// guesses 2.5, and a search took about a quarter of the time; on the default city's
+    /// 1,897 instances of many sizes, whose records stay in cache, a guess costs more than
+    /// it saves below about a thousand positions.
     fn search(&self, g: u32, n: usize, inst: impl Fn(usize) -> u32) -> Option<u32> {
-        // Last position whose first triangle is ≤ g; step back over empty instances.
+        let first = |k: usize| {
+            #[cfg(test)]
+            self.probes.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+            self.instances[inst(k) as usize].first_triangle
+        };
+        // The number of positions whose first triangle is ≤ g, in `lo..=hi`; `below` is a
+        // first triangle ≤ g at or before `lo` (0 at the start) and `above` one past g at or
+        // after `hi` (at the start, where the last instance ends). In an unordered list
+        // (searched once before its index is made) either may not hold: then the probe halves.
         let (mut lo, mut hi) = (0, n);
+        let mut below = 0u32;
+        let mut above = n.checked_sub(1).map_or(0, |k| {
+            let last = &self.instances[inst(k) as usize];
+            last.first_triangle.saturating_add(last.triangle_count)
+        });
+        let mut halve = false;
         while lo < hi {
-            let mid = (lo + hi) / 2;
-            if self.instances[inst(mid) as usize].first_triangle <= g {
-                lo = mid + 1;
+            let width = hi - lo;
+            let mid = if halve || width <= INTERPOLATE_ABOVE || g >= above || g < below {
+                lo + width / 2
             } else {
-                hi = mid;
+                // In f64 (exact for these integers, and a shorter division than u64's); the
+                // guess is only where to probe, so its rounding cannot change the answer.
+                let guess = (g - below) as f64 * width as f64 / (above - below) as f64;
+                lo + (guess as usize).min(width - 1)
+            };
+            let f = first(mid);
+            if f <= g {
+                (lo, below) = (mid + 1, f);
+            } else {
+                (hi, above) = (mid, f);
             }
+            halve = !halve && 2 * (hi - lo) > width;
         }
         let mut k = lo;
         while k > 0 {

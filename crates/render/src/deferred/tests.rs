@@ -66,35 +66,61 @@ fn gathered_rows_equal_run_by_run_rows() {
 /// The lookup finds every triangle's instance, and none for IDs no instance holds,
 /// whether the list is in first-triangle order (searched directly) or shuffled (found
 /// through the sorted index made on the first failed search), with empty instances
-/// and gaps between ranges.
+/// and gaps between ranges: a small city's list (searched by halving) and lists long
+/// enough for the search to guess positions, of even sizes (where the first guess is the
+/// answer) and of sizes spread over five orders of magnitude.
 #[test]
 fn lookup_finds_each_triangles_instance_in_any_order() {
     let c = city(&CityParams::for_triangles(5_000)).unwrap();
-    let mut list = c.scene.instances();
-    // Gaps (every third instance starts 7 later) and empty instances.
-    let mut first = 0;
-    for (k, inst) in list.iter_mut().enumerate() {
-        first += if k % 3 == 0 { 7 } else { 0 };
-        inst.first_triangle = first;
-        inst.triangle_count = if k % 5 == 0 { 0 } else { inst.triangle_count };
-        first += inst.triangle_count;
-    }
-    let end = first + 10;
+    let small = c.scene.instances();
     let mut rng = sightline_scene::rng::Rng::new(3);
-    let mut shuffled = list.clone();
-    for k in (1..shuffled.len()).rev() {
-        shuffled.swap(k, rng.range(0.0, k as f32 + 1.0) as usize % (k + 1));
-    }
-    for instances in [&list, &shuffled] {
-        let lookup = Lookup::new(instances);
-        let mut hint = 0;
-        // In order (the hint or a neighbor of it holds the next), then at random.
-        let random: Vec<u32> = (0..end).map(|_| rng.range(0.0, end as f32) as u32 % end).collect();
-        for g in (0..end).chain(random) {
-            let owner = instances.iter().position(|i| g >= i.first_triangle && g - i.first_triangle < i.triangle_count);
-            assert_eq!(lookup.find_hinted(g, &mut hint), owner.map(|k| k as u32), "triangle {g}");
+    // `n` copies of an instance with the sizes `size(k)`, every third starting 7 after the
+    // last one's end.
+    let list = |n: usize, size: &mut dyn FnMut(usize) -> u32| {
+        let mut first = 0;
+        (0..n)
+            .map(|k| {
+                first += if k % 3 == 0 { 7 } else { 0 };
+                let inst = Instance { first_triangle: first, triangle_count: size(k), ..small[0] };
+                first += inst.triangle_count;
+                inst
+            })
+            .collect::<Vec<_>>()
+    };
+    let lists = [
+        list(small.len(), &mut |k| if k % 5 == 0 { 0 } else { small[k].triangle_count }),
+        list(20_000, &mut |_| 12),
+        list(5_000, &mut |k| if k % 5 == 0 { 0 } else { 10f32.powf(rng.range(0.0, 5.0)) as u32 }),
+    ];
+    for list in &lists {
+        let end = list.last().map_or(0, |i| i.first_triangle + i.triangle_count) + 10;
+        let mut shuffled = list.clone();
+        for k in (1..shuffled.len()).rev() {
+            shuffled.swap(k, rng.range(0.0, k as f32 + 1.0) as usize % (k + 1));
+        }
+        for instances in [list, &shuffled] {
+            let lookup = Lookup::new(instances);
+            let mut hint = 0;
+            // In order (the hint or a neighbor of it holds the next), then at random.
+            let ordered = (0..end).step_by((end as usize / 4_000).max(1));
+            let random: Vec<u32> = (0..4_000).map(|_| rng.range(0.0, end as f32) as u32 % end).collect();
+            for g in ordered.chain(random) {
+                let owner =
+                    instances.iter().position(|i| g >= i.first_triangle && g - i.first_triangle < i.triangle_count);
+                assert_eq!(lookup.find_hinted(g, &mut hint), owner.map(|k| k as u32), "triangle {g}");
+            }
         }
     }
+    // Searches in the evenly sized list (no hint): the guesses find an instance in a few
+    // probes where halving 20,000 positions takes about 15.
+    let lookup = Lookup::new(&lists[1]);
+    for _ in 0..1_000 {
+        let k = rng.range(0.0, lists[1].len() as f32) as usize % lists[1].len();
+        let g = lists[1][k].first_triangle + rng.range(0.0, 12.0) as u32 % 12;
+        assert_eq!(lookup.find(g), Some(k as u32), "triangle {g}");
+    }
+    let probes = lookup.probes.load(std::sync::atomic::Ordering::Relaxed);
+    assert!(probes <= 4 * 1_000, "{probes} probes for 1,000 searches");
 }
 
 /// The eight-at-a-time scan ends every run where a plain scan does, at every run length
