@@ -7,7 +7,7 @@
 //! reaches them ([`DrawList`]), in parallel, while their records are in its cache.
 
 use glam::{DMat4, Mat4};
-use sightline_spatial::SimdLevel;
+use sightline_spatial::{prefetch, SimdLevel};
 
 use super::Clusters;
 use crate::geometry::{placed_item, DrawList, Item, MeshData};
@@ -36,5 +36,13 @@ impl DrawList for ClusterList<'_> {
         let d = &self.clusters.draws[self.picked[k] as usize];
         let ml = self.clusters.meshlets.by_slot(d.meshlets);
         Some(MeshData { positions: &ml.positions, indices: &ml.indices, ids: Some(&ml.triangle_ids) })
+    }
+
+    /// The walk lists clusters nearest first, so their records lie all over the array.
+    #[inline(always)]
+    fn prefetch_record(&self, k: usize) {
+        if let Some(&i) = self.picked.get(k) {
+            prefetch(&self.clusters.draws[i as usize]);
+        }
     }
 }

@@ -31,6 +31,11 @@ pub(crate) trait DrawList: Sync {
     /// Item `k`'s mesh data, without its matrix (`None` for raw clip-space triangles): what
     /// the stage prefetches ahead of drawing it.
     fn mesh(&self, k: usize) -> Option<MeshData<'_>>;
+
+    /// Asks for the record item `k` is made from, ahead of [`DrawList::mesh`] reading it:
+    /// nothing for lists read in order, which the hardware's prefetch follows.
+    #[inline(always)]
+    fn prefetch_record(&self, _k: usize) {}
 }
 
 impl DrawList for [Item<'_>] {
