@@ -181,10 +181,28 @@ pub(crate) fn edges(t: &Tri) -> [Edge; 3] {
 
 /// True when some pixel center of the triangle's bounding box is covered (used by setup
 /// for tiny boxes).
+#[allow(clippy::needless_range_loop)] // edge k of two arrays
 pub(crate) fn covers_any(t: &Tri) -> bool {
     let e = edges(t);
     let [x0, y0, x1, y1] = t.bbox.map(|v| v as i64);
-    (y0..=y1).any(|py| (x0..=x1).any(|px| e.iter().all(|e| e.a * px + e.b * py + e.c >= 0)))
+    // The edge values at the box's first pixel center, stepped from there (exact integers, so
+    // the same values as evaluated at each center): a center is covered where none is negative.
+    let mut row: [i64; 3] = std::array::from_fn(|k| e[k].a * x0 + e[k].b * y0 + e[k].c);
+    for _ in y0..=y1 {
+        let mut v = row;
+        for _ in x0..=x1 {
+            if (v[0] | v[1] | v[2]) >= 0 {
+                return true;
+            }
+            for k in 0..3 {
+                v[k] += e[k].a;
+            }
+        }
+        for k in 0..3 {
+            row[k] += e[k].b;
+        }
+    }
+    false
 }
 
 /// True when the triangle covers no pixel center of the inclusive pixel rectangle (a
@@ -322,5 +340,60 @@ impl FastEdges {
             }
         }
         BlockSetup::Narrow(k32)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// `covers_any` says whether some pixel center of the box is covered exactly as the
+    /// edge functions evaluated at each center do, on tiny triangles of both sizes of box
+    /// setup gives it (a pixel or two across) and on larger boxes, ties on the centers
+    /// included (vertices on the fixed-point grid of the centers).
+    #[test]
+    fn covers_any_equals_each_center_tested() {
+        let mut rng = sightline_scene::rng::Rng::new(11);
+        let (mut covered, mut missed) = (0, 0);
+        for n in 0..20_000 {
+            let span = [1.5, 3.0, 8.0][n % 3] * ONE as f32;
+            // Every fourth triangle on the half-pixel grid, so centers fall on its edges.
+            let snap = |v: f32| if n % 4 == 0 { (v / (ONE / 2) as f32) as i32 * (ONE / 2) } else { v as i32 };
+            let mut x: [i32; 3] = std::array::from_fn(|_| snap(100.0 * ONE as f32 + rng.range(0.0, span)));
+            let mut y: [i32; 3] = std::array::from_fn(|_| snap(50.0 * ONE as f32 + rng.range(0.0, span)));
+            let area = (x[1] - x[0]) as i64 * (y[2] - y[0]) as i64 - (x[2] - x[0]) as i64 * (y[1] - y[0]) as i64;
+            if area == 0 {
+                continue;
+            }
+            if area < 0 {
+                x.swap(1, 2);
+                y.swap(1, 2);
+            }
+            let center = |v: i32| ((v - ONE / 2).max(0) >> SUBPIXEL_BITS) as u16;
+            let bbox = [center(*x.iter().min().unwrap()), center(*y.iter().min().unwrap())]
+                .into_iter()
+                .chain(
+                    [x.iter().max().unwrap() >> SUBPIXEL_BITS, y.iter().max().unwrap() >> SUBPIXEL_BITS]
+                        .map(|v| v as u16),
+                )
+                .collect::<Vec<_>>();
+            let t = Tri {
+                x,
+                y,
+                z0: 0.0,
+                zx: 0.0,
+                zy: 0.0,
+                zmin: 0.0,
+                id: 1,
+                bbox: [bbox[0], bbox[1], bbox[2], bbox[3]],
+                multi: u32::MAX,
+            };
+            let e = edges(&t);
+            let [x0, y0, x1, y1] = t.bbox.map(|v| v as i64);
+            let each = (y0..=y1).any(|py| (x0..=x1).any(|px| e.iter().all(|e| e.a * px + e.b * py + e.c >= 0)));
+            assert_eq!(covers_any(&t), each, "triangle {x:?} {y:?} in box {:?}", t.bbox);
+            *if each { &mut covered } else { &mut missed } += 1;
+        }
+        assert!(covered > 1_000 && missed > 1_000, "covered {covered}, missed {missed}");
     }
 }
