@@ -1,5 +1,6 @@
-//! Which instance draws a global triangle ID: an interpolation search over the instances in
-//! first-triangle order, tried after the last answer and its neighbours.
+//! Which instance draws a global triangle ID: a search over the instances in first-triangle
+//! order (guessing positions by interpolation in long lists), tried after the last answer
+//! and its neighbours.
 
 use std::sync::OnceLock;
 
@@ -123,6 +124,7 @@ impl<'a> Lookup<'a> {
             }
             halve = !halve && 2 * (hi - lo) > width;
         }
+        // The last position whose first triangle is ≤ g, stepping back over empty instances.
         let mut k = lo;
         while k > 0 {
             k -= 1;

@@ -149,7 +149,8 @@ impl Chunk {
         // clusters of one instance), which a list that computes matrices then reuses.
         let mut prev: Option<(usize, Mat4)> = None;
         for (n, p) in pieces.iter().enumerate() {
-            // Pieces are often small clusters scattered over memory: ask for the indices
+            // Pieces are often small clusters scattered over memory: ask for the record an
+            // item is made from (where the list has one) six pieces ahead, the indices
             // and IDs two pieces ahead, and for the vertices of the next one (whose indices
             // were asked for one piece earlier), unless that piece draws what this one does
             // (instances of one cluster, as in the boxfield: 0.6–1.2% of its occluder pass).
@@ -340,8 +341,7 @@ fn clipped(c: [Vec4; 3], id: u32, vp: &Viewport, cull: bool, tris: &mut Vec<Tri>
 /// only evict what is in use.
 const PREFETCH_TRIANGLES: usize = 96;
 
-/// How many pieces ahead the stage asks for the record an item is made from (before the
-/// piece two ahead reads it to ask for its indices).
+/// How many pieces ahead the stage asks for the record an item is made from.
 const RECORD_AHEAD: usize = 6;
 
 /// What the prefetches of a piece read: its mesh's positions, and its first
