@@ -369,25 +369,10 @@ mod tests {
                 x.swap(1, 2);
                 y.swap(1, 2);
             }
-            let center = |v: i32| ((v - ONE / 2).max(0) >> SUBPIXEL_BITS) as u16;
-            let bbox = [center(*x.iter().min().unwrap()), center(*y.iter().min().unwrap())]
-                .into_iter()
-                .chain(
-                    [x.iter().max().unwrap() >> SUBPIXEL_BITS, y.iter().max().unwrap() >> SUBPIXEL_BITS]
-                        .map(|v| v as u16),
-                )
-                .collect::<Vec<_>>();
-            let t = Tri {
-                x,
-                y,
-                z0: 0.0,
-                zx: 0.0,
-                zy: 0.0,
-                zmin: 0.0,
-                id: 1,
-                bbox: [bbox[0], bbox[1], bbox[2], bbox[3]],
-                multi: u32::MAX,
-            };
+            // The pixels whose centers the triangle's extent could hold.
+            let pixel = |v: Option<&i32>| (v.copied().unwrap_or(0) >> SUBPIXEL_BITS) as u16;
+            let bbox = [pixel(x.iter().min()), pixel(y.iter().min()), pixel(x.iter().max()), pixel(y.iter().max())];
+            let t = Tri { x, y, z0: 0.0, zx: 0.0, zy: 0.0, zmin: 0.0, id: 1, bbox, multi: u32::MAX };
             let e = edges(&t);
             let [x0, y0, x1, y1] = t.bbox.map(|v| v as i64);
             let each = (y0..=y1).any(|py| (x0..=x1).any(|px| e.iter().all(|e| e.a * px + e.b * py + e.c >= 0)));
