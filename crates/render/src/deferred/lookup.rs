@@ -34,9 +34,10 @@ impl<'a> Lookup<'a> {
     }
 
     /// The instance drawing global triangle `g`, trying `hint` (the last answer) and the
-    /// three instances on either side of it first: neighboring pixels mostly show the same
-    /// instance or a sibling. In the street view of a 10^9-triangle city this leaves one
-    /// search in six.
+    /// three instances after it (or before it, when `g` comes before the hint's range) first:
+    /// neighboring pixels mostly show the same instance or a sibling, and in a list in
+    /// first-triangle order the owner lies on `g`'s side of the hint. In the street view of a
+    /// 10^9-triangle city this leaves one search in six.
     #[inline]
     pub(crate) fn find_hinted(&self, g: u32, hint: &mut u32) -> Option<u32> {
         let holds = |k: u32| {
@@ -44,10 +45,15 @@ impl<'a> Lookup<'a> {
                 .get(k as usize)
                 .is_some_and(|i| g >= i.first_triangle && g - i.first_triangle < i.triangle_count)
         };
-        // The hint, then its neighbors: a building's walls, dark panes and lit panes are three
-        // instances in a row, and a distant facade's pixels alternate between them.
-        for k in [0, 1, 1u32.wrapping_neg(), 2, 2u32.wrapping_neg(), 3, 3u32.wrapping_neg()] {
-            let k = hint.wrapping_add(k);
+        // A building's walls, dark panes and lit panes are three instances in a row, and a
+        // distant facade's pixels alternate between them.
+        let after = match self.instances.get(*hint as usize) {
+            Some(i) if g >= i.first_triangle && g - i.first_triangle < i.triangle_count => return Some(*hint),
+            Some(i) => g >= i.first_triangle,
+            None => true,
+        };
+        for d in 1..=3u32 {
+            let k = if after { hint.wrapping_add(d) } else { hint.wrapping_sub(d) };
             if holds(k) {
                 *hint = k;
                 return Some(k);

@@ -121,6 +121,15 @@ fn lookup_finds_each_triangles_instance_in_any_order() {
     }
     let probes = lookup.probes.load(std::sync::atomic::Ordering::Relaxed);
     assert!(probes <= 4 * 1_000, "{probes} probes for 1,000 searches");
+    // Every triangle in order, then in reverse: the next instance is always a neighbor of
+    // the last answer on the triangle's side, found without a search.
+    let lookup = Lookup::new(&lists[1]);
+    let mut hint = 0;
+    let all: Vec<u32> = lists[1].iter().flat_map(|i| i.first_triangle..i.first_triangle + i.triangle_count).collect();
+    for &g in all.iter().chain(all.iter().rev()) {
+        assert!(lookup.find_hinted(g, &mut hint).is_some(), "triangle {g}");
+    }
+    assert_eq!(lookup.probes.load(std::sync::atomic::Ordering::Relaxed), 0, "searches made");
 }
 
 /// The eight-at-a-time scan ends every run where a plain scan does, at every run length
