@@ -90,6 +90,15 @@ pub struct Visible {
     pub inside: bool,
 }
 
+/// An item callback for the front-to-back traversals that appends each item's index to
+/// `out` and goes on (the [`FrontToBack::order`] of the structures that have them).
+pub(crate) fn push_index(out: &mut Vec<u32>) -> impl FnMut(Visible) -> Visit + '_ {
+    |v| {
+        out.push(v.index);
+        Visit::Continue
+    }
+}
+
 /// What a traversal callback wants next.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Visit {

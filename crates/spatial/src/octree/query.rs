@@ -194,14 +194,6 @@ impl FrustumCull for LooseOctree {
 
 impl FrontToBack for LooseOctree {
     fn order(&self, eye: Vec3, out: &mut Vec<u32>) {
-        self.traverse_front_to_back(
-            None,
-            eye,
-            |_| Visit::Continue,
-            |v| {
-                out.push(v.index);
-                Visit::Continue
-            },
-        );
+        self.traverse_front_to_back(None, eye, |_| Visit::Continue, crate::push_index(out));
     }
 }

@@ -497,15 +497,7 @@ impl Bvh {
 
     /// Every item (unbounded first, then the tree's) in front-to-back order for `eye`.
     pub fn order_front_to_back(&self, eye: Vec3, out: &mut Vec<u32>) {
-        self.traverse_front_to_back(
-            None,
-            eye,
-            |_| Visit::Continue,
-            |v| {
-                out.push(v.index);
-                Visit::Continue
-            },
-        );
+        self.traverse_front_to_back(None, eye, |_| Visit::Continue, crate::push_index(out));
     }
 }
 
