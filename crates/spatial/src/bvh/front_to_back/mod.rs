@@ -25,12 +25,17 @@
 //! can leave the nodes holding them ([`Bvh::nodes_holding`]) unasked, as Coherent
 //! Hierarchical Culling (Bittner, Wimmer, Piringer & Purgathofer, Eurographics 2004) leaves
 //! nodes visible in the last frame untested.
+//!
+//! A walk asking a costly question per node (an occlusion test) can find each batch on every
+//! worker ([`FrontToBackCursor::next_batch_parallel`]): the subtrees on the stack are walked
+//! at once and their items put together in stack order, the same batches on any number of
+//! threads.
 
 use glam::Vec3;
 use sightline_scene::Aabb;
 
 use super::node_set::NodeSet;
-use super::Bvh;
+use super::{Bvh, BvhNode};
 use crate::hint::prefetch;
 use crate::{AabbExt, Frustum, PlaneMask, Visible, Visit, ALL_PLANES};
 
@@ -300,34 +305,47 @@ fn run<const WHOLE: bool>(
                         return;
                     }
                 } else if n.is_leaf() {
-                    order.clear();
-                    for s in n.index..n.index + n.count {
-                        let d = bvh.item_boxes[s as usize].distance_squared(eye);
-                        order.push((d, s));
-                    }
-                    // Farthest pushed first so the nearest pops first.
-                    order.sort_unstable_by(|a, b| b.0.total_cmp(&a.0));
-                    stack.extend(order.iter().map(|&(_, s)| Entry { id: s, mask, kind: KIND_ITEM }));
+                    push_items(bvh, &n, mask, eye, &mut order, stack);
                 } else {
-                    let (a, c) = (n.index, n.index + 1);
-                    let (na, nc) = (&bvh.nodes[a as usize], &bvh.nodes[c as usize]);
-                    // Both children are visited soon (unless culled): start loading what they
-                    // will read, their child pairs or item boxes, while this pair is ordered.
-                    for child in [na, nc] {
-                        let i = child.index as usize;
-                        match child.count {
-                            0 => bvh.nodes.get(i).map(prefetch),
-                            1 => bvh.items.get(i).map(prefetch),
-                            _ => bvh.item_boxes.get(i).map(prefetch),
-                        };
-                    }
-                    let (near, far) = if nearer(&na.aabb(), &nc.aabb(), eye) { (a, c) } else { (c, a) };
-                    stack.push(Entry { id: far, mask, kind: KIND_NODE });
-                    stack.push(Entry { id: near, mask, kind: KIND_NODE });
+                    push_children(bvh, &n, mask, eye, stack);
                 }
             }
         }
     }
+}
+
+/// Pushes the items of leaf `n` (which passed the frustum with plane mask `mask`), the
+/// nearest `eye` on top; `order` is scratch.
+#[inline(always)]
+fn push_items(bvh: &Bvh, n: &BvhNode, mask: PlaneMask, eye: Vec3, order: &mut Vec<(f32, u32)>, stack: &mut Vec<Entry>) {
+    order.clear();
+    for s in n.index..n.index + n.count {
+        order.push((bvh.item_boxes[s as usize].distance_squared(eye), s));
+    }
+    // Farthest pushed first so the nearest pops first.
+    order.sort_unstable_by(|a, b| b.0.total_cmp(&a.0));
+    stack.extend(order.iter().map(|&(_, s)| Entry { id: s, mask, kind: KIND_ITEM }));
+}
+
+/// Pushes the two children of inner node `n` (which passed the frustum with plane mask
+/// `mask`), the one nearer `eye` on top.
+#[inline(always)]
+fn push_children(bvh: &Bvh, n: &BvhNode, mask: PlaneMask, eye: Vec3, stack: &mut Vec<Entry>) {
+    let (a, c) = (n.index, n.index + 1);
+    let (na, nc) = (&bvh.nodes[a as usize], &bvh.nodes[c as usize]);
+    // Both children are visited soon (unless culled): start loading what they will read,
+    // their child pairs or item boxes, while this pair is ordered.
+    for child in [na, nc] {
+        let i = child.index as usize;
+        match child.count {
+            0 => bvh.nodes.get(i).map(prefetch),
+            1 => bvh.items.get(i).map(prefetch),
+            _ => bvh.item_boxes.get(i).map(prefetch),
+        };
+    }
+    let (near, far) = if nearer(&na.aabb(), &nc.aabb(), eye) { (a, c) } else { (c, a) };
+    stack.push(Entry { id: far, mask, kind: KIND_NODE });
+    stack.push(Entry { id: near, mask, kind: KIND_NODE });
 }
 
 /// What a walk runs with besides its stack and callbacks.
@@ -501,5 +519,6 @@ impl Bvh {
     }
 }
 
+mod parallel;
 #[cfg(test)]
 mod tests;

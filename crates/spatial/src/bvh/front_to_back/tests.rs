@@ -276,3 +276,118 @@ fn nodes_holding_passed_over_items_are_not_asked_about() {
     }
     assert!(saved > 500, "{saved} questions saved");
 }
+
+/// A node or item box's answer in the parallel walk's tests: a hash of its corners and of
+/// `salt`, so that about one box in `one_in` is "hidden".
+fn hidden(b: &Aabb, salt: u32, one_in: u32) -> bool {
+    let bits = [b.min.x, b.min.z, b.max.y]
+        .iter()
+        .fold(salt.wrapping_mul(0x9E37_79B9), |h, v| (h ^ v.to_bits()).wrapping_mul(0x85EB_CA6B).rotate_left(13));
+    bits % one_in == 0
+}
+
+/// The parallel batches: with answers that do not change, every batch together are the
+/// serial walk's items in its order, asked the same number of questions (the dropped walks'
+/// are not counted); each batch but the last holds at least the batch size and fewer than
+/// twice as many; and the batches, and the questions counted in each, are the same on one,
+/// two and three threads. Trees of one, four and 100 items a leaf (leaves split into their
+/// items), with and without a frustum, seeds, items passed over and nodes not asked about.
+#[test]
+fn parallel_batches_keep_the_serial_order_on_any_thread_count() {
+    let mut rng = sightline_scene::rng::Rng::new(17);
+    let boxes = random_boxes(&mut rng);
+    let pools: Vec<rayon::ThreadPool> =
+        [1, 2, 3].iter().map(|&t| rayon::ThreadPoolBuilder::new().num_threads(t).build().unwrap()).collect();
+    let mut batches_seen = 0;
+    for (case, leaf) in [1, 4, 100].into_iter().cycle().take(12).enumerate() {
+        let bvh = Bvh::build(&boxes, BvhPreset::Fast, leaf);
+        let (eye, frustum) = random_view(&mut rng, case);
+        let f = (case % 4 != 3).then_some(&frustum);
+        let seeds = [0, 32][case % 2];
+        let max = [1, 7, 64, 300][case % 4];
+        let passed_over = |i: u32| case % 3 != 0 && i.is_multiple_of(5);
+        let mut known = NodeSet::default();
+        if case % 3 == 2 {
+            bvh.nodes_holding(passed_over, &mut known);
+        }
+        let cursor = || FrontToBackCursor::new(&bvh, f, eye).nearest_first(&bvh, seeds);
+        let (mut serial, mut asked) = (Vec::new(), 0u64);
+        let mut c = cursor();
+        while c.next_batch_except(&bvh, |b| (asked += 1, !hidden(b, 0, 3)).1, passed_over, &known, max, &mut serial) {}
+        let mut runs = Vec::new();
+        for pool in &pools {
+            let (mut c, mut batches) = (cursor(), Vec::new());
+            pool.install(|| loop {
+                let (mut out, mut states) = (Vec::new(), Vec::new());
+                let tests = (|| 0u64, |n: &mut u64, b: &Aabb| (*n += 1, !hidden(b, 0, 3)).1);
+                let more = c.next_batch_parallel(&bvh, tests, (passed_over, &known), max, &mut out, &mut states);
+                batches.push((out, states.iter().sum::<u64>()));
+                if !more {
+                    break;
+                }
+            });
+            runs.push(batches);
+        }
+        let at = format!("case {case}, leaf {leaf}, batch {max}");
+        for batches in &runs {
+            let all: Vec<Visible> = batches.iter().flat_map(|b| b.0.iter().copied()).collect();
+            assert_eq!(all.len(), serial.len(), "{at}");
+            assert!(all.iter().zip(&serial).all(|(a, b)| a.index == b.index && a.inside == b.inside), "{at}");
+            assert_eq!(batches.iter().map(|b| b.1).sum::<u64>(), asked, "{at}: questions counted");
+            let (last, full) = batches.split_last().unwrap();
+            assert!(full.iter().all(|b| b.0.len() >= max && b.0.len() < 2 * max), "{at}");
+            assert!(last.0.len() < 2 * max, "{at}");
+        }
+        let same = |a: &Vec<(Vec<Visible>, u64)>, b: &Vec<(Vec<Visible>, u64)>| {
+            a.len() == b.len()
+                && a.iter()
+                    .zip(b)
+                    .all(|(x, y)| x.1 == y.1 && x.0.iter().map(|v| v.index).eq(y.0.iter().map(|v| v.index)))
+        };
+        assert!(same(&runs[0], &runs[1]) && same(&runs[0], &runs[2]), "{at}: batches depend on the thread count");
+        batches_seen += runs[0].len();
+    }
+    assert!(batches_seen > 100, "{batches_seen} batches");
+}
+
+/// With answers that change after every batch (as a depth pyramid fills), the parallel
+/// batches are still the same on one, two and three threads, no item comes twice, and
+/// none passed over comes at all.
+#[test]
+fn parallel_batches_with_changing_answers_are_the_same_on_any_thread_count() {
+    let mut rng = sightline_scene::rng::Rng::new(23);
+    let boxes = random_boxes(&mut rng);
+    let bvh = Bvh::build(&boxes, BvhPreset::Fast, 4);
+    let mut runs = Vec::new();
+    for threads in [1, 2, 3] {
+        let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap();
+        let mut batches = Vec::new();
+        for case in 0..6 {
+            let (eye, frustum) = random_view(&mut sightline_scene::rng::Rng::new(100 + case as u64), case);
+            let mut c = FrontToBackCursor::new(&bvh, (case % 3 != 2).then_some(&frustum), eye);
+            let (mut salt, mut items) = (1 + 1000 * case as u32, Vec::new());
+            pool.install(|| loop {
+                let (mut out, mut states) = (Vec::new(), Vec::new());
+                let tests = (|| 0u64, |n: &mut u64, b: &Aabb| (*n += 1, !hidden(b, salt, 12)).1);
+                let except = (|i| i % 7 == 0, &NodeSet::default());
+                let more = c.next_batch_parallel(&bvh, tests, except, 16, &mut out, &mut states);
+                items.extend(out.iter().map(|v| v.index));
+                batches.push((out.iter().map(|v| v.index).collect::<Vec<_>>(), states.iter().sum::<u64>()));
+                salt += 1;
+                if !more {
+                    break;
+                }
+            });
+            assert!(items.iter().all(|i| i % 7 != 0), "an item passed over came");
+            let mut unique = items.clone();
+            unique.sort_unstable();
+            unique.dedup();
+            assert_eq!(unique.len(), items.len(), "an item came twice");
+        }
+        let items = batches.iter().map(|b| b.0.len()).sum::<usize>();
+        assert!(batches.len() > 30 && items > 500, "{} batches, {items} items", batches.len());
+        runs.push(batches);
+    }
+    assert_eq!(runs[0], runs[1]);
+    assert_eq!(runs[0], runs[2]);
+}
