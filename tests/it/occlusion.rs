@@ -241,6 +241,69 @@ fn the_pipelined_occluder_pass_is_the_same_on_any_thread_count() {
     assert_eq!(frames[0].1, brute.ids, "the occluder pass's IDs are brute force's");
 }
 
+/// The occlusion walks find each batch on every worker: `hzb` (its walk and its first pass),
+/// `hzb-one-pass` and the occluder pass that skips hidden occluders draw the same batches,
+/// test as many boxes and give the same depth and IDs on one, two and three threads, frame
+/// after frame as the camera turns (the two-pass form carrying its set from frame to
+/// frame), and their IDs are brute force's.
+#[test]
+fn the_occlusion_walks_are_the_same_on_any_thread_count() {
+    use sightline::render::Method;
+    use sightline::scene::builders::{boxfield, BoxfieldLayout, BoxfieldParams};
+    let scene =
+        boxfield(&BoxfieldParams { boxes: 6000, half_size: 40.0, seed: 5, layout: BoxfieldLayout::Instanced }).unwrap();
+    let cameras: Vec<Camera> = (0..4)
+        .map(|k| {
+            let a = k as f32 * 0.6;
+            let key =
+                camera_key([45.0 * a.sin(), 2.0 + 3.0 * k as f32, 45.0 * a.cos()], [0.0, 0.0, 0.0], 60.0, 0.1, 200.0);
+            key.camera(16.0 / 9.0).unwrap()
+        })
+        .collect();
+    let opts = RenderOptions::ids_only();
+    let mut runs = Vec::new();
+    for threads in [1, 2, 3] {
+        let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap();
+        let mut run = Vec::new();
+        for method in [Method::Hzb, Method::HzbOnePass] {
+            let mut culler = Culler::new(&scene);
+            for camera in &cameras {
+                let mut fb = Framebuffer::new(320, 180).unwrap();
+                let (cs, _) = pool.install(|| culler.render(&scene, camera, method, &mut fb, &opts)).unwrap();
+                let counts = (cs.batches, cs.clusters_drawn, cs.triangles_drawn, cs.occlusion_tests, cs.occluded_boxes);
+                run.push((counts, fb.depth, fb.ids));
+            }
+        }
+        let mut fb = Framebuffer::new(320, 180).unwrap();
+        let mut culler = Culler::new(&scene);
+        let pass = pool.install(|| {
+            let (cs, _, pass) = culler.occluder_pass_with(&cameras[0], &mut fb, &opts, true).unwrap();
+            pass.finish();
+            cs
+        });
+        let counts =
+            (pass.batches, pass.clusters_drawn, pass.triangles_drawn, pass.occlusion_tests, pass.occluded_boxes);
+        run.push((counts, fb.depth, fb.ids));
+        runs.push(run);
+    }
+    let tested: u64 = runs[0].iter().map(|r| r.0 .3).sum();
+    let batches: u64 = runs[0].iter().map(|r| r.0 .0).sum();
+    assert!(tested > 10_000 && batches > 20, "{tested} boxes tested in {batches} batches");
+    for (t, run) in runs.iter().enumerate().skip(1) {
+        for (k, (a, b)) in runs[0].iter().zip(run).enumerate() {
+            assert_eq!(a.0, b.0, "frame {k}: counts on {} threads", t + 1);
+            assert!(a.1 == b.1 && a.2 == b.2, "frame {k}: the frame depends on the thread count");
+        }
+    }
+    let mut culler = Culler::new(&scene);
+    for (k, camera) in cameras.iter().enumerate() {
+        let mut brute = Framebuffer::new(320, 180).unwrap();
+        culler.render(&scene, camera, Method::Brute, &mut brute, &opts).unwrap();
+        assert_eq!(runs[0][k].2, brute.ids, "hzb frame {k}");
+        assert_eq!(runs[0][cameras.len() + k].2, brute.ids, "hzb-one-pass frame {k}");
+    }
+}
+
 /// The walks' counters of occlusion tests and occluded boxes: with nothing behind the wall no
 /// box is found occluded, though boxes are tested (and `hzb`'s later frames re-test the
 /// wall they drew first); with cubes behind it, boxes are found occluded, no more than were

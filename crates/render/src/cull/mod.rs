@@ -51,6 +51,7 @@ mod occluder;
 pub mod order;
 pub mod query;
 mod ranges;
+mod two_pass;
 mod update;
 mod verify;
 mod walk;

@@ -1,25 +1,20 @@
 //! The culling walks of one frame, drawing through a renderer [`Session`]: the
 //! front-to-back walk over the cluster BVH or the loose octree in growing batches, with
 //! occlusion tests against the session's z-pyramid between batches (Greene, Kass & Miller
-//! 1993), and its two-pass form that draws last frame's visible set first.
+//! 1993), each batch found on every worker ([`FrontToBackCursor::next_batch_parallel`]);
+//! its two-pass form, which draws last frame's visible set first, is in [`super::two_pass`].
 
 use std::time::Instant;
 
 use glam::Affine3A;
 use sightline_scene::{Aabb, Camera};
-use sightline_spatial::{
-    prefetch, AabbExt, Containment, CullOptions, FrontToBackCursor, Frustum, NodeSet, OctreeCursor, SimdLevel, Visible,
-};
+use sightline_spatial::{prefetch, CullOptions, FrontToBackCursor, Frustum, NodeSet, OctreeCursor, SimdLevel, Visible};
 
 use super::drawn::ClusterList;
-use super::{BoxVisibility, ClusterDraw, Clusters, CullStats, OcclusionQueries, PREFETCH_AHEAD};
+use super::{ClusterDraw, Clusters, CullStats, OcclusionQueries, PREFETCH_AHEAD};
 use crate::awake::join_helping;
 use crate::stats::ms_since;
 use crate::{DrawSource, FrameStats, RenderOptions, Result, Session};
-
-/// A first pass drawing at least one cluster in this many has the BVH nodes holding its
-/// clusters found, so that the walk does not test them ([`TwoPass::holding`]).
-const HOLDING_SHARE: usize = 8;
 
 /// One culled frame in progress: the camera and options it draws with, and its counters.
 pub(super) struct Frame<'a> {
@@ -58,14 +53,14 @@ pub(super) struct Walk<'t> {
 #[derive(Debug, Default)]
 pub(super) struct TwoPass {
     /// The clusters found visible in the last frame drawn with it.
-    last_visible: Vec<u32>,
+    pub(super) last_visible: Vec<u32>,
     /// Per cluster, the number of the frame that last drew it.
-    drawn_in: Vec<u32>,
+    pub(super) drawn_in: Vec<u32>,
     /// The current frame's number, matched against `drawn_in` (it restarts at 1 when it
     /// wraps or the cluster count changes; never 0 once started).
-    frame: u32,
+    pub(super) frame: u32,
     /// The BVH nodes holding a cluster of the first pass, when it drew many.
-    holding: NodeSet,
+    pub(super) holding: NodeSet,
 }
 
 /// Which structure the front-to-back walk runs over.
@@ -95,7 +90,7 @@ impl Clusters {
     /// True when cluster `i`'s cone can cull at all (one bit in a small array that stays in
     /// cache, so closed meshes' clusters cost no load of their cone).
     #[inline]
-    fn can_cull(&self, i: u32) -> bool {
+    pub(super) fn can_cull(&self, i: u32) -> bool {
         self.cone_can_cull[i as usize / 64] >> (i % 64) & 1 != 0
     }
 
@@ -171,7 +166,7 @@ impl Clusters {
     }
 
     /// Draws the given items into the session, counting into `f`.
-    fn draw<T>(&self, s: &mut Session, items: &[T], index: impl Fn(&T) -> u32, f: &mut Frame) -> Result<()> {
+    pub(super) fn draw<T>(&self, s: &mut Session, items: &[T], index: impl Fn(&T) -> u32, f: &mut Frame) -> Result<()> {
         f.fs.add(&self.draw_batch(s, items, index, f.camera, &mut f.cs)?);
         Ok(())
     }
@@ -228,20 +223,36 @@ impl Clusters {
             let t = Instant::now();
             out.clear();
             let more = {
-                // Serial: the other workers are kept awake by the caller (`join_helping`).
                 let q = OcclusionQueries::with_projector(projector, s.pyramid());
-                let cs = &mut f.cs;
-                let visible = |b: &_| q.counted_visible(b, cs);
                 // Clusters drawn already this frame (by the two-pass form's first pass, which
                 // walks the BVH) are passed over untested, and the nodes holding them too when
                 // it found them.
-                let drawn = |i: u32| walk.skip.as_ref().is_some_and(|two| two.drawn_in[i as usize] == two.frame);
-                let known = walk.skip.as_ref().map_or(&no_nodes, |two| &two.holding);
+                let skip = walk.skip.as_deref();
+                let drawn = |i: u32| skip.is_some_and(|two| two.drawn_in[i as usize] == two.frame);
+                let known = skip.map_or(&no_nodes, |two| &two.holding);
                 match &mut cursor {
-                    Cursor::Bvh(c) => c.next_batch_except(self.clustered.bvh(), visible, drawn, known, batch, &mut out),
+                    // On every worker (the others are kept awake by the caller, `join_helping`),
+                    // each walk of the batch counting its own tests.
+                    Cursor::Bvh(c) => {
+                        let tests = (CullStats::default, |cs: &mut CullStats, b: &Aabb| q.counted_visible(b, cs));
+                        let mut counted = Vec::new();
+                        let more = c.next_batch_parallel(
+                            self.clustered.bvh(),
+                            tests,
+                            (drawn, known),
+                            batch,
+                            &mut out,
+                            &mut counted,
+                        );
+                        for cs in counted {
+                            f.cs.occlusion_tests += cs.occlusion_tests;
+                            f.cs.occluded_boxes += cs.occluded_boxes;
+                        }
+                        more
+                    }
                     Cursor::Octree(c) => {
                         debug_assert!(walk.skip.is_none(), "the two-pass form walks the BVH");
-                        c.next_batch(&self.octree, visible, batch, &mut out)
+                        c.next_batch(&self.octree, |b| q.counted_visible(b, &mut f.cs), batch, &mut out)
                     }
                 }
             };
@@ -337,110 +348,6 @@ impl Clusters {
         f.cs.set_in_frustum(f.cs.clusters_in_frustum);
         Ok(())
     }
-
-    /// [`super::Method::Hzb`]: last frame's visible clusters (those still in the frustum and
-    /// not facing away) are drawn first, in one batch; the front-to-back walk then tests the
-    /// rest against their pyramid, starting with big batches; finally last frame's clusters
-    /// are tested against the finished pyramid, and the ones not occluded join this frame's
-    /// newly drawn ones as the next frame's set.
-    pub(super) fn hzb_two_pass(
-        &self,
-        s: &mut Session,
-        f: &mut Frame,
-        frustum: &Frustum,
-        batching: Batching,
-        two: &mut TwoPass,
-    ) -> Result<()> {
-        let n = self.clustered.item_count();
-        two.frame = two.frame.wrapping_add(1);
-        if two.frame == 0 || two.drawn_in.len() != n {
-            two.drawn_in.clear();
-            two.drawn_in.resize(n, 0);
-            two.frame = 1;
-        }
-        let frame = two.frame;
-        let t = Instant::now();
-        // Last frame's set, kept where still in the frustum and facing us. Each cluster's box
-        // is tested as the frustum walk would test it (a box inside a node inside the frustum
-        // is itself inside), so the set is the one the walk would find, at a cost that grows
-        // with last frame's visible clusters, not with those in view.
-        let eye = f.camera.view.eye;
-        let boxes = &self.item_boxes;
-        let backface = f.opts.backface_culling;
-        // (key, cluster): the key is set for the clusters kept.
-        let mut first: Vec<(u32, u32)> = two.last_visible.drain(..).map(|i| (0, i)).collect();
-        // Each cluster's box and cone, which the test below reads, and its frame number,
-        // which the marking after the sort writes.
-        let ahead = |&(_, i): &(u32, u32)| {
-            if let (Some(b), Some(d)) = (boxes.get(i as usize), two.drawn_in.get(i as usize)) {
-                prefetch(b);
-                prefetch(d);
-                if backface && self.can_cull(i) {
-                    prefetch(&self.cones[i as usize]);
-                }
-            }
-        };
-        retain_ahead(&mut first, ahead, |(key, i)| {
-            let Some(b) = boxes.get(*i as usize) else { return false };
-            // Not counted here when facing away: the walk meets them again and counts them once.
-            if frustum.classify(b) == Containment::Outside || backface && self.faces_away(*i, eye) {
-                return false;
-            }
-            // Front to back (by the distance from the eye to each box): the rasterizer's
-            // coarse depth then skips the 8×8 blocks that nearer clusters of the same batch
-            // already hide. The set keeps the order it was found in otherwise, which goes
-            // stale as the camera moves. (A distance is ≥ 0, so its bits order like it; NaN
-            // sorts last.) The example `culling_bound` orders its reference frame by the same
-            // key.
-            *key = b.distance_squared(eye).to_bits();
-            true
-        });
-        // The order of (key, cluster) pairs, compared as one number.
-        first.sort_unstable_by_key(|&(key, i)| (key as u64) << 32 | i as u64);
-        for &(_, i) in &first {
-            two.drawn_in[i as usize] = frame;
-        }
-        two.holding.clear();
-        // The sweep reads every node: worth it only when the first pass drew a fair share of
-        // the clusters (it then saves a test for most nodes the walk reaches).
-        if first.len() * HOLDING_SHARE >= n {
-            let drawn_in = &two.drawn_in;
-            self.clustered.bvh().nodes_holding(|i| drawn_in[i as usize] == frame, &mut two.holding);
-        }
-        f.cs.ms_cull += ms_since(t);
-        let mut result = Ok(());
-        if !first.is_empty() {
-            let t = Instant::now();
-            result = self.draw(s, &first, |&(_, i)| i, f);
-            f.cs.ms_draw += ms_since(t);
-            f.cs.batches += 1;
-        }
-        if result.is_ok() {
-            // With last frame's occluders in place the pyramid is mostly complete: big batches.
-            let first_batch = if first.is_empty() { batching.first } else { (batching.cap / 4).max(batching.first) };
-            let walk = Walk { first_batch, skip: Some(&mut *two) };
-            result = self.hzb_walk(s, f, frustum, Source::Bvh, walk, batching);
-        }
-        // Re-test last frame's clusters against the finished pyramid: the occluded ones leave
-        // the set (their pixels went to nearer clusters). The tests are independent: one
-        // batch, in parallel and eight boxes at a time.
-        let t = Instant::now();
-        let pyramid = s.pyramid();
-        let projector = self.projector(f.camera, pyramid.width(), pyramid.height());
-        let q = OcclusionQueries::with_projector(projector, pyramid);
-        let boxes: Vec<Aabb> = first.iter().map(|&(_, i)| self.item_boxes[i as usize]).collect();
-        let mut verdicts = Vec::new();
-        q.test_batch(&boxes, &mut verdicts);
-        let visible = |v: &&BoxVisibility| **v == BoxVisibility::Visible;
-        two.last_visible.extend(first.iter().zip(&verdicts).filter(|(_, v)| visible(v)).map(|(&(_, i), _)| i));
-        f.cs.occlusion_tests += first.len() as u64;
-        f.cs.occluded_boxes += verdicts.iter().filter(|v| !visible(v)).count() as u64;
-        f.cs.ms_cull += ms_since(t);
-        if result.is_err() {
-            two.last_visible.clear();
-        }
-        result
-    }
 }
 
 /// `items.retain_mut(keep)` over items whose data lies scattered in memory: `ahead(item)`,
@@ -449,7 +356,7 @@ impl Clusters {
 /// following one another. In a big
 /// scene a frame's few thousand clusters each have their box, cone and frame number in
 /// arrays of hundreds of megabytes.
-fn retain_ahead<T: Copy>(items: &mut Vec<T>, ahead: impl Fn(&T), mut keep: impl FnMut(&mut T) -> bool) {
+pub(super) fn retain_ahead<T: Copy>(items: &mut Vec<T>, ahead: impl Fn(&T), mut keep: impl FnMut(&mut T) -> bool) {
     items.iter().take(PREFETCH_AHEAD).for_each(&ahead);
     let mut kept = 0;
     for k in 0..items.len() {
