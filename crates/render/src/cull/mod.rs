@@ -123,7 +123,9 @@ pub struct CullStats {
     pub culled_by_backface: u64,
     /// Clusters in the frustum but skipped as occluded (themselves or an ancestor node).
     pub culled_by_occlusion: u64,
-    /// Boxes (BVH nodes, octants, clusters) tested against the z-pyramid.
+    /// Boxes (BVH nodes, octants, clusters) tested against the z-pyramid. The walks of a
+    /// batch that run ahead of where it ends on another worker, and are dropped, are not
+    /// counted: the count is the same on any thread count.
     pub occlusion_tests: u64,
     /// Boxes found occluded.
     pub occluded_boxes: u64,
@@ -480,8 +482,9 @@ impl Culler {
             let mut two = std::mem::take(&mut self.c.two_pass);
             let c = &self.c;
             let mut session = self.renderer.begin(fb, &opts);
-            // The walk's steps are serial: meanwhile the other worker counts the clusters in
-            // the frustum (a statistic), serving the frame's parallel steps as they come.
+            // Meanwhile the other worker counts the clusters in the frustum (a statistic),
+            // serving the frame's parallel steps as they come: the draws, and the walks that
+            // find the BVH walk's batches (the octree walk stays on this worker).
             let (r, ()) = join_helping(
                 || match method {
                     Method::HzbOnePass | Method::OctreeHzb => {
@@ -511,8 +514,8 @@ impl Culler {
             shade()
         } else {
             // Counting walks the BVH nodes the frustum's boundary cuts: 1–3 ms on one thread
-            // in the street view of a 10^9-triangle city. What the walk's serial steps left
-            // of it (all of it on one thread) overlaps the shading pass, whose bands go to
+            // in the street view of a 10^9-triangle city. What the walk left of it (all of it
+            // on one thread) overlaps the shading pass, whose bands go to
             // whichever worker is free.
             let bvh = self.c.clustered.bvh();
             let (n, ms) = rayon::join(|| count.map(|c| c.finish(bvh)), shade);

@@ -52,7 +52,7 @@ impl Culler {
         let mut f = Frame { camera, opts, cs, fs: FrameStats::default() };
         if skip_hidden {
             // The tested walk does not list every cluster in the frustum: the other worker
-            // counts them during its serial steps.
+            // counts them whenever the walk leaves it free.
             let mut count = FrustumCount::new(c.clustered.bvh(), &frustum);
             let walk = Walk { first_batch: batching.first, skip: None };
             let (r, ()) = join_helping(
