@@ -7,6 +7,7 @@
 
 use std::time::Instant;
 
+use rayon::prelude::*;
 use sightline_scene::Aabb;
 use sightline_spatial::{prefetch, AabbExt, Containment, Frustum};
 
@@ -19,9 +20,10 @@ use crate::{Result, Session};
 /// clusters found, so that the walk does not test them ([`TwoPass::holding`]).
 const HOLDING_SHARE: usize = 8;
 
-/// A first pass of at least this many clusters is prepared (kept where in view and facing
-/// the eye, ordered front to back) on every worker, as is the re-test's list of their boxes.
-const PARALLEL_FIRST: usize = 4096;
+/// Clusters of the first pass kept, ordered and gathered for the re-test per task: a pass
+/// of thousands (a view over a whole scene) is prepared on every worker, a small one stays
+/// one task.
+const FIRST_CHUNK: usize = 1024;
 
 impl Clusters {
     /// [`super::Method::Hzb`]: last frame's visible clusters (those still in the frustum and
@@ -84,22 +86,17 @@ impl Clusters {
         // The order of (key, cluster) pairs, compared as one number (each cluster comes once,
         // so the order is the same however it is sorted).
         let order = |&(key, i): &(u32, u32)| (key as u64) << 32 | i as u64;
-        if first.len() >= PARALLEL_FIRST {
-            // A big set (a view over a whole scene) on every worker, in order.
-            use rayon::prelude::*;
-            first = first
-                .par_chunks(PARALLEL_FIRST / 4)
-                .flat_map_iter(|c| {
-                    let mut c = c.to_vec();
-                    retain_ahead(&mut c, ahead, keep);
-                    c
-                })
-                .collect();
-            first.par_sort_unstable_by_key(order);
-        } else {
-            retain_ahead(&mut first, ahead, keep);
-            first.sort_unstable_by_key(order);
-        }
+        // In chunks on whichever worker is free (a view over a whole scene keeps tens of
+        // thousands), in order; a small set is one chunk.
+        first = first
+            .par_chunks(FIRST_CHUNK)
+            .flat_map_iter(|c| {
+                let mut c = c.to_vec();
+                retain_ahead(&mut c, ahead, keep);
+                c
+            })
+            .collect();
+        first.par_sort_unstable_by_key(order);
         for &(_, i) in &first {
             two.drawn_in[i as usize] = frame;
         }
@@ -131,12 +128,8 @@ impl Clusters {
         let pyramid = s.pyramid();
         let projector = self.projector(f.camera, pyramid.width(), pyramid.height());
         let q = OcclusionQueries::with_projector(projector, pyramid);
-        let boxes: Vec<Aabb> = if first.len() >= PARALLEL_FIRST {
-            use rayon::prelude::*;
-            first.par_iter().map(|&(_, i)| self.item_boxes[i as usize]).collect()
-        } else {
-            first.iter().map(|&(_, i)| self.item_boxes[i as usize]).collect()
-        };
+        let boxes: Vec<Aabb> =
+            first.par_iter().with_min_len(FIRST_CHUNK).map(|&(_, i)| self.item_boxes[i as usize]).collect();
         let mut verdicts = Vec::new();
         q.test_batch(&boxes, &mut verdicts);
         let visible = |v: &&BoxVisibility| **v == BoxVisibility::Visible;

@@ -47,11 +47,10 @@ impl<'a> Lookup<'a> {
         };
         // A building's walls, dark panes and lit panes are three instances in a row, and a
         // distant facade's pixels alternate between them.
-        let after = match self.instances.get(*hint as usize) {
-            Some(i) if g >= i.first_triangle && g - i.first_triangle < i.triangle_count => return Some(*hint),
-            Some(i) => g >= i.first_triangle,
-            None => true,
-        };
+        if holds(*hint) {
+            return Some(*hint);
+        }
+        let after = self.instances.get(*hint as usize).is_none_or(|i| g >= i.first_triangle);
         for d in 1..=3u32 {
             let k = if after { hint.wrapping_add(d) } else { hint.wrapping_sub(d) };
             if holds(k) {

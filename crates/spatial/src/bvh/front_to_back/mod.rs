@@ -272,16 +272,10 @@ fn run<const WHOLE: bool>(
                 if n.count == 1 && (seeded.contains(n.index) || passed_over_slot(n.index)) {
                     continue;
                 }
-                let b = n.aabb();
-                if Frustum::excludes(frustum, &b, &mut mask) {
-                    continue;
-                }
-                if !known.contains(e.id) {
-                    match node_visit(&b) {
-                        Visit::Stop => return,
-                        Visit::Skip => continue,
-                        Visit::Continue => {}
-                    }
+                match ask_node(frustum, known, e.id, &n, &mut mask, &mut node_visit) {
+                    Visit::Stop => return,
+                    Visit::Skip => continue,
+                    Visit::Continue => {}
                 }
                 let inside = frustum.is_none() || mask == 0;
                 // An inner node inside the frustum may be taken whole; its size is read once.
@@ -311,6 +305,27 @@ fn run<const WHOLE: bool>(
                 }
             }
         }
+    }
+}
+
+/// Whether the walk goes into node `id` (`n`, met with plane mask `mask`, narrowed here):
+/// `Skip` outside the frustum, `Continue` for a node in `known`, else `node_visit`'s answer.
+#[inline(always)]
+fn ask_node(
+    frustum: Option<&Frustum>,
+    known: &NodeSet,
+    id: u32,
+    n: &BvhNode,
+    mask: &mut PlaneMask,
+    node_visit: &mut impl FnMut(&Aabb) -> Visit,
+) -> Visit {
+    let b = n.aabb();
+    if Frustum::excludes(frustum, &b, mask) {
+        Visit::Skip
+    } else if known.contains(id) {
+        Visit::Continue
+    } else {
+        node_visit(&b)
     }
 }
 

@@ -27,10 +27,10 @@ use std::sync::Mutex;
 
 use sightline_scene::Aabb;
 
-use super::{push_children, push_items, run, Entry, FrontToBackCursor, Walk, KIND_NODE};
+use super::{ask_node, push_children, push_items, run, Entry, FrontToBackCursor, Walk, KIND_NODE};
 use crate::bvh::node_set::NodeSet;
 use crate::bvh::Bvh;
-use crate::{Frustum, Visible, Visit};
+use crate::{Visible, Visit};
 
 /// Entries walked at once: a constant (not a number per worker), so that the rounds, and
 /// with them the batches, are the same on any thread count.
@@ -125,11 +125,7 @@ fn split(
     let n = bvh.nodes[e.id as usize];
     debug_assert!(!n.is_leaf() || n.count > 1, "one-item leaves are never split");
     let mut mask = e.mask;
-    let b = n.aabb();
-    if Frustum::excludes(walk.frustum, &b, &mut mask) {
-        return;
-    }
-    if !known.contains(e.id) && node_visit(&b) != Visit::Continue {
+    if ask_node(walk.frustum, known, e.id, &n, &mut mask, &mut node_visit) != Visit::Continue {
         return;
     }
     if n.is_leaf() {
