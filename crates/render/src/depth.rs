@@ -179,6 +179,21 @@ pub(crate) trait DepthCodec: Copy + Send + Sync + 'static {
     /// `#[target_feature]` function this inlines into).
     #[cfg(target_arch = "x86_64")]
     unsafe fn key8(z: std::arch::x86_64::__m256) -> std::arch::x86_64::__m256i;
+
+    /// [`DepthCodec::key8`] of sixteen lanes (AVX-512), none of them NaN.
+    ///
+    /// # Safety
+    /// The CPU must have AVX-512 F and DQ, and the caller must be compiled with them.
+    #[cfg(target_arch = "x86_64")]
+    #[inline(always)]
+    unsafe fn key16(z: std::arch::x86_64::__m512) -> std::arch::x86_64::__m512i {
+        use std::arch::x86_64::*;
+        unsafe {
+            let lo = Self::key8(_mm512_castps512_ps256(z));
+            let hi = Self::key8(_mm512_extractf32x8_ps::<1>(z));
+            _mm512_inserti64x4::<1>(_mm512_castsi256_si512(lo), hi)
+        }
+    }
 }
 
 /// 32-bit float depth: the key is the bit pattern.
@@ -225,6 +240,14 @@ impl DepthCodec for F32 {
         use std::arch::x86_64::*;
         let bits = _mm256_castps_si256(z);
         _mm256_andnot_si256(_mm256_srai_epi32(bits, 31), bits)
+    }
+
+    #[cfg(target_arch = "x86_64")]
+    #[inline(always)]
+    unsafe fn key16(z: std::arch::x86_64::__m512) -> std::arch::x86_64::__m512i {
+        use std::arch::x86_64::*;
+        let bits = _mm512_castps_si512(z);
+        _mm512_andnot_si512(_mm512_srai_epi32::<31>(bits), bits)
     }
 }
 
@@ -336,8 +359,8 @@ mod tests {
             #[cfg(target_arch = "x86_64")]
             if !z.is_nan() {
                 use std::arch::x86_64::*;
-                // SAFETY: SSE2 is baseline; AVX2 only when detected (the function is then
-                // compiled for it).
+                // SAFETY: SSE2 is baseline; AVX2 and AVX-512 only when detected (the
+                // functions are then compiled for them).
                 let k4 = unsafe {
                     let mut out = [0u32; 4];
                     _mm_storeu_si128(out.as_mut_ptr() as *mut __m128i, D::key4(_mm_set1_ps(z)));
@@ -346,6 +369,9 @@ mod tests {
                 assert_eq!(k4, [k; 4], "{:?} key4 {z}", D::FORMAT);
                 if std::is_x86_feature_detected!("avx2") {
                     assert_eq!(unsafe { key8_avx2::<D>(z) }, [k; 8], "{:?} key8 {z}", D::FORMAT);
+                }
+                if std::is_x86_feature_detected!("avx512f") && std::is_x86_feature_detected!("avx512dq") {
+                    assert_eq!(unsafe { key16_avx512::<D>(z) }, [k; 16], "{:?} key16 {z}", D::FORMAT);
                 }
             }
         }
@@ -357,6 +383,15 @@ mod tests {
         use std::arch::x86_64::*;
         let mut out = [0u32; 8];
         _mm256_storeu_si256(out.as_mut_ptr() as *mut __m256i, D::key8(_mm256_set1_ps(z)));
+        out
+    }
+
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx512f,avx512dq,avx2")]
+    unsafe fn key16_avx512<D: DepthCodec>(z: f32) -> [u32; 16] {
+        use std::arch::x86_64::*;
+        let mut out = [0u32; 16];
+        _mm512_storeu_si512(out.as_mut_ptr() as *mut __m512i, D::key16(_mm512_set1_ps(z)));
         out
     }
 

@@ -4,11 +4,13 @@
 //! Four forms of the same arithmetic, bit for bit: a scalar row loop (the reference, and
 //! the kernel off x86-64), an SSE2 row loop (four pixels per step; every x86-64 CPU), an
 //! AVX2 block kernel (eight pixels of a row per step, everything constant down a column
-//! set up once per block), and the same block kernel with AVX-512's mask registers (the
-//! coverage and depth tests compare into masks and the writes are mask blends: the street
-//! path's oracle frame, raster stage 1.20 → 1.09 ms on two threads; its tie rule as one
-//! compare, its row depths at once and its counters in vectors, as AVX2's, took the street
-//! path's `hzb` frames a further 0.96× on an AMD Zen 5). Which one runs is the
+//! set up once per block), and an AVX-512 block kernel that takes two rows per step in one
+//! 16-lane register, with the coverage and depth tests compared into mask registers and the
+//! writes as mask blends. Its first form (one row per step) cut the street path's oracle
+//! frame's raster stage from 1.20 to 1.09 ms on two threads; AVX2's tie compare, row depths
+//! at once and counters in vectors took the street path's `hzb` frames a further 0.96× on
+//! an AMD Zen 5, and two rows per step 0.95–0.97× more (frames alternated in one process).
+//! Which one runs is the
 //! [`Kernel`] type parameter of the block walk, chosen once per frame from the run-time
 //! [`SimdLevel`](sightline_spatial::SimdLevel).
 //! All are branch-free per pixel: coverage and the depth test are unpredictable along the
@@ -409,14 +411,17 @@ unsafe fn block_avx2<D: DepthCodec, const COUNT: bool>(
     }
 }
 
-/// [`block_avx2`] with AVX-512's mask registers on the same 8-lane rows: coverage compares
-/// straight into a mask, the depth test (with its tie rule as one compare, as in
-/// `block_avx2`) is a compare under that mask, the new depth and IDs are mask blends, and
-/// the counters add one under the masks. Same arithmetic per pixel, so the same result
+/// [`block_avx2`] with AVX-512: two rows of eight pixels per step in one 16-lane register,
+/// so that a block's arithmetic takes half the steps. Coverage compares straight into a
+/// mask, the depth test (its tie rule as one compare, as in `block_avx2`) is a compare under
+/// that mask, the new depth and IDs are mask blends, and the counters add one under the
+/// masks. Each row is loaded and stored as eight lanes of its own (the rows of a tile
+/// buffer are [`TILE`] apart); a block's last row of an odd count is a step with the upper
+/// lanes masked off, neither read nor written. Same arithmetic per pixel, so the same result
 /// bit for bit.
 ///
 /// # Safety
-/// The CPU must have AVX-512 F and VL (and the other features enabled here).
+/// The CPU must have AVX-512 F, BW, DQ and VL (and the other features enabled here).
 #[cfg(target_arch = "x86_64")]
 #[allow(clippy::incompatible_msrv)]
 #[target_feature(enable = "avx512f,avx512bw,avx512dq,avx512vl,avx2,fma,bmi1,bmi2,lzcnt,popcnt")]
@@ -431,58 +436,87 @@ unsafe fn block_avx512<D: DepthCodec, const COUNT: bool>(
     use std::arch::x86_64::*;
     let mut base = block_base::<COUNT>(tile, [rx0, ry0, rx1, ry1]);
     // SAFETY: the caller guarantees AVX-512; every load and store covers eight u32 at
-    // `base` for rows ry0..=ry1, all inside the buffers (see above); lanes past the block
-    // rewrite the values they read (masked by `cols`).
+    // `base` (the step's first row) or `base + TILE` (its second, only when that row is in
+    // the block), all inside the buffers (see `block_base`); lanes past the block rewrite
+    // the values they read (masked by `cols`).
     unsafe {
-        let lanes = _mm256_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7);
-        let cols: __mmask8 = (0xFFu32 >> (7 - (rx1 - rx0).clamp(0, 7))) as u8;
+        // Lane i: column i % 8 of the step's row i / 8.
+        let x = _mm512_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7, 0, 1, 2, 3, 4, 5, 6, 7);
+        let r = _mm512_setr_epi32(0, 0, 0, 0, 0, 0, 0, 0, 1, 1, 1, 1, 1, 1, 1, 1);
+        let cols8 = 0xFFu32 >> (7 - (rx1 - rx0).clamp(0, 7));
+        let cols: __mmask16 = (cols8 | cols8 << 8) as u16;
         let ev = |i: usize| {
-            _mm256_add_epi32(_mm256_set1_epi32(k.e[i]), _mm256_mullo_epi32(lanes, _mm256_set1_epi32(k.a[i])))
+            _mm512_add_epi32(
+                _mm512_add_epi32(_mm512_set1_epi32(k.e[i]), _mm512_mullo_epi32(x, _mm512_set1_epi32(k.a[i]))),
+                _mm512_mullo_epi32(r, _mm512_set1_epi32(k.b[i])),
+            )
         };
         let (mut e0, mut e1, mut e2) = (ev(0), ev(1), ev(2));
-        let (b0, b1, b2) = (_mm256_set1_epi32(k.b[0]), _mm256_set1_epi32(k.b[1]), _mm256_set1_epi32(k.b[2]));
+        let down2 = |i: usize| _mm512_set1_epi32(k.b[i].wrapping_mul(2));
+        let (b0, b1, b2) = (down2(0), down2(1), down2(2));
         let dx0 = (rx0 << SUBPIXEL_BITS) + ONE / 2 - t.x[0];
-        let dx = _mm256_add_epi32(_mm256_set1_epi32(dx0), _mm256_slli_epi32(lanes, SUBPIXEL_BITS as i32));
-        let zx = _mm256_mul_ps(_mm256_set1_ps(t.zx), _mm256_cvtepi32_ps(dx));
-        let zmin = _mm256_set1_ps(t.zmin);
-        let zero = _mm256_setzero_si256();
-        let one = _mm256_set1_epi32(1);
-        let id = _mm256_set1_epi32(t.id as i32);
+        let dx = _mm512_add_epi32(_mm512_set1_epi32(dx0), _mm512_slli_epi32::<{ SUBPIXEL_BITS }>(x));
+        let zx = _mm512_mul_ps(_mm512_set1_ps(t.zx), _mm512_cvtepi32_ps(dx));
+        let zmin = _mm512_set1_ps(t.zmin);
+        let zero = _mm512_setzero_si512();
+        let one = _mm512_set1_epi32(1);
+        let id = _mm512_set1_epi32(t.id as i32);
+        // `Tri::depth_row` of the step's rows, the same operations per lane.
+        let mut dy = _mm512_add_epi32(
+            _mm512_set1_epi32((ry0 << SUBPIXEL_BITS) + ONE / 2 - t.y[0]),
+            _mm512_slli_epi32::<{ SUBPIXEL_BITS }>(r),
+        );
+        let dy2 = _mm512_set1_epi32(2 << SUBPIXEL_BITS);
+        let (zy, z0) = (_mm512_set1_ps(t.zy), _mm512_set1_ps(t.z0));
         let (mut cov, mut wr) = (zero, zero);
         let dp = tile.depth.as_mut_ptr();
         let ip = tile.ids.as_mut_ptr();
         let cp = tile.counts.as_mut_ptr();
-        for &zr in &block_row_depths(t, ry0)[..(ry1 - ry0 + 1) as usize] {
-            let z = _mm256_max_ps(zmin, _mm256_add_ps(_mm256_set1_ps(zr), zx));
-            let inside = _mm256_mask_cmpge_epi32_mask(cols, _mm256_or_si256(_mm256_or_si256(e0, e1), e2), zero);
-            let key = D::key8(z);
-            let (d_at, i_at) = (dp.add(base) as *mut __m256i, ip.add(base) as *mut __m256i);
-            let (d, old) = (_mm256_loadu_si256(d_at), _mm256_loadu_si256(i_at));
-            // Signed compares, as in `block_avx2`; depth ties go to the smaller ID, as one
-            // compare against the key less one where the stored ID is larger.
-            let bar = _mm256_add_epi32(key, _mm256_cmpgt_epi32(old, id));
-            let pass = _mm256_mask_cmpgt_epi32_mask(inside, d, bar);
-            _mm256_storeu_si256(d_at, _mm256_mask_blend_epi32(pass, d, key));
-            _mm256_storeu_si256(i_at, _mm256_mask_blend_epi32(pass, old, id));
-            if COUNT {
-                let c_at = cp.add(base) as *mut __m256i;
-                let c = _mm256_loadu_si256(c_at);
-                _mm256_storeu_si256(c_at, _mm256_mask_add_epi32(c, inside, c, one));
+        // A step's rows from the buffer at `p` (the second only when `both`), and back.
+        let load = |p: *mut u32, both: bool| {
+            let lo = _mm512_castsi256_si512(_mm256_loadu_si256(p as *const __m256i));
+            if both {
+                _mm512_inserti64x4::<1>(lo, _mm256_loadu_si256(p.add(TILE as usize) as *const __m256i))
+            } else {
+                lo
             }
-            // In vectors, summed once per block: a mask's bit count per row is a chain of
-            // three scalar steps.
-            cov = _mm256_mask_add_epi32(cov, inside, cov, one);
-            wr = _mm256_mask_add_epi32(wr, pass, wr, one);
-            e0 = _mm256_add_epi32(e0, b0);
-            e1 = _mm256_add_epi32(e1, b1);
-            e2 = _mm256_add_epi32(e2, b2);
-            base += TILE as usize;
+        };
+        let store = |p: *mut u32, v: __m512i, both: bool| {
+            _mm256_storeu_si256(p as *mut __m256i, _mm512_castsi512_si256(v));
+            if both {
+                _mm256_storeu_si256(p.add(TILE as usize) as *mut __m256i, _mm512_extracti64x4_epi64::<1>(v));
+            }
+        };
+        let rows = ry1 - ry0 + 1;
+        for step in 0..(rows + 1) / 2 {
+            let both = 2 * step + 1 < rows;
+            let z =
+                _mm512_max_ps(zmin, _mm512_add_ps(_mm512_add_ps(z0, _mm512_mul_ps(zy, _mm512_cvtepi32_ps(dy))), zx));
+            let m = if both { cols } else { cols & 0xFF };
+            let inside = _mm512_mask_cmpge_epi32_mask(m, _mm512_or_si512(_mm512_or_si512(e0, e1), e2), zero);
+            let key = D::key16(z);
+            let (d_at, i_at) = (dp.add(base), ip.add(base));
+            let (d, old) = (load(d_at, both), load(i_at, both));
+            // Signed compares, as in `block_avx2`: the key less one where the stored ID is larger.
+            let bar = _mm512_mask_sub_epi32(key, _mm512_cmpgt_epi32_mask(old, id), key, one);
+            let pass = _mm512_mask_cmpgt_epi32_mask(inside, d, bar);
+            store(d_at, _mm512_mask_blend_epi32(pass, d, key), both);
+            store(i_at, _mm512_mask_blend_epi32(pass, old, id), both);
+            if COUNT {
+                let c_at = cp.add(base);
+                let c = load(c_at, both);
+                store(c_at, _mm512_mask_add_epi32(c, inside, c, one), both);
+            }
+            cov = _mm512_mask_add_epi32(cov, inside, cov, one);
+            wr = _mm512_mask_add_epi32(wr, pass, wr, one);
+            e0 = _mm512_add_epi32(e0, b0);
+            e1 = _mm512_add_epi32(e1, b1);
+            e2 = _mm512_add_epi32(e2, b2);
+            dy = _mm512_add_epi32(dy, dy2);
+            base += 2 * TILE as usize;
         }
-        let c = _mm_add_epi32(_mm256_castsi256_si128(cov), _mm256_extracti128_si256(cov, 1));
-        let w = _mm_add_epi32(_mm256_castsi256_si128(wr), _mm256_extracti128_si256(wr, 1));
-        let (c, w) = sum2(c, w);
-        out.covered += c;
-        out.written += w;
+        out.covered += _mm512_reduce_add_epi32(cov) as u32;
+        out.written += _mm512_reduce_add_epi32(wr) as u32;
     }
 }
 
