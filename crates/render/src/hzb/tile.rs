@@ -160,7 +160,7 @@ impl TileLevels {
         let (bx0, bx1) = (((rect[0] - sx) >> 3) as usize, ((rect[2] - sx) >> 3) as usize + 1);
         for by in ((rect[1] - sy) >> 3) as usize..((rect[3] - sy) >> 3) as usize + 1 {
             for &max in &level3[by * 8..][bx0..bx1] {
-                if max >= 1.0 || near <= max + self.tie_margin {
+                if !self.behind_block(near, max) {
                     return false;
                 }
             }
@@ -174,10 +174,16 @@ impl TileLevels {
     #[inline(always)]
     pub(crate) fn block_hidden(&self, t: &Tri, rect: [i32; 4], [bx, by]: [i32; 2]) -> bool {
         let max = self.mips[OFFSETS[2] + ((by >> 3) * 8 + (bx >> 3)) as usize];
-        if max >= 1.0 {
-            return false; // something is still clear here
-        }
-        t.plane_min(rect) > max + self.tie_margin
+        // The plane's nearest depth only where the block is drawn over.
+        max < 1.0 && self.behind_block(t.plane_min(rect), max)
+    }
+
+    /// True when depth `near` lies behind a block whose farthest drawn depth (level 3) is
+    /// `max`, by more than the tie margin; never for a block something is still clear in
+    /// (`max` 1), nor for a `near` that is not a number.
+    #[inline(always)]
+    fn behind_block(&self, near: f32, max: f32) -> bool {
+        max < 1.0 && near > max + self.tie_margin
     }
 
     /// Brings the level-3 texel of one 8×8 block (`[bx, by]`: any of its pixels, in tile
