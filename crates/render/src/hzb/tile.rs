@@ -140,7 +140,7 @@ impl TileLevels {
         let (tx0, tx1) = ((x0 >> level) as usize, (x1 >> level) as usize + 1);
         for y in (y0 >> level) as usize..(y1 >> level) as usize + 1 {
             for &texel in &self.mips[off + y * s..][tx0..tx1] {
-                if near <= texel + self.tie_margin {
+                if !self.behind_texel(near, texel) {
                     return false;
                 }
             }
@@ -160,7 +160,7 @@ impl TileLevels {
         let (bx0, bx1) = (((rect[0] - sx) >> 3) as usize, ((rect[2] - sx) >> 3) as usize + 1);
         for by in ((rect[1] - sy) >> 3) as usize..((rect[3] - sy) >> 3) as usize + 1 {
             for &max in &level3[by * 8..][bx0..bx1] {
-                if !self.behind_block(near, max) {
+                if !self.behind_texel(near, max) {
                     return false;
                 }
             }
@@ -175,14 +175,14 @@ impl TileLevels {
     pub(crate) fn block_hidden(&self, t: &Tri, rect: [i32; 4], [bx, by]: [i32; 2]) -> bool {
         let max = self.mips[OFFSETS[2] + ((by >> 3) * 8 + (bx >> 3)) as usize];
         // The plane's nearest depth only where the block is drawn over.
-        max < 1.0 && self.behind_block(t.plane_min(rect), max)
+        max < 1.0 && self.behind_texel(t.plane_min(rect), max)
     }
 
-    /// True when depth `near` lies behind a block whose farthest drawn depth (level 3) is
-    /// `max`, by more than the tie margin; never for a block something is still clear in
-    /// (`max` 1), nor for a `near` that is not a number.
+    /// The pyramid's one depth comparison: true when depth `near` lies behind a texel whose
+    /// farthest drawn depth is `max`, by more than the tie margin; never for a texel
+    /// something is still clear in (`max` 1), nor for a `near` that is not a number.
     #[inline(always)]
-    fn behind_block(&self, near: f32, max: f32) -> bool {
+    fn behind_texel(&self, near: f32, max: f32) -> bool {
         max < 1.0 && near > max + self.tie_margin
     }
 
