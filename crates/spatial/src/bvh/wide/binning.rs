@@ -132,6 +132,17 @@ impl Mapping {
     }
 }
 
+impl Mapping {
+    /// `self.bin(c, axis) < boundary` for a boundary in `1 .. count`, without the clamps
+    /// and the conversion: a position `x` (as `bin` computes it) lands below bin `boundary`
+    /// exactly when `x < boundary` (the clamps keep `x` under `boundary` or at least it),
+    /// or when `x` is not a number (bin 0).
+    #[inline(always)]
+    fn left_of(&self, c: Vec4, axis: usize, boundary: usize) -> bool {
+        !((c[axis] - self.origin[axis]) * self.scale[axis] >= boundary as f32)
+    }
+}
+
 /// Boxes and counts of the bins on each axis.
 pub(super) struct Bins {
     boxes: [[Bounds; BINS]; 3],
@@ -263,9 +274,9 @@ fn split_binned(
     // copy of the partition per axis, as a run-time axis costs a jump table per primitive.
     let run = (set.start, set.end);
     let (mid, lc, rc) = match axis {
-        0 => partition(prims, ids, run, |p| map.bin(p.centroid2(), 0) < boundary),
-        1 => partition(prims, ids, run, |p| map.bin(p.centroid2(), 1) < boundary),
-        _ => partition(prims, ids, run, |p| map.bin(p.centroid2(), 2) < boundary),
+        0 => partition(prims, ids, run, |p| map.left_of(p.centroid2(), 0, boundary)),
+        1 => partition(prims, ids, run, |p| map.left_of(p.centroid2(), 1, boundary)),
+        _ => partition(prims, ids, run, |p| map.left_of(p.centroid2(), 2, boundary)),
     };
     Some((
         Set { start: set.start, end: mid, bounds: left_box, centroids: lc, depth: set.depth + 1 },
@@ -342,6 +353,39 @@ fn split_middle(prims: &[Prim], set: &Set) -> (Set, Set) {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// [`Mapping::left_of`] answers as the bin numbers do, on centroids inside, at the ends
+    /// of and outside the mapped range, infinite and not a number, for every boundary of
+    /// mappings of every bin count (and of axes without extent).
+    #[test]
+    fn left_of_agrees_with_the_bin_numbers() {
+        let mut tested = 0;
+        for prims in [2usize, 30, 100, 600, 10_000] {
+            for (lo, hi) in [(0.0f32, 1.0f32), (-3.0, 7.5), (1e-3, 1e-3 + 1e-6), (-3e38, 3e38), (2.0, 2.0)] {
+                let c = Bounds { lo: Vec4::splat(lo), hi: Vec4::new(hi, lo, hi, 0.0) };
+                let map = Mapping::new(&c, prims);
+                let mut xs: Vec<f32> = vec![f32::NAN, f32::INFINITY, f32::NEG_INFINITY, f32::MAX, -f32::MAX, lo, hi];
+                xs.extend((0..=4000).map(|k| lo + (hi - lo) * (k as f32 / 4000.0)));
+                // Where positions come out at a bin boundary exactly, or nearly.
+                xs.extend((0..=map.count).map(|k| map.origin.x + k as f32 / map.scale.x).filter(|x| x.is_finite()));
+                xs.extend(xs.clone().iter().flat_map(|&x| [x.next_up(), x.next_down()]));
+                for &x in &xs {
+                    let v = Vec4::splat(x);
+                    for axis in 0..3 {
+                        for boundary in 1..map.count {
+                            assert_eq!(
+                                map.left_of(v, axis, boundary),
+                                map.bin(v, axis) < boundary,
+                                "x {x}, axis {axis}, boundary {boundary}, {prims} prims, range {lo}..{hi}"
+                            );
+                            tested += 1;
+                        }
+                    }
+                }
+            }
+        }
+        assert!(tested > 1_000_000, "{tested}");
+    }
 
     /// [`split_two`] gives, bit for bit, what the bins give, on pairs of boxes drawn from
     /// a few coordinates (so that centroids often tie on some axes, or on all, or overflow)
