@@ -181,9 +181,11 @@ impl Builder {
         let mut idx = [0, 1, 2, 3];
         idx[..nk].sort_unstable_by_key(|&k| kids[k].start);
         let idx = &idx[..nk];
+        // Slots are written in place as the children are built: a node assembled on the
+        // stack and copied in was read back in 16-byte loads over its 4-byte stores, which
+        // cannot be forwarded, a stall on every node.
         let me = out.nodes.len();
         out.nodes.push(WideNode::EMPTY);
-        let mut node = WideNode::EMPTY;
         let mut depth = 0;
         if set.len() >= PARALLEL_SUBTREE {
             // Cut the arrays into the children's ranges and build them as parallel tasks,
@@ -210,7 +212,7 @@ impl Builder {
                 .collect();
             for (slot, (root, d, piece)) in built.into_iter().enumerate() {
                 // The bounds now; the link when the pieces are laid out.
-                node.set(slot, &root);
+                out.nodes[me].set(slot, &root);
                 out.below.push(Below { node: me as u32, slot, root, piece });
                 depth = depth.max(d);
             }
@@ -218,11 +220,10 @@ impl Builder {
             for (slot, &k) in idx.iter().enumerate() {
                 let part = Part { prims: &mut *prims, ids: &mut *ids, offset };
                 let (c, d) = self.subtree(part, kids[k], out, scratch);
-                node.set(slot, &c);
+                out.nodes[me].set(slot, &c);
                 depth = depth.max(d);
             }
         }
-        out.nodes[me] = node;
         (WideChild { lo, link: me as u32, hi, count: 0 }, depth + 1)
     }
 }
