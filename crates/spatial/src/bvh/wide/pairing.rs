@@ -68,15 +68,14 @@ fn pair_fit(a: &[Vec3; 3], b: &[Vec3; 3]) -> f32 {
 /// (by surface area) than the two boxes together (a fit above 1), or for non-finite
 /// corners.
 fn completes(a: &[Vec3; 3], b: &[Vec3; 3]) -> Option<([u8; 2], f32)> {
-    let fit = pair_fit(a, b);
-    if fit > 1.0 {
-        return None;
-    }
+    // The shared edge first: it costs a few comparisons, the fit three boxes, and about
+    // half of the neighbours a mesh holds share no edge.
     let turns = (0..9u8).map(|k| [k % 3, k / 3]).find(|&[ka, kb]| {
         let (a, b) = (turned(a, ka), turned(b, kb));
         b[0] == a[0] && b[1] == a[2]
     })?;
-    Some((turns, fit))
+    let fit = pair_fit(a, b);
+    (fit <= 1.0).then_some((turns, fit))
 }
 
 /// One record before it is stored: the mesh indices of its one or two triangles and their
