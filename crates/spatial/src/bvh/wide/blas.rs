@@ -26,7 +26,7 @@ use glam::{Affine3A, Vec3};
 use rayon::prelude::*;
 use sightline_scene::{Aabb, Mesh};
 
-use super::pairing::{box_of, pair_up, turned, Pairing, NO_TRIANGLE};
+use super::pairing::{box_of, pair_up_after, read_triangles, turned, Pairing, NO_TRIANGLE};
 use super::{WideBuildParams, WideBvh};
 
 /// One or two triangles of a [`WideBlas`] that share an edge: triangle 0 is corners
@@ -106,8 +106,8 @@ impl WideBlas {
         // Each triangle's corners read once: in a mesh whose triangles are not stored near
         // their neighbours, each read misses the cache four times (an index, then three
         // positions), and the pairing, the boxes and the copy in leaf order each read them.
-        let tris: Vec<[Vec3; 3]> = (0..count).into_par_iter().map(&corners).collect();
-        let records = pair_up(&tris);
+        let (tris, joins) = read_triangles(count, &corners);
+        let records = pair_up_after(&tris, &joins);
         // Each pair saves a record.
         if 4 * (count - records.len()) < count {
             let bvh = WideBvh::build_fn(count, WideBuildParams::BLAS, |i| box_of(&tris[i]));
@@ -252,6 +252,7 @@ fn quads_in_leaf_order(tris: &[[Vec3; 3]], records: &[Pairing], once: bool) -> (
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::bvh::wide::pairing::pair_up;
     use crate::bvh::wide::pairing::tests::{strip, turns_to_pair};
 
     /// Triangle `i` of [`strip`], with each square's second triangle's corners taken in
