@@ -26,7 +26,7 @@ use glam::{Affine3A, Vec3};
 use rayon::prelude::*;
 use sightline_scene::{Aabb, Mesh};
 
-use super::pairing::{box_of, pair_up_after, read_triangles, turned, Pairing, NO_TRIANGLE};
+use super::pairing::{box_of, pair_up, read_triangles, turned, Pairing, NO_TRIANGLE};
 use super::{WideBuildParams, WideBvh};
 
 /// One or two triangles of a [`WideBlas`] that share an edge: triangle 0 is corners
@@ -107,7 +107,7 @@ impl WideBlas {
         // their neighbours, each read misses the cache four times (an index, then three
         // positions), and the pairing, the boxes and the copy in leaf order each read them.
         let (tris, joins) = read_triangles(count, &corners);
-        let records = pair_up_after(&tris, &joins);
+        let records = pair_up(&tris, &joins);
         // Each pair saves a record.
         if 4 * (count - records.len()) < count {
             let bvh = WideBvh::build_fn(count, WideBuildParams::BLAS, |i| box_of(&tris[i]));
@@ -252,8 +252,7 @@ fn quads_in_leaf_order(tris: &[[Vec3; 3]], records: &[Pairing], once: bool) -> (
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::bvh::wide::pairing::pair_up;
-    use crate::bvh::wide::pairing::tests::{strip, turns_to_pair};
+    use crate::bvh::wide::pairing::tests::{pair_mesh, strip, turns_to_pair};
 
     /// Triangle `i` of [`strip`], with each square's second triangle's corners taken in
     /// `order`.
@@ -377,7 +376,7 @@ mod tests {
         let (shuffled, _) = shuffled_strip(60);
         let neighbours: Vec<_> = (0..61).map(|i| shear(strip(i))).collect();
         for (tris, apart) in [(neighbours, false), ((0..60).map(|i| shear(shuffled(i))).collect(), true)] {
-            let records = pair_up(&tris);
+            let records = pair_mesh(&tris);
             assert_eq!(make_once(&records), apart, "pairs of neighbours are made twice, pairs apart once");
             let (a, qa) = quads_in_leaf_order(&tris, &records, true);
             let (b, qb) = quads_in_leaf_order(&tris, &records, false);

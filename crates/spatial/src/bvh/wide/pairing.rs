@@ -97,22 +97,6 @@ const CORNERS_AHEAD: usize = 16;
 /// across another edge can claim either triangle.
 const SURE_FIT: f32 = 0.75;
 
-/// Pairs triangles into quads, in two greedy passes.
-///
-/// 1. Each triangle with the next one when it completes it tightly (see [`SURE_FIT`]): the
-///    fan- or strip-made meshes of builders and exporters pair this way, their records in
-///    mesh order.
-/// 2. The triangles left with each other across a shared edge, whatever their places in the
-///    mesh (meshes reordered for the vertex cache, or triangulated in some other order):
-///    see [`mates_across_edges`].
-///
-/// Records come in order of their first triangle's mesh index. Linear but for the sorts.
-#[cfg(test)]
-pub(super) fn pair_up(tris: &[[Vec3; 3]]) -> Vec<Pairing> {
-    let (_, joins) = read_triangles(tris.len(), |i| tris[i]);
-    pair_up_after(tris, &joins)
-}
-
 /// The `count` triangles that `corners` gives, and pass 1 of [`pair_up`] on them: for each
 /// triangle `i > 0`, the turns that pair triangle `i - 1` with it when it completes that one
 /// tightly (`joins[i]`; `joins[0]` is `None`). One pass does both, each triangle tested
@@ -142,8 +126,18 @@ pub(super) fn read_triangles(
         .unzip()
 }
 
-/// [`pair_up`] after pass 1 (`joins`, from [`read_triangles`]).
-pub(super) fn pair_up_after(tris: &[[Vec3; 3]], joins: &[Option<[u8; 2]>]) -> Vec<Pairing> {
+/// Pairs triangles into quads, in two greedy passes.
+///
+/// 1. Each triangle with the next one when it completes it tightly (see [`SURE_FIT`]): the
+///    fan- or strip-made meshes of builders and exporters pair this way, their records in
+///    mesh order.
+/// 2. The triangles left with each other across a shared edge, whatever their places in the
+///    mesh (meshes reordered for the vertex cache, or triangulated in some other order):
+///    see [`mates_across_edges`].
+///
+/// Pass 1 comes from [`read_triangles`] (`joins`), which runs it as the mesh is read.
+/// Records come in order of their first triangle's mesh index. Linear but for the sorts.
+pub(super) fn pair_up(tris: &[[Vec3; 3]], joins: &[Option<[u8; 2]>]) -> Vec<Pairing> {
     let count = tris.len();
     // Turns pairing triangle `i` with triangle `i + 1`.
     let next = |i: usize| joins.get(i + 1).copied().flatten();
@@ -289,6 +283,12 @@ fn corner_hash(p: Vec3) -> u64 {
 pub(super) mod tests {
     use super::*;
 
+    /// [`pair_up`] of a mesh's triangles, pass 1 included.
+    pub(in crate::bvh::wide) fn pair_mesh(tris: &[[Vec3; 3]]) -> Vec<Pairing> {
+        let (_, joins) = read_triangles(tris.len(), |i| tris[i]);
+        pair_up(tris, &joins)
+    }
+
     /// The turns with which `b` completes `a` ([`completes`]).
     pub(in crate::bvh::wide) fn turns_to_pair(a: &[Vec3; 3], b: &[Vec3; 3]) -> Option<[u8; 2]> {
         completes(a, b).map(|(turns, _)| turns)
@@ -315,7 +315,7 @@ pub(super) mod tests {
         let flat = [a, c, Vec3::new(0.5, 1.0, 0.0)];
         assert!(turns_to_pair(&long, &across).is_none() && turns_to_pair(&long, &flat).is_some());
         let mesh = [long, across, flat];
-        let records = pair_up(&mesh);
+        let records = pair_mesh(&mesh);
         assert_eq!(records.iter().map(|r| r.0).collect::<Vec<_>>(), [[0, 2], [1, NO_TRIANGLE]]);
     }
 
@@ -329,7 +329,7 @@ pub(super) mod tests {
         // One candidate per copy of the diagonal, not one per pair of copies.
         let all: Vec<u32> = (0..n as u32).collect();
         assert_eq!(across_edges(&copies, &all).len(), n / 2);
-        let records = pair_up(&copies);
+        let records = pair_mesh(&copies);
         // Every triangle runs the diagonal: one half's copies one way, the other's the other.
         assert!(records.windows(2).all(|w| w[0].0[0] < w[1].0[0]));
         assert_eq!(records.len(), n / 2, "every copy of one half pairs with a copy of the other");
@@ -356,7 +356,7 @@ pub(super) mod tests {
         let mesh: Vec<[Vec3; 3]> = (0..2 * n).map(|i| strip(source(i))).collect();
         assert_eq!(pair_fit(&mesh[0], &mesh[1]), 1.0);
         assert!(completes(&mesh[0], &mesh[1]).is_some(), "a neighbour that would complete a quad");
-        let records = pair_up(&mesh);
+        let records = pair_mesh(&mesh);
         assert_eq!(records.len(), n);
         for ([a, b], _) in records {
             assert_ne!(b, NO_TRIANGLE);
@@ -375,7 +375,7 @@ pub(super) mod tests {
         mesh.extend((0..4000).map(|i| strip(i / 1000 % 4)));
         let on = |threads: usize| {
             let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap();
-            pool.install(|| pair_up(&mesh))
+            pool.install(|| pair_mesh(&mesh))
         };
         let one = on(1);
         assert_eq!(one, on(2));
@@ -435,7 +435,7 @@ pub(super) mod tests {
             })
             .collect();
         want.sort_unstable();
-        let got: Vec<[u32; 2]> = pair_up(&shuffled).into_iter().map(|r| r.0).collect();
+        let got: Vec<[u32; 2]> = pair_mesh(&shuffled).into_iter().map(|r| r.0).collect();
         assert_eq!(got, want);
     }
 
@@ -447,7 +447,7 @@ pub(super) mod tests {
         assert!(negated[0].x.is_sign_negative());
         // The two halves of square 0 apart in the mesh, square 1's first half between.
         let mesh = [strip(0), strip(2), negated];
-        let records = pair_up(&mesh);
+        let records = pair_mesh(&mesh);
         assert_eq!(records.iter().map(|r| r.0).collect::<Vec<_>>(), [[0, 2], [1, NO_TRIANGLE]]);
     }
 
