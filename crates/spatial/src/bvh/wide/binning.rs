@@ -130,9 +130,7 @@ impl Mapping {
         // SAFETY: `f` is a number in 0 ..= count - 1 (`max` maps NaN to 0), so it fits.
         unsafe { f.to_int_unchecked::<u32>() as usize }
     }
-}
 
-impl Mapping {
     /// `self.bin(c, axis) < boundary` for a boundary in `1 .. count`, without the clamps
     /// and the conversion: a position `x` (as `bin` computes it) lands below bin `boundary`
     /// exactly when `x < boundary` (the clamps keep `x` under `boundary` or at least it),
