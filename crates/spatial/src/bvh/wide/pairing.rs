@@ -289,6 +289,31 @@ pub(super) mod tests {
         pair_up(tris, &joins)
     }
 
+    /// [`read_triangles`] gives each triangle's join with the one before it, as testing
+    /// every neighbouring pair one by one does, on every pool size: where a worker's run of
+    /// triangles starts, the triangle before the run is read once more.
+    #[test]
+    fn joins_read_with_the_mesh_are_those_of_every_neighbouring_pair() {
+        // The two halves of one square over and over, so that every neighbouring pair
+        // joins (wherever the pool cuts the runs), but for every seventh triangle, from a
+        // square far away, which joins neither neighbour.
+        let mesh: Vec<[Vec3; 3]> =
+            (0..60_000).map(|i| if i % 7 == 3 { strip(20 + 2 * (i % 5)) } else { strip(i % 2) }).collect();
+        let want: Vec<Option<[u8; 2]>> = (0..mesh.len())
+            .map(|i| {
+                let (turns, fit) = completes(&mesh[i.checked_sub(1)?], &mesh[i])?;
+                (fit <= SURE_FIT).then_some(turns)
+            })
+            .collect();
+        assert!(want.iter().filter(|j| j.is_some()).count() > 40_000);
+        for threads in [1, 2, 3] {
+            let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap();
+            let (tris, joins) = pool.install(|| read_triangles(mesh.len(), |i| mesh[i]));
+            assert_eq!(tris, mesh);
+            assert_eq!(joins, want, "{threads} threads");
+        }
+    }
+
     /// The turns with which `b` completes `a` ([`completes`]).
     pub(in crate::bvh::wide) fn turns_to_pair(a: &[Vec3; 3], b: &[Vec3; 3]) -> Option<[u8; 2]> {
         completes(a, b).map(|(turns, _)| turns)
