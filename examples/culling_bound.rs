@@ -18,10 +18,13 @@
 //! The oracle draws its triangles as runs of their meshes, and a run's vertex transform
 //! covers every vertex from its least index to its greatest: where the visible triangles lie
 //! scattered over big meshes (the 10^9-triangle city's), that costs more per triangle than
-//! `hzb`'s meshlet ranges. So the same triangles are drawn once more as meshes of their own,
-//! each holding only the vertices its triangles use (built beforehand, not timed; the same
-//! vertices under the same matrices, in the same order, so the frame is the oracle's with
-//! other IDs, mapped back and checked): the compact oracle, the tighter floor.
+//! `hzb`'s meshlet ranges, so there the oracle is no floor for the geometry stage. So the
+//! same triangles are drawn once more as meshes of their own, each holding only the vertices
+//! its triangles use (built beforehand, not timed; the same vertices under the same
+//! matrices, in the same order, so the frame is the oracle's with other IDs, mapped back and
+//! checked): the compact oracle. Its data lie together, as no frame drawn from the scene's
+//! own meshes finds them (its face records, which shading reads, too), so it is a lower
+//! floor, one that holds where the oracle's does not.
 //!
 //! A second bound is for culling whole clusters by their boxes and normal cones, as `hzb`
 //! does: a cluster can be skipped only when all its triangles face away (its cone says so),
