@@ -417,6 +417,8 @@ impl Compact {
     fn of(scene: &Scene, instances: &[Instance], items: &[DrawItem]) -> Result<Compact, Error> {
         let mut out = Scene::new();
         let mut original = Vec::new();
+        // Each material in effect added once, as the scene holds it once.
+        let mut materials = HashMap::new();
         let mut k = 0;
         while k < items.len() {
             let instance = items[k].instance;
@@ -448,7 +450,9 @@ impl Compact {
             let normals = mesh.normals().is_some().then_some(normals);
             let uvs = mesh.uvs().is_some().then_some(uvs);
             let m = out.add_mesh(Mesh::new(mesh.name(), positions, normals, uvs, indices)?);
-            let material = out.add_material(scene.instance_material(inst).clone());
+            let material = *materials
+                .entry(inst.material)
+                .or_insert_with(|| out.add_material(scene.instance_material(inst).clone()));
             out.add_node(None, NodeDesc::new("visible").mesh(m).material(material).matrix(inst.world_from_local))?;
         }
         out.update_transforms();
