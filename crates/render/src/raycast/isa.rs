@@ -1,5 +1,5 @@
 //! The kernels written per instruction set, each returning a bit mask: the slab test of 16
-//! packet lanes against a box, a lane comparison (`le16`), and the beam test of a node's
+//! packet lanes against a box, lane comparisons (`le16`, `ne16`), and the beam test of a node's
 //! four boxes against a packet's four planes (`culls4`).
 //!
 //! Everything else is plain Rust that LLVM vectorizes for whichever target features the
@@ -47,6 +47,12 @@ pub(crate) trait Isa: Copy {
     /// As for [`Isa::slab16`].
     unsafe fn le16(a: &[f32; CHUNK], b: &[f32; CHUNK]) -> u64;
 
+    /// Bit `j` set when `a[j] ≠ v`.
+    ///
+    /// # Safety
+    /// As for [`Isa::slab16`].
+    unsafe fn ne16(a: &[u32; CHUNK], v: u32) -> u64;
+
     /// [`BeamPlanes::culls4`]: bit `k` set when child `k`'s box is outside one of the beam's
     /// planes, with the same IEEE operations in the same order.
     ///
@@ -85,6 +91,15 @@ impl Isa for Portable {
         let mut m = 0u64;
         for j in 0..CHUNK {
             m |= ((a[j] <= b[j]) as u64) << j;
+        }
+        m
+    }
+
+    #[inline(always)]
+    unsafe fn ne16(a: &[u32; CHUNK], v: u32) -> u64 {
+        let mut m = 0u64;
+        for (j, &x) in a.iter().enumerate() {
+            m |= ((x != v) as u64) << j;
         }
         m
     }
@@ -134,6 +149,11 @@ mod x86 {
         #[inline(always)]
         unsafe fn le16(a: &[f32; CHUNK], b: &[f32; CHUNK]) -> u64 {
             le_avx2(a, b)
+        }
+
+        #[inline(always)]
+        unsafe fn ne16(a: &[u32; CHUNK], v: u32) -> u64 {
+            ne_avx2(a, v)
         }
 
         #[inline(always)]
@@ -199,6 +219,19 @@ mod x86 {
         m
     }
 
+    #[target_feature(enable = "avx2")]
+    #[inline]
+    unsafe fn ne_avx2(a: &[u32; CHUNK], v: u32) -> u64 {
+        let v = _mm256_set1_epi32(v as i32);
+        let mut m = 0u64;
+        for at in [0, 8] {
+            // SAFETY: `at` is 0 or 8 and the array has 16 lanes.
+            let eq = _mm256_cmpeq_epi32(_mm256_loadu_si256(a.as_ptr().add(at).cast()), v);
+            m |= (!_mm256_movemask_ps(_mm256_castsi256_ps(eq)) as u32 as u64 & 0xFF) << at;
+        }
+        m
+    }
+
     // AVX-512 intrinsics and target features are stable since Rust 1.89 (the workspace
     // declares an older rust-version; this path needs 1.89).
     #[allow(clippy::incompatible_msrv)]
@@ -232,6 +265,11 @@ mod x86 {
         #[inline(always)]
         unsafe fn le16(a: &[f32; CHUNK], b: &[f32; CHUNK]) -> u64 {
             le_avx512(a, b)
+        }
+
+        #[inline(always)]
+        unsafe fn ne16(a: &[u32; CHUNK], v: u32) -> u64 {
+            ne_avx512(a, v)
         }
     }
 
@@ -279,6 +317,13 @@ mod x86 {
     unsafe fn le_avx512(a: &[f32; CHUNK], b: &[f32; CHUNK]) -> u64 {
         _mm512_cmp_ps_mask::<_CMP_LE_OQ>(_mm512_loadu_ps(a.as_ptr()), _mm512_loadu_ps(b.as_ptr())) as u64
     }
+
+    #[allow(clippy::incompatible_msrv)]
+    #[target_feature(enable = "avx512f")]
+    #[inline]
+    unsafe fn ne_avx512(a: &[u32; CHUNK], v: u32) -> u64 {
+        _mm512_cmpneq_epu32_mask(_mm512_loadu_si512(a.as_ptr().cast()), _mm512_set1_epi32(v as i32)) as u64
+    }
 }
 
 #[cfg(not(target_arch = "x86_64"))]
@@ -292,6 +337,11 @@ impl Isa for Avx2 {
     unsafe fn le16(a: &[f32; CHUNK], b: &[f32; CHUNK]) -> u64 {
         Portable::le16(a, b)
     }
+
+    #[inline(always)]
+    unsafe fn ne16(a: &[u32; CHUNK], v: u32) -> u64 {
+        Portable::ne16(a, v)
+    }
 }
 
 #[cfg(not(target_arch = "x86_64"))]
@@ -304,6 +354,11 @@ impl Isa for Avx512 {
     #[inline(always)]
     unsafe fn le16(a: &[f32; CHUNK], b: &[f32; CHUNK]) -> u64 {
         Portable::le16(a, b)
+    }
+
+    #[inline(always)]
+    unsafe fn ne16(a: &[u32; CHUNK], v: u32) -> u64 {
+        Portable::ne16(a, v)
     }
 }
 
@@ -393,6 +448,30 @@ mod tests {
                 }
                 if std::is_x86_feature_detected!("avx512f") {
                     assert_eq!(unsafe { Avx512::le16(&a, &b) }, want);
+                }
+            }
+        }
+    }
+
+    /// Every instruction set's inequality mask gives the portable bits, in both halves of
+    /// the chunk, for values equal to the one compared against, above it and below it.
+    #[test]
+    fn lane_inequalities_agree_across_instruction_sets() {
+        for v in [0u32, 1, 7, u32::MAX] {
+            for pattern in [0u32, 0xFFFF, 0x8001, 0x00F0, 0x5A5A, 0x1234] {
+                let a: [u32; CHUNK] =
+                    std::array::from_fn(|j| if pattern >> j & 1 == 1 { v } else { v.wrapping_add(j as u32 + 1) });
+                // SAFETY: the portable kernel needs nothing; the others run only when detected.
+                let want = unsafe { Portable::ne16(&a, v) };
+                assert_eq!(want, !pattern as u64 & 0xFFFF, "{v} {pattern:#x}");
+                #[cfg(target_arch = "x86_64")]
+                {
+                    if std::is_x86_feature_detected!("avx2") {
+                        assert_eq!(unsafe { Avx2::ne16(&a, v) }, want);
+                    }
+                    if std::is_x86_feature_detected!("avx512f") {
+                        assert_eq!(unsafe { Avx512::ne16(&a, v) }, want);
+                    }
                 }
             }
         }

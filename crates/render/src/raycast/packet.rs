@@ -134,10 +134,25 @@ impl Rays {
     /// (after the directions of a whole chunk are written).
     #[inline(always)]
     pub fn derive_chunk(&mut self, c: usize) {
+        // The permutations are kept in 32-bit lanes until the chunk is done: stored byte by
+        // byte as they were made, they kept the loop from vectorizing.
+        let mut perm = [0u32; CHUNK];
+        #[allow(clippy::needless_range_loop)] // lane j of several SoA arrays
         for j in 0..CHUNK {
-            self.derive_lane(c, j);
+            let d = [self.d[0][c][j], self.d[1][c][j], self.d[2][c][j]];
+            let (p, sh) = shear_of(d);
+            for a in 0..3 {
+                self.r[a][c][j] = safe_recip(d[a]);
+                self.s[a][c][j] = sh[a];
+            }
+            perm[j] = p as u32;
         }
-        self.uniform[c] = uniform_perm(&self.perm[c]);
+        let first = perm[0];
+        let uniform = perm.iter().fold(true, |all, &q| all & (q == first));
+        for (b, p) in self.perm[c].iter_mut().zip(perm) {
+            *b = p as u8;
+        }
+        self.uniform[c] = if uniform { first as u8 } else { MIXED };
     }
 
     /// Origin of lane `i`.
