@@ -41,6 +41,14 @@ pub(crate) trait Isa: Copy {
     /// The CPU must support the instruction set (checked once by `SimdLevel::resolve`).
     unsafe fn slab16(s: &Slab<'_>, lo: &[f32; 3], hi: &[f32; 3]) -> u64;
 
+    /// [`Isa::slab16`] for lanes that all start at one origin, given the box's corners
+    /// relative to it (`lo − o`, `hi − o`, computed once for every chunk): the same bits,
+    /// since each lane's `(lo − o)` was that same difference. `s.o` is not read.
+    ///
+    /// # Safety
+    /// As for [`Isa::slab16`].
+    unsafe fn slab16_shared(s: &Slab<'_>, dlo: &[f32; 3], dhi: &[f32; 3]) -> u64;
+
     /// Bit `j` set when `a[j] ≤ b[j]` (false for NaN).
     ///
     /// # Safety
@@ -78,6 +86,23 @@ impl Isa for Portable {
             for a in 0..3 {
                 let t0 = (lo[a] - s.o[a][j]) * s.r[a][j];
                 let t1 = (hi[a] - s.o[a][j]) * s.r[a][j];
+                near = mx(mn(t0, t1), near);
+                far = mn(mx(t0, t1), far);
+            }
+            m |= ((near <= far * ROBUST) as u64) << j;
+        }
+        m
+    }
+
+    #[inline(always)]
+    unsafe fn slab16_shared(s: &Slab<'_>, dlo: &[f32; 3], dhi: &[f32; 3]) -> u64 {
+        let mut m = 0u64;
+        for j in 0..CHUNK {
+            let mut near = s.tmin[j];
+            let mut far = s.tmax[j];
+            for a in 0..3 {
+                let t0 = dlo[a] * s.r[a][j];
+                let t1 = dhi[a] * s.r[a][j];
                 near = mx(mn(t0, t1), near);
                 far = mn(mx(t0, t1), far);
             }
@@ -140,10 +165,33 @@ mod x86 {
         _mm256_movemask_ps(ok) as u32
     }
 
+    /// [`half`] from the box's corners relative to the lanes' one origin.
+    #[target_feature(enable = "avx2")]
+    #[inline]
+    unsafe fn half_shared(s: &Slab<'_>, dlo: &[f32; 3], dhi: &[f32; 3], at: usize) -> u32 {
+        // SAFETY (all loads): `at` is 0 or 8 and every array has 16 lanes.
+        let mut near = _mm256_loadu_ps(s.tmin.as_ptr().add(at));
+        let mut far = _mm256_loadu_ps(s.tmax.as_ptr().add(at));
+        for a in 0..3 {
+            let r = _mm256_loadu_ps(s.r[a].as_ptr().add(at));
+            let t0 = _mm256_mul_ps(_mm256_set1_ps(dlo[a]), r);
+            let t1 = _mm256_mul_ps(_mm256_set1_ps(dhi[a]), r);
+            near = _mm256_max_ps(_mm256_min_ps(t0, t1), near);
+            far = _mm256_min_ps(_mm256_max_ps(t0, t1), far);
+        }
+        let ok = _mm256_cmp_ps::<_CMP_LE_OQ>(near, _mm256_mul_ps(far, _mm256_set1_ps(ROBUST)));
+        _mm256_movemask_ps(ok) as u32
+    }
+
     impl Isa for Avx2 {
         #[inline(always)]
         unsafe fn slab16(s: &Slab<'_>, lo: &[f32; 3], hi: &[f32; 3]) -> u64 {
             (half(s, lo, hi, 0) | half(s, lo, hi, 8) << 8) as u64
+        }
+
+        #[inline(always)]
+        unsafe fn slab16_shared(s: &Slab<'_>, dlo: &[f32; 3], dhi: &[f32; 3]) -> u64 {
+            (half_shared(s, dlo, dhi, 0) | half_shared(s, dlo, dhi, 8) << 8) as u64
         }
 
         #[inline(always)]
@@ -251,10 +299,32 @@ mod x86 {
         _mm512_cmp_ps_mask::<_CMP_LE_OQ>(near, _mm512_mul_ps(far, _mm512_set1_ps(ROBUST))) as u64
     }
 
+    /// [`full`] from the box's corners relative to the lanes' one origin.
+    #[allow(clippy::incompatible_msrv)]
+    #[target_feature(enable = "avx512f")]
+    #[inline]
+    unsafe fn full_shared(s: &Slab<'_>, dlo: &[f32; 3], dhi: &[f32; 3]) -> u64 {
+        let mut near = _mm512_loadu_ps(s.tmin.as_ptr());
+        let mut far = _mm512_loadu_ps(s.tmax.as_ptr());
+        for a in 0..3 {
+            let r = _mm512_loadu_ps(s.r[a].as_ptr());
+            let t0 = _mm512_mul_ps(_mm512_set1_ps(dlo[a]), r);
+            let t1 = _mm512_mul_ps(_mm512_set1_ps(dhi[a]), r);
+            near = _mm512_max_ps(_mm512_min_ps(t0, t1), near);
+            far = _mm512_min_ps(_mm512_max_ps(t0, t1), far);
+        }
+        _mm512_cmp_ps_mask::<_CMP_LE_OQ>(near, _mm512_mul_ps(far, _mm512_set1_ps(ROBUST))) as u64
+    }
+
     impl Isa for Avx512 {
         #[inline(always)]
         unsafe fn slab16(s: &Slab<'_>, lo: &[f32; 3], hi: &[f32; 3]) -> u64 {
             full(s, lo, hi)
+        }
+
+        #[inline(always)]
+        unsafe fn slab16_shared(s: &Slab<'_>, dlo: &[f32; 3], dhi: &[f32; 3]) -> u64 {
+            full_shared(s, dlo, dhi)
         }
 
         #[inline(always)]
@@ -334,6 +404,11 @@ impl Isa for Avx2 {
     }
 
     #[inline(always)]
+    unsafe fn slab16_shared(s: &Slab<'_>, dlo: &[f32; 3], dhi: &[f32; 3]) -> u64 {
+        Portable::slab16_shared(s, dlo, dhi)
+    }
+
+    #[inline(always)]
     unsafe fn le16(a: &[f32; CHUNK], b: &[f32; CHUNK]) -> u64 {
         Portable::le16(a, b)
     }
@@ -349,6 +424,11 @@ impl Isa for Avx512 {
     #[inline(always)]
     unsafe fn slab16(s: &Slab<'_>, lo: &[f32; 3], hi: &[f32; 3]) -> u64 {
         Portable::slab16(s, lo, hi)
+    }
+
+    #[inline(always)]
+    unsafe fn slab16_shared(s: &Slab<'_>, dlo: &[f32; 3], dhi: &[f32; 3]) -> u64 {
+        Portable::slab16_shared(s, dlo, dhi)
     }
 
     #[inline(always)]
@@ -451,6 +531,67 @@ mod tests {
                 }
             }
         }
+    }
+
+    /// Every instruction set's slab test gives the portable bits, and for lanes that share
+    /// an origin the shared-origin form gives the same bits as the general one: random
+    /// boxes and directions, with zero, infinite and NaN components mixed in, against
+    /// intervals that are empty, open or cut short.
+    #[test]
+    fn slab_tests_agree_across_instruction_sets_and_origins() {
+        let mut seed = 0x9e37_79b9_7f4a_7c15u64;
+        let mut next = move || {
+            seed ^= seed << 13;
+            seed ^= seed >> 7;
+            seed ^= seed << 17;
+            (seed >> 40) as f32 / (1u64 << 24) as f32 * 8.0 - 4.0
+        };
+        let special = [0.0f32, -0.0, f32::INFINITY, f32::NEG_INFINITY, f32::NAN, 1e-20];
+        let mut hits = 0;
+        for round in 0..3000 {
+            let origin = [next(), next(), next()];
+            let o: [[f32; CHUNK]; 3] = origin.map(|v| [v; CHUNK]);
+            let mut r = [[0f32; CHUNK]; 3];
+            let (mut tmin, mut tmax) = ([0f32; CHUNK], [0f32; CHUNK]);
+            for j in 0..CHUNK {
+                for row in r.iter_mut() {
+                    row[j] = 1.0 / next();
+                }
+                (tmin[j], tmax[j]) = (next().abs() * 0.1, next().abs() * 4.0);
+            }
+            r[round % 3][round % CHUNK] = special[round % special.len()];
+            if round % 7 == 0 {
+                tmax[3] = f32::INFINITY;
+            }
+            let (mut lo, mut hi) = ([0f32; 3], [0f32; 3]);
+            for a in 0..3 {
+                let (p, q) = (next(), next());
+                (lo[a], hi[a]) = (p.min(q), p.max(q));
+            }
+            if round % 5 == 0 {
+                lo[round % 3] = special[round / 5 % special.len()];
+            }
+            let dlo = [0, 1, 2].map(|a| lo[a] - origin[a]);
+            let dhi = [0, 1, 2].map(|a| hi[a] - origin[a]);
+            let s = Slab { o: [&o[0], &o[1], &o[2]], r: [&r[0], &r[1], &r[2]], tmin: &tmin, tmax: &tmax };
+            // SAFETY: the portable kernel needs nothing; the others run only when detected.
+            let want = unsafe { Portable::slab16(&s, &lo, &hi) };
+            hits += want.count_ones();
+            assert_eq!(unsafe { Portable::slab16_shared(&s, &dlo, &dhi) }, want, "round {round}");
+            #[cfg(target_arch = "x86_64")]
+            {
+                if std::is_x86_feature_detected!("avx2") {
+                    assert_eq!(unsafe { Avx2::slab16(&s, &lo, &hi) }, want, "round {round}");
+                    assert_eq!(unsafe { Avx2::slab16_shared(&s, &dlo, &dhi) }, want, "round {round}");
+                }
+                if std::is_x86_feature_detected!("avx512f") {
+                    assert_eq!(unsafe { Avx512::slab16(&s, &lo, &hi) }, want, "round {round}");
+                    assert_eq!(unsafe { Avx512::slab16_shared(&s, &dlo, &dhi) }, want, "round {round}");
+                }
+            }
+        }
+        // Both outcomes occur.
+        assert!(hits > 2000 && hits < 40000, "{hits}");
     }
 
     /// Every instruction set's inequality mask gives the portable bits, in both halves of

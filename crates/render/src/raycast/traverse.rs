@@ -41,22 +41,37 @@ pub(crate) type Entry = (u32, u32, u64);
 /// Lanes of `mask` whose interval meets the box.
 #[inline(always)]
 pub(crate) fn box_mask<I: Isa>(rays: &Rays, hits: &Hits, lo: &[f32; 3], hi: &[f32; 3], mask: u64) -> u64 {
+    let chunk = |c: usize| Slab {
+        o: [&rays.o[0][c], &rays.o[1][c], &rays.o[2][c]],
+        r: [&rays.r[0][c], &rays.r[1][c], &rays.r[2][c]],
+        tmin: &hits.tmin[c],
+        tmax: &hits.t[c],
+    };
     let mut out = 0u64;
-    for c in 0..CHUNKS {
-        let bits = chunk_bits(mask, c);
-        if bits == 0 {
-            continue;
+    // SAFETY (both kernels): `I` is only instantiated for an instruction set the CPU has
+    // (`SimdLevel::resolve`).
+    match rays.shared {
+        // One origin for every lane (a perspective camera's rays): the box's corners relative
+        // to it are found once for all chunks instead of once per lane.
+        Some(o) => {
+            let o = o.to_array();
+            let dlo = [lo[0] - o[0], lo[1] - o[1], lo[2] - o[2]];
+            let dhi = [hi[0] - o[0], hi[1] - o[1], hi[2] - o[2]];
+            for c in 0..CHUNKS {
+                let bits = chunk_bits(mask, c);
+                if bits != 0 {
+                    out |= (unsafe { I::slab16_shared(&chunk(c), &dlo, &dhi) } & bits) << (c * CHUNK);
+                }
+            }
         }
-        let s = Slab {
-            o: [&rays.o[0][c], &rays.o[1][c], &rays.o[2][c]],
-            r: [&rays.r[0][c], &rays.r[1][c], &rays.r[2][c]],
-            tmin: &hits.tmin[c],
-            tmax: &hits.t[c],
-        };
-        // SAFETY: `I` is only instantiated for an instruction set the CPU has
-        // (`SimdLevel::resolve`).
-        let m = unsafe { I::slab16(&s, lo, hi) };
-        out |= (m & bits) << (c * CHUNK);
+        None => {
+            for c in 0..CHUNKS {
+                let bits = chunk_bits(mask, c);
+                if bits != 0 {
+                    out |= (unsafe { I::slab16(&chunk(c), lo, hi) } & bits) << (c * CHUNK);
+                }
+            }
+        }
     }
     out
 }
