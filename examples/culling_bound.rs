@@ -13,7 +13,10 @@
 //! depend on culling, so `brute / oracle` is the largest speed-up any culling can give this
 //! renderer. Each oracle frame's ID buffer is checked to equal the brute-force one. It is
 //! timed after an untimed draw of itself, so that its renderer's buffers are warm, as the
-//! culler's are from frame to frame.
+//! culler's are from frame to frame; so is every other reference frame below (timed on
+//! their first draw, right after other frames, they read 3–10% longer: the clusters holding
+//! a visible triangle in one session batch 2.40–2.44 against 2.20–2.23 ms, the oracle in a
+//! session 2.24–2.30 against 2.16–2.17 ms).
 //!
 //! The oracle draws its triangles as runs of their meshes, and a run's vertex transform
 //! covers every vertex from its least index to its greatest: where the visible triangles lie
@@ -181,13 +184,17 @@ fn run() -> Result<(), Error> {
             if let Some(m) = compare_ids(&reference.ids, &compact.original_ids(&fb.ids), fb.width()) {
                 return Err(format!("frame {k}: the compact oracle frame differs: {m:?}").into());
             }
-            // The same triangles drawn in a frame session, as the culling methods draw.
-            let t = Instant::now();
+            // The same triangles drawn in a frame session, as the culling methods draw
+            // (timed after an untimed draw, as the oracle is).
             let scene = world.scene();
-            session_frame(&mut renderer, scene, &instances, cam, &mut fb, &opts, |s| {
-                s.draw(scene, &instances, &items.0, cam)
-            })?;
-            let in_session = ms(t);
+            let mut in_session = 0.0;
+            for _ in 0..2 {
+                let t = Instant::now();
+                session_frame(&mut renderer, scene, &instances, cam, &mut fb, &opts, |s| {
+                    s.draw(scene, &instances, &items.0, cam)
+                })?;
+                in_session = ms(t);
+            }
             if let Some(m) = compare_ids(&reference.ids, &fb.ids, fb.width()) {
                 return Err(format!("frame {k}: the oracle drawn in a session differs: {m:?}").into());
             }
@@ -214,6 +221,7 @@ fn run() -> Result<(), Error> {
             };
             let mut cluster_ms = [0.0; 3];
             for (ms_k, draw) in cluster_ms.iter_mut().zip(&draws) {
+                renderer.render(world.scene(), &instances, draw, cam, &mut fb, &opts)?;
                 let t = Instant::now();
                 renderer.render(world.scene(), &instances, draw, cam, &mut fb, &opts)?;
                 *ms_k = ms(t);
@@ -226,11 +234,13 @@ fn run() -> Result<(), Error> {
             // About the least a culler of whole clusters drawing into a session costs: the
             // clusters it must draw, in one batch, nearest first, drawn as `hzb` draws them.
             let (culler, scene) = world.culler_and_scene()?;
-            let t = Instant::now();
-            session_frame(&mut renderer, scene, &instances, cam, &mut fb, &opts, |s| {
-                culler.draw_clusters(s, &ordered, cam)
-            })?;
-            cluster_ms[2] = ms(t);
+            for _ in 0..2 {
+                let t = Instant::now();
+                session_frame(&mut renderer, scene, &instances, cam, &mut fb, &opts, |s| {
+                    culler.draw_clusters(s, &ordered, cam)
+                })?;
+                cluster_ms[2] = ms(t);
+            }
             if let Some(m) = compare_ids(&reference.ids, &fb.ids, fb.width()) {
                 return Err(format!("frame {k}: the clusters drawn in a session differ: {m:?}").into());
             }
