@@ -76,39 +76,35 @@ pub(crate) trait Isa: Copy {
 #[derive(Debug, Clone, Copy)]
 pub(crate) struct Portable;
 
+/// The portable slab test of a chunk given `rel(axis, lane)`: the box's corners relative to
+/// the lane's origin, `(lo − o, hi − o)`.
+#[inline(always)]
+fn slab_portable(s: &Slab<'_>, rel: impl Fn(usize, usize) -> (f32, f32)) -> u64 {
+    let mut m = 0u64;
+    for j in 0..CHUNK {
+        let mut near = s.tmin[j];
+        let mut far = s.tmax[j];
+        for a in 0..3 {
+            let (dlo, dhi) = rel(a, j);
+            let t0 = dlo * s.r[a][j];
+            let t1 = dhi * s.r[a][j];
+            near = mx(mn(t0, t1), near);
+            far = mn(mx(t0, t1), far);
+        }
+        m |= ((near <= far * ROBUST) as u64) << j;
+    }
+    m
+}
+
 impl Isa for Portable {
     #[inline(always)]
     unsafe fn slab16(s: &Slab<'_>, lo: &[f32; 3], hi: &[f32; 3]) -> u64 {
-        let mut m = 0u64;
-        for j in 0..CHUNK {
-            let mut near = s.tmin[j];
-            let mut far = s.tmax[j];
-            for a in 0..3 {
-                let t0 = (lo[a] - s.o[a][j]) * s.r[a][j];
-                let t1 = (hi[a] - s.o[a][j]) * s.r[a][j];
-                near = mx(mn(t0, t1), near);
-                far = mn(mx(t0, t1), far);
-            }
-            m |= ((near <= far * ROBUST) as u64) << j;
-        }
-        m
+        slab_portable(s, |a, j| (lo[a] - s.o[a][j], hi[a] - s.o[a][j]))
     }
 
     #[inline(always)]
     unsafe fn slab16_shared(s: &Slab<'_>, dlo: &[f32; 3], dhi: &[f32; 3]) -> u64 {
-        let mut m = 0u64;
-        for j in 0..CHUNK {
-            let mut near = s.tmin[j];
-            let mut far = s.tmax[j];
-            for a in 0..3 {
-                let t0 = dlo[a] * s.r[a][j];
-                let t1 = dhi[a] * s.r[a][j];
-                near = mx(mn(t0, t1), near);
-                far = mn(mx(t0, t1), far);
-            }
-            m |= ((near <= far * ROBUST) as u64) << j;
-        }
-        m
+        slab_portable(s, |a, _| (dlo[a], dhi[a]))
     }
 
     #[inline(always)]
@@ -145,17 +141,18 @@ mod x86 {
     use super::*;
     use std::arch::x86_64::*;
 
+    /// The slab test of eight lanes (from lane `at`) given, per axis, the box's corners
+    /// relative to each lane's origin (`dlo`, `dhi`): the part both forms share.
     #[target_feature(enable = "avx2")]
     #[inline]
-    unsafe fn half(s: &Slab<'_>, lo: &[f32; 3], hi: &[f32; 3], at: usize) -> u32 {
+    unsafe fn half_from(s: &Slab<'_>, dlo: [__m256; 3], dhi: [__m256; 3], at: usize) -> u32 {
         // SAFETY (all loads): `at` is 0 or 8 and every array has 16 lanes.
         let mut near = _mm256_loadu_ps(s.tmin.as_ptr().add(at));
         let mut far = _mm256_loadu_ps(s.tmax.as_ptr().add(at));
         for a in 0..3 {
-            let o = _mm256_loadu_ps(s.o[a].as_ptr().add(at));
             let r = _mm256_loadu_ps(s.r[a].as_ptr().add(at));
-            let t0 = _mm256_mul_ps(_mm256_sub_ps(_mm256_set1_ps(lo[a]), o), r);
-            let t1 = _mm256_mul_ps(_mm256_sub_ps(_mm256_set1_ps(hi[a]), o), r);
+            let t0 = _mm256_mul_ps(dlo[a], r);
+            let t1 = _mm256_mul_ps(dhi[a], r);
             // min(t0, t1) as `t0 < t1 ? t0 : t1` is minps(t0, t1); max likewise. Then
             // near = t > near ? t : near is maxps(t, near).
             near = _mm256_max_ps(_mm256_min_ps(t0, t1), near);
@@ -165,22 +162,29 @@ mod x86 {
         _mm256_movemask_ps(ok) as u32
     }
 
-    /// [`half`] from the box's corners relative to the lanes' one origin.
+    /// [`half_from`] with each lane's own origin.
+    #[target_feature(enable = "avx2")]
+    #[inline]
+    unsafe fn half(s: &Slab<'_>, lo: &[f32; 3], hi: &[f32; 3], at: usize) -> u32 {
+        // SAFETY (loads): `at` is 0 or 8 and every array has 16 lanes.
+        let load = |a: usize| _mm256_loadu_ps(s.o[a].as_ptr().add(at));
+        let (o0, o1, o2) = (load(0), load(1), load(2));
+        let rel = |v: &[f32; 3]| {
+            [
+                _mm256_sub_ps(_mm256_set1_ps(v[0]), o0),
+                _mm256_sub_ps(_mm256_set1_ps(v[1]), o1),
+                _mm256_sub_ps(_mm256_set1_ps(v[2]), o2),
+            ]
+        };
+        half_from(s, rel(lo), rel(hi), at)
+    }
+
+    /// [`half_from`] with one origin for every lane, the corners relative to it given.
     #[target_feature(enable = "avx2")]
     #[inline]
     unsafe fn half_shared(s: &Slab<'_>, dlo: &[f32; 3], dhi: &[f32; 3], at: usize) -> u32 {
-        // SAFETY (all loads): `at` is 0 or 8 and every array has 16 lanes.
-        let mut near = _mm256_loadu_ps(s.tmin.as_ptr().add(at));
-        let mut far = _mm256_loadu_ps(s.tmax.as_ptr().add(at));
-        for a in 0..3 {
-            let r = _mm256_loadu_ps(s.r[a].as_ptr().add(at));
-            let t0 = _mm256_mul_ps(_mm256_set1_ps(dlo[a]), r);
-            let t1 = _mm256_mul_ps(_mm256_set1_ps(dhi[a]), r);
-            near = _mm256_max_ps(_mm256_min_ps(t0, t1), near);
-            far = _mm256_min_ps(_mm256_max_ps(t0, t1), far);
-        }
-        let ok = _mm256_cmp_ps::<_CMP_LE_OQ>(near, _mm256_mul_ps(far, _mm256_set1_ps(ROBUST)));
-        _mm256_movemask_ps(ok) as u32
+        let splat = |v: &[f32; 3]| [_mm256_set1_ps(v[0]), _mm256_set1_ps(v[1]), _mm256_set1_ps(v[2])];
+        half_from(s, splat(dlo), splat(dhi), at)
     }
 
     impl Isa for Avx2 {
@@ -282,38 +286,48 @@ mod x86 {
 
     // AVX-512 intrinsics and target features are stable since Rust 1.89 (the workspace
     // declares an older rust-version; this path needs 1.89).
+    /// The slab test of 16 lanes given, per axis, the box's corners relative to each lane's
+    /// origin (`dlo`, `dhi`): the part both forms share.
     #[allow(clippy::incompatible_msrv)]
     #[target_feature(enable = "avx512f")]
     #[inline]
-    unsafe fn full(s: &Slab<'_>, lo: &[f32; 3], hi: &[f32; 3]) -> u64 {
+    unsafe fn full_from(s: &Slab<'_>, dlo: [__m512; 3], dhi: [__m512; 3]) -> u64 {
         let mut near = _mm512_loadu_ps(s.tmin.as_ptr());
         let mut far = _mm512_loadu_ps(s.tmax.as_ptr());
         for a in 0..3 {
-            let o = _mm512_loadu_ps(s.o[a].as_ptr());
             let r = _mm512_loadu_ps(s.r[a].as_ptr());
-            let t0 = _mm512_mul_ps(_mm512_sub_ps(_mm512_set1_ps(lo[a]), o), r);
-            let t1 = _mm512_mul_ps(_mm512_sub_ps(_mm512_set1_ps(hi[a]), o), r);
+            let t0 = _mm512_mul_ps(dlo[a], r);
+            let t1 = _mm512_mul_ps(dhi[a], r);
             near = _mm512_max_ps(_mm512_min_ps(t0, t1), near);
             far = _mm512_min_ps(_mm512_max_ps(t0, t1), far);
         }
         _mm512_cmp_ps_mask::<_CMP_LE_OQ>(near, _mm512_mul_ps(far, _mm512_set1_ps(ROBUST))) as u64
     }
 
-    /// [`full`] from the box's corners relative to the lanes' one origin.
+    /// [`full_from`] with each lane's own origin.
+    #[allow(clippy::incompatible_msrv)]
+    #[target_feature(enable = "avx512f")]
+    #[inline]
+    unsafe fn full(s: &Slab<'_>, lo: &[f32; 3], hi: &[f32; 3]) -> u64 {
+        let (o0, o1, o2) =
+            (_mm512_loadu_ps(s.o[0].as_ptr()), _mm512_loadu_ps(s.o[1].as_ptr()), _mm512_loadu_ps(s.o[2].as_ptr()));
+        let rel = |v: &[f32; 3]| {
+            [
+                _mm512_sub_ps(_mm512_set1_ps(v[0]), o0),
+                _mm512_sub_ps(_mm512_set1_ps(v[1]), o1),
+                _mm512_sub_ps(_mm512_set1_ps(v[2]), o2),
+            ]
+        };
+        full_from(s, rel(lo), rel(hi))
+    }
+
+    /// [`full_from`] with one origin for every lane, the corners relative to it given.
     #[allow(clippy::incompatible_msrv)]
     #[target_feature(enable = "avx512f")]
     #[inline]
     unsafe fn full_shared(s: &Slab<'_>, dlo: &[f32; 3], dhi: &[f32; 3]) -> u64 {
-        let mut near = _mm512_loadu_ps(s.tmin.as_ptr());
-        let mut far = _mm512_loadu_ps(s.tmax.as_ptr());
-        for a in 0..3 {
-            let r = _mm512_loadu_ps(s.r[a].as_ptr());
-            let t0 = _mm512_mul_ps(_mm512_set1_ps(dlo[a]), r);
-            let t1 = _mm512_mul_ps(_mm512_set1_ps(dhi[a]), r);
-            near = _mm512_max_ps(_mm512_min_ps(t0, t1), near);
-            far = _mm512_min_ps(_mm512_max_ps(t0, t1), far);
-        }
-        _mm512_cmp_ps_mask::<_CMP_LE_OQ>(near, _mm512_mul_ps(far, _mm512_set1_ps(ROBUST))) as u64
+        let splat = |v: &[f32; 3]| [_mm512_set1_ps(v[0]), _mm512_set1_ps(v[1]), _mm512_set1_ps(v[2])];
+        full_from(s, splat(dlo), splat(dhi))
     }
 
     impl Isa for Avx512 {
@@ -446,17 +460,21 @@ impl Isa for Avx512 {
 mod tests {
     use super::*;
 
-    /// Every instruction set's beam test gives the portable bits: boxes inside, outside,
-    /// straddling and on a plane, empty and infinite ones, and culling switched off.
-    #[test]
-    fn beam_tests_agree_across_instruction_sets() {
-        let mut seed = 0x2545_f491_4f6c_dd1du64;
-        let mut next = move || {
+    /// Uniform values in [−4, 4) from a xorshift generator seeded with `seed`.
+    fn uniform(mut seed: u64) -> impl FnMut() -> f32 {
+        move || {
             seed ^= seed << 13;
             seed ^= seed >> 7;
             seed ^= seed << 17;
             (seed >> 40) as f32 / (1u64 << 24) as f32 * 8.0 - 4.0
-        };
+        }
+    }
+
+    /// Every instruction set's beam test gives the portable bits: boxes inside, outside,
+    /// straddling and on a plane, empty and infinite ones, and culling switched off.
+    #[test]
+    fn beam_tests_agree_across_instruction_sets() {
+        let mut next = uniform(0x2545_f491_4f6c_dd1d);
         let special = [0.0f32, -0.0, 1.0, f32::INFINITY, f32::NEG_INFINITY, f32::NAN];
         let mut culled = 0;
         for round in 0..4000 {
@@ -539,13 +557,7 @@ mod tests {
     /// intervals that are empty, open or cut short.
     #[test]
     fn slab_tests_agree_across_instruction_sets_and_origins() {
-        let mut seed = 0x9e37_79b9_7f4a_7c15u64;
-        let mut next = move || {
-            seed ^= seed << 13;
-            seed ^= seed >> 7;
-            seed ^= seed << 17;
-            (seed >> 40) as f32 / (1u64 << 24) as f32 * 8.0 - 4.0
-        };
+        let mut next = uniform(0x9e37_79b9_7f4a_7c15);
         let special = [0.0f32, -0.0, f32::INFINITY, f32::NEG_INFINITY, f32::NAN, 1e-20];
         let mut hits = 0;
         for round in 0..3000 {

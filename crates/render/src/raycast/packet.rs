@@ -58,10 +58,10 @@ pub(crate) const MIXED: u8 = u8::MAX;
 
 /// The permutation every lane of `perm` has, or [`MIXED`].
 #[inline(always)]
-fn uniform_perm(perm: &[u8; CHUNK]) -> u8 {
+fn uniform_perm(perm: &[u32; CHUNK]) -> u8 {
     let p = perm[0];
     if perm.iter().fold(true, |all, &q| all & (q == p)) {
-        p
+        p as u8
     } else {
         MIXED
     }
@@ -84,8 +84,11 @@ pub(crate) struct Rays {
     pub r: [Lf; 3],
     /// Shear constants `Sx`, `Sy`, `Sz` of the watertight triangle test ([`shear_of`]).
     pub s: [Lf; 3],
-    /// Axis permutation of each lane (an index into [`super::shear::AXES`]).
-    pub perm: [[u8; CHUNK]; CHUNKS],
+    /// Axis permutation of each lane (an index into [`super::shear::AXES`]), in 32-bit lanes
+    /// like the other per-lane values: stored as bytes, one per lane, they kept `derive_chunk`
+    /// from vectorizing and read back as a vector through a failed store forward (about a
+    /// tenth of a frame's work outside tracing).
+    pub perm: [[u32; CHUNK]; CHUNKS],
     /// Per chunk, the permutation all its lanes share, or [`MIXED`].
     pub uniform: [u8; CHUNKS],
     /// The common origin when every lane starts at the same point.
@@ -127,32 +130,17 @@ impl Rays {
             self.r[a][c][j] = safe_recip(d[a]);
             self.s[a][c][j] = sh[a];
         }
-        self.perm[c][j] = p as u8;
+        self.perm[c][j] = p as u32;
     }
 
     /// Computes the reciprocals, shears and permutations of chunk `c` from its directions
     /// (after the directions of a whole chunk are written).
     #[inline(always)]
     pub fn derive_chunk(&mut self, c: usize) {
-        // The permutations are kept in 32-bit lanes until the chunk is done: stored byte by
-        // byte as they were made, they kept the loop from vectorizing.
-        let mut perm = [0u32; CHUNK];
-        #[allow(clippy::needless_range_loop)] // lane j of several SoA arrays
         for j in 0..CHUNK {
-            let d = [self.d[0][c][j], self.d[1][c][j], self.d[2][c][j]];
-            let (p, sh) = shear_of(d);
-            for a in 0..3 {
-                self.r[a][c][j] = safe_recip(d[a]);
-                self.s[a][c][j] = sh[a];
-            }
-            perm[j] = p as u32;
+            self.derive_lane(c, j);
         }
-        let first = perm[0];
-        let uniform = perm.iter().fold(true, |all, &q| all & (q == first));
-        for (b, p) in self.perm[c].iter_mut().zip(perm) {
-            *b = p as u8;
-        }
-        self.uniform[c] = if uniform { first as u8 } else { MIXED };
+        self.uniform[c] = uniform_perm(&self.perm[c]);
     }
 
     /// Origin of lane `i`.
