@@ -273,9 +273,9 @@ impl Culler {
     /// add steps (each a hand-over between the workers), while larger ones refresh the
     /// pyramid that binning rejects whole triangles against less often. On the boxfield's
     /// occluder pass (every occluder, two threads, the sizes taking turns pass by pass):
-    /// instanced, 2,048 took 3.69–4.01 ms against 3.82–4.31 ms for 1,024 in five runs, 3,072
-    /// and 16,384 no better; the one-mesh layout the same from 1,024 to 16,384; 256 was
-    /// 10–15% slower in an earlier measurement.
+    /// instanced, 2,048 took 3.60–4.01 ms against 3.81–4.31 ms for 1,024, less in each of
+    /// seven runs, and 3,072 to 16,384 no less; the one-mesh layout the same from 1,024 to
+    /// 16,384; 256 was 10–15% slower in an earlier measurement.
     pub const DEFAULT_MAX_BATCH: usize = 2048;
 
     /// The default [`Culler::one_thread_max_batch`]. A
