@@ -159,8 +159,13 @@ impl CullStats {
 pub struct Culler {
     renderer: Renderer,
     c: Clusters,
-    /// First batch size of the front-to-back walk.
+    /// First batch of the walks that test clusters against the z-pyramid between batches
+    /// (as [`Culler::max_tested_batch`]; later batches double),
+    /// [`Culler::DEFAULT_FIRST_BATCH`] by default.
     pub first_batch: usize,
+    /// First batch of the occluder pass that draws every occluder (as
+    /// [`Culler::max_batch`]), [`Culler::DEFAULT_FIRST_UNTESTED_BATCH`] by default.
+    pub first_untested_batch: usize,
     /// Largest batch of the walks that test clusters against the z-pyramid between batches
     /// (the occlusion methods, and the occluder pass that skips hidden occluders),
     /// [`Culler::DEFAULT_MAX_TESTED_BATCH`] by default.
@@ -252,14 +257,18 @@ const OCTREE_DEPTH: u32 = 6;
 
 impl Culler {
     /// The default [`Culler::first_batch`]: the nearest few clusters go in first, so that
-    /// the pyramid has occluders before the bulk of the walk is tested. 32 rather than 8:
-    /// the boxfield's occluder pass (every occluder, the values taking turns pass by pass in
-    /// one process) took 5.80–5.93 against 6.06–6.69 ms on one thread and 3.57–3.80 against
+    /// the pyramid has occluders before the bulk of the walk is tested (with 32, `hzb`
+    /// street frames took the same time at 10^6, 10^8 and 10^9 triangles, but a scene of a
+    /// few dozen clusters is drawn whole before its first test).
+    pub const DEFAULT_FIRST_BATCH: usize = 8;
+
+    /// The default [`Culler::first_untested_batch`]. That walk tests nothing, so its first
+    /// batch only starts the pipeline of finding one batch while the last is drawn: on the
+    /// boxfield's occluder pass (the values taking turns pass by pass in one process) 32
+    /// took 5.80–5.93 against 6.06–6.69 ms for 8 on one thread and 3.57–3.80 against
     /// 3.71–4.13 ms on two (instanced; one mesh 5.93–6.17 against 6.19–6.53 and 3.42–3.72
-    /// against 3.69–4.03 ms), 16 to 128 about alike; `hzb` street frames were the same at
-    /// 10^6, 10^8 and 10^9 triangles (2.67–2.78 against 2.67–2.77, 9.38–9.66 against
-    /// 9.58–9.69, 19.05 against 18.95 ms).
-    pub const DEFAULT_FIRST_BATCH: usize = 32;
+    /// against 3.69–4.03 ms), 16 to 128 about alike.
+    pub const DEFAULT_FIRST_UNTESTED_BATCH: usize = 32;
 
     /// The default [`Culler::max_tested_batch`]. Smaller batches refresh the pyramid more
     /// often, so fewer clusters are drawn before their occluders: in the street walk of the
@@ -310,7 +319,7 @@ impl Culler {
         let one = if rayon::current_num_threads() == 1 { self.one_thread_max_batch } else { usize::MAX };
         let cap = if tested { self.max_tested_batch } else { self.max_batch };
         Batching {
-            first: self.first_batch.max(1),
+            first: if tested { self.first_batch } else { self.first_untested_batch }.max(1),
             cap: cap.min(one).max(1),
             nearest_first: self.nearest_first,
             // The cursor caps it (at 254).
@@ -331,6 +340,7 @@ impl Culler {
             renderer: Renderer::new(),
             c,
             first_batch: Self::DEFAULT_FIRST_BATCH,
+            first_untested_batch: Self::DEFAULT_FIRST_UNTESTED_BATCH,
             max_tested_batch: Self::DEFAULT_MAX_TESTED_BATCH,
             max_batch: Self::DEFAULT_MAX_BATCH,
             one_thread_max_batch: Self::ONE_THREAD_MAX_BATCH,
