@@ -62,7 +62,7 @@ impl Outcome {
     /// and channel.
     #[inline(always)]
     fn set(&mut self, scene: &mut Scene, (a, first): (&Animation, usize), target: NodeId, pose: &Pose) {
-        match pose.over(scene, target).and_then(|t| scene.set_local_transform(target, t)) {
+        match scene.set_local_components(target, pose.translation, pose.rotation, pose.scale) {
             Ok(()) => self.set += 1,
             Err(e) => self.fail(a, first, e),
         }

@@ -19,9 +19,11 @@
 //! is tried before a binary search (`locate`). The answer never depends on what was kept:
 //! a frame is the same bits whatever was played before (test).
 //!
-//! The copy is made on the first [`Scene::animate`] after the scene's animations change
-//! ([`Scene::animations_mut`], or removing a node some channel drives) and kept until they
-//! change again; [`Scene::add_animation`] (loading and instantiating too) extends it.
+//! The copy is made on the first [`Scene::animate`](crate::Scene::animate) after the
+//! scene's animations change ([`Scene::animations_mut`](crate::Scene::animations_mut), or
+//! removing a node some channel drives) and kept until they change again;
+//! [`Scene::add_animation`](crate::Scene::add_animation) (loading and instantiating too)
+//! extends it.
 //! [`Animation::apply`] plays one animation from its own samplers, with no copy.
 
 use std::ops::Range;
@@ -31,7 +33,7 @@ use rayon::prelude::*;
 
 use super::sampler::{interpolate, locate, Interpolation, Sampler, Span};
 use super::{Animation, Curve, Keyframe, Property, Wrap};
-use crate::{NodeId, Result, Scene, Transform};
+use crate::NodeId;
 
 /// The components of one node's TRS set by its channels; `None`: keep the node's.
 #[derive(Debug, Default, Clone, Copy)]
@@ -39,26 +41,6 @@ pub(crate) struct Pose {
     pub translation: Option<Vec3>,
     pub rotation: Option<Quat>,
     pub scale: Option<Vec3>,
-}
-
-impl Pose {
-    /// The node's new local transform: the sampled components over its current ones, as the
-    /// scene keeps them ([`Scene::local_transform`]: the TRS as last set, so a zero or
-    /// negative scale keeps its rotation and its mirrored axes frame after frame).
-    pub(crate) fn over(&self, scene: &Scene, node: NodeId) -> Result<Transform> {
-        let trs = match (self.translation, self.rotation, self.scale) {
-            (Some(translation), Some(rotation), Some(scale)) => Transform { translation, rotation, scale },
-            (t, r, s) => {
-                let current = scene.local_transform(node)?;
-                Transform {
-                    translation: t.unwrap_or(current.translation),
-                    rotation: r.unwrap_or(current.rotation),
-                    scale: s.unwrap_or(current.scale),
-                }
-            }
-        };
-        Ok(trs)
-    }
 }
 
 /// What playing one animation needs besides its channels.
