@@ -163,7 +163,7 @@ fn refit_range(nodes: &mut [BvhNode], base: usize, item_boxes: &[Aabb]) -> f64 {
 
 /// Refits node `i` of `nodes` (whose first node has index `base`) from its children or
 /// items; returns its share of the SAH cost.
-#[inline]
+#[inline(always)]
 fn refit_node(nodes: &mut [BvhNode], i: usize, base: usize, item_boxes: &[Aabb]) -> f64 {
     let n = nodes[i];
     let b = if n.is_leaf() {
