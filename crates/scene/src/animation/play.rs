@@ -1,9 +1,9 @@
 //! Playing animations: sample every channel at one time and set the targeted nodes' local
 //! transforms (see the parent module for the rules on time and untargeted components).
 //!
-//! The new local transform of a node goes through [`Scene::set_local_transform`], so the node
-//! is marked dirty (and whatever else the scene records about edits happens) exactly as for an
-//! edit made by hand.
+//! The new local transform of a node is set by the code [`Scene::set_local_transform`] runs
+//! (given only the components its channels set), so the node is marked dirty (and whatever
+//! else the scene records about edits happens) exactly as for an edit made by hand.
 
 use super::playback::{Playback, Pose};
 use super::{Animation, Curve};
