@@ -4,7 +4,7 @@
 //! until [`Scene::update_transforms`] runs, [`Scene::needs_update`] is true after any edit.
 
 use glam::{Affine3A, Quat, Vec3};
-use slotmap::Key;
+use slotmap::{Key, SecondaryMap};
 
 use super::{live, Keep, Node, NodeDesc, NodeId, Scene};
 use crate::{Aabb, Error, MaterialId, MeshId, Result, SceneCamera, Transform};
@@ -89,7 +89,7 @@ impl Scene {
         let t = match (translation, rotation, scale) {
             (Some(translation), Some(rotation), Some(scale)) => Transform { translation, rotation, scale },
             (t, r, s) => {
-                let current = self.trs.get(id).copied().unwrap_or_else(|| Transform::from_affine(&n.parent_from_local));
+                let current = kept_trs(&self.trs, id, n);
                 Transform {
                     translation: t.unwrap_or(current.translation),
                     rotation: r.unwrap_or(current.rotation),
@@ -112,8 +112,7 @@ impl Scene {
     /// from its matrix ([`Transform::from_affine`]: a negative scale goes on x, and a zero
     /// scale keeps what rotation the other axes show).
     pub fn local_transform(&self, id: NodeId) -> Result<Transform> {
-        let n = self.try_node(id)?;
-        Ok(self.trs.get(id).copied().unwrap_or_else(|| Transform::from_affine(&n.parent_from_local)))
+        Ok(kept_trs(&self.trs, id, self.try_node(id)?))
     }
 
     /// `e` with the node's name as the object it is about.
@@ -330,6 +329,13 @@ impl Scene {
             }
         }
     }
+}
+
+/// Node `id`'s TRS as the scene keeps it: as last given, else taken from its matrix
+/// ([`Node::local_transform`]). A free function, so that a setter holding the node mutably
+/// can read it.
+fn kept_trs(trs: &SecondaryMap<NodeId, Transform>, id: NodeId, n: &Node) -> Transform {
+    trs.get(id).copied().unwrap_or_else(|| n.local_transform())
 }
 
 /// Marks node `n` (handle `id`) dirty for the next update, once: its depth goes with the mark
