@@ -64,15 +64,26 @@ impl Transform {
     /// This transform with its rotation made unit; errors on NaN/inf components or a zero
     /// quaternion (`what` names the thing in the error).
     pub fn normalized(&self, what: &str) -> Result<Transform> {
-        let bad = |why: &str| Error::InvalidTransform { what: what.to_string(), why: why.to_string() };
+        match self.unit_rotation() {
+            Ok(rotation) => Ok(Transform { rotation, ..*self }),
+            Err(why) => Err(Error::InvalidTransform { what: what.to_string(), why: why.to_string() }),
+        }
+    }
+
+    /// The rotation made unit, or why the transform is invalid (a NaN or infinite
+    /// component, a zero quaternion). Only the quaternion comes back, in a register: a whole
+    /// `Transform` in a `Result`, its `Vec3`s written in 4-byte pieces and read back in 8,
+    /// made every pose set by an animation wait on the stores (seen in `perf`).
+    #[inline]
+    pub(crate) fn unit_rotation(&self) -> std::result::Result<Quat, &'static str> {
         if !self.translation.is_finite() || !self.scale.is_finite() || !self.rotation.is_finite() {
-            return Err(bad("a component is NaN or infinite"));
+            return Err("a component is NaN or infinite");
         }
         let len = self.rotation.length();
         if len < 1e-6 {
-            return Err(bad("rotation quaternion has zero length"));
+            return Err("rotation quaternion has zero length");
         }
-        Ok(Transform { rotation: self.rotation / len, ..*self })
+        Ok(self.rotation / len)
     }
 
     /// The matrix `T * R * S` as it stands (the rotation taken as given).
