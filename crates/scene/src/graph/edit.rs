@@ -99,6 +99,8 @@ impl Scene {
             Ok(r) => r,
             Err(why) => return Err(self.name_in(id, Error::InvalidTransform { what: String::new(), why: why.into() })),
         };
+        // `Transform::matrix` of the unit transform, spelled out: through a `Transform` with
+        // the new rotation, posing 10^4 nodes took 0.42–0.43 ms against 0.36–0.39.
         n.parent_from_local = Affine3A::from_scale_rotation_translation(t.scale, rotation, t.translation);
         let t = Transform { rotation, ..t };
         mark(&mut self.dirty, n, id);
