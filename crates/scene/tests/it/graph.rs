@@ -231,6 +231,22 @@ fn bad_transforms_are_errors_naming_the_node() {
     assert!(s.set_parent(a, Some(flat), Keep::Local).is_ok());
 }
 
+/// The TRS a node keeps is the one given with its rotation made unit, whether the node had
+/// none yet (the first set) or one to overwrite (every set after).
+#[test]
+fn the_kept_trs_has_a_unit_rotation_on_every_set() {
+    let mut s = Scene::new();
+    let a = s.add_node(None, NodeDesc::new("arm")).unwrap();
+    let unit = Quat::from_rotation_y(0.7);
+    for k in 1..=3 {
+        let t = Transform::from_translation(Vec3::splat(k as f32)).with_scale(Vec3::splat(2.0));
+        s.set_local_transform(a, Transform { rotation: unit * (2.0 * k as f32), ..t }).unwrap();
+        let kept = s.local_transform(a).unwrap();
+        assert!((kept.rotation.length() - 1.0).abs() < 1e-6, "set {k}: {:?}", kept.rotation);
+        assert!(kept.rotation.abs_diff_eq(unit, 1e-6) && kept.translation == t.translation && kept.scale == t.scale);
+    }
+}
+
 /// Removing a batch equals removing its nodes one by one: the survivors keep their order
 /// (and so their triangle IDs); nested and repeated handles are fine; a stale one removes
 /// nothing.
