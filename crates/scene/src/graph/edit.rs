@@ -97,7 +97,7 @@ impl Scene {
         // The matrix from the unit rotation in registers (see `Transform::unit_rotation`).
         let rotation = match t.unit_rotation() {
             Ok(r) => r,
-            Err(why) => return Err(self.name_in(id, Error::InvalidTransform { what: String::new(), why: why.into() })),
+            Err(why) => return Err(Error::InvalidTransform { what: format!("node '{}'", n.name), why: why.into() }),
         };
         // `Transform::matrix` of the unit transform, spelled out: through a `Transform` with
         // the new rotation, posing 10^4 nodes took 0.42–0.43 ms against 0.36–0.39.

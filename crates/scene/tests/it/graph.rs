@@ -218,7 +218,7 @@ fn bad_transforms_are_errors_naming_the_node() {
     let mut s = Scene::new();
     let a = s.add_node(None, NodeDesc::new("lamp")).unwrap();
     let e = s.set_local_transform(a, Transform::from_translation(Vec3::new(f32::NAN, 0.0, 0.0))).unwrap_err();
-    assert!(e.to_string().contains("NaN"), "{e}");
+    assert!(e.to_string().contains("NaN") && e.to_string().contains("lamp"), "{e}");
     let e = s.set_local_matrix(a, Affine3A::from_scale(Vec3::splat(f32::INFINITY))).unwrap_err();
     assert!(e.to_string().contains("lamp"), "{e}");
     let e = s.add_node(None, NodeDesc::new("bad").matrix(Affine3A::from_translation(Vec3::NAN))).unwrap_err();
