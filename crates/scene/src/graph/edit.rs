@@ -4,7 +4,7 @@
 //! until [`Scene::update_transforms`] runs, [`Scene::needs_update`] is true after any edit.
 
 use glam::{Affine3A, Quat, Vec3};
-use slotmap::{Key, SecondaryMap};
+use slotmap::Key;
 
 use super::{live, Keep, Node, NodeDesc, NodeId, Scene};
 use crate::{Aabb, Error, MaterialId, MeshId, Result, SceneCamera, Transform};
@@ -86,9 +86,10 @@ impl Scene {
         let Some(n) = self.nodes.get_mut(id) else {
             return Err(Error::StaleNode(id));
         };
+        let kept = self.trs.get_mut(id);
         let t = match (translation, rotation, scale) {
             (Some(translation), Some(rotation), Some(scale)) => Transform { translation, rotation, scale },
-            (t, r, s) => with_kept_trs(&self.trs, id, n, |current| Transform {
+            (t, r, s) => with_kept_trs(kept.as_deref(), n, |current| Transform {
                 translation: t.unwrap_or(current.translation),
                 rotation: r.unwrap_or(current.rotation),
                 scale: s.unwrap_or(current.scale),
@@ -106,7 +107,7 @@ impl Scene {
         // Written in place, component by component, when the node keeps a TRS already (as
         // every posed node does after its first pose): an insert of a whole `Transform` built
         // on the stack waited on that copy's stores (perf).
-        match self.trs.get_mut(id) {
+        match kept {
             Some(kept) => {
                 kept.translation = t.translation;
                 kept.rotation = rotation;
@@ -124,7 +125,7 @@ impl Scene {
     /// from its matrix ([`Transform::from_affine`]: a negative scale goes on x, and a zero
     /// scale keeps what rotation the other axes show).
     pub fn local_transform(&self, id: NodeId) -> Result<Transform> {
-        Ok(with_kept_trs(&self.trs, id, self.try_node(id)?, |t| *t))
+        Ok(with_kept_trs(self.trs.get(id), self.try_node(id)?, |t| *t))
     }
 
     /// `e` with the node's name as the object it is about.
@@ -343,14 +344,14 @@ impl Scene {
     }
 }
 
-/// `f` of node `id`'s TRS as the scene keeps it: as last given, else taken from its matrix
-/// ([`Node::local_transform`]). A free function, so that a setter holding the node mutably
-/// can read it; the TRS is read in place, as posing reads the components it does not set
-/// (a copy of the whole `Transform` first made each pose wait on the copy's stores: setting
-/// 10^4 poses took about 6% longer).
+/// `f` of a node's TRS as the scene keeps it: `kept`, the TRS last given (the node's entry
+/// in the scene's map, looked up by the caller, which may go on to write it), else taken
+/// from the node's matrix ([`Node::local_transform`]). The TRS is read in place, as posing
+/// reads the components it does not set (a copy of the whole `Transform` first made each
+/// pose wait on the copy's stores: setting 10^4 poses took about 6% longer).
 #[inline(always)]
-fn with_kept_trs<R>(trs: &SecondaryMap<NodeId, Transform>, id: NodeId, n: &Node, f: impl FnOnce(&Transform) -> R) -> R {
-    match trs.get(id) {
+fn with_kept_trs<R>(kept: Option<&Transform>, n: &Node, f: impl FnOnce(&Transform) -> R) -> R {
+    match kept {
         Some(t) => f(t),
         None => f(&n.local_transform()),
     }
