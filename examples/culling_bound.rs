@@ -164,9 +164,7 @@ fn run() -> Result<(), Error> {
             let hzb_stage = report.cull.map_or([0.0; 3], |c| [c.ms_cull, c.ms_draw, c.ms_shading]);
             let hzb_raster = report.raster.unwrap_or_default();
             let items = visible_items(&reference.ids, &instances);
-            // Timed after an untimed draw of the same frame: the renderer's buffers are then
-            // warm, as in a program drawing only such frames (after the world's frames, the
-            // first draw took 0.1 ms longer at 10^6 triangles, most of it rasterizing).
+            // Timed after an untimed draw of itself (`warm`; the module docs say why).
             let (st, oracle) = warm(|| renderer.render(world.scene(), &instances, &items.0, cam, &mut fb, &opts))?;
             if let Some(m) = compare_ids(&reference.ids, &fb.ids, fb.width()) {
                 let of = if with_brute { "brute force" } else { "the hzb frame" };

@@ -128,14 +128,6 @@ impl Scene {
         Ok(with_kept_trs(self.trs.get(id), self.try_node(id)?, |t| *t))
     }
 
-    /// `e` with the node's name as the object it is about.
-    fn name_in(&self, id: NodeId, e: Error) -> Error {
-        match (e, self.nodes.get(id)) {
-            (Error::InvalidTransform { why, .. }, Some(n)) => invalid_transform_of(n, why),
-            (e, _) => e,
-        }
-    }
-
     /// Renames a node.
     pub fn set_name(&mut self, id: NodeId, name: impl Into<String>) -> Result<()> {
         self.node_mut(id)?.name = name.into().into_boxed_str();
@@ -144,8 +136,12 @@ impl Scene {
 
     /// Sets a node's local transform from a matrix (errors on NaN/inf).
     pub fn set_local_matrix(&mut self, id: NodeId, m: Affine3A) -> Result<()> {
-        self.try_node(id)?;
-        crate::transform::validate_affine(&m, "").map_err(|e| self.name_in(id, e))?;
+        let n = self.try_node(id)?;
+        // The node's name goes into the error only when there is one: no allocation per edit.
+        crate::transform::validate_affine(&m, "").map_err(|e| match e {
+            Error::InvalidTransform { why, .. } => invalid_transform_of(n, why),
+            e => e,
+        })?;
         self.node_mut(id)?.parent_from_local = m;
         self.trs.remove(id);
         self.mark_dirty(id);
