@@ -136,15 +136,19 @@ impl Scene {
 
     /// Sets a node's local transform from a matrix (errors on NaN/inf).
     pub fn set_local_matrix(&mut self, id: NodeId, m: Affine3A) -> Result<()> {
-        let n = self.try_node(id)?;
-        // The node's name goes into the error only when there is one: no allocation per edit.
-        crate::transform::validate_affine(&m, "").map_err(|e| match e {
-            Error::InvalidTransform { why, .. } => invalid_transform_of(n, why),
-            e => e,
-        })?;
-        self.node_mut(id)?.parent_from_local = m;
+        let Some(n) = self.nodes.get_mut(id) else {
+            return Err(Error::StaleNode(id));
+        };
+        // Checked without a name, which goes into the error only: no allocation per edit.
+        if let Err(e) = crate::transform::validate_affine(&m, "") {
+            return Err(match e {
+                Error::InvalidTransform { why, .. } => invalid_transform_of(n, why),
+                e => e,
+            });
+        }
+        n.parent_from_local = m;
+        mark(&mut self.dirty, n, id);
         self.trs.remove(id);
-        self.mark_dirty(id);
         Ok(())
     }
 
