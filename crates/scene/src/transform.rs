@@ -122,17 +122,26 @@ impl Transform {
 
 /// Checks a matrix given by a caller or a file: every entry finite.
 pub fn validate_affine(m: &Affine3A, what: &str) -> Result<()> {
-    if !m.is_finite() {
-        return Err(Error::InvalidTransform { what: what.into(), why: "matrix has NaN or infinite entries".into() });
+    match affine_fault(m) {
+        Some(why) => Err(Error::InvalidTransform { what: what.into(), why: why.into() }),
+        None => Ok(()),
     }
-    Ok(())
 }
+
+/// Why `m` cannot be a transform (an entry is NaN or infinite), or `None`: the check of
+/// [`validate_affine`] for callers that build the error's `what` only when it fails.
+pub(crate) fn affine_fault(m: &Affine3A) -> Option<&'static str> {
+    (!m.is_finite()).then_some(NOT_FINITE)
+}
+
+/// What is wrong with a matrix that has NaN or infinite entries.
+const NOT_FINITE: &str = "matrix has NaN or infinite entries";
 
 /// Converts a 4x4 matrix from a file into an affine one; errors when its last row is not (0,0,0,1).
 pub fn affine_from_mat4(m: &Mat4, what: &str) -> Result<Affine3A> {
     let r = m.row(3);
     if !m.is_finite() {
-        return Err(Error::InvalidTransform { what: what.into(), why: "matrix has NaN or infinite entries".into() });
+        return Err(Error::InvalidTransform { what: what.into(), why: NOT_FINITE.into() });
     }
     if (r - glam::Vec4::W).abs().max_element() > 1e-6 {
         return Err(Error::InvalidTransform { what: what.into(), why: format!("last row {r} is not (0, 0, 0, 1)") });

@@ -6,7 +6,8 @@
 use glam::{Affine3A, Quat, Vec3};
 use slotmap::Key;
 
-use super::{live, Keep, Node, NodeDesc, NodeId, Scene};
+use super::{invalid_transform_of, live, Keep, Node, NodeDesc, NodeId, Scene};
+use crate::transform::affine_fault;
 use crate::{Aabb, Error, MaterialId, MeshId, Result, SceneCamera, Transform};
 
 /// What [`Scene::remove_node`] removed.
@@ -24,7 +25,11 @@ impl Scene {
     ///
     /// Errors on a stale parent, stale mesh/material handles or a non-finite transform.
     pub fn add_node(&mut self, parent: Option<NodeId>, desc: NodeDesc) -> Result<NodeId> {
-        crate::transform::validate_affine(&desc.local, &format!("node '{}'", desc.name))?;
+        // The name is formatted only into an error: formatted up front, adding 10^6 nodes
+        // took 300 ms against 231.
+        if let Some(why) = affine_fault(&desc.local) {
+            return Err(invalid_transform_of(&desc.name, why));
+        }
         if let Some(m) = desc.mesh {
             self.try_mesh(m)?;
         }
@@ -98,7 +103,7 @@ impl Scene {
         // The matrix from the unit rotation in registers (see `Transform::unit_rotation`).
         let rotation = match t.unit_rotation() {
             Ok(r) => r,
-            Err(why) => return Err(invalid_transform_of(n, why)),
+            Err(why) => return Err(invalid_transform_of(&n.name, why)),
         };
         // `Transform::matrix` of the unit transform, spelled out: through a `Transform` with
         // the new rotation, posing 10^4 nodes took 0.42–0.43 ms against 0.36–0.39.
@@ -139,12 +144,8 @@ impl Scene {
         let Some(n) = self.nodes.get_mut(id) else {
             return Err(Error::StaleNode(id));
         };
-        // Checked without a name, which goes into the error only: no allocation per edit.
-        if let Err(e) = crate::transform::validate_affine(&m, "") {
-            return Err(match e {
-                Error::InvalidTransform { why, .. } => invalid_transform_of(n, why),
-                e => e,
-            });
+        if let Some(why) = affine_fault(&m) {
+            return Err(invalid_transform_of(&n.name, why));
         }
         n.parent_from_local = m;
         mark(&mut self.dirty, n, id);
@@ -353,11 +354,6 @@ fn with_kept_trs<R>(kept: Option<&Transform>, n: &Node, f: impl FnOnce(&Transfor
         Some(t) => f(t),
         None => f(&n.local_transform()),
     }
-}
-
-/// The error for node `n`'s transform, invalid because of `why`, naming the node.
-fn invalid_transform_of(n: &Node, why: impl Into<String>) -> Error {
-    Error::InvalidTransform { what: format!("node '{}'", n.name), why: why.into() }
 }
 
 /// Marks node `n` (handle `id`) dirty for the next update, once: its depth goes with the mark

@@ -40,6 +40,11 @@ new_key_type! {
     pub struct MaterialId;
 }
 
+/// The error for the transform of the node named `name`, invalid because of `why`.
+fn invalid_transform_of(name: &str, why: impl Into<String>) -> Error {
+    Error::InvalidTransform { what: format!("node '{name}'"), why: why.into() }
+}
+
 /// The handles of a child list (or the roots) that are not null: removing a node leaves a
 /// null handle in its parent's list, so that removing many children of one parent one at a
 /// time costs O(1) each instead of a shift of the whole list (see `Scene::unlink`).

@@ -4,7 +4,7 @@
 use glam::Affine3A;
 use slotmap::{Key, SlotMap};
 
-use super::{Changes, MaterialId, MeshId, Node, NodeId, Scene};
+use super::{invalid_transform_of, Changes, MaterialId, MeshId, Node, NodeId, Scene};
 use crate::{Aabb, Mesh, Result};
 
 /// What a node passes down to its children: its world transform and its material in effect.
@@ -38,10 +38,10 @@ impl Scene {
             return Ok(());
         }
         let name = self.nodes.values().find(|n| n.overflowed).map_or("", |n| &n.name);
-        Err(crate::Error::InvalidTransform {
-            what: format!("node '{name}'"),
-            why: "its world transform overflows (NaN or infinite entries): the scales or translations of it and its ancestors multiply past the largest f32".into(),
-        })
+        Err(invalid_transform_of(
+            name,
+            "its world transform overflows (NaN or infinite entries): the scales or translations of it and its ancestors multiply past the largest f32",
+        ))
     }
 
     /// True when an edit has not been propagated yet: a node's world transform, bounds or
