@@ -22,6 +22,7 @@ mod deferred;
 pub mod depth;
 mod edge;
 mod error;
+mod forward;
 mod framebuffer;
 mod geometry;
 pub mod hzb;

@@ -22,6 +22,7 @@ use sightline_spatial::prefetch_all;
 use sightline_spatial::simd::SimdLevel;
 
 use crate::clip::{self, BAD, GUARD, VIEW_BITS};
+use crate::forward::read_alone;
 use crate::setup::{setup_into, Outcome, SnappedVertex, Tri, Viewport};
 use crate::stats::FrameStats;
 pub(crate) use list::{placed_item, DrawList, MeshData, Placed};
@@ -147,7 +148,7 @@ impl Chunk {
         self.stats = FrameStats::default();
         // The last piece's item and matrix: consecutive items often share the matrix (the
         // clusters of one instance), which a list that computes matrices then reuses.
-        let mut prev: Option<(usize, Mat4)> = None;
+        let (mut prev, mut prev_m) = (None, Mat4::IDENTITY);
         for (n, p) in pieces.iter().enumerate() {
             // Pieces are often small clusters scattered over memory: ask for the record an
             // item is made from (where the list has one) six pieces ahead, the indices
@@ -164,8 +165,20 @@ impl Chunk {
                 prefetch_vertices(items, a);
             }
             let k = p.item as usize;
-            let item = items.item(k, prev.as_ref().map(|(j, m)| (*j, m)));
-            prev = item.matrix().map(|m| (k, *m));
+            let item = items.item(k, prev.map(|j| (j, &prev_m)));
+            // The matrix was just stored into the item column by column; copied column by
+            // column (`read_alone`), not in the compiler's 256-bit halves, so that the loads
+            // do not wait for the stores (geometry in the boxfield's occluder pass 3.47–3.78
+            // → 3.25–3.46 ms on one thread).
+            prev = item.matrix().map(|m| {
+                prev_m = Mat4::from_cols(
+                    read_alone(&m.x_axis),
+                    read_alone(&m.y_axis),
+                    read_alone(&m.z_axis),
+                    read_alone(&m.w_axis),
+                );
+                k
+            });
             self.stats.triangles_in += p.count as u64;
             match item.src {
                 Source::Mesh { positions, indices, ref clip_from_local, ids } => {

@@ -22,6 +22,8 @@ use super::tile::{TileBuf, PAD};
 use super::TriRaster;
 use crate::depth::DepthCodec;
 use crate::edge::{BlockEdges, Tri, ONE, SUBPIXEL_BITS};
+#[cfg(target_arch = "x86_64")]
+use crate::forward::read_alone;
 use crate::tiling::{TILE, TILE_SHIFT};
 
 /// A block kernel for one instruction set.
@@ -267,18 +269,19 @@ pub(super) fn row_sse2<D: DepthCodec, const COUNT: bool>(
     }
 }
 
-/// `k`'s nine values, each loaded on its own (volatile reads, which the compiler may not
-/// merge). The block setup stores them as nine scalars just before the kernel runs; left to
-/// itself the compiler loads them back as 256-bit vectors to broadcast from, and a load that
-/// spans several smaller stores cannot take its data from them: it waits until they reach
-/// the cache. That wait was the AVX2 tile stage's hottest spot on a Zen 3 (9% of its samples
-/// on the oracle frame); loaded one by one, each value is forwarded from its own store.
+/// `k`'s nine values, each read with a load of its own ([`read_alone`]). The block setup
+/// stores them as nine scalars just before the kernel runs; read as the compiler would (256-bit
+/// loads to broadcast from, each spanning several of those stores), they waited for the stores
+/// to reach the cache: the AVX2 tile stage's hottest spot on a Zen 3, 9% of its samples on the
+/// oracle frame.
 #[cfg(target_arch = "x86_64")]
 #[inline(always)]
 fn edges_one_by_one(k: &BlockEdges) -> BlockEdges {
-    // SAFETY: a reference is valid for reads.
-    let read = |v: &i32| unsafe { std::ptr::read_volatile(v) };
-    BlockEdges { e: k.e.each_ref().map(read), a: k.a.each_ref().map(read), b: k.b.each_ref().map(read) }
+    BlockEdges {
+        e: k.e.each_ref().map(read_alone),
+        a: k.a.each_ref().map(read_alone),
+        b: k.b.each_ref().map(read_alone),
+    }
 }
 
 /// The value unchanged, but opaque to the optimizer (see [`opaque`]).
