@@ -26,7 +26,7 @@ impl Scene {
     /// Errors on a stale parent, stale mesh/material handles or a non-finite transform.
     pub fn add_node(&mut self, parent: Option<NodeId>, desc: NodeDesc) -> Result<NodeId> {
         // The name is formatted only into an error: formatted up front, adding 10^6 nodes
-        // took 300 ms against 231.
+        // took 299–306 ms against 230–233.
         if let Some(why) = affine_fault(&desc.local) {
             return Err(invalid_transform_of(&desc.name, why));
         }
